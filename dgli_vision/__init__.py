@@ -1,0 +1,1 @@
+"""dgli_vision."""
