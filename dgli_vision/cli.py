@@ -39,6 +39,228 @@ def main() -> None:
     """dgli_vision: classify the state of a marked napkin with dGLI cloth coordinates."""
 
 
+def _command_line() -> str:
+    """The command as typed, for provenance records."""
+    import shlex
+
+    return " ".join(["dgli", *(shlex.quote(a) for a in sys.argv[1:])]) if sys.argv else "dgli"
+
+
+def _package_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("dgli_vision")
+    except PackageNotFoundError:  # pragma: no cover - running from a bare checkout
+        return "unknown"
+
+
+def _progress(items: list, label: str):
+    """A progress bar on a terminal; the plain iterable otherwise."""
+    if sys.stderr.isatty():
+        return click.progressbar(items, label=label, file=sys.stderr)
+    from contextlib import nullcontext
+
+    return nullcontext(items)
+
+
+@main.command()
+@click.argument("out", type=click.Path(file_okay=False))
+@click.option(
+    "--per-class", default=20, show_default=True, type=click.IntRange(1), help="States per class."
+)
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the database.")
+@click.option("--no-wrinkles", is_flag=True, help="Fold cleanly, without wrinkles.")
+@_handle_errors
+def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
+    """Write a simulated database of cloth states to OUT (meshes, truth, index)."""
+    from .cloth.states import CLASS_IDS
+    from .database import simulate_states
+    from .io import write_database
+
+    states = []
+    with _progress(list(CLASS_IDS), "simulating") as classes:
+        for class_id in classes:
+            states += simulate_states(
+                per_class, seed, classes=(class_id,), wrinkles=not no_wrinkles
+            )
+    provenance = {
+        "command": _command_line(),
+        "seed": seed,
+        "per_class": per_class,
+        "wrinkles": not no_wrinkles,
+        "package_version": _package_version(),
+    }
+    index = write_database(out, states, provenance)
+    click.echo(f"wrote {len(states)} states to {index}")
+
+
+@main.group()
+def references() -> None:
+    """Build the reference set the classifier matches against."""
+
+
+@references.command("build")
+@click.argument("db", type=click.Path())
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Reference file to write.",
+)
+@_handle_errors
+def references_build(db: str, output: str) -> None:
+    """Pick one representative per class and variant from the simulated database DB."""
+    from .io import read_database, write_references
+    from .references import build_references
+
+    records, db_provenance = read_database(db)
+    provenance = {
+        "command": _command_line(),
+        "database": db_provenance,
+        "n_states": len(records),
+        "package_version": _package_version(),
+        "method": "per (class, variant): the state nearest (Spearman) to the group centroid",
+    }
+    refs = build_references(records, provenance=provenance)
+    write_references(output, refs)
+    click.echo(f"wrote {len(refs)} references from {len(records)} states to {output}")
+
+
+def _sequence_records(name: str):
+    from .cloth.sequences import folding_sequence
+    from .database import records_from_states
+
+    frames = folding_sequence(name)
+    return records_from_states([(f"{name}_{k:03d}", s) for k, s in enumerate(frames)])
+
+
+@main.command()
+@click.argument("db", type=click.Path())
+@click.option(
+    "--report",
+    "report_dir",
+    type=click.Path(file_okay=False),
+    help="Write the table and heatmaps here.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+@_handle_errors
+def compare(db: str, report_dir: str | None, as_json: bool) -> None:
+    """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
+
+    Columns: the database labelled by class, the same labelled by class and variant,
+    and the three folding sequences labelled by their frames' true class.
+    """
+    import dataclasses
+    from pathlib import Path
+
+    import numpy as np
+
+    from .compare import davies_bouldin_table, distance_matrices
+    from .io import read_database, write_json, write_png, write_text
+    from .report import csv_table, heatmap_image, markdown_table
+
+    records, _ = read_database(db)
+    order = np.argsort(np.asarray(records.classes), kind="stable")
+    records = records.subset(order)
+    by_variant = dataclasses.replace(
+        records, classes=tuple(f"{c}/{v}" for c, v in zip(records.classes, records.variants))
+    )
+    datasets = {
+        "database": records,
+        "database by variant": by_variant,
+        **{n: _sequence_records(n) for n in ("I", "II", "III")},
+    }
+    table = davies_bouldin_table(datasets)
+    columns = table["columns"]
+    rows = [[name, *vals] for name, vals in table["rows"].items()]
+    if as_json:
+        click.echo(json.dumps(table))
+    else:
+        click.echo("Davies-Bouldin index (lower is better)")
+        click.echo(markdown_table(["representation", *columns], rows), nl=False)
+    if report_dir:
+        out = Path(report_dir)
+        write_json(out / "table.json", table)
+        write_text(
+            out / "table.md",
+            "# Davies-Bouldin index (lower is better)\n\n"
+            + markdown_table(["representation", *columns], rows),
+        )
+        write_text(out / "table.csv", csv_table(["representation", *columns], rows))
+        for name, mat in distance_matrices(records).items():
+            img = heatmap_image(
+                mat,
+                title=f"{name}: distances, samples by class",
+                groups=records.classes,
+                value_label="distance",
+            )
+            write_png(out / f"distances_{name}.png", img)
+        click.echo(f"report written to {out}", err=True)
+
+
+@main.command()
+@click.argument("name", type=click.Choice(["I", "II", "III"]))
+@click.option(
+    "--references", "references_path", type=click.Path(dir_okay=False), help="Reference set file."
+)
+@click.option(
+    "--report",
+    "report_dir",
+    type=click.Path(file_okay=False),
+    help="Write the heatmap and frames here.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
+@_handle_errors
+def sequence(
+    name: str, references_path: str | None, report_dir: str | None, as_json: bool
+) -> None:
+    """Folding sequence NAME: frame distance matrix and detected state changes."""
+    from pathlib import Path
+
+    from .cloth.sequences import SEQUENCES
+    from .compare import analyse_sequence
+    from .io import write_json, write_png
+    from .references import load_references
+    from .report import heatmap_image
+
+    refs = load_references(references_path)
+    records = _sequence_records(name)
+    result = analyse_sequence(records, refs)
+    summary = {
+        "sequence": name,
+        "description": SEQUENCES[name][0],
+        "frames": len(records),
+        "truth": list(result.truth),
+        "predicted": list(result.predicted),
+        "true_changes": list(result.true_changes),
+        "detected_changes": list(result.detected_changes),
+        "frame_accuracy": round(result.frame_accuracy, 4),
+    }
+    if as_json:
+        click.echo(json.dumps(summary))
+    else:
+        click.echo(f"sequence {name}: {SEQUENCES[name][0]} ({len(records)} frames)")
+        click.echo(f"  truth:     {' '.join(result.truth)}")
+        click.echo(f"  predicted: {' '.join(result.predicted)}")
+        click.echo(
+            f"  state changes: true at frames {list(result.true_changes)}, "
+            f"detected at {list(result.detected_changes)}; "
+            f"frame accuracy {result.frame_accuracy:.0%}"
+        )
+    if report_dir:
+        out = Path(report_dir)
+        write_json(out / f"sequence_{name}.json", summary)
+        img = heatmap_image(
+            result.distances,
+            title=f"sequence {name}: Spearman distance of dGLI",
+            groups=result.truth,
+            value_label="1 - rho",
+        )
+        write_png(out / f"sequence_{name}.png", img)
+
+
 @main.command()
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
 @_handle_errors

@@ -27,6 +27,7 @@ __all__ = [
     "VARIANTS",
     "ClothState",
     "FoldStep",
+    "boundary_uv",
     "corner_fold_line",
     "diagonal_fold_line",
     "make_state",
@@ -121,6 +122,10 @@ class ClothState:
         World positions of the sticker centres, metres (SPEC order).
     visible_fraction : ndarray, shape (16,)
         Fraction of each sticker's disc seen by a camera straight above.
+    corner_points : ndarray, shape (4, 3)
+        World positions of corners A, B, C, D, metres.
+    boundary : ndarray, shape (m, 3)
+        The boundary polyline A -> B -> C -> D (open: D -> A is implied), metres.
     params : dict
         How the state was drawn (legs, fold offsets, yaw, wrinkle amplitude, ...).
     """
@@ -130,6 +135,8 @@ class ClothState:
     mesh: ClothMesh
     sticker_points: NDArray[np.float64]
     visible_fraction: NDArray[np.float64]
+    corner_points: NDArray[np.float64]
+    boundary: NDArray[np.float64]
     params: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -275,6 +282,19 @@ def _wrinkle(xy: NDArray, amplitude_m: float, rng: np.random.Generator) -> NDArr
     return amplitude_m * (field_ - lo) / max(hi - lo, 1e-12)
 
 
+def boundary_uv(layout: NapkinLayout, *, step_mm: float = 40.0) -> NDArray[np.float64]:
+    """Material points (m, 2) along the boundary A -> B -> C -> D -> (A), about
+    ``step_mm`` apart, starting at A; each corner is included."""
+    pts = []
+    c = layout.corner_uv
+    for k in range(4):
+        a, b = c[k], c[(k + 1) % 4]
+        n = max(1, round(float(np.linalg.norm(b - a)) / step_mm))
+        t = np.arange(n)[:, None] / n
+        pts.append(a + t * (b - a))
+    return np.concatenate(pts)
+
+
 def _disc_samples(layout: NapkinLayout) -> NDArray[np.float64]:
     """13 material offsets (mm) on a sticker disc: the centre and two rings of six."""
     r = layout.disc_diameter_mm / 2
@@ -372,6 +392,8 @@ def make_state(
         mesh=mesh,
         sticker_points=mesh.interpolate(layout.sticker_uv),
         visible_fraction=sticker_visibility(mesh, layout, thickness_m=thickness),
+        corner_points=mesh.interpolate(layout.corner_uv),
+        boundary=mesh.interpolate(boundary_uv(layout)),
         params=info,
     )
 

@@ -1,0 +1,116 @@
+"""The paper's comparison of representations (Table 1) and its sequence analysis."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .baselines import corner_distances, pairwise_curve_distances, segment_distances
+from .classify import classify_coordinates
+from .database import StateRecords
+from .distance import davies_bouldin, pairwise_spearman
+from .references import ReferenceSet
+
+__all__ = [
+    "REPRESENTATIONS",
+    "SequenceAnalysis",
+    "analyse_sequence",
+    "davies_bouldin_table",
+    "distance_matrices",
+]
+
+REPRESENTATIONS: dict[str, Callable[[StateRecords], NDArray[np.float64]]] = {
+    "dgli": lambda r: pairwise_spearman(r.coordinates),
+    "edges": lambda r: pairwise_spearman(
+        segment_distances(r.sticker_points.reshape(len(r), -1, 2, 3))
+    ),
+    "corners": lambda r: pairwise_spearman(corner_distances(r.corner_points)),
+    "frechet": lambda r: pairwise_curve_distances(r.boundary, "frechet"),
+    "hausdorff": lambda r: pairwise_curve_distances(r.boundary, "hausdorff"),
+}
+
+
+def distance_matrices(
+    records: StateRecords, names: tuple[str, ...] = tuple(REPRESENTATIONS)
+) -> dict[str, NDArray[np.float64]]:
+    """Distance matrix (n, n) of ``records`` under each representation."""
+    return {name: REPRESENTATIONS[name](records) for name in names}
+
+
+def davies_bouldin_table(
+    datasets: dict[str, StateRecords], names: tuple[str, ...] = tuple(REPRESENTATIONS)
+) -> dict[str, object]:
+    """Davies-Bouldin index (lower is better) of each representation on each data set.
+
+    Parameters
+    ----------
+    datasets : dict of str to StateRecords
+        Column name -> samples labelled by class (``records.classes``).
+    names : tuple of str
+        Representations (rows).
+
+    Returns
+    -------
+    dict
+        ``{"columns": [...], "rows": {name: [index per column]}}``.
+    """
+    rows: dict[str, list[float]] = {n: [] for n in names}
+    for records in datasets.values():
+        mats = distance_matrices(records, names)
+        for n in names:
+            rows[n].append(round(davies_bouldin(mats[n], np.asarray(records.classes)), 4))
+    return {"columns": list(datasets), "rows": rows}
+
+
+@dataclass(frozen=True)
+class SequenceAnalysis:
+    """Frame-by-frame analysis of a folding sequence.
+
+    Attributes
+    ----------
+    distances : ndarray, shape (n, n)
+        Spearman distances between the frames' dGLI coordinates.
+    truth, predicted : tuple of str
+        True and predicted class of every frame.
+    true_changes, detected_changes : tuple of int
+        Frames where the (true / predicted) class differs from the previous frame.
+    """
+
+    distances: NDArray[np.float64]
+    truth: tuple[str, ...]
+    predicted: tuple[str, ...]
+    true_changes: tuple[int, ...]
+    detected_changes: tuple[int, ...]
+
+    @property
+    def frame_accuracy(self) -> float:
+        """Fraction of frames whose predicted class is the true one."""
+        return float(np.mean([t == p for t, p in zip(self.truth, self.predicted)]))
+
+
+def _changes(labels: tuple[str, ...]) -> tuple[int, ...]:
+    return tuple(k for k in range(1, len(labels)) if labels[k] != labels[k - 1])
+
+
+def analyse_sequence(records: StateRecords, references: ReferenceSet) -> SequenceAnalysis:
+    """Distance matrix of the frames, and the frames where the state changes.
+
+    Each frame is classified against ``references`` (visible stickers as evidence, hidden
+    stickers' coordinates removed); a change is a frame whose class differs from the
+    previous frame's.
+    """
+    coords = records.hidden_coordinates()
+    predicted = tuple(
+        classify_coordinates(coords[k], references, records.visible[k]).class_id
+        for k in range(len(records))
+    )
+    return SequenceAnalysis(
+        distances=pairwise_spearman(records.coordinates),
+        truth=records.classes,
+        predicted=predicted,
+        true_changes=_changes(records.classes),
+        detected_changes=_changes(predicted),
+    )

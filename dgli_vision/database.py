@@ -1,0 +1,128 @@
+"""The simulated database: seeded cloth states of every class, and their records.
+
+Generation is deterministic: state ``k`` of class ``c`` draws from its own generator,
+seeded by ``(seed, c, k)``, so a database does not depend on the order it is built in.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
+from .dgli import cloth_coordinates
+
+__all__ = ["StateRecords", "records_from_states", "simulate_states", "state_id"]
+
+
+def state_id(class_id: str, k: int) -> str:
+    """Identifier of the k-th state of a class in a database, e.g. ``"02_007"``."""
+    return f"{class_id}_{k:03d}"
+
+
+def simulate_states(
+    per_class: int, seed: int, *, classes: tuple[str, ...] = CLASS_IDS, **kwargs
+) -> list[tuple[str, ClothState]]:
+    """Draw ``per_class`` states of each class, cycling through its variants.
+
+    Parameters
+    ----------
+    per_class : int
+        States per class.
+    seed : int
+        Seed of the whole database.
+    classes : tuple of str, keyword-only
+        Which classes (default all 12).
+    **kwargs
+        Passed to :func:`~dgli_vision.cloth.states.sample_state` (``wrinkles``, ...).
+
+    Returns
+    -------
+    list of (str, ClothState)
+        ``(state id, state)`` in class order.
+    """
+    if per_class < 1:
+        raise ValueError(f"per_class must be at least 1, got {per_class}")
+    out = []
+    for class_id in classes:
+        options = VARIANTS[class_id]
+        for k in range(per_class):
+            rng = np.random.default_rng([seed, int(class_id), k])
+            variant = options[k % len(options)]
+            out.append((state_id(class_id, k), sample_state(class_id, variant, rng, **kwargs)))
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class StateRecords:
+    """The truth of n states as arrays (what references and comparisons need).
+
+    Attributes
+    ----------
+    ids : tuple of str
+    classes : tuple of str
+    variants : tuple of (str or None)
+    sticker_points : ndarray, shape (n, 16, 3)
+        Metres, world frame (z up).
+    visible : ndarray of bool, shape (n, 16)
+    visible_fraction : ndarray, shape (n, 16)
+    coordinates : ndarray, shape (n, 28)
+        dGLI coordinates with all stickers known.
+    corner_points : ndarray, shape (n, 4, 3)
+        Corners A-D, metres.
+    boundary : ndarray, shape (n, m, 3)
+        Boundary polylines, metres.
+    """
+
+    ids: tuple[str, ...]
+    classes: tuple[str, ...]
+    variants: tuple[str | None, ...]
+    sticker_points: NDArray[np.float64]
+    visible: NDArray[np.bool_]
+    visible_fraction: NDArray[np.float64]
+    coordinates: NDArray[np.float64]
+    corner_points: NDArray[np.float64]
+    boundary: NDArray[np.float64]
+
+    def __len__(self) -> int:
+        return len(self.ids)
+
+    def subset(self, index: NDArray) -> StateRecords:
+        """The records at ``index`` (integer or boolean array)."""
+        idx = np.arange(len(self))[index]
+        return StateRecords(
+            tuple(self.ids[i] for i in idx),
+            tuple(self.classes[i] for i in idx),
+            tuple(self.variants[i] for i in idx),
+            self.sticker_points[idx],
+            self.visible[idx],
+            self.visible_fraction[idx],
+            self.coordinates[idx],
+            self.corner_points[idx],
+            self.boundary[idx],
+        )
+
+    def hidden_coordinates(self) -> NDArray[np.float64]:
+        """Coordinates with NaN for every pair involving a segment with a hidden end."""
+        segs = self.sticker_points.reshape(len(self), -1, 2, 3).copy()
+        hidden_seg = ~self.visible.reshape(len(self), -1, 2).all(axis=2)
+        segs[hidden_seg] = np.nan
+        return cloth_coordinates(segs)
+
+
+def records_from_states(states: list[tuple[str, ClothState]]) -> StateRecords:
+    """Collect the truth of ``(id, state)`` pairs into :class:`StateRecords`."""
+    points = np.stack([s.sticker_points for _, s in states])
+    return StateRecords(
+        ids=tuple(i for i, _ in states),
+        classes=tuple(s.class_id for _, s in states),
+        variants=tuple(s.variant for _, s in states),
+        sticker_points=points,
+        visible=np.stack([s.visible for _, s in states]),
+        visible_fraction=np.stack([s.visible_fraction for _, s in states]),
+        coordinates=cloth_coordinates(points.reshape(len(states), -1, 2, 3)),
+        corner_points=np.stack([s.corner_points for _, s in states]),
+        boundary=np.stack([s.boundary for _, s in states]),
+    )

@@ -1,0 +1,213 @@
+"""The reference set: one representative state per class and variant.
+
+As in the paper, the representative of a group of simulated states is the sample
+nearest (Spearman distance) to the group's centroid. Each reference also keeps how often
+each sticker was visible in its group, which the classifier uses as evidence.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .cloth.states import CLASS_NAMES
+from .database import StateRecords
+from .distance import pairwise_spearman
+from .errors import ReferenceError_
+
+__all__ = [
+    "FORMAT",
+    "Reference",
+    "ReferenceSet",
+    "build_references",
+    "default_references_path",
+    "load_references",
+    "references_from_dict",
+    "references_to_dict",
+]
+
+FORMAT = "dgli-references"
+FORMAT_VERSION = 1
+
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """A class representative.
+
+    Attributes
+    ----------
+    class_id, name : str
+    variant : str or None
+    coordinates : ndarray, shape (28,)
+        dGLI cloth coordinates of the representative (1/m).
+    visible_rate : ndarray, shape (16,)
+        Fraction of the group's states in which each sticker was visible.
+    source : str
+        Id of the representative state in its database.
+    n_samples : int
+        Size of the group.
+    """
+
+    class_id: str
+    name: str
+    variant: str | None
+    coordinates: NDArray[np.float64]
+    visible_rate: NDArray[np.float64]
+    source: str = ""
+    n_samples: int = 1
+
+
+@dataclass(frozen=True, eq=False)
+class ReferenceSet:
+    """All references, with their provenance (command, seed, version)."""
+
+    references: tuple[Reference, ...]
+    provenance: dict[str, Any] = field(default_factory=dict)
+
+    def __len__(self) -> int:
+        return len(self.references)
+
+    def matrix(self) -> NDArray[np.float64]:
+        """Coordinates of all references, shape (k, 28)."""
+        return np.stack([r.coordinates for r in self.references])
+
+    def visible_rates(self) -> NDArray[np.float64]:
+        """Sticker visibility rates of all references, shape (k, 16)."""
+        return np.stack([r.visible_rate for r in self.references])
+
+
+def build_references(
+    records: StateRecords, *, provenance: dict[str, Any] | None = None
+) -> ReferenceSet:
+    """Pick the representative of every (class, variant) group of ``records``.
+
+    Parameters
+    ----------
+    records : StateRecords
+        Simulated states with all stickers known.
+    provenance : dict, optional, keyword-only
+        How the records were made; stored with the set.
+
+    Returns
+    -------
+    ReferenceSet
+        References in class, then variant order.
+    """
+    groups: dict[tuple[str, str | None], list[int]] = {}
+    for i, key in enumerate(zip(records.classes, records.variants)):
+        groups.setdefault(key, []).append(i)
+    refs = []
+    for (class_id, variant), members in sorted(
+        groups.items(), key=lambda kv: (kv[0][0], kv[0][1] or "")
+    ):
+        coords = records.coordinates[members]
+        centroid = coords.mean(axis=0, keepdims=True)
+        best = members[int(np.argmin(pairwise_spearman(coords, centroid)[:, 0]))]
+        refs.append(
+            Reference(
+                class_id=class_id,
+                name=CLASS_NAMES[class_id],
+                variant=variant,
+                coordinates=records.coordinates[best].copy(),
+                visible_rate=records.visible[members].mean(axis=0),
+                source=records.ids[best],
+                n_samples=len(members),
+            )
+        )
+    return ReferenceSet(tuple(refs), dict(provenance or {}))
+
+
+def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
+    """The JSON-ready form of a reference set."""
+    return {
+        "format": FORMAT,
+        "version": FORMAT_VERSION,
+        "coordinates": "dGLI of segment pairs 0-1, 0-2, ..., 6-7 (SPEC section 2), 1/m",
+        "provenance": refs.provenance,
+        "references": [
+            {
+                "class": r.class_id,
+                "name": r.name,
+                "variant": r.variant,
+                "source": r.source,
+                "n_samples": r.n_samples,
+                "coordinates": [round(float(v), 10) for v in r.coordinates],
+                "visible_rate": [round(float(v), 4) for v in r.visible_rate],
+            }
+            for r in refs.references
+        ],
+    }
+
+
+def references_from_dict(data: Any, *, source: str = "references") -> ReferenceSet:
+    """Validate and load the parsed JSON of a reference set.
+
+    Raises
+    ------
+    ReferenceError_
+        Naming ``source`` and what is wrong.
+    """
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise ReferenceError_(
+            f'\'{source}\' is not a dgli reference set (no "format": "{FORMAT}")'
+        )
+    if data.get("version") != FORMAT_VERSION:
+        raise ReferenceError_(
+            f"'{source}' has reference format version {data.get('version')!r}; "
+            f"expected {FORMAT_VERSION}"
+        )
+    refs = []
+    for k, item in enumerate(data.get("references") or []):
+        try:
+            class_id = str(item["class"])
+            coords = np.asarray(item["coordinates"], dtype=np.float64)
+            rate = np.asarray(item["visible_rate"], dtype=np.float64)
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ReferenceError_(f"'{source}': reference {k} is malformed ({exc})") from None
+        if class_id not in CLASS_NAMES:
+            raise ReferenceError_(f"'{source}': reference {k} has unknown class {class_id!r}")
+        if coords.shape != (28,) or not np.isfinite(coords).all():
+            raise ReferenceError_(f"'{source}': reference {k} needs 28 finite coordinates")
+        if rate.shape != (16,):
+            raise ReferenceError_(f"'{source}': reference {k} needs 16 visibility rates")
+        refs.append(
+            Reference(
+                class_id,
+                CLASS_NAMES[class_id],
+                item.get("variant"),
+                coords,
+                rate,
+                str(item.get("source", "")),
+                int(item.get("n_samples", 1)),
+            )
+        )
+    if len({r.class_id for r in refs}) < 2:
+        raise ReferenceError_(f"'{source}' holds fewer than two classes")
+    return ReferenceSet(tuple(refs), dict(data.get("provenance") or {}))
+
+
+def default_references_path() -> Path:
+    """The shipped reference set: ``$DGLI_REFERENCES`` or ``references/default.json`` of
+    the source tree this package runs from."""
+    env = os.environ.get("DGLI_REFERENCES")
+    if env:
+        return Path(env)
+    return Path(__file__).resolve().parent.parent / "references" / "default.json"
+
+
+def load_references(path: str | Path | None = None) -> ReferenceSet:
+    """Load a reference set file (default: :func:`default_references_path`).
+
+    Raises
+    ------
+    UnreadableInputError, ReferenceError_
+        Missing, unreadable or malformed file.
+    """
+    from .io import read_references
+
+    return read_references(path if path is not None else default_references_path())

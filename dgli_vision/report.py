@@ -1,0 +1,117 @@
+"""Report writers: Markdown and CSV tables, and heatmap images (arrays; io writes them).
+
+Heatmaps use OpenCV's viridis colour map, with a title, optional group separators and
+labels (samples ordered by class) and a colour bar with its range.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["csv_table", "heatmap_image", "markdown_table"]
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A GitHub-flavoured Markdown table (pipes in cells are escaped)."""
+
+    def cell(v: object) -> str:
+        text = f"{v:.4g}" if isinstance(v, float) else str(v)
+        return text.replace("|", "\\|")
+
+    lines = ["| " + " | ".join(cell(h) for h in header) + " |", "|" + "---|" * len(header)]
+    lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
+    return "\n".join(lines) + "\n"
+
+
+def csv_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A CSV table (RFC 4180 quoting)."""
+    import csv
+    import io as _io
+
+    buf = _io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return buf.getvalue()
+
+
+def _text(img: NDArray, text: str, org: tuple[int, int], scale: float = 0.5) -> None:
+    import cv2
+
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), 1, cv2.LINE_AA)
+
+
+def heatmap_image(
+    matrix: NDArray[np.float64],
+    *,
+    title: str,
+    groups: Sequence[str] | None = None,
+    size_px: int = 600,
+    value_label: str = "",
+) -> NDArray[np.uint8]:
+    """Render a matrix as a BGR heatmap image with title, group labels and colour bar.
+
+    Parameters
+    ----------
+    matrix : ndarray, shape (n, k)
+        Values; NaN is drawn grey.
+    title : str, keyword-only
+    groups : sequence of str, optional, keyword-only
+        Label of every row (and column, for square matrices), consecutive runs forming
+        groups: drawn as separators and centred labels (e.g. class ids).
+    size_px : int, keyword-only
+        Size of the matrix area.
+    value_label : str, keyword-only
+        What the colour means, shown by the colour bar.
+
+    Returns
+    -------
+    ndarray of uint8, shape (h, w, 3)
+    """
+    import cv2
+
+    m = np.asarray(matrix, dtype=np.float64)
+    n_rows, n_cols = m.shape
+    finite = m[np.isfinite(m)]
+    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
+    span = hi - lo if hi > lo else 1.0
+    norm = np.clip((np.nan_to_num(m, nan=lo) - lo) / span * 255, 0, 255).astype(np.uint8)
+    cell_h = max(1, size_px // n_rows)
+    cell_w = max(1, size_px // n_cols)
+    big = cv2.resize(norm, (cell_w * n_cols, cell_h * n_rows), interpolation=cv2.INTER_NEAREST)
+    colour = cv2.applyColorMap(big, cv2.COLORMAP_VIRIDIS)
+    nan_mask = cv2.resize(
+        np.isnan(m).astype(np.uint8),
+        (cell_w * n_cols, cell_h * n_rows),
+        interpolation=cv2.INTER_NEAREST,
+    ).astype(bool)
+    colour[nan_mask] = (160, 160, 160)
+    left, top, right, bottom = 70, 50, 110, 40
+    h, w = colour.shape[:2]
+    img = np.full((h + top + bottom, w + left + right, 3), 255, np.uint8)
+    img[top : top + h, left : left + w] = colour
+    _text(img, title, (left, 30), 0.6)
+    if groups is not None:
+        labels = list(groups)
+        starts = [k for k in range(len(labels)) if k == 0 or labels[k] != labels[k - 1]]
+        ends = [*starts[1:], len(labels)]
+        for s, e in zip(starts, ends):
+            y0, y1 = top + s * cell_h, top + e * cell_h
+            cv2.line(img, (left, y0), (left + w - 1, y0), (255, 255, 255), 1)
+            _text(img, str(labels[s]), (8, (y0 + y1) // 2 + 5), 0.45)
+            if n_rows == n_cols:
+                x0, x1 = left + s * cell_w, left + e * cell_w
+                cv2.line(img, (x0, top), (x0, top + h - 1), (255, 255, 255), 1)
+                _text(img, str(labels[s]), ((x0 + x1) // 2 - 8, top + h + 18), 0.4)
+    # Colour bar.
+    bar = np.linspace(255, 0, h).astype(np.uint8)[:, None].repeat(18, axis=1)
+    x = left + w + 15
+    img[top : top + h, x : x + 18] = cv2.applyColorMap(bar, cv2.COLORMAP_VIRIDIS)
+    _text(img, f"{hi:.3g}", (x + 22, top + 10), 0.4)
+    _text(img, f"{lo:.3g}", (x + 22, top + h), 0.4)
+    if value_label:
+        _text(img, value_label, (x - 10, top + h + 30), 0.4)
+    return img
