@@ -1,9 +1,14 @@
 """From cloth coordinates (and which stickers were seen) to a named state.
 
 The distance to a reference is the Spearman distance over the coordinates known in the
-observation, plus a visibility term: the mean, over the stickers whose visibility is
-known, of how far the observation (seen / not seen) is from the reference's rate of
-being seen. A missing sticker is evidence: it says what lies on top.
+observation, plus a visibility term: the mean, over the 16 stickers, of how far the
+observation (seen / not seen) is from the reference's rate of being seen. A missing
+sticker is evidence: it says what lies on top.
+
+When visibility is given, coordinates of segments with an unseen sticker are ignored even
+if a value is supplied (as a simulator can): no camera could have measured them, and a
+sticker hidden by a flap lies within a cloth thickness of the flap's own segments, where
+the dGLI is near-singular and its sign follows millimetre-level noise.
 """
 
 from __future__ import annotations
@@ -13,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .dgli import pair_indices
 from .distance import pairwise_spearman
 from .errors import DetectionError
 from .references import ReferenceSet
@@ -67,6 +73,14 @@ class Prediction:
     margin: float
 
 
+def _n_segments(n_coordinates: int) -> int:
+    """m such that m (m - 1) / 2 == n_coordinates."""
+    m = round((1 + float(np.sqrt(1 + 8 * n_coordinates))) / 2)
+    if m * (m - 1) // 2 != n_coordinates:
+        raise ValueError(f"{n_coordinates} is not a number of segment pairs")
+    return m
+
+
 def reference_distances(
     coords: ArrayLike, references: ReferenceSet, visible: ArrayLike | None = None
 ) -> NDArray[np.float64]:
@@ -90,6 +104,15 @@ def reference_distances(
     if x.shape != (ref.shape[1],):
         raise ValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
     known = ~np.isnan(x)
+    if visible is not None:
+        vis = np.asarray(visible, dtype=bool)
+        if vis.shape != (2 * _n_segments(len(x)),):
+            raise ValueError(
+                f"visible must have shape ({2 * _n_segments(len(x))},), got {vis.shape}"
+            )
+        seen_segment = vis.reshape(-1, 2).all(axis=1)
+        i, j = pair_indices(len(seen_segment))
+        known &= seen_segment[i] & seen_segment[j]
     if known.sum() < MIN_COORDINATES:
         raise DetectionError(
             f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
@@ -97,10 +120,7 @@ def reference_distances(
         )
     dist = pairwise_spearman(x[known][None, :], ref[:, known])[0]
     if visible is not None:
-        vis = np.asarray(visible, dtype=bool)
         rates = references.visible_rates()
-        if vis.shape != (rates.shape[1],):
-            raise ValueError(f"visible must have shape ({rates.shape[1]},), got {vis.shape}")
         dist = dist + VISIBILITY_WEIGHT * np.abs(vis[None, :] - rates).mean(axis=1)
     return dist
 

@@ -162,7 +162,8 @@ def compare(db: str, report_dir: str | None, as_json: bool) -> None:
     from .report import csv_table, heatmap_image, markdown_table
 
     records, _ = read_database(db)
-    order = np.argsort(np.asarray(records.classes), kind="stable")
+    keys = [f"{c}/{v or ''}" for c, v in zip(records.classes, records.variants)]
+    order = np.argsort(np.asarray(keys), kind="stable")  # by class, then variant
     records = records.subset(order)
     by_variant = dataclasses.replace(
         records, classes=tuple(f"{c}/{v}" for c, v in zip(records.classes, records.variants))

@@ -1,0 +1,121 @@
+"""Baselines, Table 1 and the folding sequences, through the library and the CLI."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dgli_vision.baselines import (
+    align,
+    corner_distances,
+    discrete_frechet,
+    hausdorff,
+    segment_distances,
+)
+from dgli_vision.cli import main
+from dgli_vision.cloth.sequences import folding_sequence
+
+
+def run(args):
+    result = CliRunner().invoke(main, args)
+    assert "Traceback" not in result.output
+    return result
+
+
+def test_frechet_and_hausdorff_on_known_curves():
+    t = np.linspace(0, 1, 11)[:, None]
+    p = np.hstack([t, 0 * t, 0 * t])
+    q = p + np.array([0.0, 1.0, 0.0])
+    assert discrete_frechet(p, q) == pytest.approx(1.0)
+    assert hausdorff(p, q) == pytest.approx(1.0)
+    # Frechet respects order, Hausdorff does not.
+    assert hausdorff(p, p[::-1]) == 0.0
+    assert discrete_frechet(p, p[::-1]) == pytest.approx(1.0)
+
+
+def test_alignment_removes_rotation_and_translation():
+    rng = np.random.default_rng(0)
+    curve = rng.normal(size=(40, 3))
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    q *= np.sign(np.linalg.det(q))
+    moved = curve @ q.T + [1.0, -2.0, 3.0]
+    aligned = align(moved, curve)
+    np.testing.assert_allclose(aligned, curve - curve.mean(axis=0), atol=1e-10)
+
+
+def test_segment_and_corner_distances():
+    seg = np.array([[[0, 0, 0], [1, 0, 0]], [[0, 1, 0], [1, 1, 0]], [[2, 0, 1], [3, 0, 1]]], float)
+    np.testing.assert_allclose(segment_distances(seg), [1.0, np.sqrt(2), np.sqrt(3)])
+    corners = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
+    np.testing.assert_allclose(corner_distances(corners), [1, np.sqrt(2), 1, 1, np.sqrt(2), 1])
+
+
+def test_sequence_truth_changes_past_ninety_degrees():
+    frames = folding_sequence("I", frames_per_fold=12)
+    assert len(frames) == 25
+    labels = [f.class_id for f in frames]
+    assert labels[6] == "01" and labels[7] == "02"  # 90 deg, then 105 deg
+    assert labels[18] == "02" and labels[19] == "06"
+    assert frames[-1].variant == "AC"
+
+
+@pytest.fixture(scope="module")
+def small_db(tmp_path_factory):
+    out = tmp_path_factory.mktemp("db")
+    result = run(["simulate", str(out), "--per-class", "2", "--seed", "5"])
+    assert result.exit_code == 0, result.output
+    return out
+
+
+def test_simulate_is_deterministic(small_db, tmp_path):
+    again = tmp_path / "again"
+    assert run(["simulate", str(again), "--per-class", "2", "--seed", "5"]).exit_code == 0
+    for name in ("index.json", "truth/05_001.json", "meshes/12_000.ply"):
+        assert (again / name).read_bytes() == (small_db / name).read_bytes()
+    truth = json.loads((small_db / "truth" / "03_000.json").read_text())
+    assert truth["class"] == "03" and len(truth["coordinates"]) == 28
+    assert len(truth["visible"]) == 16 and truth["visible"].count(False) == 4
+
+
+def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
+    report = tmp_path / "report"
+    result = run(["compare", str(small_db), "--report", str(report), "--json"])
+    assert result.exit_code == 0, result.output
+    table = json.loads((report / "table.json").read_text())
+    assert table["columns"] == ["database", "database by variant", "I", "II", "III"]
+    assert set(table["rows"]) == {"dgli", "edges", "corners", "frechet", "hausdorff"}
+    assert json.loads(result.output.splitlines()[0]) == table
+    md = (report / "table.md").read_text()
+    assert "| dgli |" in md
+    img = cv2.imread(str(report / "distances_dgli.png"))
+    assert img is not None and img.shape[0] > 300
+    assert img.std() > 20  # a real picture, not a blank
+
+
+def test_sequence_command_reports_changes(tmp_path):
+    result = run(["sequence", "III", "--json", "--report", str(tmp_path)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output)
+    assert data["true_changes"] == [7]
+    assert data["frame_accuracy"] > 0.5
+    assert (tmp_path / "sequence_III.png").exists()
+
+
+def test_references_build_from_database(small_db, tmp_path):
+    out = tmp_path / "refs.json"
+    result = run(["references", "build", str(small_db), "-o", str(out)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(out.read_text())
+    assert data["provenance"]["database"]["seed"] == 5
+    assert len(data["references"]) >= 12
+
+
+def test_references_build_on_missing_database_is_one_line_error(tmp_path):
+    result = run(["references", "build", str(tmp_path / "none"), "-o", str(tmp_path / "r.json")])
+    assert result.exit_code == 2
+    assert result.output.strip().count("\n") == 0
+    assert "does not exist" in result.output

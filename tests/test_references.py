@@ -1,0 +1,132 @@
+"""References and classification of coordinates: accuracy on a fresh simulated database."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from dgli_vision.classify import classify_coordinates
+from dgli_vision.database import records_from_states, simulate_states
+from dgli_vision.errors import DetectionError, ReferenceError_
+from dgli_vision.io import read_references, write_references
+from dgli_vision.references import build_references, load_references
+
+
+@pytest.fixture(scope="module")
+def fresh():
+    """A database drawn with another seed than the shipped references (seed 0)."""
+    return records_from_states(simulate_states(20, 1))
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    return load_references()
+
+
+def accuracy(records, refs, coords, with_visibility=True):
+    hits = []
+    for k in range(len(records)):
+        vis = records.visible[k] if with_visibility else None
+        p = classify_coordinates(coords[k], refs, vis)
+        hits.append((p.class_id == records.classes[k], p.variant == records.variants[k]))
+    return np.mean(hits, axis=0)
+
+
+def test_shipped_references_cover_every_class_and_variant(shipped):
+    from dgli_vision.cloth import VARIANTS
+
+    keys = {(r.class_id, r.variant) for r in shipped.references}
+    assert keys == {(c, v) for c, vs in VARIANTS.items() for v in vs}
+    assert shipped.provenance["database"]["seed"] == 0
+    assert shipped.provenance["database"]["per_class"] >= 20
+
+
+def test_accuracy_on_a_fresh_database_all_stickers_known(fresh, shipped):
+    class_acc, variant_acc = accuracy(fresh, shipped, fresh.coordinates)
+    assert class_acc >= 0.99
+    assert variant_acc >= 0.95
+
+
+def test_accuracy_on_a_fresh_database_hidden_stickers_removed(fresh, shipped):
+    class_acc, _ = accuracy(fresh, shipped, fresh.hidden_coordinates())
+    assert class_acc >= 0.97
+
+
+def test_leave_one_out_accuracy_on_the_fresh_database(fresh):
+    coords = fresh.hidden_coordinates()
+    hits = 0
+    everyone = np.arange(len(fresh))
+    for k in range(0, len(fresh), 3):  # every third sample keeps the test fast
+        refs = build_references(fresh.subset(everyone != k))
+        hits += (
+            classify_coordinates(coords[k], refs, fresh.visible[k]).class_id == fresh.classes[k]
+        )
+    assert hits / len(range(0, len(fresh), 3)) >= 0.97
+
+
+def test_visibility_is_evidence_over_or_under(fresh, shipped):
+    # Corner over and corner under have the same shape seen from above; the hidden
+    # corner stickers decide.
+    k = fresh.classes.index("03")
+    assert (
+        classify_coordinates(fresh.hidden_coordinates()[k], shipped, fresh.visible[k]).class_id
+        == "03"
+    )
+
+
+def test_prediction_fields(fresh, shipped):
+    p = classify_coordinates(fresh.coordinates[0], shipped, fresh.visible[0])
+    assert p.class_id == "01" and p.name == "flat" and p.variant is None
+    assert p.runner_up is not None and p.runner_up.class_id != p.class_id
+    assert p.margin == pytest.approx(p.runner_up.distance - p.distance)
+    assert p.margin >= 0
+
+
+def test_too_few_coordinates_cannot_be_classified(shipped):
+    coords = np.full(28, np.nan)
+    coords[:5] = [1, 2, 3, 4, 5]
+    with pytest.raises(DetectionError, match="only 5 of 28"):
+        classify_coordinates(coords, shipped)
+
+
+def test_references_round_trip(tmp_path, shipped):
+    path = tmp_path / "refs.json"
+    write_references(path, shipped)
+    again = read_references(path)
+    assert len(again) == len(shipped)
+    np.testing.assert_allclose(again.matrix(), shipped.matrix(), atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        ("{", "not valid JSON"),
+        ('{"format": "other"}', "not a dgli reference set"),
+        ('{"format": "dgli-references", "version": 9}', "version 9"),
+        (
+            '{"format": "dgli-references", "version": 1, "references": [{"class": "02"}]}',
+            "reference 0 is malformed",
+        ),
+    ],
+)
+def test_bad_reference_files_name_the_file(tmp_path, content, message):
+    path = tmp_path / "bad.json"
+    path.write_text(content)
+    with pytest.raises((ReferenceError_, Exception), match=message) as info:
+        read_references(path)
+    assert "bad.json" in str(info.value)
+
+
+def test_missing_reference_file(tmp_path):
+    with pytest.raises(Exception, match="does not exist"):
+        load_references(tmp_path / "nope.json")
+
+
+def test_reference_json_records_provenance(shipped):
+    from dgli_vision.references import references_to_dict
+
+    data = json.loads(json.dumps(references_to_dict(shipped)))
+    assert data["provenance"]["command"].startswith("dgli references build")
+    assert all(len(r["visible_rate"]) == 16 for r in data["references"])
