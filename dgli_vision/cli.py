@@ -95,6 +95,43 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
     click.echo(f"wrote {len(states)} states to {index}")
 
 
+@main.command("render")
+@click.argument("out", type=click.Path(file_okay=False))
+@click.option(
+    "--per-class", default=1, show_default=True, type=click.IntRange(1), help="Pairs per class."
+)
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the whole set.")
+@click.option(
+    "--clean", is_flag=True, help="Switch the sensor model off (no noise, blur, dropouts)."
+)
+@click.option(
+    "--nominal", is_flag=True, help="Nominal scene: straight down from 520 mm, default lighting."
+)
+@_handle_errors
+def render_cmd(out: str, per_class: int, seed: int, clean: bool, nominal: bool) -> None:
+    """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4)."""
+    from .cloth.states import CLASS_IDS
+    from .dataset import render_samples
+    from .io import write_labelled_folder
+
+    samples = []
+    with _progress(list(CLASS_IDS), "rendering") as classes:
+        for class_id in classes:
+            samples += list(
+                render_samples(per_class, seed, classes=(class_id,), nominal=nominal, clean=clean)
+            )
+    provenance = {
+        "command": _command_line(),
+        "seed": seed,
+        "per_class": per_class,
+        "clean": clean,
+        "nominal": nominal,
+        "package_version": _package_version(),
+    }
+    labels = write_labelled_folder(out, samples, provenance)
+    click.echo(f"wrote {len(samples)} pairs to {out} (labels: {labels})")
+
+
 @main.group()
 def references() -> None:
     """Build the reference set the classifier matches against."""
@@ -260,6 +297,130 @@ def sequence(
             value_label="1 - rho",
         )
         write_png(out / f"sequence_{name}.png", img)
+
+
+def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
+    """The JSON object of DESIGN.md for one classified pair."""
+    import numpy as np
+
+    found = result.observation.visible
+    p = result.prediction
+    out: dict[str, Any] = {"color": color, "depth": depth}
+    if p is None:
+        out.update(
+            {
+                "class": None,
+                "name": None,
+                "variant": None,
+                "distance": None,
+                "runner_up": None,
+                "reason": result.reason,
+            }
+        )
+    else:
+        ru = p.runner_up
+        out.update(
+            {
+                "class": p.class_id,
+                "name": p.name,
+                "variant": p.variant,
+                "distance": round(p.distance, 6),
+                "runner_up": None
+                if ru is None
+                else {
+                    "class": ru.class_id,
+                    "name": ru.name,
+                    "variant": ru.variant,
+                    "distance": round(ru.distance, 6),
+                },
+            }
+        )
+    out["stickers"] = {"found": int(found.sum()), "missing": np.flatnonzero(~found).tolist()}
+    out["coordinates"] = [
+        None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
+    ]
+    return out
+
+
+def verdict_line(result: Any) -> str:
+    """One readable line for a classified pair."""
+    p = result.prediction
+    if p is None:
+        return f"no class: {result.reason}"
+    text = f"{p.class_id} {p.name}"
+    if p.variant:
+        text += f" ({p.variant})"
+    text += f", distance {p.distance:.3f}"
+    if p.runner_up:
+        ru = p.runner_up
+        text += f"; runner-up {ru.class_id} {ru.name}" + (f" ({ru.variant})" if ru.variant else "")
+        text += f" {ru.distance:.3f}"
+    return text
+
+
+@click.command("classify")
+@click.argument("color", type=click.Path(dir_okay=False))
+@click.argument("depth", type=click.Path(dir_okay=False))
+@click.option(
+    "--intrinsics",
+    type=click.Path(dir_okay=False),
+    help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
+)
+@click.option(
+    "--references",
+    "references_path",
+    type=click.Path(dir_okay=False),
+    help="Reference set (default: references/default.json).",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@click.option(
+    "--overlay",
+    type=click.Path(dir_okay=False),
+    help="Write the image with stickers, segments and verdict.",
+)
+@_handle_errors
+def classify_cmd(
+    color: str,
+    depth: str,
+    intrinsics: str | None,
+    references_path: str | None,
+    as_json: bool,
+    overlay: str | None,
+) -> None:
+    """Classify the cloth state in one colour + depth pair (exit 1: no class could be given)."""
+    from .io import read_frame, write_png
+    from .pipeline import classify_frame
+    from .references import load_references
+
+    frame = read_frame(color, depth, intrinsics)
+    refs = load_references(references_path)
+    result = classify_frame(frame, refs)
+    if overlay:
+        from .report import overlay_image
+
+        detail = f"{int(result.observation.visible.sum())}/16 stickers"
+        write_png(
+            overlay,
+            overlay_image(
+                frame.color, result.detections.centroids, verdict_line(result), detail=detail
+            ),
+        )
+    if as_json:
+        click.echo(json.dumps(result_to_json(result, color, depth)))
+    else:
+        click.echo(verdict_line(result))
+    if result.prediction is None:
+        if not as_json:
+            click.echo(f"error: '{color}': {result.reason}", err=True)
+        sys.exit(1)
+
+
+main.add_command(classify_cmd)
+
+
+def classify_main() -> None:
+    """Entry point of ``dgli-classify`` (the same command as ``dgli classify``)."""
+    classify_cmd(prog_name="dgli-classify")
 
 
 @main.command()

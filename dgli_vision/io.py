@@ -36,6 +36,7 @@ __all__ = [
     "write_database",
     "write_depth",
     "write_json",
+    "write_labelled_folder",
     "write_mesh_ply",
     "write_png",
     "write_references",
@@ -242,7 +243,8 @@ def write_png(path: str | Path, image_bgr: NDArray[np.uint8]) -> None:
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(p), image_bgr):
+    params = [cv2.IMWRITE_PNG_COMPRESSION, 9] if p.suffix.lower() == ".png" else []
+    if not cv2.imwrite(str(p), image_bgr, params):
         raise UnreadableInputError(f"cannot write image '{p}'")
 
 
@@ -452,3 +454,46 @@ def write_depth(path: str | Path, depth_mm: NDArray[np.uint16]) -> None:
     if depth_mm.dtype != np.uint16:
         raise ValueError(f"depth must be uint16, got {depth_mm.dtype}")
     write_png(path, depth_mm)
+
+
+def write_labelled_folder(out: str | Path, samples: list, provenance: dict[str, Any]) -> Path:
+    """Write rendered samples as a labelled folder (SPEC section 4) with ``truth.json``.
+
+    ``samples`` are :class:`~dgli_vision.dataset.RenderedSample`; writes
+    ``<name>_color.png``, ``<name>_depth.png``, ``intrinsics.json`` (of the first sample;
+    all must share it), ``labels.csv`` and ``truth.json``. Returns the labels file.
+    """
+    root = Path(out)
+    rows = []
+    truth = {}
+    intr = None
+    for s in samples:
+        if intr is None:
+            intr = s.result.intrinsics
+        elif s.result.intrinsics != intr:
+            raise ValueError("all samples of a folder must share their intrinsics")
+        color, depth = f"{s.name}_color.png", f"{s.name}_depth.png"
+        write_color(root / color, s.result.color)
+        write_depth(root / depth, s.result.depth_mm)
+        rows.append((color, depth, s.state.class_id, s.state.variant or ""))
+        truth[s.name] = {
+            "color": color,
+            "depth": depth,
+            "class": s.state.class_id,
+            "name": s.state.name,
+            "variant": s.state.variant,
+            "camera": {**s.camera, **s.result.pose.to_dict()},
+            "sticker_points_cam_m": np.round(s.result.sticker_points_cam, 6).tolist(),
+            "visible": s.result.visible.tolist(),
+            "visible_fraction": np.round(s.result.visible_fraction, 3).tolist(),
+            "state_params": s.state.params,
+        }
+    if intr is None:
+        raise ValueError("no samples to write")
+    write_json(root / "intrinsics.json", intr.to_open3d_dict())
+    from .report import csv_table
+
+    labels = root / "labels.csv"
+    write_text(labels, csv_table(["color", "depth", "label", "variant"], rows))
+    write_json(root / "truth.json", {"provenance": provenance, "images": truth})
+    return labels

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["csv_table", "heatmap_image", "markdown_table"]
+__all__ = ["csv_table", "heatmap_image", "markdown_table", "overlay_image"]
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
@@ -114,4 +114,93 @@ def heatmap_image(
     _text(img, f"{lo:.3g}", (x + 22, top + h), 0.4)
     if value_label:
         _text(img, value_label, (x - 10, top + h + 30), 0.4)
+    return img
+
+
+def overlay_image(
+    color_rgb: NDArray[np.uint8],
+    centroids: NDArray[np.float64],
+    verdict: str,
+    *,
+    detail: str = "",
+) -> NDArray[np.uint8]:
+    """The colour image with each detected sticker's id, the 8 segments and the verdict.
+
+    Parameters
+    ----------
+    color_rgb : ndarray of uint8, shape (H, W, 3)
+    centroids : ndarray, shape (16, 2)
+        Sticker centroids in pixels, NaN where not detected.
+    verdict : str
+        First line of the caption.
+    detail : str, keyword-only
+        Second line of the caption.
+
+    Returns
+    -------
+    ndarray of uint8, shape (H, W, 3)
+        BGR, ready to write.
+    """
+    import cv2
+
+    img = cv2.cvtColor(color_rgb, cv2.COLOR_RGB2BGR)
+    scale = max(1.0, img.shape[1] / 1280)
+    pts = np.asarray(centroids, dtype=np.float64)
+    for i in range(len(pts) // 2):
+        a, b = pts[2 * i], pts[2 * i + 1]
+        if np.isfinite(a).all() and np.isfinite(b).all():
+            pa, pb = tuple(int(round(v)) for v in a), tuple(int(round(v)) for v in b)
+            cv2.arrowedLine(
+                img, pa, pb, (255, 0, 255), max(1, int(2 * scale)), cv2.LINE_AA, tipLength=0.2
+            )
+            mid = ((pa[0] + pb[0]) // 2 + 6, (pa[1] + pb[1]) // 2 - 6)
+            cv2.putText(
+                img,
+                f"s{i}",
+                mid,
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.5 * scale,
+                (255, 0, 255),
+                1,
+                cv2.LINE_AA,
+            )
+    for k, p in enumerate(pts):
+        if np.isfinite(p).all():
+            c = tuple(int(round(v)) for v in p)
+            cv2.circle(img, c, int(4 * scale), (0, 0, 0), -1, cv2.LINE_AA)
+            cv2.putText(
+                img,
+                str(k),
+                (c[0] + 8, c[1] + 16),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.55 * scale,
+                (0, 0, 0),
+                2,
+                cv2.LINE_AA,
+            )
+            cv2.putText(
+                img,
+                str(k),
+                (c[0] + 8, c[1] + 16),
+                cv2.FONT_HERSHEY_SIMPLEX,
+                0.55 * scale,
+                (255, 255, 255),
+                1,
+                cv2.LINE_AA,
+            )
+    for row, text in enumerate(t for t in (verdict, detail) if t):
+        y = int((30 + 28 * row) * scale)
+        cv2.putText(
+            img, text, (12, y), cv2.FONT_HERSHEY_SIMPLEX, 0.8 * scale, (0, 0, 0), 4, cv2.LINE_AA
+        )
+        cv2.putText(
+            img,
+            text,
+            (12, y),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.8 * scale,
+            (255, 255, 255),
+            2,
+            cv2.LINE_AA,
+        )
     return img

@@ -1,0 +1,119 @@
+"""Labelled synthetic RGB-D sets: random cameras and scenes around simulated states."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
+from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
+from .render import Lighting, RenderResult, SensorModel, render
+
+__all__ = ["RenderedSample", "random_camera", "render_samples"]
+
+#: Nominal scene of SPEC section 4: straight down from 520 mm.
+NOMINAL_HEIGHT_M = 0.52
+
+
+def _fits(state: ClothState, pose: CameraPose, intrinsics: Intrinsics, margin_px: float) -> bool:
+    pix = intrinsics.project(pose.world_to_camera(state.mesh.xyz[::7]))
+    return bool(
+        (pix[:, 0] >= margin_px).all()
+        and (pix[:, 0] <= intrinsics.width - 1 - margin_px).all()
+        and (pix[:, 1] >= margin_px).all()
+        and (pix[:, 1] <= intrinsics.height - 1 - margin_px).all()
+    )
+
+
+def random_camera(
+    state: ClothState,
+    rng: np.random.Generator,
+    *,
+    intrinsics: Intrinsics = DEFAULT_INTRINSICS,
+    nominal: bool = False,
+    height_range_m: tuple[float, float] = (0.45, 0.70),
+    max_tilt_deg: float = 12.0,
+) -> tuple[CameraPose, dict[str, float]]:
+    """A camera that sees the whole napkin: height, tilt and yaw drawn at random.
+
+    The camera aims near the napkin's centre; draws that leave part of the napkin out of
+    view (20 px margin) are redrawn, higher up if need be.
+
+    Returns
+    -------
+    pose : CameraPose
+    info : dict
+        ``height_m``, ``tilt_deg``, ``tilt_direction_deg``, ``yaw_deg``.
+    """
+    centre = state.mesh.xyz[:, :2].mean(axis=0)
+    lo, hi = height_range_m
+    for attempt in range(200):
+        if nominal:
+            info = {
+                "height_m": NOMINAL_HEIGHT_M,
+                "tilt_deg": 0.0,
+                "tilt_direction_deg": 0.0,
+                "yaw_deg": float(rng.uniform(0, 360)) if attempt else 0.0,
+            }
+        else:
+            grow = min(1.0, attempt / 100)  # after many misses, favour higher cameras
+            info = {
+                "height_m": float(rng.uniform(lo + grow * (hi - lo) * 0.5, hi)),
+                "tilt_deg": float(rng.uniform(0, max_tilt_deg)),
+                "tilt_direction_deg": float(rng.uniform(0, 360)),
+                "yaw_deg": float(rng.uniform(0, 360)),
+            }
+        target = (*(centre + (0 if nominal else rng.uniform(-0.02, 0.02, 2))), 0.0)
+        pose = look_at_table(
+            info["height_m"],
+            tilt_rad=np.radians(info["tilt_deg"]),
+            tilt_direction_rad=np.radians(info["tilt_direction_deg"]),
+            yaw_rad=np.radians(info["yaw_deg"]),
+            target=target,
+        )
+        if _fits(state, pose, intrinsics, 20.0):
+            return pose, info
+    raise ValueError("no camera pose in range sees the whole napkin")
+
+
+@dataclass(frozen=True, eq=False)
+class RenderedSample:
+    """One rendered pair with its labels."""
+
+    name: str
+    state: ClothState
+    result: RenderResult
+    camera: dict[str, Any]
+    lighting: Lighting
+
+
+def render_samples(
+    per_class: int,
+    seed: int,
+    *,
+    classes: tuple[str, ...] = CLASS_IDS,
+    nominal: bool = False,
+    clean: bool = False,
+    intrinsics: Intrinsics = DEFAULT_INTRINSICS,
+) -> Iterator[RenderedSample]:
+    """Render ``per_class`` pairs of every class (variants in turn), deterministically.
+
+    Sample ``k`` of class ``c`` draws everything (state, camera, lighting, noise) from a
+    generator seeded by ``(seed, c, k)`` on a stream of its own, so it never repeats a
+    state of the simulated database made with the same seed.
+    """
+    for class_id in classes:
+        options = VARIANTS[class_id]
+        for k in range(per_class):
+            rng = np.random.default_rng([seed, int(class_id), k, 7])
+            state = sample_state(class_id, options[k % len(options)], rng)
+            pose, camera = random_camera(state, rng, intrinsics=intrinsics, nominal=nominal)
+            lighting = Lighting() if nominal else Lighting.random(rng)
+            sensor = SensorModel(enabled=not clean)
+            result = render(
+                state, pose, intrinsics=intrinsics, lighting=lighting, sensor=sensor, rng=rng
+            )
+            yield RenderedSample(f"{class_id}_{k:03d}", state, result, camera, lighting)
