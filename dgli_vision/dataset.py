@@ -99,7 +99,8 @@ def render_samples(
     clean: bool = False,
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
 ) -> Iterator[RenderedSample]:
-    """Render ``per_class`` pairs of every class (variants in turn), deterministically.
+    """Render ``per_class`` pairs of every class (variants in turn, starting at the
+    seed's), deterministically.
 
     Sample ``k`` of class ``c`` draws everything (state, camera, lighting, noise) from a
     generator seeded by ``(seed, c, k)`` on a stream of its own, so it never repeats a
@@ -109,7 +110,7 @@ def render_samples(
         options = VARIANTS[class_id]
         for k in range(per_class):
             rng = np.random.default_rng([seed, int(class_id), k, 7])
-            state = sample_state(class_id, options[k % len(options)], rng)
+            state = sample_state(class_id, options[(k + seed) % len(options)], rng)
             pose, camera = random_camera(state, rng, intrinsics=intrinsics, nominal=nominal)
             lighting = Lighting() if nominal else Lighting.random(rng)
             sensor = SensorModel(enabled=not clean)

@@ -243,8 +243,7 @@ def write_png(path: str | Path, image_bgr: NDArray[np.uint8]) -> None:
 
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
-    params = [cv2.IMWRITE_PNG_COMPRESSION, 9] if p.suffix.lower() == ".png" else []
-    if not cv2.imwrite(str(p), image_bgr, params):
+    if not cv2.imwrite(str(p), image_bgr):
         raise UnreadableInputError(f"cannot write image '{p}'")
 
 
