@@ -21,8 +21,10 @@ if TYPE_CHECKING:
     from .cloth.states import ClothState
 
 __all__ = [
+    "LabelledPair",
     "RGBDFrame",
     "file_sha256",
+    "find_pairs",
     "parse_intrinsics",
     "read_color",
     "read_database",
@@ -496,3 +498,81 @@ def write_labelled_folder(out: str | Path, samples: list, provenance: dict[str, 
     write_text(labels, csv_table(["color", "depth", "label", "variant"], rows))
     write_json(root / "truth.json", {"provenance": provenance, "images": truth})
     return labels
+
+
+# --- labelled folders ------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class LabelledPair:
+    """One colour + depth pair of a labelled folder, with its true class and variant."""
+
+    color: str
+    depth: str
+    label: str
+    variant: str | None = None
+
+
+def find_pairs(folder: str | Path) -> list[LabelledPair]:
+    """The labelled pairs of a folder (SPEC section 4), sorted by colour path.
+
+    Labels come from ``labels.csv`` (``color,depth,label[,variant]``, paths relative to
+    the folder) or, without it, from the first directory level below the folder, whose
+    name starts with the class id (``02_corner-over/...``); pairs are
+    ``<name>_color.png`` + ``<name>_depth.png``. A colour image without its depth image is
+    still listed (reading it will fail and be reported).
+
+    Raises
+    ------
+    UnreadableInputError, InvalidInputError
+        The folder is missing, or ``labels.csv`` is malformed, or no pair is found.
+    """
+    import csv
+
+    root = Path(folder)
+    if not root.is_dir():
+        raise UnreadableInputError(f"folder '{root}' does not exist or is not a directory")
+    labels = root / "labels.csv"
+    pairs = []
+    if labels.is_file():
+        try:
+            with labels.open(newline="", encoding="utf-8") as fh:
+                reader = csv.DictReader(fh)
+                missing = {"color", "depth", "label"} - set(reader.fieldnames or [])
+                if missing:
+                    raise InvalidInputError(
+                        f"labels file '{labels}' lacks column(s) {', '.join(sorted(missing))}; "
+                        "expected color,depth,label[,variant]"
+                    )
+                for k, row in enumerate(reader, start=2):
+                    label = (row.get("label") or "").strip()
+                    if not row.get("color") or not row.get("depth") or not label:
+                        raise InvalidInputError(f"labels file '{labels}' line {k} is incomplete")
+                    variant = (row.get("variant") or "").strip() or None
+                    pairs.append(
+                        LabelledPair(
+                            str(root / row["color"]),
+                            str(root / row["depth"]),
+                            label.zfill(2),
+                            variant,
+                        )
+                    )
+        except (OSError, UnicodeDecodeError, csv.Error) as exc:
+            raise UnreadableInputError(f"cannot read labels file '{labels}': {exc}") from None
+    else:
+        for color in sorted(root.rglob("*_color.png")):
+            rel = color.relative_to(root)
+            if len(rel.parts) < 2:
+                continue  # no class folder: unlabelled
+            head = rel.parts[0]
+            label = head[:2]
+            if not label.isdigit():
+                continue
+            depth = color.with_name(color.name[: -len("_color.png")] + "_depth.png")
+            pairs.append(LabelledPair(str(color), str(depth), label))
+    if not pairs:
+        raise InvalidInputError(
+            f"folder '{root}' holds no labelled pairs (no labels.csv and no "
+            "<class>_*/<name>_color.png files)"
+        )
+    return sorted(pairs, key=lambda p: p.color)

@@ -1,0 +1,243 @@
+"""Batch evaluation of labelled folders: parallel, streaming, and robust to bad pairs.
+
+Each pair is read and classified in a worker process; only a small record comes back
+(no images), so memory stays flat in the number of pairs. A pair that cannot be read is
+recorded as a failure with its one-line error and the run goes on.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import DgliError
+from .io import LabelledPair, read_frame
+from .references import ReferenceSet
+
+__all__ = [
+    "EvaluationResult",
+    "PairOutcome",
+    "coordinate_matrix",
+    "evaluate_pairs",
+    "summarise",
+    "timed_evaluation",
+]
+
+
+@dataclass(frozen=True)
+class PairOutcome:
+    """What happened to one pair.
+
+    ``error`` is set when it could not be read (a failure); ``predicted`` is None when
+    it was read but no class could be given (``reason``).
+    """
+
+    pair: LabelledPair
+    predicted: str | None = None
+    predicted_variant: str | None = None
+    distance: float | None = None
+    runner_up: str | None = None
+    runner_up_distance: float | None = None
+    coordinates: tuple[float, ...] = ()
+    centroids: tuple[tuple[float, float], ...] = ()
+    reason: str | None = None
+    error: str | None = None
+
+    @property
+    def correct(self) -> bool:
+        """Class predicted right."""
+        return self.predicted == self.pair.label
+
+    @property
+    def variant_correct(self) -> bool:
+        """Class and variant predicted right."""
+        return self.correct and self.predicted_variant == self.pair.variant
+
+
+_WORKER_REFS: ReferenceSet | None = None
+
+
+def _init_worker(refs: ReferenceSet) -> None:
+    global _WORKER_REFS
+    _WORKER_REFS = refs
+
+
+def _classify_pair(pair: LabelledPair, refs: ReferenceSet | None = None) -> PairOutcome:
+    from .pipeline import classify_frame
+
+    refs = refs if refs is not None else _WORKER_REFS
+    assert refs is not None  # set by the pool initializer
+    try:
+        frame = read_frame(pair.color, pair.depth)
+        result = classify_frame(frame, refs)
+    except DgliError as exc:
+        return PairOutcome(pair, error=str(exc))
+    p = result.prediction
+    coords = tuple(float(v) for v in result.coordinates)
+    cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
+    if p is None:
+        return PairOutcome(pair, coordinates=coords, centroids=cents, reason=result.reason)
+    return PairOutcome(
+        pair,
+        p.class_id,
+        p.variant,
+        p.distance,
+        p.runner_up.class_id if p.runner_up else None,
+        p.runner_up.distance if p.runner_up else None,
+        coords,
+        cents,
+    )
+
+
+def evaluate_pairs(
+    pairs: list[LabelledPair],
+    references: ReferenceSet,
+    *,
+    jobs: int = 1,
+    on_progress: Callable[[int], None] | None = None,
+) -> Iterator[PairOutcome]:
+    """Classify labelled pairs, in input order, with ``jobs`` worker processes.
+
+    Parameters
+    ----------
+    pairs : list of LabelledPair
+    references : ReferenceSet
+    jobs : int, keyword-only
+        Worker processes; 1 runs in this process.
+    on_progress : callable, keyword-only
+        Called with 1 after each pair (for a progress bar).
+
+    Yields
+    ------
+    PairOutcome
+        One per pair, in the order of ``pairs``.
+    """
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if jobs == 1:
+        for pair in pairs:
+            yield _classify_pair(pair, references)
+            if on_progress:
+                on_progress(1)
+        return
+    import multiprocessing as mp
+
+    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
+    with ProcessPoolExecutor(
+        jobs, mp_context=ctx, initializer=_init_worker, initargs=(references,)
+    ) as pool:
+        for outcome in pool.map(_classify_pair, pairs, chunksize=2):
+            yield outcome
+            if on_progress:
+                on_progress(1)
+
+
+@dataclass(frozen=True)
+class EvaluationResult:
+    """The summary of DESIGN.md's ``dgli evaluate --json`` plus the outcomes."""
+
+    n: int
+    classified: int
+    accuracy: float
+    variant_accuracy: float
+    labels: list[str]
+    confusion: list[list[int]]
+    per_class: dict[str, dict[str, float]]
+    failures: list[dict[str, str]]
+    seconds: float
+    outcomes: list[PairOutcome] = field(default_factory=list, repr=False)
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON object (outcomes left out)."""
+        return {
+            "n": self.n,
+            "classified": self.classified,
+            "accuracy": self.accuracy,
+            "variant_accuracy": self.variant_accuracy,
+            "labels": self.labels,
+            "confusion": self.confusion,
+            "per_class": self.per_class,
+            "failures": self.failures,
+            "seconds": self.seconds,
+        }
+
+
+NO_CLASS = "none"
+
+
+def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResult:
+    """Metrics of a set of outcomes.
+
+    Accuracy is over all pairs (a failure or a pair without a class counts as wrong).
+    The confusion matrix has true labels as rows and predictions as columns, over
+    ``labels`` (every class seen as truth or prediction, sorted) plus a last column
+    ``"none"`` for pairs that failed or got no class.
+    """
+    outs = list(outcomes)
+    n = len(outs)
+    labels = sorted({o.pair.label for o in outs} | {o.predicted for o in outs if o.predicted})
+    index = {c: k for k, c in enumerate(labels)}
+    conf = np.zeros((len(labels), len(labels) + 1), dtype=int)
+    for o in outs:
+        col = index[o.predicted] if o.predicted else len(labels)
+        conf[index[o.pair.label], col] += 1
+    per_class = {}
+    for c, k in index.items():
+        tp = int(conf[k, k])
+        predicted = int(conf[:, k].sum())
+        support = int(conf[k].sum())
+        precision = tp / predicted if predicted else 0.0
+        recall = tp / support if support else 0.0
+        f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+        per_class[c] = {
+            "precision": round(precision, 4),
+            "recall": round(recall, 4),
+            "f1": round(f1, 4),
+            "support": support,
+        }
+    return EvaluationResult(
+        n=n,
+        classified=sum(o.predicted is not None for o in outs),
+        accuracy=round(sum(o.correct for o in outs) / n, 4) if n else 0.0,
+        variant_accuracy=round(sum(o.variant_correct for o in outs) / n, 4) if n else 0.0,
+        labels=labels,
+        confusion=conf.tolist(),
+        per_class=per_class,
+        failures=[
+            {
+                "color": o.pair.color,
+                "depth": o.pair.depth,
+                "error": o.error or f"no class: {o.reason}",
+            }
+            for o in outs
+            if o.predicted is None
+        ],
+        seconds=round(seconds, 3),
+        outcomes=outs,
+    )
+
+
+def timed_evaluation(
+    pairs: list[LabelledPair],
+    references: ReferenceSet,
+    *,
+    jobs: int = 1,
+    on_progress: Callable[[int], None] | None = None,
+) -> EvaluationResult:
+    """:func:`evaluate_pairs` and :func:`summarise`, timed."""
+    t0 = time.perf_counter()
+    outcomes = list(evaluate_pairs(pairs, references, jobs=jobs, on_progress=on_progress))
+    return summarise(outcomes, time.perf_counter() - t0)
+
+
+def coordinate_matrix(outcomes: list[PairOutcome]) -> NDArray[np.float64]:
+    """Coordinates (n, 28) of the outcomes that have them (NaN rows otherwise)."""
+    return np.array(
+        [o.coordinates if o.coordinates else (np.nan,) * 28 for o in outcomes], dtype=float
+    )

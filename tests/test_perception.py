@@ -1,0 +1,125 @@
+"""Detection and lifting: synthetic discs with known centres, and renders vs truth."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
+from dgli_vision.cloth import sample_state
+from dgli_vision.io import RGBDFrame
+from dgli_vision.layout import default_layout
+from dgli_vision.perception import detect_stickers, estimate_table_normal, lift_stickers
+from dgli_vision.pipeline import observe
+from dgli_vision.render import Lighting, render
+
+LAYOUT = default_layout()
+INTR = DEFAULT_INTRINSICS
+
+
+def draw_sticker(img, centre, radius_px, disc, dot):
+    """Anti-aliased sticker drawn at sub-pixel centre (shift = 4 fractional bits)."""
+    c = (int(round(centre[0] * 16)), int(round(centre[1] * 16)))
+    cv2.circle(img, c, int(round(radius_px * 16)), LAYOUT.colours_srgb[disc], -1, cv2.LINE_AA, 4)
+    cv2.circle(
+        img, c, int(round(radius_px * 0.4 * 16)), LAYOUT.colours_srgb[dot], -1, cv2.LINE_AA, 4
+    )
+
+
+def synthetic(stickers, depth_mm=500):
+    img = np.full((INTR.height, INTR.width, 3), 215, np.uint8)
+    radius = LAYOUT.disc_diameter_mm / 2 * INTR.fx / depth_mm
+    for sid, centre in stickers:
+        draw_sticker(img, centre, radius, LAYOUT.sticker_disc[sid], LAYOUT.sticker_dot[sid])
+    return img, np.full(img.shape[:2], depth_mm, np.uint16)
+
+
+def test_discs_at_known_centres_are_found_with_identity_and_subpixel_centroids():
+    rng = np.random.default_rng(0)
+    stickers = [
+        (sid, (100 + 70 * sid + rng.uniform(0, 1), 200 + rng.uniform(0, 300))) for sid in range(16)
+    ]
+    img, depth = synthetic(stickers)
+    det = detect_stickers(img, depth, INTR, LAYOUT)
+    assert det.found.all()
+    for sid, centre in stickers:
+        np.testing.assert_allclose(det.centroids[sid], centre, atol=0.15)
+
+
+def test_an_identity_is_never_given_twice():
+    img, depth = synthetic([(3, (300.2, 300.7)), (3, (700.0, 400.0))])
+    det = detect_stickers(img, depth, INTR, LAYOUT)
+    assert det.found.sum() == 1
+    assert any("second blob for sticker 3" in r.reason for r in det.rejected)
+
+
+def test_blobs_that_cannot_be_stickers_are_rejected_with_a_reason():
+    img, depth = synthetic([(5, (300.0, 300.0))])
+    cv2.circle(img, (800, 300), 120, LAYOUT.colours_srgb["blue"], -1)  # far too large
+    cv2.rectangle(img, (200, 500), (290, 510), LAYOUT.colours_srgb["green"], -1)  # a strip
+    det = detect_stickers(img, depth, INTR, LAYOUT)
+    assert det.found.sum() == 1 and det.found[5]
+    reasons = " ".join(r.reason for r in det.rejected)
+    assert "too large" in reasons and "not disc-shaped" in reasons
+
+
+def test_nothing_found_on_an_empty_table():
+    img = np.full((INTR.height, INTR.width, 3), (120, 110, 100), np.uint8)
+    det = detect_stickers(img, np.full(img.shape[:2], 600, np.uint16), INTR, LAYOUT)
+    assert not det.found.any() and det.centroids.shape == (16, 2)
+
+
+def scene(class_id, seed, *, height, tilt_deg):
+    rng = np.random.default_rng(seed)
+    state = sample_state(class_id, rng=rng)
+    pose = look_at_table(
+        height,
+        tilt_rad=np.radians(tilt_deg),
+        tilt_direction_rad=rng.uniform(0, 6.3),
+        yaw_rad=rng.uniform(0, 6.3),
+        target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0),
+    )
+    result = render(state, pose, lighting=Lighting.random(rng), rng=rng)
+    return state, pose, result
+
+
+@pytest.mark.parametrize(
+    ("class_id", "seed", "height", "tilt"),
+    [
+        ("01", 1, 0.45, 0),
+        ("04", 2, 0.52, 15),
+        ("07", 3, 0.8, 10),
+        ("10", 4, 0.6, 5),
+        ("12", 5, 0.7, 14),
+    ],
+)
+def test_render_detect_deproject_matches_truth(class_id, seed, height, tilt):
+    _, pose, result = scene(class_id, seed, height=height, tilt_deg=tilt)
+    frame = RGBDFrame(result.color, result.depth_mm, INTR)
+    det, markers, obs = observe(frame, LAYOUT)
+    fully_seen = result.visible_fraction == 1.0
+    assert det.found[fully_seen].all()
+    assert not det.found[result.visible_fraction < 0.3].any()
+    err_mm = (
+        np.linalg.norm(markers.points[det.found] - result.sticker_points_cam[det.found], axis=1)
+        * 1e3
+    )
+    assert np.median(err_mm) <= 3.0
+    # The table normal is the world's up seen from the camera.
+    up_cam = pose.rotation.T @ np.array([0.0, 0.0, 1.0])
+    assert np.degrees(np.arccos(np.clip(obs.up @ up_cam, -1, 1))) < 1.0
+
+
+def test_sticker_depth_is_robust_to_a_missing_centre_reading():
+    img, depth = synthetic([(0, (400.0, 300.0))], depth_mm=600)
+    depth[295:306, 395:406] = 0  # no reading around the centroid
+    det = detect_stickers(img, depth, INTR, LAYOUT)
+    markers = lift_stickers(det, INTR)
+    assert markers.found[0]
+    assert markers.points[0, 2] == pytest.approx(0.6)
+
+
+def test_table_normal_needs_depth():
+    with pytest.raises(ValueError, match="valid depth"):
+        estimate_table_normal(np.zeros((720, 1280), np.uint16), INTR)
