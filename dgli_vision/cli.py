@@ -95,6 +95,92 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
     click.echo(f"wrote {len(states)} states to {index}")
 
 
+@main.command()
+@click.argument("folder", type=click.Path())
+@click.option(
+    "--report", "report_dir", type=click.Path(file_okay=False), help="Write a report here."
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1),
+    default=None,
+    help="Worker processes [default: all cores].",
+)
+@click.option(
+    "--references", "references_path", type=click.Path(dir_okay=False), help="Reference set file."
+)
+@_handle_errors
+def evaluate(
+    folder: str,
+    report_dir: str | None,
+    as_json: bool,
+    jobs: int | None,
+    references_path: str | None,
+) -> None:
+    """Classify every labelled pair of FOLDER and report accuracy and confusions."""
+    import os
+    from pathlib import Path
+
+    from .evaluate import timed_evaluation
+    from .io import file_sha256, find_pairs, read_color, write_json, write_png, write_text
+    from .references import default_references_path, load_references
+
+    pairs = find_pairs(folder)
+    refs_path = Path(references_path) if references_path else default_references_path()
+    refs = load_references(refs_path)
+    jobs = jobs or os.cpu_count() or 1
+    if sys.stderr.isatty() and not as_json:
+        with click.progressbar(length=len(pairs), label="classifying", file=sys.stderr) as bar:
+            result = timed_evaluation(pairs, refs, jobs=jobs, on_progress=bar.update)
+    else:
+        result = timed_evaluation(pairs, refs, jobs=jobs)
+    if as_json:
+        click.echo(json.dumps(result.to_dict()))
+    else:
+        from .report import markdown_table
+
+        click.echo(
+            f"{result.n} pairs, {result.classified} classified, "
+            f"{len(result.failures)} failed or unclassified"
+        )
+        click.echo(
+            f"class accuracy {result.accuracy:.2%}, "
+            f"variant accuracy {result.variant_accuracy:.2%}, "
+            f"{result.seconds:.1f} s with {jobs} worker(s)"
+        )
+        click.echo(
+            markdown_table(
+                ["true \\ predicted", *result.labels, "none"],
+                [[lab, *row] for lab, row in zip(result.labels, result.confusion)],
+            ),
+            nl=False,
+        )
+        for f in result.failures:
+            click.echo(f"failed: {f['color']}: {f['error']}")
+    if report_dir:
+        from .evaluation_report import build_report
+
+        meta = {
+            "command": _command_line(),
+            "folder": folder,
+            "references": str(refs_path),
+            "references_sha256": file_sha256(refs_path),
+            "package_version": _package_version(),
+            "jobs": jobs,
+        }
+        out = Path(report_dir)
+        for name, content in build_report(result, meta, read_color).items():
+            if isinstance(content, str):
+                write_text(out / name, content)
+            elif isinstance(content, dict):
+                write_json(out / name, content)
+            else:
+                write_png(out / name, content)
+        click.echo(f"report written to {out / 'report.md'}", err=True)
+
+
 @main.command("render")
 @click.argument("out", type=click.Path(file_okay=False))
 @click.option(

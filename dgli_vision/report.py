@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["csv_table", "heatmap_image", "markdown_table", "overlay_image"]
+__all__ = ["confusion_image", "csv_table", "heatmap_image", "markdown_table", "overlay_image"]
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
@@ -204,3 +204,73 @@ def overlay_image(
             cv2.LINE_AA,
         )
     return img
+
+
+def confusion_image(
+    confusion: NDArray,
+    labels: Sequence[str],
+    *,
+    names: dict[str, str] | None = None,
+    title: str = "",
+) -> NDArray[np.uint8]:
+    """Two confusion-matrix panels, counts and row-normalised, as one BGR image.
+
+    Parameters
+    ----------
+    confusion : array, shape (k, k + 1)
+        Rows true class, columns predicted class, the last column "none".
+    labels : sequence of str
+        The k class ids.
+    names : dict, optional, keyword-only
+        Class id -> name, shown on the row axis.
+    title : str, keyword-only
+    """
+    import cv2
+
+    conf = np.asarray(confusion, dtype=float)
+    k = len(labels)
+    cols = [*labels, "none"]
+    rows_sum = conf.sum(axis=1, keepdims=True)
+    norm = np.divide(conf, rows_sum, out=np.zeros_like(conf), where=rows_sum > 0)
+    cell = max(28, min(48, 560 // (k + 1)))
+    left = 250 if names else 60
+    top, bottom = 70, 90
+    panels = []
+    for values, sub, fmt in ((conf, "counts", "{:.0f}"), (norm, "row-normalised", "{:.2f}")):
+        vmax = values.max() if values.max() > 0 else 1.0
+        w, h = left + cell * (k + 1) + 90, top + cell * k + bottom
+        img = np.full((h, w, 3), 255, np.uint8)
+        grey = np.clip(values / vmax * 255, 0, 255).astype(np.uint8)
+        colour = cv2.applyColorMap(grey, cv2.COLORMAP_VIRIDIS)
+        for r in range(k):
+            for c in range(k + 1):
+                x0, y0 = left + c * cell, top + r * cell
+                img[y0 : y0 + cell - 1, x0 : x0 + cell - 1] = colour[r, c]
+                if values[r, c] > 0:
+                    text = fmt.format(values[r, c])
+                    ink = (0, 0, 0) if grey[r, c] > 150 else (255, 255, 255)
+                    cv2.putText(
+                        img,
+                        text,
+                        (x0 + 3, y0 + cell // 2 + 4),
+                        cv2.FONT_HERSHEY_SIMPLEX,
+                        0.36,
+                        ink,
+                        1,
+                        cv2.LINE_AA,
+                    )
+        for r, lab in enumerate(labels):
+            text = f"{lab} {names.get(lab, '')}" if names else lab
+            _text(img, text[:30], (6, top + r * cell + cell // 2 + 4), 0.42)
+        for c, lab in enumerate(cols):
+            _text(img, lab, (left + c * cell + 4, top + k * cell + 18), 0.4)
+        _text(img, "predicted", (left + (k + 1) * cell // 2 - 30, top + k * cell + 45), 0.5)
+        _text(img, "true", (6, top - 10), 0.5)
+        _text(img, f"{title} ({sub})", (left, 30), 0.6)
+        bar = np.linspace(255, 0, k * cell).astype(np.uint8)[:, None].repeat(16, axis=1)
+        x = left + (k + 1) * cell + 15
+        img[top : top + k * cell, x : x + 16] = cv2.applyColorMap(bar, cv2.COLORMAP_VIRIDIS)
+        _text(img, fmt.format(vmax), (x + 20, top + 10), 0.4)
+        _text(img, "0", (x + 20, top + k * cell), 0.4)
+        panels.append(img)
+    return np.concatenate(panels, axis=1)

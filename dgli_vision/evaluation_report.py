@@ -1,0 +1,166 @@
+"""The evaluation report: what ``dgli evaluate --report DIR`` writes, built in memory.
+
+:func:`build_report` returns file names with their content (text or image arrays); the
+CLI hands them to :mod:`dgli_vision.io`. Nothing here touches the disk.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .cloth.states import CLASS_NAMES
+from .distance import spearman_distance
+from .evaluate import EvaluationResult, coordinate_matrix
+from .report import confusion_image, csv_table, heatmap_image, markdown_table, overlay_image
+
+__all__ = ["build_report", "sample_distance_matrix"]
+
+
+def sample_distance_matrix(coords: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Spearman distances (n, n) between samples, ignoring missing coordinates pairwise."""
+    n = len(coords)
+    out = np.full((n, n), np.nan)
+    for a in range(n):
+        out[a, a] = 0.0 if np.isfinite(coords[a]).sum() >= 3 else np.nan
+        if a + 1 < n:
+            out[a, a + 1 :] = out[a + 1 :, a] = spearman_distance(
+                coords[a + 1 :], coords[a], omit_nan=True
+            )
+    return out
+
+
+def _stem(color_path: str) -> str:
+    return Path(color_path).name.replace("_color.png", "").replace(".png", "")
+
+
+def _name(c: str | None) -> str:
+    return f"{c} {CLASS_NAMES.get(c, '')}".strip() if c else "none"
+
+
+def build_report(
+    result: EvaluationResult, meta: dict[str, Any], read_color: Any
+) -> dict[str, str | dict | NDArray[np.uint8]]:
+    """All report files: name -> Markdown/CSV text, JSON-ready dict, or BGR image.
+
+    Parameters
+    ----------
+    result : EvaluationResult
+    meta : dict
+        ``command``, ``references``, ``references_sha256``, ``package_version``, ``jobs``.
+    read_color : callable
+        ``read_color(path) -> RGB array``, used for the overlays of misclassified pairs.
+    """
+    files: dict[str, Any] = {}
+    labels = result.labels
+    cols = [*labels, "none"]
+    summary = {**result.to_dict(), **meta}
+    files["summary.json"] = summary
+    conf_rows = [[lab, *row] for lab, row in zip(labels, result.confusion)]
+    files["confusion.csv"] = csv_table(["true \\ predicted", *cols], conf_rows)
+    pc_rows = [
+        [c, CLASS_NAMES.get(c, ""), v["precision"], v["recall"], v["f1"], v["support"]]
+        for c, v in result.per_class.items()
+    ]
+    pc_header = ["class", "name", "precision", "recall", "f1", "support"]
+    files["per_class.csv"] = csv_table(pc_header, pc_rows)
+    files["confusion.png"] = confusion_image(
+        np.array(result.confusion), labels, names=CLASS_NAMES, title="confusion"
+    )
+    outs = result.outcomes
+    order = sorted(range(len(outs)), key=lambda k: (outs[k].pair.label, outs[k].pair.color))
+    coords = coordinate_matrix([outs[k] for k in order])
+    if len(order) >= 2:
+        files["distances.png"] = heatmap_image(
+            sample_distance_matrix(coords),
+            title="Spearman distance of dGLI, samples by true class",
+            groups=[outs[k].pair.label for k in order],
+            value_label="1 - rho",
+        )
+    wrong = [o for o in outs if o.predicted is not None and not o.correct]
+    for o in wrong:
+        stem = _stem(o.pair.color)
+        verdict = f"predicted {_name(o.predicted)} ({o.distance:.3f}); true {_name(o.pair.label)}"
+        files[f"overlays/{stem}_overlay.png"] = overlay_image(
+            read_color(o.pair.color),
+            np.array(o.centroids),
+            verdict,
+            detail=f"runner-up {_name(o.runner_up)} ({o.runner_up_distance or float('nan'):.3f})",
+        )
+    md = [
+        "# dgli evaluate report",
+        "",
+        f"- pairs: **{result.n}**, classified: **{result.classified}**, "
+        f"failures: **{len(result.failures)}**",
+        f"- class accuracy: **{result.accuracy:.2%}**; "
+        f"variant accuracy: **{result.variant_accuracy:.2%}**",
+        f"- time: {result.seconds:.1f} s with {meta.get('jobs', 1)} worker(s)",
+        f"- command: `{meta.get('command', '')}`",
+        f"- references: `{meta.get('references', '')}` "
+        f"(sha256 `{meta.get('references_sha256', '')}`)",
+        f"- dgli_vision {meta.get('package_version', '')}",
+        "",
+        "## Confusion (rows: true class, columns: predicted)",
+        "",
+        markdown_table(
+            ["true \\ predicted", *cols],
+            [[_name(lab), *row] for lab, row in zip(labels, result.confusion)],
+        ),
+        "![confusion matrix](confusion.png)",
+        "",
+        "## Per class",
+        "",
+        markdown_table(pc_header, pc_rows),
+        "## Misclassified pairs",
+        "",
+    ]
+    if wrong:
+        md.append(
+            markdown_table(
+                [
+                    "colour image",
+                    "true",
+                    "predicted",
+                    "distance",
+                    "runner-up",
+                    "runner-up distance",
+                    "overlay",
+                ],
+                [
+                    [
+                        o.pair.color,
+                        f"{_name(o.pair.label)} {o.pair.variant or ''}".strip(),
+                        f"{_name(o.predicted)} {o.predicted_variant or ''}".strip(),
+                        round(o.distance or 0, 4),
+                        _name(o.runner_up),
+                        round(o.runner_up_distance or 0, 4),
+                        f"[overlay](overlays/{_stem(o.pair.color)}_overlay.png)",
+                    ]
+                    for o in wrong
+                ],
+            )
+        )
+    else:
+        md.append("None.\n")
+    md += ["## Failures (not read, or no class given)", ""]
+    if result.failures:
+        md.append(
+            markdown_table(
+                ["colour image", "depth image", "error"],
+                [[f["color"], f["depth"], f["error"]] for f in result.failures],
+            )
+        )
+    else:
+        md.append("None.\n")
+    if "distances.png" in files:
+        md += [
+            "## Distances between all evaluated samples",
+            "",
+            "![distance matrix](distances.png)",
+            "",
+        ]
+    files["report.md"] = "\n".join(md)
+    return files
