@@ -40,10 +40,20 @@ def main() -> None:
 
 
 def _command_line() -> str:
-    """The command as typed, for provenance records."""
+    """The current command, rebuilt from its parsed parameters, for provenance records."""
     import shlex
 
-    return " ".join(["dgli", *(shlex.quote(a) for a in sys.argv[1:])]) if sys.argv else "dgli"
+    ctx = click.get_current_context()
+    sub = ctx.command_path.split(" ", 1)
+    words = ["dgli", *sub[1:]] if ctx.parent is not None else [ctx.command_path]
+    for param in ctx.command.params:
+        value = ctx.params.get(param.name)
+        if isinstance(param, click.Argument):
+            words.append(shlex.quote(str(value)))
+        elif value not in (None, False) and value != param.default:
+            flag = max(param.opts, key=len)
+            words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
+    return " ".join(words)
 
 
 def _package_version() -> str:

@@ -1,0 +1,148 @@
+"""dgli evaluate: a hand-computable small case, broken pairs, -j 1 == -j 2, the report."""
+
+from __future__ import annotations
+
+import csv
+import json
+import shutil
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dgli_vision.cli import main
+from dgli_vision.evaluate import PairOutcome, summarise
+from dgli_vision.io import LabelledPair, find_pairs
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
+
+
+def run(args):
+    result = CliRunner().invoke(main, ["evaluate", *args])
+    assert "Traceback" not in result.output
+    return result
+
+
+@pytest.fixture
+def small_folder(tmp_path):
+    """5 pairs of 3 classes: one broken, one labelled wrongly (so misclassified)."""
+    rows = []
+    for name, label, variant in [
+        ("01_000", "01", ""),
+        ("02_000", "02", "C"),
+        ("03_000", "03", "C"),
+        ("05_000", "02", "C"),
+    ]:
+        for kind in ("color", "depth"):
+            shutil.copy(SAMPLES / f"{name}_{kind}.png", tmp_path / f"{name}_{kind}.png")
+        rows.append((f"{name}_color.png", f"{name}_depth.png", label, variant))
+    shutil.copy(SAMPLES / "intrinsics.json", tmp_path / "intrinsics.json")
+    (tmp_path / "bad_color.png").write_bytes(b"not an image")
+    cv2.imwrite(str(tmp_path / "bad_depth.png"), np.ones((720, 1280), np.uint16))
+    rows.append(("bad_color.png", "bad_depth.png", "03", "A"))
+    with open(tmp_path / "labels.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows([("color", "depth", "label", "variant"), *rows])
+    return tmp_path
+
+
+def test_hand_computable_case(small_folder, tmp_path):
+    report = tmp_path / "report"
+    result = run([str(small_folder), "--json", "-j", "1", "--report", str(report)])
+    assert result.exit_code == 0, result.output
+    data = json.loads(result.output.splitlines()[0])
+    assert data["n"] == 5 and data["classified"] == 4
+    # Correct: 01, 02, 03 (3 of 5); the 05 image labelled 02 is predicted 05.
+    assert data["accuracy"] == pytest.approx(3 / 5)
+    assert data["variant_accuracy"] == pytest.approx(3 / 5)
+    assert data["labels"] == ["01", "02", "03", "05"]
+    assert data["confusion"] == [
+        [1, 0, 0, 0, 0],
+        [0, 1, 0, 1, 0],
+        [0, 0, 1, 0, 1],
+        [0, 0, 0, 0, 0],
+    ]
+    # 02: predicted twice? no: once right (precision 1/1), recall 1/2.
+    assert data["per_class"]["02"] == {
+        "precision": 1.0,
+        "recall": 0.5,
+        "f1": pytest.approx(0.6667, abs=1e-4),
+        "support": 2,
+    }
+    assert data["per_class"]["03"]["recall"] == 0.5
+    assert data["per_class"]["05"] == {"precision": 0.0, "recall": 0.0, "f1": 0.0, "support": 0}
+    assert len(data["failures"]) == 1
+    failure = data["failures"][0]
+    assert failure["color"].endswith("bad_color.png") and "not an image" in failure["error"]
+    # The report.
+    for name in (
+        "report.md",
+        "confusion.csv",
+        "per_class.csv",
+        "summary.json",
+        "confusion.png",
+        "distances.png",
+        "overlays/05_000_overlay.png",
+    ):
+        assert (report / name).exists(), name
+    summary = json.loads((report / "summary.json").read_text())
+    assert summary["references_sha256"] and summary["command"].startswith("dgli evaluate")
+    assert summary["accuracy"] == data["accuracy"]
+    md = (report / "report.md").read_text()
+    assert "| 02 corner-over | 0 | 1 | 0 | 1 | 0 |" in md
+    assert "bad_color.png" in md and "not an image" in md
+    per_class = list(csv.DictReader((report / "per_class.csv").read_text().splitlines()))
+    assert per_class[1]["class"] == "02" and per_class[1]["recall"] == "0.5"
+
+
+def test_jobs_1_and_2_give_identical_results(small_folder):
+    one = json.loads(run([str(small_folder), "--json", "-j", "1"]).output)
+    two = json.loads(run([str(small_folder), "--json", "-j", "2"]).output)
+    one.pop("seconds")
+    two.pop("seconds")
+    assert one == two
+
+
+def test_plain_output_lists_failures(small_folder):
+    result = run([str(small_folder), "-j", "1"])
+    assert result.exit_code == 0
+    assert "5 pairs, 4 classified" in result.output
+    assert "failed: " in result.output and "bad_color.png" in result.output
+
+
+def test_class_folders_label_pairs(tmp_path):
+    for name, folder in [("02_000", "02_corner-over"), ("09_000", "09_strip-over")]:
+        (tmp_path / folder / "take1").mkdir(parents=True)
+        for kind in ("color", "depth"):
+            shutil.copy(
+                SAMPLES / f"{name}_{kind}.png", tmp_path / folder / "take1" / f"x_{kind}.png"
+            )
+    pairs = find_pairs(tmp_path)
+    assert [(p.label, Path(p.color).parent.parent.name) for p in pairs] == [
+        ("02", "02_corner-over"),
+        ("09", "09_strip-over"),
+    ]
+    data = json.loads(run([str(tmp_path), "--json", "-j", "1"]).output)
+    assert data["accuracy"] == 1.0
+
+
+def test_folder_errors_are_one_line(tmp_path):
+    result = run([str(tmp_path / "missing")])
+    assert result.exit_code == 2 and "does not exist" in result.output
+    (tmp_path / "labels.csv").write_text("a,b\n1,2\n")
+    result = run([str(tmp_path)])
+    assert result.exit_code == 2 and "lacks column(s) color, depth, label" in result.output
+    assert result.output.strip().count("\n") == 0
+
+
+def test_summary_of_outcomes_without_images():
+    pair = LabelledPair("a_color.png", "a_depth.png", "04", "AB")
+    outs = [
+        PairOutcome(pair, "04", "AB", 0.1),
+        PairOutcome(pair, "04", "BC", 0.2),
+        PairOutcome(pair, error="broken"),
+    ]
+    s = summarise(outs, 1.0)
+    assert s.accuracy == round(2 / 3, 4) and s.variant_accuracy == round(1 / 3, 4)
+    assert s.confusion == [[2, 1]]
