@@ -545,7 +545,7 @@ def _format_figure(value: float, unit: str) -> str:
                 return f"{value / scale:.2f} {prefix}{unit}"
         return f"{value:.1f} {unit}"
     if unit == "x":
-        return f"{value:,.0f}x"
+        return f"{value:,.0f}x" if value >= 10 else f"{value:.2f}x"
     return f"{value:.3g} {unit}"
 
 
@@ -557,14 +557,32 @@ def _format_figure(value: float, unit: str) -> str:
     type=click.Path(dir_okay=False, writable=True),
     help="Also write the figures as a Markdown table to this file.",
 )
+@click.option(
+    "--only", type=click.Choice(["dgli", "pipeline"]), help="Run one group of benchmarks only."
+)
+@click.option(
+    "--samples",
+    default="sample_images",
+    show_default=True,
+    type=click.Path(file_okay=False),
+    help="Labelled folder for the pipeline benchmarks.",
+)
 @_handle_errors
-def bench(states: int, repeats: int, markdown: str | None) -> None:
+def bench(states: int, repeats: int, markdown: str | None, only: str | None, samples: str) -> None:
     """Measure the benchmark figures of DESIGN.md (one core where it says so)."""
     import platform
+    import shutil
+    from pathlib import Path
 
-    from .bench import run_dgli_benchmarks
+    from .bench import run_dgli_benchmarks, run_pipeline_benchmarks
 
-    results = run_dgli_benchmarks(n_states=states, repeats=repeats)
+    results = []
+    if only in (None, "dgli"):
+        results += run_dgli_benchmarks(n_states=states, repeats=repeats)
+    if only in (None, "pipeline"):
+        exe = Path(sys.executable).parent / "dgli-classify"
+        exe_path = str(exe) if exe.exists() else shutil.which("dgli-classify")
+        results += run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
     rows = []
     for r in results:
         value = _format_figure(r.value, r.unit)

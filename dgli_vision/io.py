@@ -417,8 +417,14 @@ def read_frame(
     UnreadableInputError, InvalidInputError, CalibrationError
         One line naming the file and what is wrong.
     """
-    color = read_color(color_path)
-    depth = read_depth(depth_path)
+    from concurrent.futures import ThreadPoolExecutor
+
+    # PNG decoding releases the GIL: decode both images at once.
+    with ThreadPoolExecutor(2) as pool:
+        color_job = pool.submit(read_color, color_path)
+        depth_job = pool.submit(read_depth, depth_path)
+        color = color_job.result()
+        depth = depth_job.result()
     if color.shape[:2] != depth.shape:
         raise InvalidInputError(
             f"depth image '{depth_path}' is {depth.shape[1]}x{depth.shape[0]} but colour image "

@@ -157,8 +157,8 @@ def detect_stickers(
     labels = np.where(saturated, lut[hsv[..., 0]], 0).astype(np.uint8)
     mask = (labels > 0).astype(np.uint8)
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    valid_depth = depth_mm > 0
-    med_depth = float(np.median(depth_mm[valid_depth])) if valid_depth.any() else np.nan
+    coarse = depth_mm[::8, ::8]
+    med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
     disc_r_mm = layout.disc_diameter_mm / 2
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = (

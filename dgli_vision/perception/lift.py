@@ -48,7 +48,7 @@ def lift_stickers(detections: StickerDetections, intrinsics: Intrinsics) -> Mark
 
 
 def estimate_table_normal(
-    depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, *, stride: int = 6, iterations: int = 6
+    depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, *, stride: int = 10, iterations: int = 4
 ) -> NDArray[np.float64]:
     """Unit normal (3,) of the dominant plane of the depth image, towards the camera.
 
@@ -71,8 +71,9 @@ def estimate_table_normal(
     normal = np.array([0.0, 0.0, -1.0])
     for _ in range(iterations):
         centre = pts[keep].mean(axis=0)
-        _, _, vt = np.linalg.svd(pts[keep] - centre, full_matrices=False)
-        normal = vt[2]
+        rel = pts[keep] - centre
+        _, vecs = np.linalg.eigh(rel.T @ rel)  # smallest eigenvector: the plane normal
+        normal = vecs[:, 0]
         resid = np.abs((pts - centre) @ normal)
         mad = np.median(resid[keep])
         keep = resid < min(max(3.0 * 1.4826 * mad, 0.003), 0.015)
