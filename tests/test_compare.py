@@ -74,8 +74,11 @@ def small_db(tmp_path_factory):
 def test_simulate_is_deterministic(small_db, tmp_path):
     again = tmp_path / "again"
     assert run(["simulate", str(again), "--per-class", "2", "--seed", "5"]).exit_code == 0
-    for name in ("index.json", "truth/05_001.json", "meshes/12_000.ply"):
+    for name in ("truth/05_001.json", "meshes/12_000.ply"):
         assert (again / name).read_bytes() == (small_db / name).read_bytes()
+    index_a, index_b = (json.loads((d / "index.json").read_text()) for d in (small_db, again))
+    assert index_a["provenance"].pop("command") != index_b["provenance"].pop("command")
+    assert index_a == index_b
     truth = json.loads((small_db / "truth" / "03_000.json").read_text())
     assert truth["class"] == "03" and len(truth["coordinates"]) == 28
     assert len(truth["visible"]) == 16 and truth["visible"].count(False) == 4
