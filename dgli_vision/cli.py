@@ -18,6 +18,24 @@ from .errors import DgliError
 
 F = TypeVar("F", bound=Callable[..., Any])
 
+# Options shared by several commands: one name, one help text, one validation.
+references_option = click.option(
+    "--references",
+    "references_path",
+    type=click.Path(dir_okay=False),
+    help="Reference set file [default: references/default.json or $DGLI_REFERENCES].",
+)
+
+
+def report_option(help_text: str) -> Callable[[F], F]:
+    """``--report DIR``: a folder to write a report into."""
+    return click.option("--report", "report_dir", type=click.Path(file_okay=False), help=help_text)
+
+
+def json_option(help_text: str = "Print one JSON object.") -> Callable[[F], F]:
+    """``--json``: machine-readable output on stdout."""
+    return click.option("--json", "as_json", is_flag=True, help=help_text)
+
 
 def _handle_errors(fn: F) -> F:
     """Turn a DgliError into one line on stderr and its exit code (never a traceback)."""
@@ -107,10 +125,8 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
 
 @main.command()
 @click.argument("folder", type=click.Path())
-@click.option(
-    "--report", "report_dir", type=click.Path(file_okay=False), help="Write a report here."
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
+@report_option("Write a report here.")
+@json_option("Print the summary as JSON.")
 @click.option(
     "-j",
     "--jobs",
@@ -118,9 +134,7 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
     default=None,
     help="Worker processes [default: all cores].",
 )
-@click.option(
-    "--references", "references_path", type=click.Path(dir_okay=False), help="Reference set file."
-)
+@references_option
 @_handle_errors
 def evaluate(
     folder: str,
@@ -271,13 +285,8 @@ def _sequence_records(name: str):
 
 @main.command()
 @click.argument("db", type=click.Path())
-@click.option(
-    "--report",
-    "report_dir",
-    type=click.Path(file_okay=False),
-    help="Write the table and heatmaps here.",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+@report_option("Write the table and heatmaps here.")
+@json_option("Print the table as JSON.")
 @_handle_errors
 def compare(db: str, report_dir: str | None, as_json: bool) -> None:
     """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
@@ -336,16 +345,9 @@ def compare(db: str, report_dir: str | None, as_json: bool) -> None:
 
 @main.command()
 @click.argument("name", type=click.Choice(["I", "II", "III"]))
-@click.option(
-    "--references", "references_path", type=click.Path(dir_okay=False), help="Reference set file."
-)
-@click.option(
-    "--report",
-    "report_dir",
-    type=click.Path(file_okay=False),
-    help="Write the heatmap and frames here.",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
+@references_option
+@report_option("Write the heatmap and frames here.")
+@json_option("Print a JSON object.")
 @_handle_errors
 def sequence(
     name: str, references_path: str | None, report_dir: str | None, as_json: bool
@@ -462,13 +464,8 @@ def verdict_line(result: Any) -> str:
     type=click.Path(dir_okay=False),
     help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
 )
-@click.option(
-    "--references",
-    "references_path",
-    type=click.Path(dir_okay=False),
-    help="Reference set (default: references/default.json).",
-)
-@click.option("--json", "as_json", is_flag=True, help="Print one JSON object.")
+@references_option
+@json_option("Print one JSON object.")
 @click.option(
     "--overlay",
     type=click.Path(dir_okay=False),
@@ -520,7 +517,7 @@ def classify_main() -> None:
 
 
 @main.command()
-@click.option("--json", "as_json", is_flag=True, help="Print a JSON object.")
+@json_option("Print a JSON object.")
 @_handle_errors
 def coords(as_json: bool) -> None:
     """Show the 28 dGLI cloth coordinates of the flat napkin (SPEC section 2)."""

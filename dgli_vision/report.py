@@ -117,6 +117,17 @@ def heatmap_image(
     return img
 
 
+def _outlined_text(
+    img: NDArray, text: str, org: tuple[int, int], scale: float, weight: int
+) -> None:
+    """White text with a black outline, readable on any background."""
+    import cv2
+
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    cv2.putText(img, text, org, font, scale, (0, 0, 0), weight + 2, cv2.LINE_AA)
+    cv2.putText(img, text, org, font, scale, (255, 255, 255), weight, cv2.LINE_AA)
+
+
 def overlay_image(
     color_rgb: NDArray[np.uint8],
     centroids: NDArray[np.float64],
@@ -168,41 +179,9 @@ def overlay_image(
         if np.isfinite(p).all():
             c = tuple(int(round(v)) for v in p)
             cv2.circle(img, c, int(4 * scale), (0, 0, 0), -1, cv2.LINE_AA)
-            cv2.putText(
-                img,
-                str(k),
-                (c[0] + 8, c[1] + 16),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.55 * scale,
-                (0, 0, 0),
-                2,
-                cv2.LINE_AA,
-            )
-            cv2.putText(
-                img,
-                str(k),
-                (c[0] + 8, c[1] + 16),
-                cv2.FONT_HERSHEY_SIMPLEX,
-                0.55 * scale,
-                (255, 255, 255),
-                1,
-                cv2.LINE_AA,
-            )
+            _outlined_text(img, str(k), (c[0] + 8, c[1] + 16), 0.55 * scale, 1)
     for row, text in enumerate(t for t in (verdict, detail) if t):
-        y = int((30 + 28 * row) * scale)
-        cv2.putText(
-            img, text, (12, y), cv2.FONT_HERSHEY_SIMPLEX, 0.8 * scale, (0, 0, 0), 4, cv2.LINE_AA
-        )
-        cv2.putText(
-            img,
-            text,
-            (12, y),
-            cv2.FONT_HERSHEY_SIMPLEX,
-            0.8 * scale,
-            (255, 255, 255),
-            2,
-            cv2.LINE_AA,
-        )
+        _outlined_text(img, text, (12, int((30 + 28 * row) * scale)), 0.8 * scale, 2)
     return img
 
 
