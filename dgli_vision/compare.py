@@ -22,8 +22,17 @@ __all__ = [
     "distance_matrices",
 ]
 
+
+def _dgli_with_visibility(records: StateRecords) -> NDArray[np.float64]:
+    """The classifier's metric between samples: Spearman distance of the dGLI plus the
+    mean disagreement of which stickers are visible (see :mod:`dgli_vision.classify`)."""
+    vis = records.visible.astype(float)
+    return pairwise_spearman(records.coordinates) + np.abs(vis[:, None] - vis[None]).mean(axis=2)
+
+
 REPRESENTATIONS: dict[str, Callable[[StateRecords], NDArray[np.float64]]] = {
     "dgli": lambda r: pairwise_spearman(r.coordinates),
+    "dgli+visibility": _dgli_with_visibility,
     "edges": lambda r: pairwise_spearman(
         segment_distances(r.sticker_points.reshape(len(r), -1, 2, 3))
     ),

@@ -90,7 +90,14 @@ def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
     assert result.exit_code == 0, result.output
     table = json.loads((report / "table.json").read_text())
     assert table["columns"] == ["database", "database by variant", "I", "II", "III"]
-    assert set(table["rows"]) == {"dgli", "edges", "corners", "frechet", "hausdorff"}
+    assert set(table["rows"]) == {
+        "dgli",
+        "dgli+visibility",
+        "edges",
+        "corners",
+        "frechet",
+        "hausdorff",
+    }
     assert json.loads(result.output.splitlines()[0]) == table
     md = (report / "table.md").read_text()
     assert "| dgli |" in md
