@@ -291,8 +291,8 @@ def _sequence_records(name: str):
 def compare(db: str, report_dir: str | None, as_json: bool) -> None:
     """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
 
-    Columns: the database labelled by class, the same labelled by class and variant,
-    and the three folding sequences labelled by their frames' true class.
+    Columns: the database labelled by class, the three folding sequences labelled by
+    their frames' true class, and the database labelled by class and variant.
     """
     import dataclasses
     from pathlib import Path
@@ -312,8 +312,8 @@ def compare(db: str, report_dir: str | None, as_json: bool) -> None:
     )
     datasets = {
         "database": records,
-        "database by variant": by_variant,
         **{n: _sequence_records(n) for n in ("I", "II", "III")},
+        "database by variant": by_variant,
     }
     table = davies_bouldin_table(datasets)
     columns = table["columns"]
