@@ -12,14 +12,46 @@ from collections.abc import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.stats import rankdata
 
 __all__ = [
+    "average_ranks",
     "davies_bouldin",
     "davies_bouldin_points",
     "pairwise_spearman",
     "spearman_distance",
 ]
+
+
+def average_ranks(x: ArrayLike) -> NDArray[np.float64]:
+    """Ranks 1..n along the last axis, ties sharing their average rank.
+
+    The same as ``scipy.stats.rankdata(x, axis=-1)`` (method "average"), in numpy alone:
+    importing scipy.stats costs more than half a second at start-up.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., n)
+        Values without NaN.
+
+    Returns
+    -------
+    ndarray of float64, shape (..., n)
+    """
+    a = np.asarray(x, dtype=np.float64)
+    n = a.shape[-1]
+    rows = a.reshape(-1, n)
+    m = len(rows)
+    order = np.argsort(rows, axis=1, kind="stable")
+    ordered = np.take_along_axis(rows, order, axis=1)
+    starts = np.ones((m, n), dtype=bool)
+    starts[:, 1:] = ordered[:, 1:] != ordered[:, :-1]
+    group = np.cumsum(starts, axis=1) + (np.arange(m) * n)[:, None]  # tie groups, unique per row
+    position = np.broadcast_to(np.arange(1.0, n + 1.0), (m, n))
+    sums = np.bincount(group.ravel(), weights=position.ravel(), minlength=m * n + 1)
+    counts = np.bincount(group.ravel(), minlength=m * n + 1)
+    ranks = np.empty((m, n))
+    np.put_along_axis(ranks, order, (sums / np.maximum(counts, 1))[group], axis=1)
+    return ranks.reshape(a.shape)
 
 
 def _centred_unit_ranks(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -28,7 +60,7 @@ def _centred_unit_ranks(x: NDArray[np.float64]) -> NDArray[np.float64]:
     Rows with all values equal have no defined correlation; they become all-zero rows,
     which makes their correlation with anything 0 (distance 1).
     """
-    r = rankdata(x, axis=-1)
+    r = average_ranks(x)
     r -= r.mean(axis=-1, keepdims=True)
     norm = np.linalg.norm(r, axis=-1, keepdims=True)
     return np.divide(r, norm, out=np.zeros_like(r), where=norm > 0)

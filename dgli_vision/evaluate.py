@@ -72,7 +72,8 @@ def _classify_pair(pair: LabelledPair, refs: ReferenceSet | None = None) -> Pair
     from .pipeline import classify_frame
 
     refs = refs if refs is not None else _WORKER_REFS
-    assert refs is not None  # set by the pool initializer
+    if refs is None:
+        raise RuntimeError("worker started without references (pool initializer not run)")
     try:
         frame = read_frame(pair.color, pair.depth)
         result = classify_frame(frame, refs)

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .cloth.states import CLASS_NAMES
+from .classes import CLASS_NAMES
 from .distance import spearman_distance
 from .evaluate import EvaluationResult, coordinate_matrix
 from .report import confusion_image, csv_table, heatmap_image, markdown_table, overlay_image

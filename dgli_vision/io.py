@@ -12,13 +12,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .camera import DEFAULT_INTRINSICS, Intrinsics
-from .database import StateRecords
-from .dgli import cloth_coordinates
 from .errors import CalibrationError, InvalidInputError, UnreadableInputError
 from .references import ReferenceSet, references_from_dict, references_to_dict
 
 if TYPE_CHECKING:
     from .cloth.states import ClothState
+    from .database import StateRecords
 
 __all__ = [
     "LabelledPair",
@@ -186,6 +185,9 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
     UnreadableInputError, InvalidInputError
         Naming the file that is missing or wrong.
     """
+    from .database import StateRecords
+    from .dgli import cloth_coordinates
+
     p = Path(path)
     index_path = p / "index.json" if p.is_dir() else p
     index = read_json(index_path, what="database index")

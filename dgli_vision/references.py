@@ -10,15 +10,17 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .cloth.states import CLASS_NAMES
-from .database import StateRecords
+from .classes import CLASS_NAMES
 from .distance import pairwise_spearman
 from .errors import ReferenceError_
+
+if TYPE_CHECKING:
+    from .database import StateRecords
 
 __all__ = [
     "FORMAT",

@@ -152,9 +152,7 @@ def _texture_cached(layout: NapkinLayout) -> NDArray[np.float32]:
     lin = np.array([_srgb_to_linear(np.array(layout.colours_srgb[n]) / 255.0) for n in names])
     ss = 4
     canvas = np.zeros((h * ss, w * ss), np.uint8)
-    for k, (uv, disc, dot) in enumerate(
-        zip(layout.sticker_uv, layout.sticker_disc, layout.sticker_dot)
-    ):
+    for uv, disc, dot in zip(layout.sticker_uv, layout.sticker_disc, layout.sticker_dot):
         centre = (int(round(uv[0] * s * ss)), int(round(uv[1] * s * ss)))
         cv2.circle(
             canvas,
@@ -170,7 +168,6 @@ def _texture_cached(layout: NapkinLayout) -> NDArray[np.float32]:
             names.index(dot) + 1,
             -1,
         )
-        del k
     weights = np.zeros((h, w, len(names) + 1), np.float32)
     for k in range(len(names) + 1):
         weights[..., k] = cv2.resize(

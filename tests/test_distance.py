@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.stats import spearmanr
+from scipy.stats import rankdata, spearmanr
 
 from dgli_vision.distance import (
+    average_ranks,
     davies_bouldin,
     davies_bouldin_points,
     pairwise_spearman,
@@ -96,3 +97,10 @@ def test_davies_bouldin_rejects_bad_input():
         davies_bouldin(np.zeros((3, 3)), [1, 1, 1])
     with pytest.raises(ValueError, match="square"):
         davies_bouldin(np.zeros((3, 2)), [1, 2, 2])
+
+
+def test_average_ranks_match_scipy():
+    rng = np.random.default_rng(5)
+    x = rng.integers(0, 6, size=(7, 28)).astype(float)
+    np.testing.assert_array_equal(average_ranks(x), rankdata(x, axis=-1))
+    np.testing.assert_array_equal(average_ranks([3.0, 1.0, 3.0]), [2.5, 1.0, 2.5])

@@ -8,7 +8,6 @@ straight above can see.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,6 +15,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.spatial import cKDTree
 
+from ..classes import CLASS_IDS, CLASS_NAMES, CORNERS, VARIANTS
 from ..dgli import cloth_coordinates
 from ..layout import NapkinLayout, default_layout
 from .fold import fold
@@ -36,41 +36,6 @@ __all__ = [
     "side_fold_line",
     "sticker_visibility",
 ]
-
-CLASS_NAMES: dict[str, str] = {
-    "01": "flat",
-    "02": "corner-over",
-    "03": "corner-under",
-    "04": "two-adjacent-corners",
-    "05": "two-adjacent-corners-crossing",
-    "06": "two-opposite-corners",
-    "07": "three-corners",
-    "08": "four-corners-centre",
-    "09": "strip-over",
-    "10": "strip-under",
-    "11": "half-fold",
-    "12": "diagonal-fold",
-}
-CLASS_IDS: tuple[str, ...] = tuple(CLASS_NAMES)
-
-_CORNERS = ("A", "B", "C", "D")
-_SIDES = ("AB", "BC", "CD", "DA")
-
-#: Variant strings of each class (SPEC section 3); ``None`` where there is none.
-VARIANTS: dict[str, tuple[str | None, ...]] = {
-    "01": (None,),
-    "02": _CORNERS,
-    "03": _CORNERS,
-    "04": _SIDES,
-    "05": tuple(f"{s}/{c}" for s in _SIDES for c in s),
-    "06": ("AC", "BD"),
-    "07": _CORNERS,
-    "08": (None,),
-    "09": _SIDES,
-    "10": _SIDES,
-    "11": _SIDES,
-    "12": _CORNERS,
-}
 
 #: Sticker ids visible from straight above are decided on 13 points of the disc; a
 #: sticker counts as visible when at least this fraction of them is uncovered.
@@ -159,7 +124,7 @@ class ClothState:
 
 
 def _corner_index(corner: str) -> int:
-    return _CORNERS.index(corner)
+    return CORNERS.index(corner)
 
 
 def corner_fold_line(
@@ -243,11 +208,11 @@ def _steps_for(
         for name in variant:
             corner(name, 150, 200)
     elif class_id == "07":
-        for name in _CORNERS:
+        for name in CORNERS:
             if name != variant:
                 corner(name, 150, 170)
     elif class_id == "08":
-        for name in _CORNERS:
+        for name in CORNERS:
             corner(name, 170, 200)
     elif class_id in ("09", "10"):
         inset = float(u(125, 140))
@@ -454,6 +419,3 @@ def sample_state(
         spacing_mm=spacing_mm,
         params=params,
     )
-
-
-StateFactory = Callable[[np.random.Generator], ClothState]

@@ -1,0 +1,44 @@
+"""The twelve cloth states of SPEC section 3: ids, names and variant strings.
+
+A light module (no numerical imports), so that reading references and printing verdicts
+does not pull in the simulator.
+"""
+
+from __future__ import annotations
+
+__all__ = ["CLASS_IDS", "CLASS_NAMES", "CORNERS", "SIDES", "VARIANTS"]
+
+CLASS_NAMES: dict[str, str] = {
+    "01": "flat",
+    "02": "corner-over",
+    "03": "corner-under",
+    "04": "two-adjacent-corners",
+    "05": "two-adjacent-corners-crossing",
+    "06": "two-opposite-corners",
+    "07": "three-corners",
+    "08": "four-corners-centre",
+    "09": "strip-over",
+    "10": "strip-under",
+    "11": "half-fold",
+    "12": "diagonal-fold",
+}
+CLASS_IDS: tuple[str, ...] = tuple(CLASS_NAMES)
+
+CORNERS = ("A", "B", "C", "D")
+SIDES = ("AB", "BC", "CD", "DA")
+
+#: Variant strings of each class (SPEC section 3); ``None`` where there is none.
+VARIANTS: dict[str, tuple[str | None, ...]] = {
+    "01": (None,),
+    "02": CORNERS,
+    "03": CORNERS,
+    "04": SIDES,
+    "05": tuple(f"{s}/{c}" for s in SIDES for c in s),
+    "06": ("AC", "BD"),
+    "07": CORNERS,
+    "08": (None,),
+    "09": SIDES,
+    "10": SIDES,
+    "11": SIDES,
+    "12": CORNERS,
+}
