@@ -344,7 +344,7 @@ def run_pipeline_benchmarks(
     results.append(
         BenchResult("simulate 12 x 20 states (no files)", t_sim, "s", "< 10 s", t_sim < 10)
     )
-    many = pairs * max(1, 48 // len(pairs))
+    many = pairs * max(1, 144 // len(pairs))
     t1 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=1)), 1)
     t2 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=2)), 1)
     results.append(BenchResult(f"evaluate {len(many)} pairs, -j 1", t1, "s"))

@@ -64,8 +64,12 @@ _WORKER_REFS: ReferenceSet | None = None
 
 
 def _init_worker(refs: ReferenceSet) -> None:
+    """Each worker is one of ``jobs`` processes: keep it to one thread (no oversubscription)."""
+    import cv2
+
     global _WORKER_REFS
     _WORKER_REFS = refs
+    cv2.setNumThreads(1)
 
 
 def _classify_pair(pair: LabelledPair, refs: ReferenceSet | None = None) -> PairOutcome:
@@ -75,7 +79,7 @@ def _classify_pair(pair: LabelledPair, refs: ReferenceSet | None = None) -> Pair
     if refs is None:
         raise RuntimeError("worker started without references (pool initializer not run)")
     try:
-        frame = read_frame(pair.color, pair.depth)
+        frame = read_frame(pair.color, pair.depth, threads=False)  # one pair per core
         result = classify_frame(frame, refs)
     except DgliError as exc:
         return PairOutcome(pair, error=str(exc))
@@ -129,7 +133,9 @@ def evaluate_pairs(
         return
     import multiprocessing as mp
 
-    ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else None
+    # Spawned, not forked: the parent may hold OpenCV, Open3D or decoding threads, and a
+    # forked child inherits their locks. Start-up is cheap (the pipeline imports in 0.1 s).
+    ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
         jobs, mp_context=ctx, initializer=_init_worker, initargs=(references,)
     ) as pool:

@@ -407,12 +407,17 @@ def read_intrinsics(path: str | Path) -> Intrinsics:
 
 
 def read_frame(
-    color_path: str | Path, depth_path: str | Path, intrinsics_path: str | Path | None = None
+    color_path: str | Path,
+    depth_path: str | Path,
+    intrinsics_path: str | Path | None = None,
+    *,
+    threads: bool = True,
 ) -> RGBDFrame:
     """Read and validate a colour + depth pair and its intrinsics.
 
     Intrinsics are looked up in SPEC section 4's order: ``intrinsics_path``;
-    ``intrinsics.json`` beside the colour image; the nominal Kinect default.
+    ``intrinsics.json`` beside the colour image; the nominal Kinect default. With
+    ``threads`` the two images are decoded concurrently (PNG decoding releases the GIL).
 
     Raises
     ------
@@ -421,12 +426,14 @@ def read_frame(
     """
     from concurrent.futures import ThreadPoolExecutor
 
-    # PNG decoding releases the GIL: decode both images at once.
-    with ThreadPoolExecutor(2) as pool:
-        color_job = pool.submit(read_color, color_path)
-        depth_job = pool.submit(read_depth, depth_path)
-        color = color_job.result()
-        depth = depth_job.result()
+    if threads:
+        with ThreadPoolExecutor(2) as pool:
+            color_job = pool.submit(read_color, color_path)
+            depth_job = pool.submit(read_depth, depth_path)
+            color = color_job.result()
+            depth = depth_job.result()
+    else:
+        color, depth = read_color(color_path), read_depth(depth_path)
     if color.shape[:2] != depth.shape:
         raise InvalidInputError(
             f"depth image '{depth_path}' is {depth.shape[1]}x{depth.shape[0]} but colour image "
