@@ -214,3 +214,13 @@ def test_too_little_seen_exits_1_with_a_reason(tmp_path):
     assert data["class"] is None and "0 of 16 stickers" in data["reason"]
     plain = run([str(color), str(depth)])
     assert plain.exit_code == 1 and "no class" in plain.output
+
+
+def test_jpeg_colour_is_accepted(tmp_path):
+    color = tmp_path / "scene.jpg"
+    cv2.imwrite(
+        str(color), cv2.imread(str(SAMPLES / "07_000_color.png")), [cv2.IMWRITE_JPEG_QUALITY, 90]
+    )
+    result = run([str(color), str(SAMPLES / "07_000_depth.png"), "--json"])
+    assert result.exit_code == 0, result.output
+    assert json.loads(result.output)["class"] == "07"

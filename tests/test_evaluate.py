@@ -146,3 +146,20 @@ def test_summary_of_outcomes_without_images():
     s = summarise(outs, 1.0)
     assert s.accuracy == round(2 / 3, 4) and s.variant_accuracy == round(1 / 3, 4)
     assert s.confusion == [[2, 1]]
+
+
+def test_workers_start_cleanly_after_threads_in_the_parent():
+    # The parent has run Open3D's raycaster and threaded PNG decoding; forked workers
+    # could inherit a held lock and hang. Workers are spawned.
+    from dgli_vision.camera import look_at_table
+    from dgli_vision.cloth import sample_state
+    from dgli_vision.evaluate import evaluate_pairs
+    from dgli_vision.io import read_frame
+    from dgli_vision.references import load_references
+    from dgli_vision.render import SensorModel, render
+
+    render(sample_state("01", rng=0), look_at_table(0.5), sensor=SensorModel(enabled=False))
+    pairs = find_pairs(SAMPLES)[:3]
+    read_frame(pairs[0].color, pairs[0].depth)
+    outs = list(evaluate_pairs(pairs, load_references(), jobs=2))
+    assert [o.predicted for o in outs] == [p.label for p in pairs]
