@@ -41,7 +41,13 @@ class DetectorParams:
         Largest distance (OpenCV hue units, 2 degrees each) from a nominal hue. Default 22.
     min_area_ratio, max_area_ratio : float
         Accepted blob area relative to the disc area expected at the blob's depth.
-        Defaults 0.3 and 2.0 (partly covered stickers are smaller; two merged are larger).
+        Defaults 0.55 and 2.0: a whole sticker seen at up to 15 degrees of tilt and on
+        wrinkles keeps over 0.8; a sliver of a sticker mostly under a flap would give a
+        centroid far from the sticker's centre, so it is better left out; two merged
+        stickers are larger.
+    min_fill : float
+        Minimum fraction of the expected disc, centred at the blob's centroid, that the
+        blob covers. Default 0.6 (rejects crescents and slivers).
     min_solidity : float
         Minimum area / convex-hull area. Default 0.8.
     max_elongation : float
@@ -54,8 +60,9 @@ class DetectorParams:
     min_saturation: int = 90
     min_value: int = 35
     max_hue_distance: int = 22
-    min_area_ratio: float = 0.3
+    min_area_ratio: float = 0.55
     max_area_ratio: float = 2.0
+    min_fill: float = 0.6
     min_solidity: float = 0.8
     max_elongation: float = 2.5
     min_purity: float = 0.5
@@ -226,6 +233,10 @@ def detect_stickers(
         radius = np.sqrt(max(area, expected) / np.pi)
         yy, xx = np.mgrid[y : y + h, x : x + w]
         r = np.hypot(xx - cu, yy - cv) / radius
+        fill = inside[r < 1.0].sum() / (np.pi * radius**2)
+        if fill < params.min_fill:
+            rejected.append(Rejection(where, area, f"not a whole disc (covers {fill:.2f} of one)"))
+            continue
         lab = labels[y : y + h, x : x + w]
         outer = lab[inside & (r > 0.6) & (r < 0.95) & (lab > 0)]
         inner = lab[inside & (r < 0.28) & (lab > 0)]
