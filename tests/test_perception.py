@@ -123,3 +123,15 @@ def test_sticker_depth_is_robust_to_a_missing_centre_reading():
 def test_table_normal_needs_depth():
     with pytest.raises(ValueError, match="valid depth"):
         estimate_table_normal(np.zeros((720, 1280), np.uint16), INTR)
+
+
+def test_a_sliver_of_a_covered_sticker_is_rejected_a_mostly_visible_one_kept():
+    img, depth = synthetic([(7, (300.0, 300.0)), (9, (700.0, 300.0))])
+    radius = LAYOUT.disc_diameter_mm / 2 * INTR.fx / 500
+    # A flap (white) covers all but a sliver of sticker 7, and a quarter of sticker 9.
+    cv2.rectangle(img, (int(300 - radius) + 8, 200), (400, 400), (215, 215, 215), -1)
+    cv2.rectangle(img, (int(700 + radius / 2), 200), (800, 400), (215, 215, 215), -1)
+    det = detect_stickers(img, depth, INTR, LAYOUT)
+    assert not det.found[7]
+    assert det.found[9]
+    assert any("too small" in r.reason or "whole disc" in r.reason for r in det.rejected)
