@@ -134,4 +134,3 @@ def test_a_sliver_of_a_covered_sticker_is_rejected_a_mostly_visible_one_kept():
     det = detect_stickers(img, depth, INTR, LAYOUT)
     assert not det.found[7]
     assert det.found[9]
-    assert any("too small" in r.reason or "whole disc" in r.reason for r in det.rejected)
