@@ -171,7 +171,7 @@ def evaluate(
         )
         click.echo(
             f"class accuracy {result.accuracy:.2%}, "
-            f"variant accuracy {result.variant_accuracy:.2%}, "
+            f"variant accuracy {result.variant_accuracy_text()}, "
             f"{result.seconds:.1f} s with {jobs} worker(s)"
         )
         click.echo(

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from .classes import VARIANTS
 from .errors import DgliError
 from .io import LabelledPair, read_frame
 from .references import ReferenceSet
@@ -152,13 +153,17 @@ class EvaluationResult:
     n: int
     classified: int
     accuracy: float
-    variant_accuracy: float
+    variant_accuracy: float | None
     labels: list[str]
     confusion: list[list[int]]
     per_class: dict[str, dict[str, float]]
     failures: list[dict[str, str]]
     seconds: float
     outcomes: list[PairOutcome] = field(default_factory=list, repr=False)
+
+    def variant_accuracy_text(self) -> str:
+        """Variant accuracy as a percentage, or ``n/a`` when no variant is known."""
+        return "n/a" if self.variant_accuracy is None else f"{self.variant_accuracy:.2%}"
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object (outcomes left out)."""
@@ -182,12 +187,15 @@ def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResu
     """Metrics of a set of outcomes.
 
     Accuracy is over all pairs (a failure or a pair without a class counts as wrong).
+    Variant accuracy is over the pairs whose true variant is known: labelled with one, or
+    of a class without variants (class folders carry no variant); None if there are none.
     The confusion matrix has true labels as rows and predictions as columns, over
     ``labels`` (every class seen as truth or prediction, sorted) plus a last column
     ``"none"`` for pairs that failed or got no class.
     """
     outs = list(outcomes)
     n = len(outs)
+    with_variant = [o for o in outs if o.pair.variant or VARIANTS.get(o.pair.label) == (None,)]
     labels = sorted({o.pair.label for o in outs} | {o.predicted for o in outs if o.predicted})
     index = {c: k for k, c in enumerate(labels)}
     conf = np.zeros((len(labels), len(labels) + 1), dtype=int)
@@ -212,7 +220,11 @@ def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResu
         n=n,
         classified=sum(o.predicted is not None for o in outs),
         accuracy=round(sum(o.correct for o in outs) / n, 4) if n else 0.0,
-        variant_accuracy=round(sum(o.variant_correct for o in outs) / n, 4) if n else 0.0,
+        variant_accuracy=(
+            round(sum(o.variant_correct for o in with_variant) / len(with_variant), 4)
+            if with_variant
+            else None
+        ),
         labels=labels,
         confusion=conf.tolist(),
         per_class=per_class,

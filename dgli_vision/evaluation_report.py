@@ -96,7 +96,7 @@ def build_report(
         f"- pairs: **{result.n}**, classified: **{result.classified}**, "
         f"failures: **{len(result.failures)}**",
         f"- class accuracy: **{result.accuracy:.2%}**; "
-        f"variant accuracy: **{result.variant_accuracy:.2%}**",
+        f"variant accuracy: **{result.variant_accuracy_text()}**",
         f"- time: {result.seconds:.1f} s with {meta.get('jobs', 1)} worker(s)",
         f"- command: `{meta.get('command', '')}`",
         f"- references: `{meta.get('references', '')}` "

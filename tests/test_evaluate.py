@@ -125,6 +125,7 @@ def test_class_folders_label_pairs(tmp_path):
     ]
     data = json.loads(run([str(tmp_path), "--json", "-j", "1"]).output)
     assert data["accuracy"] == 1.0
+    assert data["variant_accuracy"] is None  # no pair has a known variant: nothing to score
 
 
 def test_folder_errors_are_one_line(tmp_path):
