@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics
-from .cloth.states import ClothState, normalize_rng
+from .cloth.states import VISIBLE_FRACTION, ClothState, disc_samples, normalize_rng
 from .layout import NapkinLayout, default_layout
 
 __all__ = ["Lighting", "RenderResult", "SensorModel", "render", "sticker_texture"]
@@ -129,7 +129,7 @@ class RenderResult:
     @property
     def visible(self) -> NDArray[np.bool_]:
         """Stickers at least half seen, shape (16,)."""
-        return self.visible_fraction >= 0.5
+        return self.visible_fraction >= VISIBLE_FRACTION
 
 
 def _srgb_to_linear(c: NDArray) -> NDArray:
@@ -256,13 +256,6 @@ class _Scene:
         )
 
 
-def _disc_offsets(layout: NapkinLayout) -> NDArray:
-    r = layout.disc_diameter_mm / 2
-    ang = np.linspace(0, 2 * np.pi, 8, endpoint=False)
-    rings = [np.stack([f * r * np.cos(ang), f * r * np.sin(ang)], 1) for f in (0.4, 0.8)]
-    return np.concatenate([np.zeros((1, 2)), *rings])
-
-
 def render(
     state: ClothState,
     pose: CameraPose,
@@ -355,7 +348,7 @@ def render(
     depth_mm = np.where(valid, np.clip(np.rint(depth), 0, 65535), 0).astype(np.uint16)
 
     # Truth: sticker centres in the camera frame, and how much of each disc is seen.
-    offsets = _disc_offsets(layout)
+    offsets = disc_samples(layout)
     uv = (layout.sticker_uv[:, None, :] + offsets[None]).reshape(-1, 2)
     pts = state.mesh.interpolate(uv)
     ray_dirs = pts - pose.position

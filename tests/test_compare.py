@@ -129,3 +129,12 @@ def test_references_build_on_missing_database_is_one_line_error(tmp_path):
     assert result.exit_code == 2
     assert result.output.strip().count("\n") == 0
     assert "does not exist" in result.output
+
+
+def test_database_meshes_read_back(small_db):
+    from dgli_vision.io import read_mesh_ply
+
+    xyz, tri = read_mesh_ply(small_db / "meshes" / "02_000.ply")
+    truth = json.loads((small_db / "truth" / "02_000.json").read_text())
+    assert xyz.shape == (81 * 81, 3) and tri.shape == (2 * 80 * 80, 3)
+    assert xyz[:, 2].min() >= 0 and truth["class"] == "02"

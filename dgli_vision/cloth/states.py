@@ -30,6 +30,7 @@ __all__ = [
     "boundary_uv",
     "corner_fold_line",
     "diagonal_fold_line",
+    "disc_samples",
     "make_state",
     "normalize_rng",
     "sample_state",
@@ -260,7 +261,7 @@ def boundary_uv(layout: NapkinLayout, *, step_mm: float = 40.0) -> NDArray[np.fl
     return np.concatenate(pts)
 
 
-def _disc_samples(layout: NapkinLayout) -> NDArray[np.float64]:
+def disc_samples(layout: NapkinLayout) -> NDArray[np.float64]:
     """13 material offsets (mm) on a sticker disc: the centre and two rings of six."""
     r = layout.disc_diameter_mm / 2
     ang = np.linspace(0, 2 * np.pi, 6, endpoint=False)
@@ -277,7 +278,7 @@ def sticker_visibility(
     grid cells away in material coordinates) lies above it, within one grid cell in
     the table plane.
     """
-    offsets = _disc_samples(layout)  # (13, 2)
+    offsets = disc_samples(layout)  # (13, 2)
     uv = (layout.sticker_uv[:, None, :] + offsets[None]).reshape(-1, 2)
     pts = mesh.interpolate(uv)  # (16 * 13, 3)
     tree = cKDTree(mesh.xyz[:, :2])
