@@ -14,6 +14,7 @@ from typing import Any, TypeVar
 
 import click
 
+from .conditions import CONDITION_HELP
 from .errors import DgliError
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -205,6 +206,18 @@ def evaluate(
         click.echo(f"report written to {out / 'report.md'}", err=True)
 
 
+def _parse_conditions(
+    ctx: click.Context, param: click.Parameter, value: str
+) -> tuple[str, ...]:
+    names = tuple(n.strip() for n in value.split(",") if n.strip())
+    unknown = [n for n in names if n not in CONDITION_HELP]
+    if unknown:
+        raise click.BadParameter(
+            f"unknown condition {unknown[0]!r}; expected some of {', '.join(CONDITION_HELP)}"
+        )
+    return names
+
+
 @main.command("render")
 @click.argument("out", type=click.Path(file_okay=False))
 @click.option(
@@ -217,8 +230,19 @@ def evaluate(
 @click.option(
     "--nominal", is_flag=True, help="Nominal scene: straight down from 520 mm, default lighting."
 )
+@click.option(
+    "--conditions",
+    "conditions",
+    callback=_parse_conditions,
+    default="",
+    help="Capture conditions, comma-separated: "
+    + ", ".join(f"{k} ({v})" for k, v in CONDITION_HELP.items())
+    + ".",
+)
 @_handle_errors
-def render_cmd(out: str, per_class: int, seed: int, clean: bool, nominal: bool) -> None:
+def render_cmd(
+    out: str, per_class: int, seed: int, clean: bool, nominal: bool, conditions: tuple[str, ...]
+) -> None:
     """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4)."""
     from .cloth.states import CLASS_IDS
     from .dataset import render_samples
@@ -228,7 +252,14 @@ def render_cmd(out: str, per_class: int, seed: int, clean: bool, nominal: bool) 
     with _progress(list(CLASS_IDS), "rendering") as classes:
         for class_id in classes:
             samples += list(
-                render_samples(per_class, seed, classes=(class_id,), nominal=nominal, clean=clean)
+                render_samples(
+                    per_class,
+                    seed,
+                    classes=(class_id,),
+                    nominal=nominal,
+                    clean=clean,
+                    conditions=conditions,
+                )
             )
     provenance = {
         "command": _command_line(),
@@ -236,6 +267,7 @@ def render_cmd(out: str, per_class: int, seed: int, clean: bool, nominal: bool) 
         "per_class": per_class,
         "clean": clean,
         "nominal": nominal,
+        "conditions": list(conditions),
         "package_version": _package_version(),
     }
     labels = write_labelled_folder(out, samples, provenance)

@@ -10,12 +10,16 @@ import numpy as np
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
+from .conditions import Conditions, draw_conditions
 from .render import Lighting, RenderResult, SensorModel, render
 
-__all__ = ["RenderedSample", "random_camera", "render_samples"]
+__all__ = ["RenderedSample", "random_camera", "render_sample", "render_samples"]
 
 #: Nominal scene of SPEC section 4: straight down from 520 mm.
 NOMINAL_HEIGHT_M = 0.52
+#: The ``vga`` condition's camera: 640 x 480, fx = fy = 500, 600-850 mm away.
+VGA_INTRINSICS = Intrinsics(640, 480, 500.0, 500.0, 319.5, 239.5)
+VGA_HEIGHT_RANGE_M = (0.60, 0.85)
 
 
 def _fits(state: ClothState, pose: CameraPose, intrinsics: Intrinsics, margin_px: float) -> bool:
@@ -88,6 +92,7 @@ class RenderedSample:
     result: RenderResult
     camera: dict[str, Any]
     lighting: Lighting
+    conditions: Conditions = Conditions()
 
 
 def render_samples(
@@ -98,23 +103,61 @@ def render_samples(
     nominal: bool = False,
     clean: bool = False,
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
+    conditions: tuple[str, ...] = (),
 ) -> Iterator[RenderedSample]:
     """Render ``per_class`` pairs of every class (variants in turn, starting at the
     seed's), deterministically.
 
     Sample ``k`` of class ``c`` draws everything (state, camera, lighting, noise) from a
     generator seeded by ``(seed, c, k)`` on a stream of its own, so it never repeats a
-    state of the simulated database made with the same seed.
+    state of the simulated database made with the same seed. ``conditions`` (names of
+    :data:`dgli_vision.conditions.CONDITION_NAMES`) are drawn from a further stream, so
+    the same seed gives the same states and cameras with and without them (``vga``
+    changes the camera).
     """
     for class_id in classes:
-        options = VARIANTS[class_id]
         for k in range(per_class):
-            rng = np.random.default_rng([seed, int(class_id), k, 7])
-            state = sample_state(class_id, options[(k + seed) % len(options)], rng)
-            pose, camera = random_camera(state, rng, intrinsics=intrinsics, nominal=nominal)
-            lighting = Lighting() if nominal else Lighting.random(rng)
-            sensor = SensorModel(enabled=not clean)
-            result = render(
-                state, pose, intrinsics=intrinsics, lighting=lighting, sensor=sensor, rng=rng
+            yield render_sample(
+                class_id,
+                k,
+                seed,
+                nominal=nominal,
+                clean=clean,
+                intrinsics=intrinsics,
+                conditions=conditions,
             )
-            yield RenderedSample(f"{class_id}_{k:03d}", state, result, camera, lighting)
+
+
+def render_sample(
+    class_id: str,
+    k: int,
+    seed: int,
+    *,
+    nominal: bool = False,
+    clean: bool = False,
+    intrinsics: Intrinsics = DEFAULT_INTRINSICS,
+    conditions: tuple[str, ...] = (),
+) -> RenderedSample:
+    """Sample ``k`` of class ``class_id`` of :func:`render_samples` (same arguments)."""
+    options = VARIANTS[class_id]
+    rng = np.random.default_rng([seed, int(class_id), k, 7])
+    cond = draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23]))
+    intr, heights = intrinsics, (0.45, 0.70)
+    if "vga" in cond.names:
+        intr, heights = VGA_INTRINSICS, VGA_HEIGHT_RANGE_M
+    state = sample_state(class_id, options[(k + seed) % len(options)], rng)
+    pose, camera = random_camera(
+        state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights
+    )
+    lighting = Lighting() if nominal else Lighting.random(rng)
+    sensor = SensorModel(enabled=not clean)
+    result = render(
+        state,
+        pose,
+        intrinsics=intr,
+        lighting=lighting,
+        sensor=sensor,
+        rng=rng,
+        conditions=cond,
+    )
+    return RenderedSample(f"{class_id}_{k:03d}", state, result, camera, lighting, cond)

@@ -18,6 +18,17 @@ from numpy.typing import NDArray
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics
 from .cloth.states import VISIBLE_FRACTION, ClothState, disc_samples, normalize_rng
+from .conditions import (
+    Conditions,
+    SceneObject,
+    apply_lens_distortion,
+    highlight_spot,
+    jpeg_roundtrip,
+    realistic_depth,
+    scene_objects,
+    shadow_factor,
+    wood_albedo,
+)
 from .layout import NapkinLayout, default_layout
 
 __all__ = ["Lighting", "RenderResult", "SensorModel", "render", "sticker_texture"]
@@ -208,7 +219,7 @@ def _sample_texture(tex: NDArray, uv_mm: NDArray) -> NDArray:
 class _Scene:
     """Open3D raycasting scene of one cloth state and the table."""
 
-    def __init__(self, state: ClothState) -> None:
+    def __init__(self, state: ClothState, objects: list[SceneObject] = ()) -> None:
         import open3d as o3d
 
         self._o3d = o3d
@@ -229,6 +240,13 @@ class _Scene:
         self.table_id = self.scene.add_triangles(
             o3d.core.Tensor(table_v), o3d.core.Tensor(table_t)
         )
+        self.objects = {
+            self.scene.add_triangles(
+                o3d.core.Tensor(obj.vertices.astype(np.float32)),
+                o3d.core.Tensor(obj.triangles.astype(np.uint32)),
+            ): obj
+            for obj in objects
+        }
 
     def cast(self, origins: NDArray, directions: NDArray) -> dict[str, NDArray]:
         rays = np.concatenate([origins, directions], axis=-1).astype(np.float32)
@@ -265,6 +283,7 @@ def render(
     lighting: Lighting | None = None,
     sensor: SensorModel | None = None,
     rng: np.random.Generator | int | None = None,
+    conditions: Conditions | None = None,
 ) -> RenderResult:
     """Render a cloth state to a registered colour + depth pair.
 
@@ -284,6 +303,8 @@ def render(
         Default: ``SensorModel()`` (noisy); ``SensorModel(enabled=False)`` for clean.
     rng : Generator or int, keyword-only
         Drives the sensor noise.
+    conditions : Conditions, keyword-only
+        Capture conditions (:mod:`dgli_vision.conditions`); default: SPEC's clean scene.
 
     Returns
     -------
@@ -292,22 +313,39 @@ def render(
     layout = layout or default_layout()
     lighting = lighting or Lighting()
     sensor = sensor or SensorModel()
+    cond = conditions or Conditions()
     rng = normalize_rng(rng)
-    scene = _Scene(state)
     h, w = intrinsics.height, intrinsics.width
     dirs_cam = intrinsics.ray_directions().reshape(-1, 3)
     dirs = dirs_cam @ pose.rotation.T  # world directions with camera-z component 1
     origins = np.broadcast_to(pose.position, dirs.shape)
+    objects = []
+    if cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth:
+        corners = dirs.reshape(h, w, 3)[[0, 0, -1, -1], [0, -1, 0, -1]]
+        table_xy = pose.position[:2] + corners[:, :2] * (-pose.position[2] / corners[:, 2:])
+        view = (table_xy.min(axis=0) + 0.03, table_xy.max(axis=0) - 0.03)
+        objects = scene_objects(cond, state.mesh.xyz, view)
+    scene = _Scene(state, objects)
     hits = scene.cast(origins, dirs)
     t_hit = hits["t_hit"].astype(np.float64)  # = z-depth, metres
     gid = hits["geometry_ids"]
     on_cloth = gid == scene.cloth_id
     on_table = gid == scene.table_id
+    hit_xy = pose.position[:2] + dirs[:, :2] * np.where(np.isfinite(t_hit), t_hit, 0)[:, None]
 
     # Albedo (linear RGB) of every pixel.
     albedo = np.zeros((h * w, 3))
-    albedo[on_table] = lighting.table_rgb
-    tex = _sample_texture(sticker_texture(layout), scene.material_uv(hits, on_cloth))
+    if cond.wood_table:
+        albedo[on_table] = wood_albedo(hit_xy[on_table], cond.seed)
+    else:
+        albedo[on_table] = lighting.table_rgb
+    no_depth = np.zeros(h * w, bool)
+    for oid, obj in scene.objects.items():
+        mine = gid == oid
+        albedo[mine] = obj.albedo
+        no_depth |= mine & (not obj.has_depth)
+    cloth_uv = scene.material_uv(hits, on_cloth)
+    tex = _sample_texture(sticker_texture(layout), cloth_uv)
     albedo[on_cloth] = tex[:, :3] + tex[:, 3:] * np.asarray(lighting.napkin_rgb)
     # Lambert shading, two-sided (both faces are the same cloth).
     light = np.asarray(lighting.light_direction, dtype=np.float64)
@@ -315,7 +353,15 @@ def render(
     normals = hits["primitive_normals"].astype(np.float64)
     lambert = np.abs(normals @ light)
     shade = lighting.ambient + (1 - lighting.ambient) * lambert
+    if cond.shadow:
+        shade = shade * shadow_factor(hit_xy, cond, state.mesh.xyz.mean(axis=0))
     linear = albedo * shade[:, None]
+    spot = highlight_spot(cond, layout.sticker_uv, state.visible)
+    if spot is not None:  # glossy vinyl: a mirror highlight on a sticker, not on the cloth
+        centre, sigma, peak, _ = spot
+        lobe = np.exp(-((cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
+        linear[on_cloth] += (peak * lobe * (1 - tex[:, 3]))[:, None]
+    linear = linear * cond.exposure * np.asarray(cond.colour_gains)
     if sensor.enabled:
         exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
         gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
@@ -326,13 +372,16 @@ def render(
 
         if sensor.blur_sigma_px > 0:
             srgb = cv2.GaussianBlur(srgb.astype(np.float32), (0, 0), sensor.blur_sigma_px)
-        srgb = srgb + rng.normal(0.0, sensor.colour_noise, srgb.shape)
+        noise = sensor.colour_noise if cond.colour_noise is None else cond.colour_noise
+        srgb = srgb + rng.normal(0.0, noise, srgb.shape)
     color = np.clip(np.rint(srgb), 0, 255).astype(np.uint8)
 
     depth = np.where(np.isfinite(t_hit), t_hit, 0.0).reshape(h, w) * 1000.0  # mm
+    depth[no_depth.reshape(h, w)] = 0.0
     valid = depth > 0
     if sensor.enabled:
-        sigma = sensor.depth_noise_mm * (depth / 500.0) ** 2
+        noise_mm = cond.depth_noise_mm if cond.realistic_depth else sensor.depth_noise_mm
+        sigma = noise_mm * (depth / 500.0) ** 2
         depth = depth + rng.normal(0.0, 1.0, depth.shape) * sigma
         jump = np.zeros((h, w), bool)
         dz_x = np.abs(np.diff(depth, axis=1)) > 10
@@ -345,7 +394,14 @@ def render(
             rng.random((h, w)) < sensor.random_dropout
         )
         valid &= ~drop
-    depth_mm = np.where(valid, np.clip(np.rint(depth), 0, 65535), 0).astype(np.uint16)
+    depth = np.where(valid, depth, 0.0)
+    if cond.realistic_depth:
+        depth = realistic_depth(depth, cond, rng)
+    depth_mm = np.clip(np.rint(depth), 0, 65535).astype(np.uint16)
+    if cond.distortion_k1:
+        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion_k1)
+    if cond.jpeg_quality is not None:
+        color = jpeg_roundtrip(color, cond.jpeg_quality)
 
     # Truth: sticker centres in the camera frame, and how much of each disc is seen.
     offsets = disc_samples(layout)
@@ -369,4 +425,5 @@ def render(
         visible_fraction=fraction,
         pose=pose,
         intrinsics=intrinsics,
+        info={"conditions": cond.label} if cond.names else {},
     )

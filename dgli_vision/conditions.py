@@ -1,0 +1,495 @@
+"""Capture conditions for the renderer: what real cameras and real labs add to SPEC's scene.
+
+Each named condition (DESIGN.md, "Capture conditions the tool must survive") is drawn
+from a seeded generator into one frozen :class:`Conditions`; the renderer
+(:func:`dgli_vision.render.render`) applies it. Scene conditions add geometry or change
+appearance (a wood table, objects, a gripper and arm, a shadow, glossy stickers); sensor
+conditions change the images (a colour cast, dim exposure and noise, JPEG, lens
+distortion, realistic depth); ``vga`` changes the camera (see
+:func:`dgli_vision.dataset.render_samples`).
+
+The figures are the ranges of the robust-perception issue; they are ours, drawn to cover
+each condition, not tuned to any held-out set.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .camera import Intrinsics
+
+__all__ = [
+    "CONDITION_NAMES",
+    "Conditions",
+    "SceneObject",
+    "apply_lens_distortion",
+    "draw_conditions",
+    "jpeg_roundtrip",
+    "realistic_depth",
+    "scene_objects",
+]
+
+#: Every condition ``dgli render --conditions`` knows, in the order of the robustness table.
+CONDITION_NAMES: tuple[str, ...] = (
+    "jpeg",
+    "cast",
+    "dim",
+    "gloss",
+    "shadow",
+    "clutter",
+    "gripper",
+    "distortion",
+    "depth",
+    "vga",
+    "wood",
+    "combo",
+)
+
+#: What each condition is, for help texts and reports.
+CONDITION_HELP: dict[str, str] = {
+    "jpeg": "colour saved as JPEG, quality 70-92",
+    "cast": "no white balance: tungsten (R x1.25-1.45, B x0.55-0.72) or blue cast",
+    "dim": "exposure 0.35-0.55 of normal, sensor noise sigma 6-10 levels",
+    "gloss": "glossy stickers: a lamp's mirror highlight on one sticker",
+    "shadow": "a robot arm's soft shadow across the napkin (35-60% of the light)",
+    "clutter": "3-6 saturated objects on the table (cups, boxes, caps, tape, a post-it)",
+    "gripper": "a dark gripper and arm 60-200 mm above the napkin",
+    "distortion": "uncorrected radial lens distortion k1 0.06-0.12",
+    "depth": "flying pixels, parallax holes, 1-3 px registration offset, 2-4 mm noise, "
+    "black mats without depth",
+    "vga": "640 x 480, fx = fy = 500, camera 600-850 mm",
+    "wood": "a light-wood table (saturation about 0.3, with grain)",
+    "combo": "three of the above at once",
+}
+
+
+@dataclass(frozen=True)
+class SceneObject:
+    """A solid added to the scene.
+
+    Attributes
+    ----------
+    vertices : ndarray, shape (n, 3)
+        World coordinates, metres.
+    triangles : ndarray of int, shape (k, 3)
+    albedo : tuple of float
+        Linear RGB in [0, 1].
+    has_depth : bool
+        False for surfaces the depth sensor cannot read (black mats).
+    kind : str
+        What it is (``"cup"``, ``"gripper"``...).
+    """
+
+    vertices: NDArray[np.float64]
+    triangles: NDArray[np.int32]
+    albedo: tuple[float, float, float]
+    has_depth: bool = True
+    kind: str = ""
+
+
+@dataclass(frozen=True)
+class Conditions:
+    """Capture conditions of one render; the default is SPEC's clean scene.
+
+    Attributes
+    ----------
+    names : tuple of str
+        The named conditions drawn (for labels and reports).
+    seed : int
+        Seeds the placement of objects, mats, the shadow and the highlight.
+    colour_gains : tuple of float
+        Per-channel gains in linear light (a colour cast), 1 = balanced.
+    exposure : float
+        Exposure relative to normal (linear light).
+    colour_noise : float or None
+        Sensor noise sigma in 8-bit levels, overriding the sensor model's.
+    jpeg_quality : int or None
+        Round-trip the colour image through JPEG at this quality.
+    highlight : bool
+        Glossy stickers with a lamp's mirror highlight on one of them.
+    shadow : float
+        Fraction of the light a soft arm shadow across the napkin blocks (0 = none).
+    clutter : int
+        Number of saturated objects on the table around the napkin.
+    gripper_height_m : float or None
+        Height of a dark gripper's lowest point above the napkin's top, metres.
+    distortion_k1 : float
+        Radial distortion coefficient of the lens (intrinsics unchanged).
+    realistic_depth : bool
+        Flying pixels, parallax holes, registration offset, more noise, black mats.
+    depth_noise_mm : float
+        Depth noise sigma at 0.5 m with ``realistic_depth``, mm.
+    registration_px : tuple of int
+        Offset (du, dv) of the depth image against colour, pixels.
+    wood_table : bool
+        A light-wood table instead of a matte grey one.
+    """
+
+    names: tuple[str, ...] = ()
+    seed: int = 0
+    colour_gains: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    exposure: float = 1.0
+    colour_noise: float | None = None
+    jpeg_quality: int | None = None
+    highlight: bool = False
+    shadow: float = 0.0
+    clutter: int = 0
+    gripper_height_m: float | None = None
+    distortion_k1: float = 0.0
+    realistic_depth: bool = False
+    depth_noise_mm: float = 1.0
+    registration_px: tuple[int, int] = (0, 0)
+    wood_table: bool = False
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def label(self) -> str:
+        """``"clean"`` or the names joined by ``+``."""
+        return "+".join(self.names) or "clean"
+
+
+def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
+    if name == "jpeg":
+        return replace(c, jpeg_quality=int(rng.integers(70, 93)))
+    if name == "cast":
+        if rng.random() < 0.6:  # tungsten
+            gains = (rng.uniform(1.25, 1.45), 1.0, rng.uniform(0.55, 0.72))
+        else:  # daylight through a window / LED: blue
+            gains = (rng.uniform(0.6, 0.78), rng.uniform(0.9, 1.0), rng.uniform(1.25, 1.45))
+        return replace(c, colour_gains=tuple(float(g) for g in gains))
+    if name == "dim":
+        return replace(c, exposure=float(rng.uniform(0.35, 0.55)), colour_noise=rng.uniform(6, 10))
+    if name == "gloss":
+        return replace(c, highlight=True)
+    if name == "shadow":
+        return replace(c, shadow=float(rng.uniform(0.35, 0.6)))
+    if name == "clutter":
+        return replace(c, clutter=int(rng.integers(3, 7)))
+    if name == "gripper":
+        return replace(c, gripper_height_m=float(rng.uniform(0.06, 0.20)))
+    if name == "distortion":
+        return replace(c, distortion_k1=float(rng.uniform(0.06, 0.12)))
+    if name == "depth":
+        off = rng.integers(1, 4) * rng.choice([-1, 1], 2) * (rng.random(2) < 0.7)
+        if not off.any():
+            off[0] = 1
+        return replace(
+            c,
+            realistic_depth=True,
+            depth_noise_mm=float(rng.uniform(2.0, 4.0)),
+            registration_px=(int(off[0]), int(off[1])),
+        )
+    if name in ("vga", "clean"):
+        return c  # the camera is chosen by the data set
+    if name == "wood":
+        return replace(c, wood_table=True)
+    raise ValueError(f"unknown condition {name!r}; expected one of {', '.join(CONDITION_NAMES)}")
+
+
+def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Conditions:
+    """Draw the parameters of the named conditions.
+
+    Parameters
+    ----------
+    names : iterable of str
+        Names from :data:`CONDITION_NAMES`; ``"combo"`` draws three other conditions.
+    rng : Generator
+
+    Returns
+    -------
+    Conditions
+    """
+    chosen: list[str] = []
+    for name in names:
+        if name == "combo":
+            pool = [n for n in CONDITION_NAMES if n not in ("combo", *chosen)]
+            chosen += [str(n) for n in rng.choice(pool, 3, replace=False)]
+        elif name not in chosen:
+            chosen.append(name)
+    c = Conditions(names=tuple(chosen), seed=int(rng.integers(2**31)))
+    for name in chosen:
+        c = _draw_one(name, c, rng)
+    return c
+
+
+# --- scene geometry --------------------------------------------------------------------
+
+
+def _box(lo: NDArray, hi: NDArray) -> tuple[NDArray, NDArray]:
+    x0, y0, z0 = lo
+    x1, y1, z1 = hi
+    v = np.array(
+        [[x, y, z] for z in (z0, z1) for y in (y0, y1) for x in (x0, x1)], dtype=np.float64
+    )
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    t = [(a, b, c) for a, b, c, d in quads] + [(a, c, d) for a, b, c, d in quads]
+    return v, np.array(t, np.int32)
+
+
+def _cylinder(centre: NDArray, radius: float, z0: float, z1: float, n: int = 32):
+    ang = np.linspace(0, 2 * np.pi, n, endpoint=False)
+    ring = np.stack([centre[0] + radius * np.cos(ang), centre[1] + radius * np.sin(ang)], 1)
+    v = np.concatenate(
+        [
+            np.column_stack([ring, np.full(n, z0)]),
+            np.column_stack([ring, np.full(n, z1)]),
+            [[centre[0], centre[1], z0], [centre[0], centre[1], z1]],
+        ]
+    )
+    k = np.arange(n)
+    k1 = (k + 1) % n
+    side = np.concatenate([np.stack([k, k1, n + k1], 1), np.stack([k, n + k1, n + k], 1)])
+    caps = np.concatenate(
+        [np.stack([np.full(n, 2 * n), k1, k], 1), np.stack([np.full(n, 2 * n + 1), n + k, n + k1], 1)]
+    )
+    return v, np.concatenate([side, caps]).astype(np.int32)
+
+
+def _rotate_z(v: NDArray, centre: NDArray, angle: float) -> NDArray:
+    c, s = np.cos(angle), np.sin(angle)
+    out = v.copy()
+    d = v[:, :2] - centre[:2]
+    out[:, 0] = centre[0] + c * d[:, 0] - s * d[:, 1]
+    out[:, 1] = centre[1] + s * d[:, 0] + c * d[:, 1]
+    return out
+
+
+#: Saturated object colours (linear RGB): the sticker hues themselves and their neighbours.
+_OBJECT_COLOURS = (
+    (0.67, 0.02, 0.02),  # sticker red
+    (0.83, 0.58, 0.007),  # sticker yellow
+    (0.013, 0.35, 0.045),  # sticker green
+    (0.013, 0.08, 0.58),  # sticker blue
+    (0.9, 0.25, 0.01),  # orange
+    (0.5, 0.02, 0.35),  # magenta
+    (0.02, 0.4, 0.45),  # teal
+)
+
+
+def _free_spot(
+    rng: np.random.Generator,
+    keep_out: tuple[NDArray, NDArray],
+    view: tuple[NDArray, NDArray],
+    size_m: float,
+) -> NDArray | None:
+    lo, hi = keep_out
+    for _ in range(200):
+        p = rng.uniform(view[0], view[1])
+        if np.all(p > lo - size_m) and np.all(p < hi + size_m):
+            continue
+        return p
+    return None
+
+
+def scene_objects(
+    conditions: Conditions,
+    napkin_xyz: NDArray[np.float64],
+    view_xy: tuple[NDArray, NDArray],
+) -> list[SceneObject]:
+    """The solids a condition adds: objects on the table, black mats, a gripper and arm.
+
+    Parameters
+    ----------
+    conditions : Conditions
+    napkin_xyz : ndarray, shape (n, 3)
+        The cloth's mesh vertices, world metres (objects keep off it, the gripper is over it).
+    view_xy : tuple of ndarray
+        Lower and upper world (x, y) of the table area the camera sees.
+
+    Returns
+    -------
+    list of SceneObject
+    """
+    rng = np.random.default_rng([conditions.seed, 11])
+    lo, hi = napkin_xyz[:, :2].min(axis=0), napkin_xyz[:, :2].max(axis=0)
+    objects: list[SceneObject] = []
+    for _ in range(conditions.clutter):
+        kind = str(rng.choice(["cup", "box", "cap", "tape", "post-it"]))
+        albedo = _OBJECT_COLOURS[int(rng.integers(len(_OBJECT_COLOURS)))]
+        size = {"cup": 0.05, "box": 0.06, "cap": 0.02, "tape": 0.08, "post-it": 0.04}[kind]
+        p = _free_spot(rng, (lo, hi), view_xy, size + 0.01)
+        if p is None:
+            continue
+        if kind == "cup":
+            v, t = _cylinder(p, rng.uniform(0.035, 0.045), 0.0, rng.uniform(0.08, 0.11))
+        elif kind == "cap":
+            v, t = _cylinder(p, rng.uniform(0.012, 0.018), 0.0, rng.uniform(0.008, 0.015))
+        elif kind == "box":
+            half = rng.uniform(0.025, 0.05, 2)
+            v, t = _box(np.r_[p - half, 0.0], np.r_[p + half, rng.uniform(0.03, 0.1)])
+        elif kind == "tape":
+            half = np.array([rng.uniform(0.05, 0.09), rng.uniform(0.01, 0.013)])
+            v, t = _box(np.r_[p - half, 0.0], np.r_[p + half, 0.0005])
+        else:  # post-it
+            v, t = _box(np.r_[p - 0.038, 0.0], np.r_[p + 0.038, 0.0005])
+            albedo = (0.85, 0.75, 0.02)
+        v = _rotate_z(v, p, rng.uniform(0, np.pi))
+        objects.append(SceneObject(v, t, albedo, kind=kind))
+    if conditions.realistic_depth:  # one or two black mats on the table, without depth
+        for _ in range(int(rng.integers(1, 3))):
+            p = _free_spot(rng, (lo, hi), view_xy, 0.05)
+            if p is None:
+                continue
+            half = rng.uniform(0.04, 0.12, 2)
+            v, t = _box(np.r_[p - half, -1.9e-4], np.r_[p + half, -1.5e-4])
+            objects.append(
+                SceneObject(_rotate_z(v, p, rng.uniform(0, np.pi)), t, (0.015, 0.015, 0.015),
+                            has_depth=False, kind="mat")
+            )
+    if conditions.gripper_height_m is not None:
+        top = float(napkin_xyz[:, 2].max())
+        p = rng.uniform(lo + 0.03, hi - 0.03)
+        yaw = rng.uniform(0, 2 * np.pi)
+        z0 = top + conditions.gripper_height_m
+        dark = tuple(float(x) for x in rng.uniform(0.02, 0.06) * np.ones(3))
+        parts = []
+        for dx in (-0.03, 0.03):  # two fingers
+            parts.append(_box(np.r_[p[0] + dx - 0.008, p[1] - 0.012, z0],
+                              np.r_[p[0] + dx + 0.008, p[1] + 0.012, z0 + 0.05]))
+        parts.append(_box(np.r_[p - [0.045, 0.03], z0 + 0.05], np.r_[p + [0.045, 0.03], z0 + 0.12]))
+        # the arm: from the wrist outwards and upwards, out of the napkin's area
+        arm_dir = rng.uniform(0, 2 * np.pi)
+        reach = np.array([np.cos(arm_dir), np.sin(arm_dir)])
+        for k in range(6):
+            c = p + reach * (0.03 + 0.07 * k)
+            parts.append(_box(np.r_[c - 0.04, z0 + 0.12 + 0.02 * k],
+                              np.r_[c + 0.04, z0 + 0.2 + 0.02 * k]))
+        n = 0
+        vs, ts = [], []
+        for v, t in parts:
+            vs.append(v)
+            ts.append(t + n)
+            n += len(v)
+        v = _rotate_z(np.concatenate(vs), np.r_[p, 0.0], yaw)
+        objects.append(SceneObject(v, np.concatenate(ts), dark, kind="gripper"))
+    return objects
+
+
+def wood_albedo(xy: NDArray[np.float64], seed: int) -> NDArray[np.float64]:
+    """Linear-RGB albedo (n, 3) of a light-wood table at world points (n, 2) metres.
+
+    sRGB about (205, 172, 135): HSV saturation about 0.3, with grain stripes.
+    """
+    rng = np.random.default_rng([seed, 13])
+    base = np.array([0.61, 0.41, 0.24]) * rng.uniform(0.85, 1.1)
+    ang = rng.uniform(0, np.pi)
+    t = xy @ np.array([np.cos(ang), np.sin(ang)])
+    s = xy @ np.array([-np.sin(ang), np.cos(ang)])
+    grain = 0.1 * np.sin(2 * np.pi * t / 0.012 + 3 * np.sin(2 * np.pi * s / 0.3))
+    grain += 0.05 * np.sin(2 * np.pi * t / 0.05)
+    tint = 1 + grain[:, None] * np.array([0.6, 1.0, 1.6])
+    return np.clip(base * tint, 0, 1)
+
+
+def shadow_factor(xy: NDArray[np.float64], conditions: Conditions, centre: NDArray) -> NDArray:
+    """Light left (n,) at world points (n, 2) under a soft arm shadow across the napkin."""
+    rng = np.random.default_rng([conditions.seed, 17])
+    ang = rng.uniform(0, np.pi)
+    normal = np.array([-np.sin(ang), np.cos(ang)])
+    offset = rng.uniform(-0.08, 0.08)
+    half_width = rng.uniform(0.03, 0.075)
+    soft = rng.uniform(0.015, 0.035)
+    d = np.abs((xy - centre[:2]) @ normal - offset)
+    inside = np.clip((half_width + soft - d) / (2 * soft), 0, 1)
+    inside = inside * inside * (3 - 2 * inside)  # smoothstep
+    return 1.0 - conditions.shadow * inside
+
+
+def highlight_spot(conditions: Conditions, sticker_uv: NDArray, visible: NDArray):
+    """Material centre (2,) mm and sigma (mm) and peak of the mirror highlight, or None."""
+    rng = np.random.default_rng([conditions.seed, 19])
+    ids = np.flatnonzero(visible)
+    if not conditions.highlight or ids.size == 0:
+        return None
+    sid = int(rng.choice(ids))
+    r = rng.uniform(0, 9.0)
+    a = rng.uniform(0, 2 * np.pi)
+    centre = sticker_uv[sid] + r * np.array([np.cos(a), np.sin(a)])
+    return centre, float(rng.uniform(3.0, 7.0)), float(rng.uniform(2.0, 5.0)), sid
+
+
+# --- image effects ---------------------------------------------------------------------
+
+
+def jpeg_roundtrip(rgb: NDArray[np.uint8], quality: int) -> NDArray[np.uint8]:
+    """The RGB image as a JPEG of ``quality`` would decode."""
+    import cv2
+
+    ok, buf = cv2.imencode(".jpg", rgb[..., ::-1], [cv2.IMWRITE_JPEG_QUALITY, int(quality)])
+    if not ok:  # pragma: no cover - OpenCV always encodes uint8 RGB
+        raise RuntimeError("JPEG encoding failed")
+    return cv2.imdecode(buf, cv2.IMREAD_COLOR)[..., ::-1].copy()
+
+
+def apply_lens_distortion(
+    color: NDArray[np.uint8], depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, k1: float
+) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
+    """Images as seen through a lens with radial distortion ``k1`` (Brown model).
+
+    Each output (distorted) pixel takes the value of the ideal pinhole image at its
+    undistorted position.
+    """
+    import cv2
+
+    h, w = depth_mm.shape
+    vv, uu = np.mgrid[0:h, 0:w].astype(np.float32)
+    pts = np.stack([uu.ravel(), vv.ravel()], 1)[:, None, :]
+    k = intrinsics.matrix()
+    und = cv2.undistortPoints(pts, k, np.array([k1, 0, 0, 0], np.float64), P=k)
+    mx = und[:, 0, 0].reshape(h, w).astype(np.float32)
+    my = und[:, 0, 1].reshape(h, w).astype(np.float32)
+    color = cv2.remap(color, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    depth = cv2.remap(depth_mm, mx, my, cv2.INTER_NEAREST, borderValue=0)
+    return color, depth
+
+
+def realistic_depth(
+    depth_mm: NDArray[np.float64],
+    conditions: Conditions,
+    rng: np.random.Generator,
+) -> NDArray[np.float64]:
+    """Flying pixels and parallax holes at depth edges, and the registration offset.
+
+    Parameters
+    ----------
+    depth_mm : ndarray, shape (H, W)
+        Ideal z-depth, mm (0 = none).
+
+    Returns
+    -------
+    ndarray, shape (H, W)
+        Depth in mm, 0 where there is no reading.
+    """
+    import cv2
+
+    d = depth_mm.copy()
+    valid = d > 0
+    # Flying pixels: at a jump, a pixel reads a mix of the two sides.
+    near = cv2.erode(np.where(valid, d, 1e9).astype(np.float32), np.ones((3, 3), np.uint8))
+    far = cv2.dilate(d.astype(np.float32), np.ones((3, 3), np.uint8))
+    edge = valid & ((far - near) > 15)
+    mix = rng.random(d.shape)
+    fly = edge & (rng.random(d.shape) < 0.6)
+    d[fly] = (near * mix + far * (1 - mix))[fly]
+    # Parallax holes: the projector sits to one side, so the far side of each jump
+    # facing it sees no pattern for a few pixels.
+    jump = np.zeros(d.shape, bool)
+    jump[:, 1:] = (d[:, :-1] - d[:, 1:]) < -15  # far pixel right of a near one
+    width = int(rng.integers(2, 7))
+    shadow = cv2.dilate(jump.astype(np.uint8), np.ones((1, width), np.uint8), anchor=(0, 0))
+    d[shadow.astype(bool)] = 0
+    du, dv = conditions.registration_px
+    d = np.roll(d, (dv, du), axis=(0, 1))
+    if dv > 0:
+        d[:dv] = 0
+    elif dv < 0:
+        d[dv:] = 0
+    if du > 0:
+        d[:, :du] = 0
+    elif du < 0:
+        d[:, du:] = 0
+    return d
