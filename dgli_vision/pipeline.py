@@ -17,7 +17,8 @@ from .errors import DetectionError
 from .io import RGBDFrame
 from .layout import NapkinLayout, default_layout
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
-from .perception.lift import Markers3D, estimate_table_normal, lift_stickers
+from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
+from .perception.napkin import find_napkin
 from .references import ReferenceSet
 
 __all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
@@ -67,12 +68,15 @@ def observe(
 ) -> tuple[StickerDetections, Markers3D, ClothObservation]:
     """Detect the stickers, lift them to 3D and estimate the table normal."""
     layout = layout or default_layout()
-    detections = detect_stickers(frame.color, frame.depth_mm, frame.intrinsics, layout, params)
-    markers = lift_stickers(detections, frame.intrinsics)
     try:
-        up = estimate_table_normal(frame.depth_mm, frame.intrinsics)
+        up, offset = estimate_table_plane(frame.depth_mm, frame.intrinsics)
     except ValueError as exc:
         raise DetectionError(f"'{frame.depth_path}': {exc}") from None
+    napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
+    detections = detect_stickers(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin
+    )
+    markers = lift_stickers(detections, frame.intrinsics)
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..camera import Intrinsics
 from ..layout import NapkinLayout
+from .napkin import NapkinView, find_napkin, srgb_lut
 
 __all__ = ["DetectorParams", "Rejection", "StickerDetections", "detect_stickers", "hue_of"]
 
@@ -33,10 +34,19 @@ class DetectorParams:
     Attributes
     ----------
     min_saturation : int
-        Minimum HSV saturation (0-255) of a sticker pixel. Default 90: the napkin and
-        the table are much less saturated.
+        Minimum HSV saturation (0-255) of a sticker pixel, in the image balanced to the
+        napkin's white (:mod:`.napkin`). Default 115 (0.45): the printed colours keep
+        over 0.6 even at their blurred rims, a light-wood table or a tinted surround
+        stays near 0.3.
     min_value : int
-        Minimum HSV value (0-255). Default 35.
+        Minimum HSV value (0-255) in the balanced image, where the napkin's white is at
+        ``NapkinParams.target_level`` (225): so this is relative to the napkin. Default
+        30 (0.13 of the napkin): a blue sticker in a deep shadow of a dim image keeps
+        about 0.25.
+    min_chroma : int
+        Minimum max - min channel (0-255) in the balanced image. Default 40 (0.18 of the
+        napkin's level): dark noisy pixels can reach a high HSV saturation with a small
+        chroma; a sticker in shadow keeps over 70.
     max_hue_distance : int
         Largest distance (OpenCV hue units, 2 degrees each) from a nominal hue. Default 22.
     min_area_ratio, max_area_ratio : float
@@ -55,10 +65,24 @@ class DetectorParams:
     min_purity : float
         Minimum fraction of the outer band with the disc colour, and of the inner part
         with the dot colour. Default 0.5.
+    min_surround : float
+        Minimum ratio of the surround's whiteness (median of the smallest linear channel
+        on a ring 1.3-1.8 radii out) to the blob's brightness (median of its largest
+        linear channel). Default 0.55: a sticker sits on white cloth (0.8 against at most
+        0.83, so about 1 or more in any light), a cap or a box on a table does not (a
+        grey table reflects at most 0.35 against 0.6 for a saturated object; a wood
+        table's blue channel much less).
+    min_dot_seen : float
+        Minimum fraction of the dot area that is labelled with a colour (not washed out
+        by a highlight) for the dot colour to be read. Default 0.35.
+    highlight_min : int
+        Smallest channel (0-255) of a washed-out pixel, in the image as taken or balanced
+        to the napkin. Default 250: blown out, or brighter than white cloth can be.
     """
 
-    min_saturation: int = 90
-    min_value: int = 35
+    min_saturation: int = 115
+    min_value: int = 30
+    min_chroma: int = 40
     max_hue_distance: int = 22
     min_area_ratio: float = 0.55
     max_area_ratio: float = 2.0
@@ -66,6 +90,9 @@ class DetectorParams:
     min_solidity: float = 0.8
     max_elongation: float = 2.5
     min_purity: float = 0.5
+    min_surround: float = 0.55
+    min_dot_seen: float = 0.35
+    highlight_min: int = 250
 
 
 @dataclass(frozen=True)
@@ -114,10 +141,17 @@ def hue_of(rgb: tuple[int, int, int]) -> int:
     return int(cv2.cvtColor(np.uint8([[rgb]]), cv2.COLOR_RGB2HSV)[0, 0, 0])
 
 
-def _hue_lut(layout: NapkinLayout, params: DetectorParams) -> tuple[NDArray[np.uint8], list[str]]:
-    """Lookup table hue -> colour label (0 none, k + 1 for colour k) and colour names."""
+def _hue_lut(
+    layout: NapkinLayout, params: DetectorParams, colours: dict[str, tuple[int, int, int]] | None
+) -> tuple[NDArray[np.uint8], list[str]]:
+    """Lookup table hue -> colour label (0 none, k + 1 for colour k) and colour names.
+
+    ``colours`` (calibrated sRGB of each colour name, as the balanced image shows them)
+    replaces the layout's nominal colours.
+    """
     names = list(layout.colours_srgb)
-    hues = np.array([hue_of(layout.colours_srgb[n]) for n in names])
+    source = {**layout.colours_srgb, **(colours or {})}
+    hues = np.array([hue_of(source[n]) for n in names])
     h = np.arange(180)
     dist = np.abs(h[:, None] - hues[None, :])
     dist = np.minimum(dist, 180 - dist)  # hue is circular
@@ -126,12 +160,25 @@ def _hue_lut(layout: NapkinLayout, params: DetectorParams) -> tuple[NDArray[np.u
     return lut, names
 
 
+@dataclass
+class _Candidate:
+    score: float
+    where: tuple[float, float]
+    area: float
+    z_mm: float
+    disc: int
+    dot: int | None  # None: the dot is washed out
+
+
 def detect_stickers(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
     intrinsics: Intrinsics,
     layout: NapkinLayout,
     params: DetectorParams | None = None,
+    *,
+    napkin: NapkinView | None = None,
+    colours: dict[str, tuple[int, int, int]] | None = None,
 ) -> StickerDetections:
     """Find the 16 stickers in an RGB image.
 
@@ -145,6 +192,10 @@ def detect_stickers(
     layout : NapkinLayout
         The stickers' colours and sizes.
     params : DetectorParams, optional
+    napkin : NapkinView, keyword-only, optional
+        The napkin's white and highlights (default: :func:`.napkin.find_napkin`).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``), sRGB per colour name.
 
     Returns
     -------
@@ -157,46 +208,86 @@ def detect_stickers(
         raise ValueError(f"color must be (H, W, 3) uint8, got {color.shape} {color.dtype}")
     if depth_mm.shape != color.shape[:2]:
         raise ValueError(f"depth_mm must have shape {color.shape[:2]}, got {depth_mm.shape}")
+    if napkin is None:
+        napkin = find_napkin(color, depth_mm, intrinsics)
     n = layout.n_stickers
-    hsv = cv2.cvtColor(color, cv2.COLOR_RGB2HSV)
-    lut, names = _hue_lut(layout, params)
-    saturated = (hsv[..., 1] >= params.min_saturation) & (hsv[..., 2] >= params.min_value)
-    labels = np.where(saturated, lut[hsv[..., 0]], 0).astype(np.uint8)
+    norm = cv2.LUT(color, napkin.lut)  # the napkin neutral at a fixed level
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
+    lut, names = _hue_lut(layout, params, colours)
+    chroma = cv2.subtract(
+        cv2.max(cv2.max(norm[..., 0], norm[..., 1]), norm[..., 2]),
+        cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2]),
+    )
+    coloured = (
+        (hsv[..., 1] >= params.min_saturation)
+        & (hsv[..., 2] >= params.min_value)
+        & (chroma >= params.min_chroma)
+    )
+    labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
+    labels[~coloured] = 0
     mask = (labels > 0).astype(np.uint8)
-    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    # Outer boundaries of every component, also those inside holes of others (a
+    # saturated surround never hides what lies inside it).
+    contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    if hierarchy is None:
+        contours, hierarchy = (), np.zeros((1, 0, 4), int)
+    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
+    lin = srgb_lut()
     coarse = depth_mm[::8, ::8]
     med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
     disc_r_mm = layout.disc_diameter_mm / 2
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
-    min_px = (
-        params.min_area_ratio
-        * np.pi
-        * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
-    )
-    candidates = []
+    min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
+    h_img, w_img = mask.shape
+    candidates: list[_Candidate] = []
     rejected = []
-    for contour in contours:
-        area = cv2.contourArea(contour)
-        if area < max(min_px, 12.0):
+    for contour in outer:
+        area0 = cv2.contourArea(contour)
+        if area0 < max(min_px, 12.0):
             continue
         m = cv2.moments(contour)
+        if m["m00"] <= 0:
+            continue
         cu, cv = m["m10"] / m["m00"], m["m01"] / m["m00"]
         x, y, w, h = cv2.boundingRect(contour)
         roi = np.zeros((h, w), np.uint8)
         cv2.drawContours(roi, [contour - [x, y]], -1, 1, thickness=-1)
-        inside = roi.astype(bool)
         depth_roi = depth_mm[y : y + h, x : x + w]
         inner_depth = depth_roi[cv2.erode(roi, np.ones((3, 3), np.uint8)).astype(bool)]
         inner_depth = inner_depth[inner_depth > 0]
         if inner_depth.size == 0:
-            inner_depth = depth_roi[inside & (depth_roi > 0)]
+            inner_depth = depth_roi[roi.astype(bool) & (depth_roi > 0)]
         z_mm = float(np.median(inner_depth)) if inner_depth.size else med_depth
-        expected = np.pi * (disc_r_mm * intrinsics.fx / z_mm) ** 2 if z_mm > 0 else np.nan
-        ratio = area / expected if expected > 0 else np.nan
         where = (float(cu), float(cv))
-        if not np.isfinite(ratio):
-            rejected.append(Rejection(where, area, "no depth to judge its size"))
+        if not (z_mm > 0):
+            rejected.append(Rejection(where, area0, "no depth to judge its size"))
             continue
+        r_exp = disc_r_mm * intrinsics.fx / z_mm
+        expected = np.pi * r_exp**2
+        # A window around the blob, one expected diameter wider on each side.
+        pad = int(np.ceil(2 * r_exp)) + 2
+        x0, y0 = max(x - pad, 0), max(y - pad, 0)
+        x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
+        inside = np.zeros((y1 - y0, x1 - x0), bool)
+        inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
+        win = norm[y0:y1, x0:x1]
+        yy, xx = np.mgrid[y0:y1, x0:x1]
+        # Washed-out pixels next to the blob are part of it: a glossy sticker's
+        # highlight (near white, brighter than the napkin).
+        bright = (win.min(axis=2) >= params.highlight_min) | (
+            color[y0:y1, x0:x1].min(axis=2) >= params.highlight_min
+        )
+        r_blob = np.hypot(xx - cu, yy - cv) / r_exp
+        washed = bright & (r_blob < 1.4) & ~inside
+        recovered = False
+        if washed.any() and area0 < 0.9 * expected:
+            union = inside | washed
+            mu = cv2.moments(union.astype(np.uint8), binaryImage=True)
+            cu, cv = mu["m10"] / mu["m00"] + x0, mu["m01"] / mu["m00"] + y0
+            inside = union
+            recovered = True
+        area = float(inside.sum()) if recovered else area0
+        ratio = area / expected
         if ratio < params.min_area_ratio:
             rejected.append(
                 Rejection(
@@ -213,8 +304,16 @@ def detect_stickers(
                 )
             )
             continue
-        hull_area = cv2.contourArea(cv2.convexHull(contour))
-        solidity = area / hull_area if hull_area > 0 else 0.0
+        if recovered:
+            cs, _ = cv2.findContours(
+                inside.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+            )
+            shape_contour = max(cs, key=cv2.contourArea)
+            m = cv2.moments(shape_contour)
+        else:
+            shape_contour = contour
+        hull_area = cv2.contourArea(cv2.convexHull(shape_contour))
+        solidity = min(area / hull_area, 1.0) if hull_area > 0 else 0.0
         mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
         common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
         elongation = np.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
@@ -231,45 +330,99 @@ def detect_stickers(
         # the blob's equivalent circle (radius from the *expected* disc when the blob is
         # partly covered, so that the dot stays inside the inner part).
         radius = np.sqrt(max(area, expected) / np.pi)
-        yy, xx = np.mgrid[y : y + h, x : x + w]
         r = np.hypot(xx - cu, yy - cv) / radius
         fill = inside[r < 1.0].sum() / (np.pi * radius**2)
         if fill < params.min_fill:
             rejected.append(Rejection(where, area, f"not a whole disc (covers {fill:.2f} of one)"))
             continue
-        lab = labels[y : y + h, x : x + w]
-        outer = lab[inside & (r > 0.6) & (r < 0.95) & (lab > 0)]
-        inner = lab[inside & (r < 0.28) & (lab > 0)]
-        if outer.size == 0 or inner.size == 0:
-            rejected.append(Rejection(where, area, "no disc or no dot colour inside"))
+        # The surround: a sticker lies on white cloth, an object on a table does not.
+        ring = (r > 1.3) & (r < 1.8) & ~inside
+        disc_px = win[inside & (r < 0.95)]
+        if ring.any() and disc_px.size:
+            white = float(np.median(lin[win[ring].min(axis=1)]))
+            own = float(np.median(lin[disc_px.max(axis=1)]))
+            if white < params.min_surround * own:
+                rejected.append(
+                    Rejection(
+                        where,
+                        area,
+                        f"not on the napkin (surround {white / max(own, 1e-6):.2f} as bright "
+                        "as the blob)",
+                    )
+                )
+                continue
+        lab = labels[y0:y1, x0:x1]
+        outer_band = lab[inside & (r > 0.6) & (r < 0.95) & (lab > 0)]
+        inner_area = r < 0.28
+        inner = lab[inside & inner_area & (lab > 0)]
+        if outer_band.size == 0:
+            rejected.append(Rejection(where, area, "no disc colour inside"))
             continue
-        disc_counts = np.bincount(outer, minlength=len(names) + 1)
-        dot_counts = np.bincount(inner, minlength=len(names) + 1)
-        disc, dot = int(np.argmax(disc_counts)), int(np.argmax(dot_counts))
-        purity = min(disc_counts[disc] / outer.size, dot_counts[dot] / inner.size)
+        disc_counts = np.bincount(outer_band, minlength=len(names) + 1)
+        disc = int(np.argmax(disc_counts))
+        purity = disc_counts[disc] / outer_band.size
+        dot: int | None = None
+        if inner.size >= params.min_dot_seen * inner_area.sum():
+            dot_counts = np.bincount(inner, minlength=len(names) + 1)
+            dot = int(np.argmax(dot_counts))
+            purity = min(purity, dot_counts[dot] / inner.size)
+        elif not (bright & inner_area).any():
+            rejected.append(Rejection(where, area, "no dot colour inside"))
+            continue
         if purity < params.min_purity:
             rejected.append(Rejection(where, area, f"mixed colours (purity {purity:.2f})"))
             continue
-        sid = layout.sticker_id(names[disc - 1], names[dot - 1])
-        if sid is None:
-            rejected.append(
-                Rejection(
-                    where, area, f"no sticker is {names[disc - 1]} with a {names[dot - 1]} dot"
-                )
-            )
-            continue
-        score = float(purity * min(ratio, 1 / ratio) * solidity)
-        candidates.append((score, sid, where, area, z_mm))
+        score = float(purity * min(ratio, 1 / ratio) * solidity) * (0.8 if recovered else 1.0)
+        candidates.append(_Candidate(score, where, area, z_mm, disc, dot))
     centroids = np.full((n, 2), np.nan)
     areas = np.full(n, np.nan)
     scores = np.zeros(n)
     depths = np.full(n, np.nan)
-    for score, sid, where, area, z_mm in sorted(candidates, key=lambda c: -c[0]):
-        if scores[sid] > 0:
-            rejected.append(Rejection(where, area, f"second blob for sticker {sid} (lower score)"))
-            continue
-        centroids[sid] = where
-        areas[sid] = area
+
+    def take(sid: int, c: _Candidate, score: float) -> None:
+        centroids[sid] = c.where
+        areas[sid] = c.area
         scores[sid] = score
-        depths[sid] = z_mm
+        depths[sid] = c.z_mm
+
+    pending = []
+    for c in sorted(candidates, key=lambda c: -c.score):
+        if c.dot is None:
+            pending.append(c)
+            continue
+        sid = layout.sticker_id(names[c.disc - 1], names[c.dot - 1])
+        if sid is None:
+            rejected.append(
+                Rejection(
+                    c.where,
+                    c.area,
+                    f"no sticker is {names[c.disc - 1]} with a {names[c.dot - 1]} dot",
+                )
+            )
+            continue
+        if scores[sid] > 0:
+            rejected.append(
+                Rejection(c.where, c.area, f"second blob for sticker {sid} (lower score)")
+            )
+            continue
+        take(sid, c, c.score)
+    # A dot lost to a highlight: the disc colour leaves four stickers; if only one of
+    # them is still unaccounted for, it is that one.
+    for c in pending:
+        disc_name = names[c.disc - 1]
+        free = [
+            sid
+            for sid in range(n)
+            if layout.sticker_disc[sid] == disc_name and scores[sid] == 0
+        ]
+        if len(free) == 1:
+            take(free[0], c, 0.5 * c.score)
+        else:
+            rejected.append(
+                Rejection(
+                    c.where,
+                    c.area,
+                    f"{disc_name} disc with its dot washed out; {len(free)} stickers possible",
+                )
+            )
     return StickerDetections(centroids, areas, scores, depths, tuple(rejected))

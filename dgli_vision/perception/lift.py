@@ -10,7 +10,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from .detect import StickerDetections
 
-__all__ = ["Markers3D", "estimate_table_normal", "lift_stickers"]
+__all__ = ["Markers3D", "estimate_table_normal", "estimate_table_plane", "lift_stickers"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -52,6 +52,17 @@ def estimate_table_normal(
 ) -> NDArray[np.float64]:
     """Unit normal (3,) of the dominant plane of the depth image, towards the camera.
 
+    See :func:`estimate_table_plane`.
+    """
+    return estimate_table_plane(depth_mm, intrinsics, stride=stride, iterations=iterations)[0]
+
+
+def estimate_table_plane(
+    depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, *, stride: int = 10, iterations: int = 4
+) -> tuple[NDArray[np.float64], float]:
+    """The dominant plane of the depth image: unit normal (3,) towards the camera and
+    offset ``normal @ x`` (metres) of its points.
+
     A robust least-squares fit: the plane through a subsample of the valid depth pixels
     is refitted on its inliers (within 3 MAD and at most 15 mm), a few times. The table
     and the napkin lying on it are one plane at this tolerance. Deterministic.
@@ -69,14 +80,18 @@ def estimate_table_normal(
     pts = intrinsics.deproject(pix, sub[vv, uu])
     keep = np.ones(len(pts), dtype=bool)
     normal = np.array([0.0, 0.0, -1.0])
-    for _ in range(iterations):
+    caps = (0.10, 0.04) + (0.015,) * max(iterations - 2, 0)  # metres: narrow down slowly
+    for cap in caps[:iterations]:
         centre = pts[keep].mean(axis=0)
         rel = pts[keep] - centre
         _, vecs = np.linalg.eigh(rel.T @ rel)  # smallest eigenvector: the plane normal
         normal = vecs[:, 0]
         resid = np.abs((pts - centre) @ normal)
         mad = np.median(resid[keep])
-        keep = resid < min(max(3.0 * 1.4826 * mad, 0.003), 0.015)
+        new_keep = resid < min(max(3.0 * 1.4826 * mad, 0.003), cap)
+        if new_keep.sum() < 50:
+            break
+        keep = new_keep
     if normal @ (-centre) < 0:  # point towards the camera at the origin
         normal = -normal
-    return normal
+    return normal, float(normal @ centre)
