@@ -406,10 +406,10 @@ def highlight_spot(conditions: Conditions, sticker_uv: NDArray, visible: NDArray
     if not conditions.highlight or ids.size == 0:
         return None
     sid = int(rng.choice(ids))
-    r = rng.uniform(0, 9.0)
+    r = rng.uniform(0, 10.0)
     a = rng.uniform(0, 2 * np.pi)
     centre = sticker_uv[sid] + r * np.array([np.cos(a), np.sin(a)])
-    return centre, float(rng.uniform(3.0, 7.0)), float(rng.uniform(2.0, 5.0)), sid
+    return centre, float(rng.uniform(2.0, 5.0)), float(rng.uniform(1.5, 5.0)), sid
 
 
 # --- image effects ---------------------------------------------------------------------

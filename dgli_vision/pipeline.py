@@ -11,12 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .classify import Prediction, classify_coordinates
+from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .io import RGBDFrame
 from .layout import NapkinLayout, default_layout
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
+from .perception.evidence import StickerEvidence, assess_stickers, drop_inconsistent
 from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from .perception.napkin import find_napkin
 from .references import ReferenceSet
@@ -36,11 +37,21 @@ class ClothObservation:
         Stickers located in 3D.
     up : ndarray, shape (3,)
         Table normal, towards the camera (the direction of the dGLI derivative).
+    evidence : StickerEvidence or None
+        Which missing stickers are hidden by cloth and which are unknown, and why.
     """
 
     segments: NDArray[np.float64]
     visible: NDArray[np.bool_]
     up: NDArray[np.float64]
+    evidence: StickerEvidence | None = None
+
+    @property
+    def unknown(self) -> NDArray[np.bool_]:
+        """Stickers neither seen nor evidence of a fold, shape (16,)."""
+        if self.evidence is None:
+            return np.zeros(len(self.visible), dtype=bool)
+        return self.evidence.unknown
 
     @property
     def segment_visible(self) -> NDArray[np.bool_]:
@@ -52,7 +63,9 @@ class ClothObservation:
 class FrameResult:
     """Everything the pipeline computed for one frame.
 
-    ``prediction`` is None when too little was seen; ``reason`` then says why.
+    ``prediction`` is None when too little was seen or the best match is not clear
+    enough; ``reason`` then says why, and ``best_guess`` keeps what the nearest reference
+    was (for reports), if any.
     """
 
     detections: StickerDetections
@@ -61,6 +74,7 @@ class FrameResult:
     coordinates: NDArray[np.float64]
     prediction: Prediction | None
     reason: str | None = None
+    best_guess: Prediction | None = None
 
 
 def observe(
@@ -76,11 +90,12 @@ def observe(
     detections = detect_stickers(
         frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin
     )
-    markers = lift_stickers(detections, frame.intrinsics)
+    markers, dropped = drop_inconsistent(lift_stickers(detections, frame.intrinsics), layout)
+    evidence = assess_stickers(markers, frame.intrinsics, layout, napkin, dropped=dropped)
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
-    return detections, markers, ClothObservation(segments, visible, up)
+    return detections, markers, ClothObservation(segments, visible, up, evidence)
 
 
 def classify_frame(
@@ -89,20 +104,50 @@ def classify_frame(
     *,
     layout: NapkinLayout | None = None,
     params: DetectorParams | None = None,
+    min_confidence: float = MIN_CONFIDENCE,
 ) -> FrameResult:
     """Classify one RGB-D frame.
+
+    Parameters
+    ----------
+    frame : RGBDFrame
+    references : ReferenceSet
+    layout : NapkinLayout, keyword-only, optional
+    params : DetectorParams, keyword-only, optional
+    min_confidence : float, keyword-only
+        Below this confidence the answer is "cannot tell" (default
+        :data:`~dgli_vision.classify.MIN_CONFIDENCE`).
 
     Returns
     -------
     FrameResult
-        With ``prediction`` None and a ``reason`` when too few stickers were seen.
+        With ``prediction`` None and a ``reason`` when too few stickers were seen or
+        the confidence is below ``min_confidence``.
     """
     detections, markers, obs = observe(frame, layout, params)
     coords = cloth_coordinates(obs.segments, obs.up)
+    n = int(obs.visible.sum())
+    unknown = obs.evidence.summary() if obs.evidence is not None else ""
     try:
-        prediction = classify_coordinates(coords, references, obs.visible)
-        reason = None
+        guess = classify_coordinates(coords, references, obs.visible, obs.unknown)
     except DetectionError as exc:
-        n = int(obs.visible.sum())
-        prediction, reason = None, f"{n} of {len(obs.visible)} stickers located; {exc}"
-    return FrameResult(detections, markers, obs, coords, prediction, reason)
+        reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
+        if unknown:
+            reason += f" ({unknown})"
+        return FrameResult(detections, markers, obs, coords, None, reason)
+    if guess.confidence >= min_confidence:
+        return FrameResult(detections, markers, obs, coords, guess, None, guess)
+    ru = guess.runner_up
+    why = [f"confidence {guess.confidence:.2f} < {min_confidence:.2f}"]
+    if ru is not None:
+        why.append(
+            f"{guess.class_id} {guess.name} and {ru.class_id} {ru.name} are nearly as close "
+            f"({guess.distance:.3f} vs {ru.distance:.3f})"
+        )
+    if obs.evidence is not None and obs.evidence.occluded:
+        why.append("the napkin is partly covered by an object above it")
+    if unknown:
+        why.append(unknown)
+    why.append(f"{n} of {len(obs.visible)} stickers located")
+    reason = "cannot tell: " + "; ".join(why)
+    return FrameResult(detections, markers, obs, coords, None, reason, guess)

@@ -78,6 +78,14 @@ class DetectorParams:
     highlight_min : int
         Smallest channel (0-255) of a washed-out pixel, in the image as taken or balanced
         to the napkin. Default 250: blown out, or brighter than white cloth can be.
+    highlight_halo_px : int
+        Width of the pale halo around a blown-out highlight counted with it, pixels
+        (pale: bright and below ``min_saturation``). Default 8: a mirror highlight fades
+        into the sticker's colour over a few pixels, pale but not white.
+    halo_min_saturation : int
+        Smallest HSV saturation (0-255, balanced image) of a halo pixel. Default 30: the
+        white napkin around a sticker stays below 20 once balanced, so the halo never
+        spreads over the cloth.
     """
 
     min_saturation: int = 115
@@ -93,6 +101,8 @@ class DetectorParams:
     min_surround: float = 0.55
     min_dot_seen: float = 0.35
     highlight_min: int = 250
+    highlight_halo_px: int = 8
+    halo_min_saturation: int = 30
 
 
 @dataclass(frozen=True)
@@ -160,6 +170,42 @@ def _hue_lut(
     return lut, names
 
 
+def _washed_out(
+    color: NDArray[np.uint8],
+    norm: NDArray[np.uint8],
+    hsv: NDArray[np.uint8],
+    params: DetectorParams,
+    disc_radius_px: float,
+) -> NDArray[np.bool_]:
+    """Pixels a glossy sticker's highlight washed out: small blown-out spots (in the
+    image as taken or brighter than white cloth once balanced), grown into the pale,
+    tinted halo around them. Shape (H, W)."""
+    import cv2
+
+    core = (cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min)
+    norm_min = cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2])
+    core |= norm_min >= params.highlight_min
+    if not core.any():
+        return core
+    # A highlight is smaller than a sticker; a large blown-out area is cloth.
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(core.astype(np.uint8), connectivity=8)
+    if not np.isfinite(disc_radius_px):
+        disc_radius_px = 1e9
+    small = stats[:, cv2.CC_STAT_AREA] <= 1.5 * np.pi * disc_radius_px**2
+    small[0] = False
+    core = small[lab]
+    sat = hsv[..., 1]
+    allowed = (
+        (sat >= params.halo_min_saturation) & (sat < params.min_saturation) & (hsv[..., 2] >= 150)
+    ) | (norm_min >= params.highlight_min - 20) | core
+    grown = core.astype(np.uint8)
+    allowed_u8 = allowed.astype(np.uint8)
+    cross = np.ones((3, 3), np.uint8)
+    for _ in range(params.highlight_halo_px):
+        grown = cv2.dilate(grown, cross) & allowed_u8
+    return grown.astype(bool)
+
+
 @dataclass
 class _Candidate:
     score: float
@@ -225,7 +271,13 @@ def detect_stickers(
     )
     labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
     labels[~coloured] = 0
-    mask = (labels > 0).astype(np.uint8)
+    # Washed-out pixels (a glossy sticker's highlight) may be part of a sticker: blobs
+    # are made of colour and highlight together, unless the napkin itself is blown out.
+    coarse = depth_mm[::8, ::8]
+    med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
+    disc_r_mm = layout.disc_diameter_mm / 2
+    washed = _washed_out(color, norm, hsv, params, disc_r_mm * intrinsics.fx / med_depth)
+    mask = ((labels > 0) | washed).astype(np.uint8)
     # Outer boundaries of every component, also those inside holes of others (a
     # saturated surround never hides what lies inside it).
     contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
@@ -233,9 +285,6 @@ def detect_stickers(
         contours, hierarchy = (), np.zeros((1, 0, 4), int)
     outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
     lin = srgb_lut()
-    coarse = depth_mm[::8, ::8]
-    med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
-    disc_r_mm = layout.disc_diameter_mm / 2
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
     h_img, w_img = mask.shape
@@ -272,21 +321,11 @@ def detect_stickers(
         inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
         win = norm[y0:y1, x0:x1]
         yy, xx = np.mgrid[y0:y1, x0:x1]
-        # Washed-out pixels next to the blob are part of it: a glossy sticker's
-        # highlight (near white, brighter than the napkin).
-        bright = (win.min(axis=2) >= params.highlight_min) | (
-            color[y0:y1, x0:x1].min(axis=2) >= params.highlight_min
-        )
-        r_blob = np.hypot(xx - cu, yy - cv) / r_exp
-        washed = bright & (r_blob < 1.4) & ~inside
-        recovered = False
-        if washed.any() and area0 < 0.9 * expected:
-            union = inside | washed
-            mu = cv2.moments(union.astype(np.uint8), binaryImage=True)
-            cu, cv = mu["m10"] / mu["m00"] + x0, mu["m01"] / mu["m00"] + y0
-            inside = union
-            recovered = True
-        area = float(inside.sum()) if recovered else area0
+        inside_colour = inside & (labels[y0:y1, x0:x1] > 0)
+        if inside_colour.sum() < 0.05 * inside.sum():
+            continue  # a highlight alone, or a white object: no sticker colour
+        recovered = bool((inside & washed[y0:y1, x0:x1]).any())
+        area = area0
         ratio = area / expected
         if ratio < params.min_area_ratio:
             rejected.append(
@@ -304,15 +343,7 @@ def detect_stickers(
                 )
             )
             continue
-        if recovered:
-            cs, _ = cv2.findContours(
-                inside.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
-            )
-            shape_contour = max(cs, key=cv2.contourArea)
-            m = cv2.moments(shape_contour)
-        else:
-            shape_contour = contour
-        hull_area = cv2.contourArea(cv2.convexHull(shape_contour))
+        hull_area = cv2.contourArea(cv2.convexHull(contour))
         solidity = min(area / hull_area, 1.0) if hull_area > 0 else 0.0
         mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
         common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
@@ -337,7 +368,7 @@ def detect_stickers(
             continue
         # The surround: a sticker lies on white cloth, an object on a table does not.
         ring = (r > 1.3) & (r < 1.8) & ~inside
-        disc_px = win[inside & (r < 0.95)]
+        disc_px = win[inside_colour & (r < 0.95)]
         if ring.any() and disc_px.size:
             white = float(np.median(lin[win[ring].min(axis=1)]))
             own = float(np.median(lin[disc_px.max(axis=1)]))
@@ -366,7 +397,7 @@ def detect_stickers(
             dot_counts = np.bincount(inner, minlength=len(names) + 1)
             dot = int(np.argmax(dot_counts))
             purity = min(purity, dot_counts[dot] / inner.size)
-        elif not (bright & inner_area).any():
+        elif not (washed[y0:y1, x0:x1] & inner_area).any():
             rejected.append(Rejection(where, area, "no dot colour inside"))
             continue
         if purity < params.min_purity:

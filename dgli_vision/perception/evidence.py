@@ -1,0 +1,265 @@
+"""What a missing sticker says: hidden by the cloth (evidence of a fold), or unknown.
+
+A sticker the detector did not find is evidence of a fold only when the cloth itself can
+be what hides it. Where the napkin lies flat and rigid, the stickers that were found tell
+where a missing one would be (a rigid fit from material to camera coordinates: folding
+is isometric). If that place is out of view, under an object above the napkin, or in a
+highlight, the sticker is *unknown*: the classifier ignores it. Otherwise it is *hidden*.
+
+Before that, the located stickers are checked against the napkin's size: folding never
+stretches cloth, so two stickers can never be farther apart in 3D than on the flat
+napkin. A sticker that breaks this with others is a false detection and is dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..camera import Intrinsics
+from ..layout import NapkinLayout
+from .lift import Markers3D
+from .napkin import NapkinView
+
+__all__ = [
+    "HIDDEN",
+    "SEEN",
+    "UNKNOWN",
+    "EvidenceParams",
+    "StickerEvidence",
+    "assess_stickers",
+    "drop_inconsistent",
+]
+
+SEEN, HIDDEN, UNKNOWN = 1, 0, -1
+
+
+@dataclass(frozen=True)
+class EvidenceParams:
+    """How missing stickers are judged. Every field has a unit and a reason.
+
+    Attributes
+    ----------
+    stretch_tolerance_mm : float
+        How much farther apart two located stickers may be in 3D than on the flat napkin
+        before one of them is a false detection. Default 15 mm: sticker centres are
+        found to about 1 mm in x, y and a few mm in depth; wrinkles shorten distances.
+    fit_tolerance_mm : float
+        Residual of a sticker under a rigid fit for it to lie on the same flat part of
+        the cloth. Default 10 mm: wrinkles are up to about 10 mm out of plane.
+    napkin_margin_mm : float
+        How far beyond the outline of the located stickers an object must reach to be
+        over the napkin. Default 15 mm: the stickers sit 20 mm and more inside the
+        edges, and an object beside the napkin never reaches in.
+    """
+
+    stretch_tolerance_mm: float = 15.0
+    fit_tolerance_mm: float = 10.0
+    napkin_margin_mm: float = 15.0
+
+
+@dataclass(frozen=True, eq=False)
+class StickerEvidence:
+    """The state of each sticker.
+
+    Attributes
+    ----------
+    status : ndarray of int8, shape (16,)
+        :data:`SEEN`, :data:`HIDDEN` (evidence of cloth on top) or :data:`UNKNOWN`.
+    reasons : tuple of str or None, length 16
+        Why a sticker is unknown (or was dropped).
+    predicted_px : ndarray, shape (16, 2)
+        Where a missing sticker would be if its part of the cloth lay as the rest,
+        pixels; NaN where that cannot be told.
+    occluded : bool
+        Something that is not napkin stands over the napkin.
+    """
+
+    status: NDArray[np.int8]
+    reasons: tuple[str | None, ...]
+    predicted_px: NDArray[np.float64]
+    occluded: bool = False
+
+    @property
+    def seen(self) -> NDArray[np.bool_]:
+        return self.status == SEEN
+
+    @property
+    def unknown(self) -> NDArray[np.bool_]:
+        return self.status == UNKNOWN
+
+    def summary(self) -> str:
+        """``"2 stickers under an object above the napkin, 1 in a highlight"`` or ``""``."""
+        counts: dict[str, int] = {}
+        for st, why in zip(self.status, self.reasons):
+            if st == UNKNOWN and why:
+                counts[why] = counts.get(why, 0) + 1
+        return ", ".join(
+            f"{k} sticker{'s' if k > 1 else ''} {why}" for why, k in counts.items()
+        )
+
+
+def drop_inconsistent(
+    markers: Markers3D, layout: NapkinLayout, params: EvidenceParams | None = None
+) -> tuple[Markers3D, NDArray[np.bool_]]:
+    """Drop located stickers that are farther from others than the flat napkin allows.
+
+    Returns
+    -------
+    markers : Markers3D
+        Without the dropped stickers.
+    dropped : ndarray of bool, shape (16,)
+    """
+    p = params or EvidenceParams()
+    pts = markers.points.copy()
+    found = markers.found.copy()
+    uv = layout.sticker_uv
+    flat_mm = np.linalg.norm(uv[:, None] - uv[None], axis=2)
+    dropped = np.zeros(len(pts), dtype=bool)
+    while found.sum() > 2:
+        d3 = np.linalg.norm(pts[:, None] - pts[None], axis=2) * 1e3
+        bad = (d3 > flat_mm + p.stretch_tolerance_mm) & found[:, None] & found[None]
+        counts = bad.sum(axis=1)
+        if counts.max() == 0:
+            break
+        worst = int(np.argmax(counts))
+        found[worst] = False
+        dropped[worst] = True
+        pts[worst] = np.nan
+    return Markers3D(pts), dropped
+
+
+def _kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
+    """Rotation R and translation t with dst ~ src @ R.T + t (least squares)."""
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(u @ vt))
+    r = (u @ np.diag([1.0, 1.0, d]) @ vt).T
+    return r, cd - cs @ r.T
+
+
+def _rigid_prediction(
+    uv_m: NDArray, pts: NDArray, use: NDArray[np.bool_], tol_m: float
+) -> tuple[NDArray, NDArray[np.bool_]] | None:
+    """Best rigid map of the material points of ``use`` onto their 3D points (RANSAC over
+    triples); returns (predicted 3D points of every sticker, inliers) or None."""
+    ids = np.flatnonzero(use)
+    if ids.size < 3:
+        return None
+    best_in = None
+    for tri in combinations(ids, 3):
+        tri = list(tri)
+        a, b, c = uv_m[tri]
+        if abs(np.cross(b - a, c - a)[2]) < 1e-4:  # nearly collinear (m^2)
+            continue
+        r, t = _kabsch(uv_m[tri], pts[tri])
+        res = np.linalg.norm(uv_m[ids] @ r.T + t - pts[ids], axis=1)
+        inl = ids[res < tol_m]
+        if best_in is None or len(inl) > len(best_in):
+            best_in = inl
+    if best_in is None or len(best_in) < 3:
+        return None
+    r, t = _kabsch(uv_m[best_in], pts[best_in])
+    mask = np.zeros(len(pts), dtype=bool)
+    mask[best_in] = True
+    return uv_m @ r.T + t, mask
+
+
+def assess_stickers(
+    markers: Markers3D,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    napkin: NapkinView | None,
+    *,
+    dropped: NDArray[np.bool_] | None = None,
+    params: EvidenceParams | None = None,
+) -> StickerEvidence:
+    """Decide, for each sticker, seen, hidden by cloth, or unknown.
+
+    Parameters
+    ----------
+    markers : Markers3D
+        Located stickers (after :func:`drop_inconsistent`).
+    intrinsics : Intrinsics
+    layout : NapkinLayout
+    napkin : NapkinView or None
+        Highlights and objects above the table; None: nothing is ever unknown.
+    dropped : ndarray of bool, shape (16,), keyword-only, optional
+        Stickers dropped as false detections.
+    params : EvidenceParams, keyword-only, optional
+
+    Returns
+    -------
+    StickerEvidence
+    """
+    p = params or EvidenceParams()
+    n = len(markers.points)
+    seen = markers.found
+    status = np.where(seen, SEEN, HIDDEN).astype(np.int8)
+    reasons: list[str | None] = [None] * n
+    predicted = np.full((n, 2), np.nan)
+    if seen.all():
+        return StickerEvidence(status, tuple(reasons), predicted)
+    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(n)])
+    pts = markers.points
+    tol = p.fit_tolerance_mm * 1e-3
+    corner_of = np.argmin(
+        np.linalg.norm(layout.sticker_uv[:, None] - layout.corner_uv[None], axis=2), axis=1
+    )
+    pred3 = np.full((n, 3), np.nan)
+    group_support = np.zeros(n, dtype=int)
+    for corner in range(len(layout.corner_uv)):
+        group = corner_of == corner
+        group_support[group] = int((group & seen).sum())
+        fit = _rigid_prediction(uv_m, pts, group & seen, tol)
+        if fit is not None:
+            pred3[group] = fit[0][group]
+    overall = _rigid_prediction(uv_m, pts, seen, tol)
+    if overall is not None and overall[1].sum() >= 4:
+        todo = np.isnan(pred3[:, 0])
+        pred3[todo] = overall[0][todo]
+    ok = np.isfinite(pred3[:, 0]) & (pred3[:, 2] > 0)
+    predicted[ok] = intrinsics.project(pred3[ok])
+    occluded = False
+    if napkin is not None and napkin.occluder.any() and seen.sum() >= 3:
+        # Is the object over the napkin: inside the outline of the located stickers?
+        import cv2
+
+        located = intrinsics.project(pts[seen]).astype(np.float32)
+        hull = cv2.convexHull(located)
+        z = float(np.nanmedian(pts[seen, 2]))
+        reach_px = p.napkin_margin_mm * 1e-3 * intrinsics.fx / z
+        vs, us = np.nonzero(napkin.occluder)
+        occluded = any(
+            cv2.pointPolygonTest(hull, (float(u * napkin.stride), float(v * napkin.stride)), True)
+            > -reach_px
+            for u, v in zip(us, vs)
+        )
+    z_typ = float(np.nanmedian(pts[seen, 2])) if seen.any() else 0.6
+    radius_px = 1.5 * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
+    missing = np.flatnonzero(~seen)
+    if napkin is not None:
+        near_occ = napkin.near(napkin.occluder, predicted[missing], radius_px)
+        near_hl = napkin.near(napkin.highlight, predicted[missing], radius_px)
+    else:
+        near_occ = near_hl = np.zeros(len(missing), dtype=bool)
+    w, h = intrinsics.width, intrinsics.height
+    for k, sid in enumerate(missing):
+        u, v = predicted[sid]
+        why = None
+        if np.isfinite(u) and not (-radius_px <= u <= w - 1 + radius_px
+                                   and -radius_px <= v <= h - 1 + radius_px):
+            why = "out of view"
+        elif near_occ[k] or (occluded and group_support[sid] < 2):
+            why = "possibly under an object above the napkin"
+        elif near_hl[k]:
+            why = "in a highlight"
+        elif dropped is not None and dropped[sid] and np.isnan(u):
+            why = "found where the napkin cannot be"
+        if why:
+            status[sid] = UNKNOWN
+            reasons[sid] = why
+    return StickerEvidence(status, tuple(reasons), predicted, occluded)
