@@ -177,9 +177,9 @@ def _washed_out(
     params: DetectorParams,
     disc_radius_px: float,
 ) -> NDArray[np.bool_]:
-    """Pixels a glossy sticker's highlight washed out: small blown-out spots (in the
-    image as taken or brighter than white cloth once balanced), grown into the pale,
-    tinted halo around them. Shape (H, W)."""
+    """Pixels a glossy sticker's highlight washed out, in a window around a blob: small
+    blown-out spots (in the image as taken, or brighter than white cloth once balanced),
+    grown into the pale, tinted halo around them. Shape (h, w) of the window."""
     import cv2
 
     core = (cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min)
@@ -189,11 +189,11 @@ def _washed_out(
         return core
     # A highlight is smaller than a sticker; a large blown-out area is cloth.
     n, lab, stats, _ = cv2.connectedComponentsWithStats(core.astype(np.uint8), connectivity=8)
-    if not np.isfinite(disc_radius_px):
-        disc_radius_px = 1e9
     small = stats[:, cv2.CC_STAT_AREA] <= 1.5 * np.pi * disc_radius_px**2
     small[0] = False
     core = small[lab]
+    if not core.any():
+        return core
     sat = hsv[..., 1]
     allowed = (
         (sat >= params.halo_min_saturation) & (sat < params.min_saturation) & (hsv[..., 2] >= 150)
@@ -260,24 +260,22 @@ def detect_stickers(
     norm = cv2.LUT(color, napkin.lut)  # the napkin neutral at a fixed level
     hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
     lut, names = _hue_lut(layout, params, colours)
-    chroma = cv2.subtract(
-        cv2.max(cv2.max(norm[..., 0], norm[..., 1]), norm[..., 2]),
-        cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2]),
+    coloured = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
+    # chroma = S * V / 255 >= min_chroma: only binding where V is low (dark, noisy pixels)
+    v_limit = int(np.ceil(params.min_chroma * 255 / max(params.min_saturation, 1)))
+    dark_mask = cv2.bitwise_and(
+        coloured, cv2.inRange(hsv, (0, 0, 0), (180, 255, max(v_limit - 1, 0)))
     )
-    coloured = (
-        (hsv[..., 1] >= params.min_saturation)
-        & (hsv[..., 2] >= params.min_value)
-        & (chroma >= params.min_chroma)
-    )
+    dark = np.nonzero(dark_mask) if cv2.countNonZero(dark_mask) else (np.empty(0, int),) * 2
+    if dark[0].size:
+        sv = hsv[..., 1][dark].astype(np.int32) * hsv[..., 2][dark]
+        coloured[dark[0][sv < params.min_chroma * 255], dark[1][sv < params.min_chroma * 255]] = 0
     labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
-    labels[~coloured] = 0
-    # Washed-out pixels (a glossy sticker's highlight) may be part of a sticker: blobs
-    # are made of colour and highlight together, unless the napkin itself is blown out.
+    labels = cv2.bitwise_and(labels, coloured)
+    mask = cv2.threshold(labels, 0, 1, cv2.THRESH_BINARY)[1]
     coarse = depth_mm[::8, ::8]
     med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
     disc_r_mm = layout.disc_diameter_mm / 2
-    washed = _washed_out(color, norm, hsv, params, disc_r_mm * intrinsics.fx / med_depth)
-    mask = ((labels > 0) | washed).astype(np.uint8)
     # Outer boundaries of every component, also those inside holes of others (a
     # saturated surround never hides what lies inside it).
     contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
@@ -285,6 +283,11 @@ def detect_stickers(
         contours, hierarchy = (), np.zeros((1, 0, 4), int)
     outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
     lin = srgb_lut()
+    napkin_not_blown = napkin.white_rgb.max() < lin[params.highlight_min - 10]
+    blown = cv2.bitwise_or(
+        cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
+        cv2.inRange(hsv, (0, 0, params.highlight_min), (180, 10, 255)),
+    ) > 0
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
     h_img, w_img = mask.shape
@@ -321,10 +324,28 @@ def detect_stickers(
         inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
         win = norm[y0:y1, x0:x1]
         yy, xx = np.mgrid[y0:y1, x0:x1]
+        # Washed-out pixels (a glossy sticker's highlight) next to the blob are part of
+        # it, unless the napkin itself is blown out.
+        washed = np.zeros(inside.shape, dtype=bool)
+        if napkin_not_blown and blown[y0:y1, x0:x1].any():
+            washed = _washed_out(
+                color[y0:y1, x0:x1], win, hsv[y0:y1, x0:x1], params, r_exp
+            ) & (np.hypot(xx - cu, yy - cv) < 1.6 * r_exp)
+        recovered = bool((washed & ~inside).any())
+        if recovered:
+            union = (inside | washed).astype(np.uint8)
+            n_lab, lab_img, stats, _ = cv2.connectedComponentsWithStats(union, connectivity=8)
+            keep = lab_img == lab_img[inside][0] if inside.any() else union.astype(bool)
+            inside = keep
+            mu = cv2.moments(inside.astype(np.uint8), binaryImage=True)
+            cu, cv = mu["m10"] / mu["m00"] + x0, mu["m01"] / mu["m00"] + y0
+            cs, _ = cv2.findContours(
+                inside.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE
+            )
+            contour = max(cs, key=cv2.contourArea)
+            m = cv2.moments(contour)
+            area0 = float(inside.sum())
         inside_colour = inside & (labels[y0:y1, x0:x1] > 0)
-        if inside_colour.sum() < 0.05 * inside.sum():
-            continue  # a highlight alone, or a white object: no sticker colour
-        recovered = bool((inside & washed[y0:y1, x0:x1]).any())
         area = area0
         ratio = area / expected
         if ratio < params.min_area_ratio:
@@ -397,7 +418,7 @@ def detect_stickers(
             dot_counts = np.bincount(inner, minlength=len(names) + 1)
             dot = int(np.argmax(dot_counts))
             purity = min(purity, dot_counts[dot] / inner.size)
-        elif not (washed[y0:y1, x0:x1] & inner_area).any():
+        elif not (washed & inner_area).any():
             rejected.append(Rejection(where, area, "no dot colour inside"))
             continue
         if purity < params.min_purity:

@@ -133,39 +133,44 @@ def drop_inconsistent(
 
 
 def _kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
-    """Rotation R and translation t with dst ~ src @ R.T + t (least squares)."""
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
-    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    """Rotations R (..., 3, 3) and translations t (..., 3) with dst ~ src @ R.T + t, in
+    the least-squares sense, for stacks of point sets src, dst (..., k, 3)."""
+    cs, cd = src.mean(axis=-2, keepdims=True), dst.mean(axis=-2, keepdims=True)
+    cov = np.swapaxes(src - cs, -1, -2) @ (dst - cd)
+    u, _, vt = np.linalg.svd(cov)
     d = np.sign(np.linalg.det(u @ vt))
-    r = (u @ np.diag([1.0, 1.0, d]) @ vt).T
-    return r, cd - cs @ r.T
+    fix = np.ones(u.shape[:-1])
+    fix[..., -1] = d
+    r = np.swapaxes((u * fix[..., None, :]) @ vt, -1, -2)
+    t = cd[..., 0, :] - (cs @ np.swapaxes(r, -1, -2))[..., 0, :]
+    return r, t
 
 
 def _rigid_prediction(
     uv_m: NDArray, pts: NDArray, use: NDArray[np.bool_], tol_m: float
 ) -> tuple[NDArray, NDArray[np.bool_]] | None:
-    """Best rigid map of the material points of ``use`` onto their 3D points (RANSAC over
-    triples); returns (predicted 3D points of every sticker, inliers) or None."""
+    """Best rigid map of the material points of ``use`` onto their 3D points (all
+    triples tried at once, RANSAC-style); returns (predicted 3D points of every sticker,
+    inliers) or None."""
     ids = np.flatnonzero(use)
     if ids.size < 3:
         return None
-    best_in = None
-    for tri in combinations(ids, 3):
-        tri = list(tri)
-        a, b, c = uv_m[tri]
-        if abs(np.cross(b - a, c - a)[2]) < 1e-4:  # nearly collinear (m^2)
-            continue
-        r, t = _kabsch(uv_m[tri], pts[tri])
-        res = np.linalg.norm(uv_m[ids] @ r.T + t - pts[ids], axis=1)
-        inl = ids[res < tol_m]
-        if best_in is None or len(inl) > len(best_in):
-            best_in = inl
-    if best_in is None or len(best_in) < 3:
+    triples = np.array(list(combinations(ids, 3)))  # (T, 3)
+    a, b, c = (uv_m[triples[:, k]] for k in range(3))
+    area = np.abs(np.cross(b - a, c - a)[:, 2])
+    triples = triples[area > 1e-4]  # not nearly collinear (m^2)
+    if len(triples) == 0:
         return None
-    r, t = _kabsch(uv_m[best_in], pts[best_in])
+    r, t = _kabsch(uv_m[triples], pts[triples])  # (T, 3, 3), (T, 3)
+    pred = np.einsum("tij,nj->tni", r, uv_m[ids]) + t[:, None, :]
+    inl = np.linalg.norm(pred - pts[ids][None], axis=2) < tol_m  # (T, n)
+    best = inl[int(np.argmax(inl.sum(axis=1)))]
+    if best.sum() < 3:
+        return None
+    r1, t1 = _kabsch(uv_m[ids[best]], pts[ids[best]])
     mask = np.zeros(len(pts), dtype=bool)
-    mask[best_in] = True
-    return uv_m @ r.T + t, mask
+    mask[ids[best]] = True
+    return uv_m @ r1.T + t1, mask
 
 
 def assess_stickers(
