@@ -20,6 +20,12 @@ from .errors import DgliError
 F = TypeVar("F", bound=Callable[..., Any])
 
 # Options shared by several commands: one name, one help text, one validation.
+colours_option = click.option(
+    "--colours",
+    "colours_path",
+    type=click.Path(dir_okay=False),
+    help="Sticker colours measured by 'dgli calibrate' [default: the printed nominal ones].",
+)
 references_option = click.option(
     "--references",
     "references_path",
@@ -136,6 +142,7 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
     help="Worker processes [default: all cores].",
 )
 @references_option
+@colours_option
 @_handle_errors
 def evaluate(
     folder: str,
@@ -143,24 +150,36 @@ def evaluate(
     as_json: bool,
     jobs: int | None,
     references_path: str | None,
+    colours_path: str | None,
 ) -> None:
     """Classify every labelled pair of FOLDER and report accuracy and confusions."""
     import os
     from pathlib import Path
 
     from .evaluate import timed_evaluation
-    from .io import file_sha256, find_pairs, read_color, write_json, write_png, write_text
+    from .io import (
+        file_sha256,
+        find_pairs,
+        read_color,
+        read_colours,
+        write_json,
+        write_png,
+        write_text,
+    )
     from .references import default_references_path, load_references
 
     pairs = find_pairs(folder)
     refs_path = Path(references_path) if references_path else default_references_path()
     refs = load_references(refs_path)
+    colours = read_colours(colours_path) if colours_path else None
     jobs = jobs or os.cpu_count() or 1
     if sys.stderr.isatty() and not as_json:
         with click.progressbar(length=len(pairs), label="classifying", file=sys.stderr) as bar:
-            result = timed_evaluation(pairs, refs, jobs=jobs, on_progress=bar.update)
+            result = timed_evaluation(
+                pairs, refs, jobs=jobs, on_progress=bar.update, colours=colours
+            )
     else:
-        result = timed_evaluation(pairs, refs, jobs=jobs)
+        result = timed_evaluation(pairs, refs, jobs=jobs, colours=colours)
     if as_json:
         click.echo(json.dumps(result.to_dict()))
     else:
@@ -210,7 +229,7 @@ def _parse_conditions(
     ctx: click.Context, param: click.Parameter, value: str
 ) -> tuple[str, ...]:
     names = tuple(n.strip() for n in value.split(",") if n.strip())
-    unknown = [n for n in names if n not in CONDITION_HELP]
+    unknown = [n for n in names if n not in CONDITION_HELP and n != "clean"]
     if unknown:
         raise click.BadParameter(
             f"unknown condition {unknown[0]!r}; expected some of {', '.join(CONDITION_HELP)}"
@@ -437,6 +456,7 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
     p = result.prediction
     out: dict[str, Any] = {"color": color, "depth": depth}
     if p is None:
+        guess = result.best_guess
         out.update(
             {
                 "class": None,
@@ -444,6 +464,7 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
                 "variant": None,
                 "distance": None,
                 "runner_up": None,
+                "confidence": None if guess is None else guess.confidence,
                 "reason": result.reason,
             }
         )
@@ -455,6 +476,7 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
                 "name": p.name,
                 "variant": p.variant,
                 "distance": round(p.distance, 6),
+                "confidence": p.confidence,
                 "runner_up": None
                 if ru is None
                 else {
@@ -465,7 +487,17 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
                 },
             }
         )
-    out["stickers"] = {"found": int(found.sum()), "missing": np.flatnonzero(~found).tolist()}
+    unknown = result.observation.unknown
+    evidence = result.observation.evidence
+    out["stickers"] = {
+        "found": int(found.sum()),
+        "missing": np.flatnonzero(~found).tolist(),
+        "unknown": {
+            str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)
+        }
+        if evidence is not None
+        else {},
+    }
     out["coordinates"] = [
         None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
     ]
@@ -480,7 +512,7 @@ def verdict_line(result: Any) -> str:
     text = f"{p.class_id} {p.name}"
     if p.variant:
         text += f" ({p.variant})"
-    text += f", distance {p.distance:.3f}"
+    text += f", distance {p.distance:.3f}, confidence {p.confidence:.2f}"
     if p.runner_up:
         ru = p.runner_up
         text += f"; runner-up {ru.class_id} {ru.name}" + (f" ({ru.variant})" if ru.variant else "")
@@ -497,6 +529,7 @@ def verdict_line(result: Any) -> str:
     help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
 )
 @references_option
+@colours_option
 @json_option("Print one JSON object.")
 @click.option(
     "--overlay",
@@ -509,17 +542,23 @@ def classify_cmd(
     depth: str,
     intrinsics: str | None,
     references_path: str | None,
+    colours_path: str | None,
     as_json: bool,
     overlay: str | None,
 ) -> None:
-    """Classify the cloth state in one colour + depth pair (exit 1: no class could be given)."""
-    from .io import read_frame, write_png
+    """Classify the cloth state in one colour + depth pair.
+
+    Exit 1 when no class can be given: too few stickers seen, or a confidence below
+    the documented threshold ("cannot tell", with the reason).
+    """
+    from .io import read_colours, read_frame, write_png
     from .pipeline import classify_frame
     from .references import load_references
 
     frame = read_frame(color, depth, intrinsics)
     refs = load_references(references_path)
-    result = classify_frame(frame, refs)
+    colours = read_colours(colours_path) if colours_path else None
+    result = classify_frame(frame, refs, colours=colours)
     if overlay:
         from .report import overlay_image
 
@@ -546,6 +585,125 @@ main.add_command(classify_cmd)
 def classify_main() -> None:
     """Entry point of ``dgli-classify`` (the same command as ``dgli classify``)."""
     classify_cmd(prog_name="dgli-classify")
+
+
+@main.command()
+@click.argument("color", type=click.Path(dir_okay=False))
+@click.argument("depth", type=click.Path(dir_okay=False))
+@click.option(
+    "-o",
+    "--output",
+    required=True,
+    type=click.Path(dir_okay=False),
+    help="Colours file to write (JSON).",
+)
+@click.option(
+    "--intrinsics",
+    type=click.Path(dir_okay=False),
+    help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
+)
+@_handle_errors
+def calibrate(color: str, depth: str, output: str, intrinsics: str | None) -> None:
+    """Measure the printed sticker colours from one image of the flat napkin.
+
+    All 16 stickers must be in view. Use the result with --colours on classify and
+    evaluate when stickers print far from the nominal colours.
+    """
+    from .io import read_frame, write_colours
+    from .layout import default_layout
+    from .perception.calibrate import calibrate_colours
+
+    frame = read_frame(color, depth, intrinsics)
+    colours = calibrate_colours(
+        frame.color, frame.depth_mm, frame.intrinsics, default_layout(), source=color
+    )
+    write_colours(
+        output,
+        colours,
+        {"command": _command_line(), "package_version": _package_version()},
+    )
+    for name, rgb in colours.items():
+        click.echo(f"{name:<7} {rgb}")
+    click.echo(f"wrote {output}")
+
+
+@main.command()
+@click.option(
+    "--per-class", default=4, show_default=True, type=click.IntRange(1), help="Pairs per class."
+)
+@click.option("--seed", default=1000, show_default=True, type=int, help="Seed of the renders.")
+@click.option(
+    "--conditions",
+    "conditions",
+    callback=_parse_conditions,
+    default="",
+    help="Conditions to score, comma-separated [default: clean and all].",
+)
+@click.option(
+    "-j", "--jobs", type=click.IntRange(1), default=None, help="Worker processes [all cores]."
+)
+@click.option(
+    "--markdown",
+    type=click.Path(dir_okay=False),
+    help="Also write the table as Markdown to this file.",
+)
+@references_option
+@json_option("Print the table as JSON.")
+@_handle_errors
+def robustness(
+    per_class: int,
+    seed: int,
+    conditions: tuple[str, ...],
+    jobs: int | None,
+    markdown: str | None,
+    references_path: str | None,
+    as_json: bool,
+) -> None:
+    """Render fresh pairs under each capture condition and score the answers.
+
+    Right, "cannot tell" (exit 1) and wrong, per condition: the robustness table.
+    """
+    import os
+
+    from .conditions import CONDITION_NAMES
+    from .references import load_references
+    from .report import markdown_table
+    from .robustness import robustness_table, score_condition
+
+    refs = load_references(references_path)
+    names = conditions or ("clean", *CONDITION_NAMES)
+    jobs = jobs or os.cpu_count() or 1
+    scores = []
+    for name in names:
+        score = score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs)
+        scores.append(score)
+        if not as_json:
+            click.echo(f"{name}: {score.right}/{score.n} right, {score.wrong} wrong", err=True)
+    header, rows = robustness_table(scores)
+    table = markdown_table(header, rows)
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "seed": seed,
+                    "per_class": per_class,
+                    "rows": [dict(zip(header, r)) for r in rows],
+                    "wrong": {s.condition: list(s.wrong_cases) for s in scores},
+                }
+            )
+        )
+    else:
+        click.echo(table, nl=False)
+        for s in scores:
+            for case in s.wrong_cases:
+                click.echo(f"wrong under {s.condition}: {case}")
+    if markdown:
+        from .io import write_text
+
+        write_text(
+            markdown,
+            f"Robustness: `{_command_line()}`\n\n" + table,
+        )
 
 
 @main.command()

@@ -62,26 +62,31 @@ class PairOutcome:
 
 
 _WORKER_REFS: ReferenceSet | None = None
+_WORKER_COLOURS: dict | None = None
 
 
-def _init_worker(refs: ReferenceSet) -> None:
+def _init_worker(refs: ReferenceSet, colours: dict | None = None) -> None:
     """Each worker is one of ``jobs`` processes: keep it to one thread (no oversubscription)."""
     import cv2
 
-    global _WORKER_REFS
+    global _WORKER_REFS, _WORKER_COLOURS
     _WORKER_REFS = refs
+    _WORKER_COLOURS = colours
     cv2.setNumThreads(1)
 
 
-def _classify_pair(pair: LabelledPair, refs: ReferenceSet | None = None) -> PairOutcome:
+def _classify_pair(
+    pair: LabelledPair, refs: ReferenceSet | None = None, colours: dict | None = None
+) -> PairOutcome:
     from .pipeline import classify_frame
 
-    refs = refs if refs is not None else _WORKER_REFS
+    if refs is None:
+        refs, colours = _WORKER_REFS, _WORKER_COLOURS
     if refs is None:
         raise RuntimeError("worker started without references (pool initializer not run)")
     try:
         frame = read_frame(pair.color, pair.depth, threads=False)  # one pair per core
-        result = classify_frame(frame, refs)
+        result = classify_frame(frame, refs, colours=colours)
     except DgliError as exc:
         return PairOutcome(pair, error=str(exc))
     p = result.prediction
@@ -107,6 +112,7 @@ def evaluate_pairs(
     *,
     jobs: int = 1,
     on_progress: Callable[[int], None] | None = None,
+    colours: dict | None = None,
 ) -> Iterator[PairOutcome]:
     """Classify labelled pairs, in input order, with ``jobs`` worker processes.
 
@@ -118,6 +124,8 @@ def evaluate_pairs(
         Worker processes; 1 runs in this process.
     on_progress : callable, keyword-only
         Called with 1 after each pair (for a progress bar).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``).
 
     Yields
     ------
@@ -128,7 +136,7 @@ def evaluate_pairs(
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1:
         for pair in pairs:
-            yield _classify_pair(pair, references)
+            yield _classify_pair(pair, references, colours)
             if on_progress:
                 on_progress(1)
         return
@@ -138,7 +146,7 @@ def evaluate_pairs(
     # forked child inherits their locks. Start-up is cheap (the pipeline imports in 0.1 s).
     ctx = mp.get_context("spawn")
     with ProcessPoolExecutor(
-        jobs, mp_context=ctx, initializer=_init_worker, initargs=(references,)
+        jobs, mp_context=ctx, initializer=_init_worker, initargs=(references, colours)
     ) as pool:
         for outcome in pool.map(_classify_pair, pairs, chunksize=2):
             yield outcome
@@ -248,10 +256,15 @@ def timed_evaluation(
     *,
     jobs: int = 1,
     on_progress: Callable[[int], None] | None = None,
+    colours: dict | None = None,
 ) -> EvaluationResult:
     """:func:`evaluate_pairs` and :func:`summarise`, timed."""
     t0 = time.perf_counter()
-    outcomes = list(evaluate_pairs(pairs, references, jobs=jobs, on_progress=on_progress))
+    outcomes = list(
+        evaluate_pairs(
+            pairs, references, jobs=jobs, on_progress=on_progress, colours=colours
+        )
+    )
     return summarise(outcomes, time.perf_counter() - t0)
 
 

@@ -78,9 +78,14 @@ class FrameResult:
 
 
 def observe(
-    frame: RGBDFrame, layout: NapkinLayout | None = None, params: DetectorParams | None = None
+    frame: RGBDFrame,
+    layout: NapkinLayout | None = None,
+    params: DetectorParams | None = None,
+    *,
+    colours: dict[str, tuple[int, int, int]] | None = None,
 ) -> tuple[StickerDetections, Markers3D, ClothObservation]:
-    """Detect the stickers, lift them to 3D and estimate the table normal."""
+    """Find the table and the napkin, detect the stickers, lift them to 3D, and judge
+    the missing ones (hidden by cloth or unknown)."""
     layout = layout or default_layout()
     try:
         up, offset = estimate_table_plane(frame.depth_mm, frame.intrinsics)
@@ -88,7 +93,8 @@ def observe(
         raise DetectionError(f"'{frame.depth_path}': {exc}") from None
     napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
     detections = detect_stickers(
-        frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin
+        frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin,
+        colours=colours,
     )
     markers, dropped = drop_inconsistent(lift_stickers(detections, frame.intrinsics), layout)
     evidence = assess_stickers(markers, frame.intrinsics, layout, napkin, dropped=dropped)
@@ -105,6 +111,7 @@ def classify_frame(
     layout: NapkinLayout | None = None,
     params: DetectorParams | None = None,
     min_confidence: float = MIN_CONFIDENCE,
+    colours: dict[str, tuple[int, int, int]] | None = None,
 ) -> FrameResult:
     """Classify one RGB-D frame.
 
@@ -117,6 +124,8 @@ def classify_frame(
     min_confidence : float, keyword-only
         Below this confidence the answer is "cannot tell" (default
         :data:`~dgli_vision.classify.MIN_CONFIDENCE`).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``); default: the nominal ones.
 
     Returns
     -------
@@ -124,7 +133,7 @@ def classify_frame(
         With ``prediction`` None and a ``reason`` when too few stickers were seen or
         the confidence is below ``min_confidence``.
     """
-    detections, markers, obs = observe(frame, layout, params)
+    detections, markers, obs = observe(frame, layout, params, colours=colours)
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
     unknown = obs.evidence.summary() if obs.evidence is not None else ""

@@ -1,0 +1,85 @@
+"""Sticker colour calibration from one image of the flat napkin with all 16 stickers seen.
+
+Printers and inks differ: a user's "blue" may print nearer cyan. The detector names a
+pixel's colour by the nearest hue, so measuring each printed colour once, as the camera
+sees it after balancing to the napkin's white, keeps that robust. The result maps each
+colour name to an sRGB triple in the balanced image (what :func:`detect_stickers`
+thresholds); it is used with ``--colours`` and never needed for stickers printed close
+to the nominal colours.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..camera import Intrinsics
+from ..errors import CalibrationError
+from ..layout import NapkinLayout
+from .detect import DetectorParams, detect_stickers
+from .napkin import find_napkin
+
+__all__ = ["calibrate_colours"]
+
+
+def calibrate_colours(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    *,
+    params: DetectorParams | None = None,
+    source: str = "image",
+) -> dict[str, tuple[int, int, int]]:
+    """Measure the printed colours of the four sticker colours.
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+        RGB image of the flat napkin, all 16 stickers in view.
+    depth_mm : ndarray of uint16, shape (H, W)
+    intrinsics : Intrinsics
+    layout : NapkinLayout
+    params : DetectorParams, keyword-only, optional
+        A wider ``max_hue_distance`` is used to find stickers printed off-nominal.
+    source : str, keyword-only
+        Name of the image, for messages.
+
+    Returns
+    -------
+    dict
+        Colour name -> (r, g, b), 0-255, as seen once balanced to the napkin's white.
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than 16 stickers found.
+    """
+    import cv2
+
+    params = params or DetectorParams(max_hue_distance=40)
+    napkin = find_napkin(color, depth_mm, intrinsics)
+    det = detect_stickers(color, depth_mm, intrinsics, layout, params, napkin=napkin)
+    if not det.found.all():
+        missing = np.flatnonzero(~det.found).tolist()
+        raise CalibrationError(
+            f"'{source}': found {int(det.found.sum())} of 16 stickers (missing {missing}); "
+            "calibration needs the flat napkin with all 16 stickers in view"
+        )
+    norm = cv2.LUT(color, napkin.lut)
+    samples: dict[str, list[NDArray]] = {name: [] for name in layout.colours_srgb}
+    yy, xx = np.mgrid[0 : color.shape[0], 0 : color.shape[1]]
+    for sid in range(layout.n_stickers):
+        cu, cv = det.centroids[sid]
+        radius = np.sqrt(det.areas[sid] / np.pi)
+        x0, x1 = int(max(cu - radius - 2, 0)), int(min(cu + radius + 3, color.shape[1]))
+        y0, y1 = int(max(cv - radius - 2, 0)), int(min(cv + radius + 3, color.shape[0]))
+        r = np.hypot(xx[y0:y1, x0:x1] - cu, yy[y0:y1, x0:x1] - cv) / radius
+        win = norm[y0:y1, x0:x1]
+        samples[layout.sticker_disc[sid]].append(win[(r > 0.65) & (r < 0.85)])
+        samples[layout.sticker_dot[sid]].append(win[r < 0.25])
+    out = {}
+    for name, parts in samples.items():
+        px = np.concatenate(parts).astype(np.float64)
+        out[name] = tuple(int(v) for v in np.rint(np.median(px, axis=0)))
+    return out
