@@ -1,0 +1,287 @@
+"""Capture conditions: the renderer makes each one, and the pipeline answers right or
+"cannot tell", never wrong. Plus the pieces that make that so: the napkin's white,
+stickers off the napkin, missing stickers that are unknown rather than hidden, the
+confidence, and colour calibration."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
+from dgli_vision.classify import FULL_MARGIN, MIN_CONFIDENCE, confidence_of
+from dgli_vision.cli import main
+from dgli_vision.cloth import sample_state
+from dgli_vision.conditions import CONDITION_NAMES, draw_conditions
+from dgli_vision.dataset import VGA_INTRINSICS, render_sample
+from dgli_vision.io import RGBDFrame, write_color, write_depth
+from dgli_vision.layout import default_layout
+from dgli_vision.perception.calibrate import calibrate_colours
+from dgli_vision.perception.detect import detect_stickers
+from dgli_vision.perception.evidence import (
+    HIDDEN,
+    UNKNOWN,
+    assess_stickers,
+    drop_inconsistent,
+)
+from dgli_vision.perception.lift import Markers3D
+from dgli_vision.perception.napkin import NapkinView, find_napkin, srgb_lut
+from dgli_vision.pipeline import classify_frame
+from dgli_vision.references import load_references
+from dgli_vision.render import render
+
+LAYOUT = default_layout()
+REFS = load_references()
+
+
+def frame_of(sample) -> RGBDFrame:
+    r = sample.result
+    return RGBDFrame(r.color, r.depth_mm, r.intrinsics, sample.name, sample.name, "render")
+
+
+# --- the renderer makes each condition --------------------------------------------------
+
+
+def test_every_condition_is_drawn_reproducibly_from_its_seed():
+    for name in CONDITION_NAMES:
+        a = draw_conditions((name,), np.random.default_rng(5))
+        b = draw_conditions((name,), np.random.default_rng(5))
+        assert a == b
+    combo = draw_conditions(("combo",), np.random.default_rng(5))
+    assert len(combo.names) == 3 and "combo" not in combo.names
+
+
+def test_a_tungsten_cast_tints_the_napkin_and_vga_changes_the_camera():
+    plain = render_sample("01", 0, 7)
+    cast = render_sample("01", 0, 7, conditions=("cast",))
+    vga = render_sample("01", 0, 7, conditions=("vga",))
+    gains = np.asarray(cast.conditions.colour_gains)
+    napkin = plain.result.color.reshape(-1, 3).astype(float)
+    tinted = cast.result.color.reshape(-1, 3).astype(float)
+    ratio = np.median(tinted[:, 0] + 1) / np.median(tinted[:, 2] + 1)
+    base = np.median(napkin[:, 0] + 1) / np.median(napkin[:, 2] + 1)
+    assert (ratio / base > 1.2) == (gains[0] > gains[2])
+    assert vga.result.color.shape == (480, 640, 3)
+    assert vga.result.intrinsics == VGA_INTRINSICS
+
+
+def test_a_gripper_stands_above_the_napkin_in_depth_and_hides_stickers():
+    hidden_any = closer_any = False
+    for k in range(4):
+        s = render_sample("01", k, 11, conditions=("gripper",))
+        bare = render_sample("01", k, 11)  # the same scene without it
+        d, d0 = s.result.depth_mm.astype(float), bare.result.depth_mm.astype(float)
+        both = (d > 0) & (d0 > 0)
+        closer = d[both] < d0[both] - 50  # something 50+ mm closer than the cloth
+        assert not (d[both] > d0[both] + 50).any()  # and nothing farther
+        closer_any |= closer.mean() > 0.005
+        hidden_any |= not s.result.visible.all()
+    assert closer_any and hidden_any
+
+
+def test_a_glossy_highlight_blows_out_pixels_on_a_sticker():
+    s = render_sample("01", 1, 3, conditions=("gloss",))
+    px = s.result.intrinsics.project(s.result.sticker_points_cam)
+    blown = np.argwhere(s.result.color.min(axis=2) >= 250)[:, ::-1]
+    assert len(blown)
+    nearest = np.linalg.norm(px[:, None] - blown[None], axis=2).min()
+    assert nearest < 15 * 605 / 450  # within a sticker radius of a sticker centre
+
+
+def test_realistic_depth_shifts_depth_against_colour_and_drops_black_mats():
+    s = render_sample("01", 0, 5, conditions=("depth",))
+    du, dv = s.conditions.registration_px
+    assert (du, dv) != (0, 0)
+    assert (s.result.depth_mm == 0).mean() > 0.003
+
+
+# --- never wrong, under each condition ---------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "condition", ["cast", "dim", "wood", "clutter", "gloss", "jpeg", "distortion", "depth"]
+)
+def test_under_a_condition_the_answer_is_right(condition):
+    for class_id, k in (("01", 0), ("09", 1)):
+        s = render_sample(class_id, k, 31, conditions=(condition,))
+        result = classify_frame(frame_of(s), REFS)
+        assert result.prediction is not None, result.reason
+        assert result.prediction.class_id == class_id
+
+
+@pytest.mark.parametrize("class_id", ["01", "02", "08"])
+def test_with_a_gripper_over_the_napkin_the_answer_is_right_or_cannot_tell(class_id):
+    for k in range(2):
+        s = render_sample(class_id, k, 44, conditions=("gripper",))
+        result = classify_frame(frame_of(s), REFS)
+        if result.prediction is None:
+            assert result.reason.startswith("cannot tell") or "stickers located" in result.reason
+        else:
+            assert result.prediction.class_id == class_id
+
+
+# --- the pieces -------------------------------------------------------------------------
+
+
+def test_the_napkin_white_is_found_under_a_colour_cast():
+    state = sample_state("01", None, np.random.default_rng(0), placement=False)
+    pose = look_at_table(0.55, target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0))
+    from dgli_vision.conditions import Conditions
+
+    cast = Conditions(names=("cast",), colour_gains=(1.4, 1.0, 0.6))
+    r = render(state, pose, conditions=cast, rng=1)
+    view = find_napkin(r.color, r.depth_mm, DEFAULT_INTRINSICS)
+    assert view.white_rgb[0] / view.white_rgb[2] == pytest.approx(1.4 / 0.6, rel=0.15)
+    balanced = cv2.LUT(r.color, view.lut)
+    centre = balanced[340:380, 620:660].reshape(-1, 3).astype(float)
+    spread = np.median(centre, axis=0)
+    assert spread.max() - spread.min() < 12  # neutral again
+
+
+def test_stickers_are_found_on_a_napkin_inside_a_saturated_table():
+    # The old failure: an orange table around the napkin was one giant blob.
+    img = np.zeros((720, 1280, 3), np.uint8)
+    img[:] = (205, 150, 80)  # saturated wood
+    img[160:560, 340:940] = 215  # the napkin
+    radius = 15 * 605 / 500
+    for sid, (u, v) in enumerate([(400, 220), (880, 220), (400, 500), (880, 500)]):
+        disc, dot = LAYOUT.sticker_disc[sid], LAYOUT.sticker_dot[sid]
+        cv2.circle(img, (u, v), round(radius), LAYOUT.colours_srgb[disc], -1, cv2.LINE_AA)
+        cv2.circle(img, (u, v), round(radius * 0.4), LAYOUT.colours_srgb[dot], -1, cv2.LINE_AA)
+    depth = np.full(img.shape[:2], 500, np.uint16)
+    det = detect_stickers(img, depth, DEFAULT_INTRINSICS, LAYOUT)
+    assert det.found[:4].all()
+
+
+def test_a_sticker_coloured_cap_on_the_table_is_not_a_sticker():
+    img = np.full((720, 1280, 3), 60, np.uint8)  # a dark grey table
+    img[100:600, 100:700] = 215  # the napkin
+    radius = round(15 * 605 / 500)
+    cv2.circle(img, (1000, 360), radius, LAYOUT.colours_srgb["red"], -1, cv2.LINE_AA)
+    cv2.circle(img, (300, 300), radius, LAYOUT.colours_srgb["red"], -1, cv2.LINE_AA)
+    depth = np.full(img.shape[:2], 500, np.uint16)
+    det = detect_stickers(img, depth, DEFAULT_INTRINSICS, LAYOUT)
+    assert det.found[0] and det.centroids[0][0] == pytest.approx(300, abs=0.5)
+    assert any("not on the napkin" in r.reason for r in det.rejected)
+
+
+def test_a_detection_farther_away_than_the_napkin_allows_is_dropped():
+    pts = LAYOUT.flat_segments_m().reshape(-1, 3) + [0.0, 0.0, 0.5]
+    pts = pts.copy()
+    pts[3] += [0.6, 0.0, 0.0]  # a cap 600 mm away taken for sticker 3
+    markers, dropped = drop_inconsistent(Markers3D(pts), LAYOUT)
+    assert dropped.tolist() == [k == 3 for k in range(16)]
+    assert np.isnan(markers.points[3]).all()
+
+
+def _flat_markers() -> Markers3D:
+    pose = look_at_table(0.5, target=(0.2, 0.2, 0.0))
+    return Markers3D(pose.world_to_camera(LAYOUT.flat_segments_m().reshape(-1, 3)))
+
+
+def test_a_missing_sticker_under_an_object_is_unknown_and_elsewhere_hidden():
+    markers = _flat_markers()
+    pts = markers.points.copy()
+    pts[[0, 1, 14, 15]] = np.nan  # corner A's four stickers not found
+    pts[9] = np.nan  # one of C's
+    markers = Markers3D(pts)
+    stride = 8
+    shape = (720 // stride + 1, 1280 // stride + 1)
+    occluder = np.zeros(shape, bool)
+    truth = _flat_markers()
+    c_px = DEFAULT_INTRINSICS.project(truth.points[[9]])[0] / stride
+    occluder[int(c_px[1]) - 3 : int(c_px[1]) + 4, int(c_px[0]) - 3 : int(c_px[0]) + 4] = True
+    view = NapkinView(np.ones(3), np.zeros((256, 1, 3), np.uint8), np.zeros(shape, bool),
+                      occluder, stride)
+    ev = assess_stickers(markers, DEFAULT_INTRINSICS, LAYOUT, view)
+    assert ev.status[9] == UNKNOWN and "object" in ev.reasons[9]
+    # A's stickers would lie far from the object: nothing but cloth can hide them there.
+    np.testing.assert_allclose(
+        ev.predicted_px[0], DEFAULT_INTRINSICS.project(truth.points[[0]])[0], atol=1.0
+    )
+    assert ev.occluded
+    # but an object over the napkin makes a whole missing corner unknown too
+    assert (ev.status[[0, 1, 14, 15]] == UNKNOWN).all()
+    clear = dataclasses.replace(view, occluder=np.zeros(shape, bool))
+    ev = assess_stickers(markers, DEFAULT_INTRINSICS, LAYOUT, clear)
+    assert (ev.status[[0, 1, 9, 14, 15]] == HIDDEN).all()
+
+
+def test_confidence_grows_with_the_margin_and_falls_with_unknown_stickers():
+    assert confidence_of(FULL_MARGIN) == 1.0
+    assert confidence_of(FULL_MARGIN / 2) == pytest.approx(0.5)
+    assert confidence_of(0.0) == 0.0
+    assert confidence_of(FULL_MARGIN, 4) < confidence_of(FULL_MARGIN, 1) < 1.0
+    assert confidence_of(float("inf")) == 1.0
+
+
+def test_a_low_confidence_answer_becomes_cannot_tell_with_the_reason():
+    s = render_sample("01", 0, 3)
+    result = classify_frame(frame_of(s), REFS, min_confidence=1.01)
+    assert result.prediction is None and result.best_guess is not None
+    assert result.reason.startswith("cannot tell: confidence")
+    assert classify_frame(frame_of(s), REFS).prediction.confidence >= MIN_CONFIDENCE
+
+
+def test_calibration_finds_stickers_printed_off_their_nominal_hue(tmp_path):
+    # Blue ink that prints violet: beyond the nominal hue window.
+    odd = dataclasses.replace(
+        LAYOUT, colours_srgb={**LAYOUT.colours_srgb, "blue": (130, 40, 200)}
+    )
+    state = sample_state("01", None, np.random.default_rng(2), layout=odd, placement=False)
+    pose = look_at_table(0.5, target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0))
+    r = render(state, pose, layout=odd, rng=3)
+    nominal = detect_stickers(r.color, r.depth_mm, DEFAULT_INTRINSICS, LAYOUT)
+    assert not nominal.found.all()
+    colours = calibrate_colours(r.color, r.depth_mm, DEFAULT_INTRINSICS, LAYOUT)
+    det = detect_stickers(r.color, r.depth_mm, DEFAULT_INTRINSICS, LAYOUT, colours=colours)
+    assert det.found.all()
+    # and the command line writes a file that classify reads back
+    write_color(tmp_path / "c.png", r.color)
+    write_depth(tmp_path / "d.png", r.depth_mm)
+    runner = CliRunner()
+    out = tmp_path / "colours.json"
+    res = runner.invoke(
+        main, ["calibrate", str(tmp_path / "c.png"), str(tmp_path / "d.png"), "-o", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    res = runner.invoke(
+        main,
+        ["classify", str(tmp_path / "c.png"), str(tmp_path / "d.png"), "--json",
+         "--colours", str(out)],
+    )
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    assert data["class"] == "01" and data["stickers"]["found"] == 16
+    assert 0.0 <= data["confidence"] <= 1.0
+
+
+def test_calibration_refuses_an_image_without_all_stickers(tmp_path):
+    s = render_sample("03", 0, 3)
+    write_color(tmp_path / "c.png", s.result.color)
+    write_depth(tmp_path / "d.png", s.result.depth_mm)
+    res = CliRunner().invoke(
+        main,
+        ["calibrate", str(tmp_path / "c.png"), str(tmp_path / "d.png"), "-o",
+         str(tmp_path / "x.json")],
+    )
+    assert res.exit_code == 2
+    assert res.output.startswith("error: ") and "of 16 stickers" in res.output
+    assert "Traceback" not in res.output
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_render_refuses_an_unknown_condition(tmp_path):
+    res = CliRunner().invoke(main, ["render", str(tmp_path / "o"), "--conditions", "fog"])
+    assert res.exit_code == 2 and "unknown condition 'fog'" in res.output
+
+
+def test_srgb_lut_is_the_standard_transfer_function():
+    lut = srgb_lut()
+    assert lut[0] == 0 and lut[255] == pytest.approx(1.0)
+    assert lut[128] == pytest.approx(0.2158605, abs=1e-6)
