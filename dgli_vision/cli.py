@@ -75,7 +75,7 @@ def _command_line() -> str:
         value = ctx.params.get(param.name)
         if isinstance(param, click.Argument):
             words.append(shlex.quote(str(value)))
-        elif value not in (None, False) and value != param.default:
+        elif value not in (None, False, ()) and value != param.default:
             flag = max(param.opts, key=len)
             words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
     return " ".join(words)

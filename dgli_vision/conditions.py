@@ -244,7 +244,10 @@ def _cylinder(centre: NDArray, radius: float, z0: float, z1: float, n: int = 32)
     k1 = (k + 1) % n
     side = np.concatenate([np.stack([k, k1, n + k1], 1), np.stack([k, n + k1, n + k], 1)])
     caps = np.concatenate(
-        [np.stack([np.full(n, 2 * n), k1, k], 1), np.stack([np.full(n, 2 * n + 1), n + k, n + k1], 1)]
+        [
+            np.stack([np.full(n, 2 * n), k1, k], 1),
+            np.stack([np.full(n, 2 * n + 1), n + k, n + k1], 1),
+        ]
     )
     return v, np.concatenate([side, caps]).astype(np.int32)
 
@@ -337,8 +340,13 @@ def scene_objects(
             half = rng.uniform(0.04, 0.12, 2)
             v, t = _box(np.r_[p - half, -1.9e-4], np.r_[p + half, -1.5e-4])
             objects.append(
-                SceneObject(_rotate_z(v, p, rng.uniform(0, np.pi)), t, (0.015, 0.015, 0.015),
-                            has_depth=False, kind="mat")
+                SceneObject(
+                    _rotate_z(v, p, rng.uniform(0, np.pi)),
+                    t,
+                    (0.015, 0.015, 0.015),
+                    has_depth=False,
+                    kind="mat",
+                )
             )
     if conditions.gripper_height_m is not None:
         top = float(napkin_xyz[:, 2].max())
@@ -348,16 +356,26 @@ def scene_objects(
         dark = tuple(float(x) for x in rng.uniform(0.02, 0.06) * np.ones(3))
         parts = []
         for dx in (-0.03, 0.03):  # two fingers
-            parts.append(_box(np.r_[p[0] + dx - 0.008, p[1] - 0.012, z0],
-                              np.r_[p[0] + dx + 0.008, p[1] + 0.012, z0 + 0.05]))
-        parts.append(_box(np.r_[p - [0.045, 0.03], z0 + 0.05], np.r_[p + [0.045, 0.03], z0 + 0.12]))
+            parts.append(
+                _box(
+                    np.r_[p[0] + dx - 0.008, p[1] - 0.012, z0],
+                    np.r_[p[0] + dx + 0.008, p[1] + 0.012, z0 + 0.05],
+                )
+            )
+        parts.append(
+            _box(
+                np.r_[p - np.array([0.045, 0.03]), z0 + 0.05],
+                np.r_[p + np.array([0.045, 0.03]), z0 + 0.12],
+            )
+        )
         # the arm: from the wrist outwards and upwards, out of the napkin's area
         arm_dir = rng.uniform(0, 2 * np.pi)
         reach = np.array([np.cos(arm_dir), np.sin(arm_dir)])
         for k in range(6):
             c = p + reach * (0.03 + 0.07 * k)
-            parts.append(_box(np.r_[c - 0.04, z0 + 0.12 + 0.02 * k],
-                              np.r_[c + 0.04, z0 + 0.2 + 0.02 * k]))
+            parts.append(
+                _box(np.r_[c - 0.04, z0 + 0.12 + 0.02 * k], np.r_[c + 0.04, z0 + 0.2 + 0.02 * k])
+            )
         n = 0
         vs, ts = [], []
         for v, t in parts:

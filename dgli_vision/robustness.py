@@ -121,7 +121,9 @@ def score_condition(
         import multiprocessing
 
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=_init, initargs=(references,)) as pool:
+        with ProcessPoolExecutor(
+            jobs, mp_context=ctx, initializer=_init, initargs=(references,)
+        ) as pool:
             outcomes = []
             for out in pool.map(_one, tasks, chunksize=2):
                 outcomes.append(out)
@@ -146,7 +148,9 @@ def score_condition(
         else:
             wrong += 1
             cases.append(f"{name}: {truth} -> {cls}/{variant}")
-    return ConditionScore(condition, len(tasks), right, abstained, wrong, variant_right, tuple(cases))
+    return ConditionScore(
+        condition, len(tasks), right, abstained, wrong, variant_right, tuple(cases)
+    )
 
 
 def robustness_table(scores: list[ConditionScore]) -> tuple[list[str], list[list[str]]]:

@@ -53,10 +53,13 @@ def test_json_has_the_designed_fields(tmp_path):
         "name",
         "variant",
         "distance",
+        "confidence",
         "runner_up",
         "stickers",
         "coordinates",
     }
+    assert 0.0 <= data["confidence"] <= 1.0
+    assert set(data["stickers"]) == {"found", "missing", "unknown"}
     assert set(data["runner_up"]) == {"class", "name", "variant", "distance"}
     assert data["runner_up"]["class"] != data["class"]
     assert len(data["coordinates"]) == 28

@@ -171,7 +171,7 @@ def test_a_sticker_coloured_cap_on_the_table_is_not_a_sticker():
 
 
 def test_a_detection_farther_away_than_the_napkin_allows_is_dropped():
-    pts = LAYOUT.flat_segments_m().reshape(-1, 3) + [0.0, 0.0, 0.5]
+    pts = LAYOUT.flat_segments_m().reshape(-1, 3) + np.array([0.0, 0.0, 0.5])
     pts = pts.copy()
     pts[3] += [0.6, 0.0, 0.0]  # a cap 600 mm away taken for sticker 3
     markers, dropped = drop_inconsistent(Markers3D(pts), LAYOUT)
@@ -196,8 +196,9 @@ def test_a_missing_sticker_under_an_object_is_unknown_and_elsewhere_hidden():
     truth = _flat_markers()
     c_px = DEFAULT_INTRINSICS.project(truth.points[[9]])[0] / stride
     occluder[int(c_px[1]) - 3 : int(c_px[1]) + 4, int(c_px[0]) - 3 : int(c_px[0]) + 4] = True
-    view = NapkinView(np.ones(3), np.zeros((256, 1, 3), np.uint8), np.zeros(shape, bool),
-                      occluder, stride)
+    view = NapkinView(
+        np.ones(3), np.zeros((256, 1, 3), np.uint8), np.zeros(shape, bool), occluder, stride
+    )
     ev = assess_stickers(markers, DEFAULT_INTRINSICS, LAYOUT, view)
     assert ev.status[9] == UNKNOWN and "object" in ev.reasons[9]
     # A's stickers would lie far from the object: nothing but cloth can hide them there.
@@ -230,9 +231,7 @@ def test_a_low_confidence_answer_becomes_cannot_tell_with_the_reason():
 
 def test_calibration_finds_stickers_printed_off_their_nominal_hue(tmp_path):
     # Blue ink that prints violet: beyond the nominal hue window.
-    odd = dataclasses.replace(
-        LAYOUT, colours_srgb={**LAYOUT.colours_srgb, "blue": (130, 40, 200)}
-    )
+    odd = dataclasses.replace(LAYOUT, colours_srgb={**LAYOUT.colours_srgb, "blue": (130, 40, 200)})
     state = sample_state("01", None, np.random.default_rng(2), layout=odd, placement=False)
     pose = look_at_table(0.5, target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0))
     r = render(state, pose, layout=odd, rng=3)
@@ -252,8 +251,14 @@ def test_calibration_finds_stickers_printed_off_their_nominal_hue(tmp_path):
     assert res.exit_code == 0, res.output
     res = runner.invoke(
         main,
-        ["classify", str(tmp_path / "c.png"), str(tmp_path / "d.png"), "--json",
-         "--colours", str(out)],
+        [
+            "classify",
+            str(tmp_path / "c.png"),
+            str(tmp_path / "d.png"),
+            "--json",
+            "--colours",
+            str(out),
+        ],
     )
     assert res.exit_code == 0, res.output
     data = json.loads(res.output)
@@ -267,8 +272,13 @@ def test_calibration_refuses_an_image_without_all_stickers(tmp_path):
     write_depth(tmp_path / "d.png", s.result.depth_mm)
     res = CliRunner().invoke(
         main,
-        ["calibrate", str(tmp_path / "c.png"), str(tmp_path / "d.png"), "-o",
-         str(tmp_path / "x.json")],
+        [
+            "calibrate",
+            str(tmp_path / "c.png"),
+            str(tmp_path / "d.png"),
+            "-o",
+            str(tmp_path / "x.json"),
+        ],
     )
     assert res.exit_code == 2
     assert res.output.startswith("error: ") and "of 16 stickers" in res.output

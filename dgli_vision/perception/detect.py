@@ -182,13 +182,13 @@ def _washed_out(
     grown into the pale, tinted halo around them. Shape (h, w) of the window."""
     import cv2
 
-    core = (cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min)
+    core = cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min
     norm_min = cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2])
     core |= norm_min >= params.highlight_min
     if not core.any():
         return core
     # A highlight is smaller than a sticker; a large blown-out area is cloth.
-    n, lab, stats, _ = cv2.connectedComponentsWithStats(core.astype(np.uint8), connectivity=8)
+    _, lab, stats, _ = cv2.connectedComponentsWithStats(core.astype(np.uint8), connectivity=8)
     small = stats[:, cv2.CC_STAT_AREA] <= 1.5 * np.pi * disc_radius_px**2
     small[0] = False
     core = small[lab]
@@ -196,8 +196,14 @@ def _washed_out(
         return core
     sat = hsv[..., 1]
     allowed = (
-        (sat >= params.halo_min_saturation) & (sat < params.min_saturation) & (hsv[..., 2] >= 150)
-    ) | (norm_min >= params.highlight_min - 20) | core
+        (
+            (sat >= params.halo_min_saturation)
+            & (sat < params.min_saturation)
+            & (hsv[..., 2] >= 150)
+        )
+        | (norm_min >= params.highlight_min - 20)
+        | core
+    )
     grown = core.astype(np.uint8)
     allowed_u8 = allowed.astype(np.uint8)
     cross = np.ones((3, 3), np.uint8)
@@ -284,10 +290,13 @@ def detect_stickers(
     outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
     lin = srgb_lut()
     napkin_not_blown = napkin.white_rgb.max() < lin[params.highlight_min - 10]
-    blown = cv2.bitwise_or(
-        cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
-        cv2.inRange(hsv, (0, 0, params.highlight_min), (180, 10, 255)),
-    ) > 0
+    blown = (
+        cv2.bitwise_or(
+            cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
+            cv2.inRange(hsv, (0, 0, params.highlight_min), (180, 10, 255)),
+        )
+        > 0
+    )
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
     h_img, w_img = mask.shape
@@ -328,13 +337,13 @@ def detect_stickers(
         # it, unless the napkin itself is blown out.
         washed = np.zeros(inside.shape, dtype=bool)
         if napkin_not_blown and blown[y0:y1, x0:x1].any():
-            washed = _washed_out(
-                color[y0:y1, x0:x1], win, hsv[y0:y1, x0:x1], params, r_exp
-            ) & (np.hypot(xx - cu, yy - cv) < 1.6 * r_exp)
+            washed = _washed_out(color[y0:y1, x0:x1], win, hsv[y0:y1, x0:x1], params, r_exp) & (
+                np.hypot(xx - cu, yy - cv) < 1.6 * r_exp
+            )
         recovered = bool((washed & ~inside).any())
         if recovered:
             union = (inside | washed).astype(np.uint8)
-            n_lab, lab_img, stats, _ = cv2.connectedComponentsWithStats(union, connectivity=8)
+            _, lab_img, _, _ = cv2.connectedComponentsWithStats(union, connectivity=8)
             keep = lab_img == lab_img[inside][0] if inside.any() else union.astype(bool)
             inside = keep
             mu = cv2.moments(inside.astype(np.uint8), binaryImage=True)
@@ -463,9 +472,7 @@ def detect_stickers(
     for c in pending:
         disc_name = names[c.disc - 1]
         free = [
-            sid
-            for sid in range(n)
-            if layout.sticker_disc[sid] == disc_name and scores[sid] == 0
+            sid for sid in range(n) if layout.sticker_disc[sid] == disc_name and scores[sid] == 0
         ]
         if len(free) == 1:
             take(free[0], c, 0.5 * c.score)

@@ -97,9 +97,7 @@ class StickerEvidence:
         for st, why in zip(self.status, self.reasons):
             if st == UNKNOWN and why:
                 counts[why] = counts.get(why, 0) + 1
-        return ", ".join(
-            f"{k} sticker{'s' if k > 1 else ''} {why}" for why, k in counts.items()
-        )
+        return ", ".join(f"{k} sticker{'s' if k > 1 else ''} {why}" for why, k in counts.items())
 
 
 def drop_inconsistent(
@@ -255,8 +253,9 @@ def assess_stickers(
     for k, sid in enumerate(missing):
         u, v = predicted[sid]
         why = None
-        if np.isfinite(u) and not (-radius_px <= u <= w - 1 + radius_px
-                                   and -radius_px <= v <= h - 1 + radius_px):
+        if np.isfinite(u) and not (
+            -radius_px <= u <= w - 1 + radius_px and -radius_px <= v <= h - 1 + radius_px
+        ):
             why = "out of view"
         elif near_occ[k] or (occluded and group_support[sid] < 2):
             why = "possibly under an object above the napkin"

@@ -193,19 +193,20 @@ def find_napkin(
     bal = (lin / np.maximum(white, 1e-4)).reshape(*shape, 3)
     lum = bal.mean(axis=2)
     chroma = bal.max(axis=2) - bal.min(axis=2)
-    highlight = clipped.reshape(shape) | (
-        (lum >= p.highlight_level) & (chroma <= 0.25 * lum)
-    )
+    highlight = clipped.reshape(shape) | ((lum >= p.highlight_level) & (chroma <= 0.25 * lum))
     occluder = np.zeros(shape, dtype=bool)
     if table_normal is not None and table_offset_m is not None:
         d = depth_mm[::s, ::s].astype(np.float64) * 1e-3
         vv, uu = np.mgrid[0 : shape[0], 0 : shape[1]]
         x = (uu * s - intrinsics.cx) / intrinsics.fx * d
         y = (vv * s - intrinsics.cy) / intrinsics.fy * d
-        height_mm = (x * table_normal[0] + y * table_normal[1] + d * table_normal[2]
-                     - table_offset_m) * 1e3
+        height_mm = (
+            x * table_normal[0] + y * table_normal[1] + d * table_normal[2] - table_offset_m
+        ) * 1e3
         raised = (d > 0) & (height_mm > p.occluder_height_mm)
-        not_napkin = (lum < p.occluder_darkness) | (chroma > 2 * p.neutral_chroma * np.maximum(lum, 0.05))
+        not_napkin = (lum < p.occluder_darkness) | (
+            chroma > 2 * p.neutral_chroma * np.maximum(lum, 0.05)
+        )
         occluder = raised & not_napkin
         # a few isolated samples are depth noise, not an object
         import cv2
