@@ -20,6 +20,11 @@ from .errors import DgliError
 F = TypeVar("F", bound=Callable[..., Any])
 
 # Options shared by several commands: one name, one help text, one validation.
+intrinsics_option = click.option(
+    "--intrinsics",
+    type=click.Path(dir_okay=False),
+    help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
+)
 colours_option = click.option(
     "--colours",
     "colours_path",
@@ -37,6 +42,13 @@ references_option = click.option(
 def report_option(help_text: str) -> Callable[[F], F]:
     """``--report DIR``: a folder to write a report into."""
     return click.option("--report", "report_dir", type=click.Path(file_okay=False), help=help_text)
+
+
+def output_option(help_text: str) -> Callable[[F], F]:
+    """``-o/--output FILE``: the file a command writes."""
+    return click.option(
+        "-o", "--output", required=True, type=click.Path(dir_okay=False), help=help_text
+    )
 
 
 def json_option(help_text: str = "Print one JSON object.") -> Callable[[F], F]:
@@ -300,13 +312,7 @@ def references() -> None:
 
 @references.command("build")
 @click.argument("db", type=click.Path())
-@click.option(
-    "-o",
-    "--output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Reference file to write.",
-)
+@output_option("Reference file to write.")
 @_handle_errors
 def references_build(db: str, output: str) -> None:
     """Pick one representative per class and variant from the simulated database DB."""
@@ -523,11 +529,7 @@ def verdict_line(result: Any) -> str:
 @click.command("classify")
 @click.argument("color", type=click.Path(dir_okay=False))
 @click.argument("depth", type=click.Path(dir_okay=False))
-@click.option(
-    "--intrinsics",
-    type=click.Path(dir_okay=False),
-    help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
-)
+@intrinsics_option
 @references_option
 @colours_option
 @json_option("Print one JSON object.")
@@ -590,18 +592,8 @@ def classify_main() -> None:
 @main.command()
 @click.argument("color", type=click.Path(dir_okay=False))
 @click.argument("depth", type=click.Path(dir_okay=False))
-@click.option(
-    "-o",
-    "--output",
-    required=True,
-    type=click.Path(dir_okay=False),
-    help="Colours file to write (JSON).",
-)
-@click.option(
-    "--intrinsics",
-    type=click.Path(dir_okay=False),
-    help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
-)
+@output_option("Colours file to write (JSON).")
+@intrinsics_option
 @_handle_errors
 def calibrate(color: str, depth: str, output: str, intrinsics: str | None) -> None:
     """Measure the printed sticker colours from one image of the flat napkin.

@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics
 from .cloth.states import VISIBLE_FRACTION, ClothState, disc_samples, normalize_rng
+from .colour import linear_to_srgb, srgb_to_linear
 from .conditions import (
     Conditions,
     SceneObject,
@@ -143,15 +144,6 @@ class RenderResult:
         return self.visible_fraction >= VISIBLE_FRACTION
 
 
-def _srgb_to_linear(c: NDArray) -> NDArray:
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-def _linear_to_srgb(c: NDArray) -> NDArray:
-    c = np.clip(c, 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
-
-
 @lru_cache(maxsize=4)
 def _texture_cached(layout: NapkinLayout) -> NDArray[np.float32]:
     import cv2
@@ -160,7 +152,7 @@ def _texture_cached(layout: NapkinLayout) -> NDArray[np.float32]:
     h, w = int(round(layout.height_mm * s)) + 1, int(round(layout.width_mm * s)) + 1
     # Label image: 0 napkin, k + 1 colour k (drawn at 4x and averaged for soft edges).
     names = list(layout.colours_srgb)
-    lin = np.array([_srgb_to_linear(np.array(layout.colours_srgb[n]) / 255.0) for n in names])
+    lin = np.array([srgb_to_linear(np.array(layout.colours_srgb[n]) / 255.0) for n in names])
     ss = 4
     canvas = np.zeros((h * ss, w * ss), np.uint8)
     for uv, disc, dot in zip(layout.sticker_uv, layout.sticker_disc, layout.sticker_dot):
@@ -366,7 +358,7 @@ def render(
         exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
         gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
         linear = linear * exposure * gains
-    srgb = _linear_to_srgb(linear).reshape(h, w, 3) * 255.0
+    srgb = linear_to_srgb(linear).reshape(h, w, 3) * 255.0
     if sensor.enabled:
         import cv2
 

@@ -17,6 +17,7 @@ from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
 from dgli_vision.classify import FULL_MARGIN, MIN_CONFIDENCE, confidence_of
 from dgli_vision.cli import main
 from dgli_vision.cloth import sample_state
+from dgli_vision.colour import srgb_lut
 from dgli_vision.conditions import CONDITION_NAMES, draw_conditions
 from dgli_vision.dataset import VGA_INTRINSICS, render_sample
 from dgli_vision.io import RGBDFrame, write_color, write_depth
@@ -30,7 +31,7 @@ from dgli_vision.perception.evidence import (
     drop_inconsistent,
 )
 from dgli_vision.perception.lift import Markers3D
-from dgli_vision.perception.napkin import NapkinView, find_napkin, srgb_lut
+from dgli_vision.perception.napkin import NapkinView, find_napkin
 from dgli_vision.pipeline import classify_frame
 from dgli_vision.references import load_references
 from dgli_vision.render import render

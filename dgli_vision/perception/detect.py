@@ -21,8 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..camera import Intrinsics
+from ..colour import srgb_lut
 from ..layout import NapkinLayout
-from .napkin import NapkinView, find_napkin, srgb_lut
+from .napkin import NapkinView, find_napkin
 
 __all__ = ["DetectorParams", "Rejection", "StickerDetections", "detect_stickers", "hue_of"]
 
@@ -86,6 +87,18 @@ class DetectorParams:
         Smallest HSV saturation (0-255, balanced image) of a halo pixel. Default 30: the
         white napkin around a sticker stays below 20 once balanced, so the halo never
         spreads over the cloth.
+    halo_min_value : int
+        Smallest HSV value (0-255, balanced image) of a halo pixel; near-white pixels
+        (every channel at least ``halo_min_value + 80``) count as halo whatever their
+        saturation. Default 150: the halo is brighter than the sticker's own colour.
+    highlight_reach : float
+        How far from a blob's centre, in expected disc radii, washed-out pixels may be
+        counted with it. Default 1.6: a highlight lies on the sticker, so within one
+        radius of its true centre, and the centre of what is left of the colour lies
+        at most about 0.6 radii off.
+    napkin_blown_level : int
+        8-bit level of the napkin's white at or above which highlights cannot be told
+        from cloth, and none are recovered. Default 240.
     """
 
     min_saturation: int = 115
@@ -103,6 +116,9 @@ class DetectorParams:
     highlight_min: int = 250
     highlight_halo_px: int = 8
     halo_min_saturation: int = 30
+    halo_min_value: int = 150
+    highlight_reach: float = 1.6
+    napkin_blown_level: int = 240
 
 
 @dataclass(frozen=True)
@@ -199,9 +215,9 @@ def _washed_out(
         (
             (sat >= params.halo_min_saturation)
             & (sat < params.min_saturation)
-            & (hsv[..., 2] >= 150)
+            & (hsv[..., 2] >= params.halo_min_value)
         )
-        | (norm_min >= params.highlight_min - 20)
+        | (norm_min >= params.halo_min_value + 80)
         | core
     )
     grown = core.astype(np.uint8)
@@ -289,7 +305,7 @@ def detect_stickers(
         contours, hierarchy = (), np.zeros((1, 0, 4), int)
     outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
     lin = srgb_lut()
-    napkin_not_blown = napkin.white_rgb.max() < lin[params.highlight_min - 10]
+    napkin_not_blown = napkin.white_rgb.max() < lin[params.napkin_blown_level]
     blown = (
         cv2.bitwise_or(
             cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
@@ -338,7 +354,7 @@ def detect_stickers(
         washed = np.zeros(inside.shape, dtype=bool)
         if napkin_not_blown and blown[y0:y1, x0:x1].any():
             washed = _washed_out(color[y0:y1, x0:x1], win, hsv[y0:y1, x0:x1], params, r_exp) & (
-                np.hypot(xx - cu, yy - cv) < 1.6 * r_exp
+                np.hypot(xx - cu, yy - cv) < params.highlight_reach * r_exp
             )
         recovered = bool((washed & ~inside).any())
         if recovered:

@@ -21,8 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..camera import Intrinsics
+from ..colour import linear_to_srgb, srgb_lut
 
-__all__ = ["NapkinParams", "NapkinView", "find_napkin", "linear_lut", "srgb_lut"]
+__all__ = ["NapkinParams", "NapkinView", "find_napkin"]
 
 
 @dataclass(frozen=True)
@@ -57,6 +58,10 @@ class NapkinParams:
         Linear brightness, relative to the napkin's white, above which a near-white pixel
         is a highlight (nothing can be seen there). Default 1.35: a matte napkin facing
         the light is at most about 1.3 times its median brightness.
+    highlight_chroma : float
+        Largest chroma, relative to brightness, of a highlight pixel. Default 0.25: a
+        mirror highlight is the lamp's colour (white once balanced), tinted at most
+        slightly by the sticker under it.
     occluder_height_mm : float
         Height above the table plane above which a pixel that is not napkin-coloured is
         an object over the napkin. Default 30 mm: folded cloth lies within a few
@@ -65,6 +70,10 @@ class NapkinParams:
         Linear brightness, relative to the napkin's white, below which a raised pixel is
         not napkin (a napkin in an arm's shadow keeps at least 0.3 of its light).
         Default 0.2.
+    occluder_chroma : float
+        Chroma, relative to brightness, above which a raised pixel is not napkin (a
+        coloured object). Default 0.28: twice ``neutral_chroma``, so a tinted napkin flap
+        held up is never taken for an object.
     """
 
     stride: int = 8
@@ -74,8 +83,10 @@ class NapkinParams:
     target_level: int = 225
     clipped_level: int = 250
     highlight_level: float = 1.35
+    highlight_chroma: float = 0.25
     occluder_height_mm: float = 30.0
     occluder_darkness: float = 0.2
+    occluder_chroma: float = 0.28
 
 
 @dataclass(frozen=True, eq=False)
@@ -114,20 +125,6 @@ class NapkinView:
             if np.all(np.isfinite(p)):
                 out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + self.stride).any())
         return out
-
-
-def srgb_lut() -> NDArray[np.float64]:
-    """Linear value of each 8-bit sRGB level, shape (256,)."""
-    c = np.arange(256) / 255.0
-    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
-
-
-linear_lut = srgb_lut
-
-
-def _encode(lin: NDArray) -> NDArray:
-    c = np.clip(lin, 0.0, 1.0)
-    return np.where(c <= 0.0031308, 12.92 * c, 1.055 * c ** (1 / 2.4) - 0.055)
 
 
 def find_napkin(
@@ -186,14 +183,16 @@ def find_napkin(
         white = white * np.median(bal[keep], axis=0)
     target = srgb_lut()[p.target_level]
     gains = target / np.maximum(white, 1e-4)
-    table = _encode(srgb_lut()[:, None] * gains[None, :]) * 255.0
+    table = linear_to_srgb(srgb_lut()[:, None] * gains[None, :]) * 255.0
     lut = np.clip(np.rint(table), 0, 255).astype(np.uint8).reshape(256, 1, 3)
 
     shape = color[::s, ::s].shape[:2]
     bal = (lin / np.maximum(white, 1e-4)).reshape(*shape, 3)
     lum = bal.mean(axis=2)
     chroma = bal.max(axis=2) - bal.min(axis=2)
-    highlight = clipped.reshape(shape) | ((lum >= p.highlight_level) & (chroma <= 0.25 * lum))
+    highlight = clipped.reshape(shape) | (
+        (lum >= p.highlight_level) & (chroma <= p.highlight_chroma * lum)
+    )
     occluder = np.zeros(shape, dtype=bool)
     if table_normal is not None and table_offset_m is not None:
         d = depth_mm[::s, ::s].astype(np.float64) * 1e-3
@@ -205,7 +204,7 @@ def find_napkin(
         ) * 1e3
         raised = (d > 0) & (height_mm > p.occluder_height_mm)
         not_napkin = (lum < p.occluder_darkness) | (
-            chroma > 2 * p.neutral_chroma * np.maximum(lum, 0.05)
+            chroma > p.occluder_chroma * np.maximum(lum, p.occluder_darkness)
         )
         occluder = raised & not_napkin
         # a few isolated samples are depth noise, not an object
