@@ -217,13 +217,15 @@ def assess_stickers(
     for corner in range(len(layout.corner_uv)):
         group = corner_of == corner
         group_support[group] = int((group & seen).sum())
-        fit = _rigid_prediction(uv_m, pts, group & seen, tol)
-        if fit is not None:
-            pred3[group] = fit[0][group]
-    overall = _rigid_prediction(uv_m, pts, seen, tol)
-    if overall is not None and overall[1].sum() >= 4:
-        todo = np.isnan(pred3[:, 0])
-        pred3[todo] = overall[0][todo]
+        if (group & ~seen).any():  # only where something is missing
+            fit = _rigid_prediction(uv_m, pts, group & seen, tol)
+            if fit is not None:
+                pred3[group] = fit[0][group]
+    todo = np.isnan(pred3[:, 0]) & ~seen
+    if todo.any():
+        overall = _rigid_prediction(uv_m, pts, seen, tol)
+        if overall is not None and overall[1].sum() >= 4:
+            pred3[todo] = overall[0][todo]
     ok = np.isfinite(pred3[:, 0]) & (pred3[:, 2] > 0)
     predicted[ok] = intrinsics.project(pred3[ok])
     occluded = False

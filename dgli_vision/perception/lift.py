@@ -58,13 +58,15 @@ def estimate_table_normal(
 
 
 def estimate_table_plane(
-    depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, *, stride: int = 10, iterations: int = 4
+    depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, *, stride: int = 16, iterations: int = 4
 ) -> tuple[NDArray[np.float64], float]:
     """The dominant plane of the depth image: unit normal (3,) towards the camera and
     offset ``normal @ x`` (metres) of its points.
 
     A robust least-squares fit: the plane through a subsample of the valid depth pixels
-    is refitted on its inliers (within 3 MAD and at most 15 mm), a few times. The table
+    is refitted on its inliers (within 3 MAD and at most 15 mm), a few times: every
+    ``stride``-th pixel (16: 3,600 samples of a 1280 x 720 frame, 1,200 of a VGA one)
+    is plenty for three numbers. The table
     and the napkin lying on it are one plane at this tolerance. Deterministic.
 
     Raises
@@ -77,16 +79,17 @@ def estimate_table_plane(
     if len(vv) < 50:
         raise ValueError(f"only {len(vv)} valid depth samples; cannot fit the table plane")
     pix = np.stack([uu * stride, vv * stride], axis=1).astype(np.float64)
-    pts = intrinsics.deproject(pix, sub[vv, uu])
-    keep = np.ones(len(pts), dtype=bool)
+    # (3, n): coordinates in rows, so that every reduction runs along contiguous memory
+    pts = np.ascontiguousarray(intrinsics.deproject(pix, sub[vv, uu]).T)
+    keep = np.ones(pts.shape[1], dtype=bool)
     normal = np.array([0.0, 0.0, -1.0])
     caps = (0.10, 0.04) + (0.015,) * max(iterations - 2, 0)  # metres: narrow down slowly
     for cap in caps[:iterations]:
-        centre = pts[keep].mean(axis=0)
-        rel = pts[keep] - centre
-        _, vecs = np.linalg.eigh(rel.T @ rel)  # smallest eigenvector: the plane normal
+        centre = pts[:, keep].mean(axis=1)
+        rel = pts[:, keep] - centre[:, None]
+        _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
         normal = vecs[:, 0]
-        resid = np.abs((pts - centre) @ normal)
+        resid = np.abs(normal @ pts - normal @ centre)
         mad = np.median(resid[keep])
         new_keep = resid < min(max(3.0 * 1.4826 * mad, 0.003), cap)
         if new_keep.sum() < 50:

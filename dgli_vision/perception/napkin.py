@@ -157,22 +157,36 @@ def find_napkin(
     """
     p = params or NapkinParams()
     s = p.stride
-    sub = color[::s, ::s].reshape(-1, 3)
-    lin = srgb_lut()[sub]  # (n, 3) linear RGB
-    clipped = (sub >= p.clipped_level).all(axis=1)
-    bright = lin.sum(axis=1)
+    sub = color[::s, ::s]
+    shape = sub.shape[:2]
+    lut8 = srgb_lut().astype(np.float32)
+    # Channels as separate flat arrays: reductions over a last axis of 3 are slow.
+    r, g, b = (lut8[sub[..., k].ravel()] for k in range(3))
+    lin = np.stack([r, g, b], axis=1)  # (n, 3) linear RGB
+    clipped = (
+        (sub[..., 0] >= p.clipped_level)
+        & (sub[..., 1] >= p.clipped_level)
+        & (sub[..., 2] >= p.clipped_level)
+    ).ravel()
+    bright = r + g + b
     usable = ~clipped
     if usable.sum() < 50:
-        usable = np.ones(len(sub), dtype=bool)
+        usable = np.ones(len(bright), dtype=bool)
     level = np.quantile(bright[usable], 1.0 - p.bright_fraction)
     top = usable & (bright >= level)
-    white = np.median(lin[top], axis=0)
+    white = np.median(lin[top], axis=0).astype(np.float64)
+
+    def balanced(white: NDArray) -> tuple[NDArray, NDArray]:
+        """Brightness and chroma (n,) of every sample balanced to ``white``."""
+        w = np.maximum(white, 1e-4).astype(np.float32)
+        br, bg, bb = r / w[0], g / w[1], b / w[2]
+        lum = (br + bg + bb) / 3
+        chroma = np.maximum(np.maximum(br, bg), bb) - np.minimum(np.minimum(br, bg), bb)
+        return lum, chroma
+
     # Refine on the neutral, bright pixels under that white: the napkin itself.
     for _ in range(2):
-        white = np.maximum(white, 1e-4)
-        bal = lin / white
-        lum = bal.mean(axis=1)
-        chroma = bal.max(axis=1) - bal.min(axis=1)
+        lum, chroma = balanced(white)
         napkin = usable & (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
         if napkin.sum() < 20:
             break
@@ -180,28 +194,26 @@ def find_napkin(
         lum_n = lum[napkin]
         keep = napkin.copy()
         keep[napkin] = lum_n >= np.median(lum_n)
-        white = white * np.median(bal[keep], axis=0)
+        white = np.median(lin[keep], axis=0).astype(np.float64)
+    white = np.maximum(white, 1e-4)
     target = srgb_lut()[p.target_level]
-    gains = target / np.maximum(white, 1e-4)
+    gains = target / white
     table = linear_to_srgb(srgb_lut()[:, None] * gains[None, :]) * 255.0
     lut = np.clip(np.rint(table), 0, 255).astype(np.uint8).reshape(256, 1, 3)
 
-    shape = color[::s, ::s].shape[:2]
-    bal = (lin / np.maximum(white, 1e-4)).reshape(*shape, 3)
-    lum = bal.mean(axis=2)
-    chroma = bal.max(axis=2) - bal.min(axis=2)
+    lum, chroma = balanced(white)
+    lum, chroma = lum.reshape(shape), chroma.reshape(shape)
     highlight = clipped.reshape(shape) | (
         (lum >= p.highlight_level) & (chroma <= p.highlight_chroma * lum)
     )
     occluder = np.zeros(shape, dtype=bool)
     if table_normal is not None and table_offset_m is not None:
-        d = depth_mm[::s, ::s].astype(np.float64) * 1e-3
-        vv, uu = np.mgrid[0 : shape[0], 0 : shape[1]]
-        x = (uu * s - intrinsics.cx) / intrinsics.fx * d
-        y = (vv * s - intrinsics.cy) / intrinsics.fy * d
-        height_mm = (
-            x * table_normal[0] + y * table_normal[1] + d * table_normal[2] - table_offset_m
-        ) * 1e3
+        d = depth_mm[::s, ::s].astype(np.float32) * 1e-3
+        u = (np.arange(shape[1]) * s - intrinsics.cx) / intrinsics.fx
+        v = (np.arange(shape[0]) * s - intrinsics.cy) / intrinsics.fy
+        # height above the plane: (x, y, z) . n - offset with x = u z, y = v z
+        slope = (u[None, :] * table_normal[0] + v[:, None] * table_normal[1] + table_normal[2])
+        height_mm = (d * slope.astype(np.float32) - table_offset_m) * 1e3
         raised = (d > 0) & (height_mm > p.occluder_height_mm)
         not_napkin = (lum < p.occluder_darkness) | (
             chroma > p.occluder_chroma * np.maximum(lum, p.occluder_darkness)
