@@ -24,6 +24,7 @@ from .errors import DetectionError
 from .references import ReferenceSet
 
 __all__ = [
+    "FULL_COORDINATES",
     "FULL_MARGIN",
     "MIN_CONFIDENCE",
     "MIN_COORDINATES",
@@ -34,8 +35,11 @@ __all__ = [
     "confidence_of",
 ]
 
-#: Fewer known coordinates than this (4 complete segments give 6) cannot be ranked.
-MIN_COORDINATES = 6
+#: Fewer known coordinates than this (3 complete segments give 3) cannot be ranked.
+MIN_COORDINATES = 3
+#: Known coordinates that earn full confidence (4 complete segments give 6): with fewer,
+#: the rank correlation is coarse and the confidence is scaled down in proportion.
+FULL_COORDINATES = 6
 #: Weight of the visibility term against the Spearman distance (both in [0, 2]).
 VISIBILITY_WEIGHT = 1.0
 #: Margin to the runner-up (distance units, Spearman + visibility) that earns full
@@ -89,14 +93,21 @@ class Prediction:
     confidence: float = 1.0
 
 
-def confidence_of(margin: float, n_unknown_stickers: int = 0, n_stickers: int = 16) -> float:
+def confidence_of(
+    margin: float,
+    n_unknown_stickers: int = 0,
+    n_stickers: int = 16,
+    n_coordinates: int | None = None,
+) -> float:
     """Confidence in [0, 1] of a verdict.
 
     The margin to the best reference of another class, as a fraction of
-    :data:`FULL_MARGIN` (capped at 1), times the square of the share of stickers whose
-    state is known: seen, or hidden by the cloth (which is evidence too). The square:
+    :data:`FULL_MARGIN` (capped at 1), times the cube of the share of stickers whose
+    state is known: seen, or hidden by the cloth (which is evidence too). The cube:
     references that differ only in unknown stickers tie on everything that is known, and
-    their margin is noise; with four stickers unknown a margin of 0.09 is needed.
+    what separates them then is the spread of fold sizes within each class, not the
+    fold; with four stickers unknown a margin of 0.12 is needed. With
+    fewer than :data:`FULL_COORDINATES` known coordinates it is scaled down in proportion.
 
     Parameters
     ----------
@@ -107,10 +118,13 @@ def confidence_of(margin: float, n_unknown_stickers: int = 0, n_stickers: int = 
         highlight).
     n_stickers : int
         All stickers (16).
+    n_coordinates : int, optional
+        Cloth coordinates the verdict rests on.
     """
     margin_part = 1.0 if not np.isfinite(margin) else float(np.clip(margin / FULL_MARGIN, 0, 1))
     known = 1.0 - n_unknown_stickers / max(n_stickers, 1)
-    return round(margin_part * max(known, 0.0) ** 2, 4)
+    coords_part = 1.0 if n_coordinates is None else min(1.0, n_coordinates / FULL_COORDINATES)
+    return round(margin_part * max(known, 0.0) ** 3 * coords_part, 4)
 
 
 def _n_segments(n_coordinates: int) -> int:
@@ -162,7 +176,7 @@ def reference_distances(
     if known.sum() < MIN_COORDINATES:
         raise DetectionError(
             f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
-            f"need at least {MIN_COORDINATES} (4 segments with both stickers seen)"
+            f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
     dist = pairwise_spearman(x[known][None, :], ref[:, known])[0]
     if visible is not None:
@@ -210,5 +224,11 @@ def classify_coordinates(
     d = float(dist[order[0]])
     margin = (runner.distance - d) if runner else float("inf")
     n_unknown = int(np.asarray(unknown, dtype=bool).sum()) if unknown is not None else 0
-    confidence = confidence_of(margin, n_unknown, 2 * _n_segments(len(np.asarray(coords))))
+    x = np.asarray(coords, dtype=np.float64)
+    n_known = int(np.isfinite(x).sum())
+    if visible is not None:  # coordinates of segments with an unseen sticker are not used
+        seen_segment = np.asarray(visible, dtype=bool).reshape(-1, 2).all(axis=1)
+        i, j = pair_indices(len(seen_segment))
+        n_known = int((np.isfinite(x) & seen_segment[i] & seen_segment[j]).sum())
+    confidence = confidence_of(margin, n_unknown, 2 * _n_segments(len(x)), n_known)
     return Prediction(best.class_id, best.name, best.variant, d, runner, margin, confidence)

@@ -86,9 +86,17 @@ def test_prediction_fields(fresh, shipped):
 
 def test_too_few_coordinates_cannot_be_classified(shipped):
     coords = np.full(28, np.nan)
-    coords[:5] = [1, 2, 3, 4, 5]
-    with pytest.raises(DetectionError, match="only 5 of 28"):
+    coords[:2] = [1, 2]
+    with pytest.raises(DetectionError, match="only 2 of 28"):
         classify_coordinates(coords, shipped)
+
+
+def test_three_coordinates_are_ranked_with_confidence_scaled_down(shipped):
+    full = shipped.references[0].coordinates
+    coords = np.full(28, np.nan)
+    coords[[0, 1, 7]] = full[[0, 1, 7]]  # segments 0, 1 and 2: pairs 0-1, 0-2, 1-2
+    p = classify_coordinates(coords, shipped)
+    assert p.confidence <= 0.5
 
 
 def test_references_round_trip(tmp_path, shipped):
