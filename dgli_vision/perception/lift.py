@@ -57,17 +57,54 @@ def estimate_table_normal(
     return estimate_table_plane(depth_mm, intrinsics, stride=stride, iterations=iterations)[0]
 
 
+def _fit_plane(
+    pts: NDArray[np.float64], active: NDArray[np.bool_], iterations: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+    """Robust plane through the ``active`` points of ``pts`` (3, n): unit normal towards
+    the camera, a point on it, and its inliers."""
+    keep = active.copy()
+    normal = np.array([0.0, 0.0, -1.0])
+    centre = pts[:, keep].mean(axis=1)
+    caps = (0.10, 0.04) + (0.015,) * max(iterations - 2, 0)  # metres: narrow down slowly
+    for cap in caps[:iterations]:
+        centre = pts[:, keep].mean(axis=1)
+        rel = pts[:, keep] - centre[:, None]
+        _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
+        normal = vecs[:, 0]
+        resid = np.abs(normal @ pts - normal @ centre)
+        mad = np.median(resid[keep])
+        new_keep = active & (resid < min(max(3.0 * 1.4826 * mad, 0.003), cap))
+        if new_keep.sum() < 50:
+            break
+        keep = new_keep
+    if normal @ (-centre) < 0:  # point towards the camera at the origin
+        normal = -normal
+    return normal, centre, keep
+
+
 def estimate_table_plane(
-    depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, *, stride: int = 16, iterations: int = 4
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    *,
+    stride: int = 16,
+    iterations: int = 4,
+    max_tilt_deg: float = 35.0,
+    below_mm: float = 30.0,
+    below_share: float = 0.1,
 ) -> tuple[NDArray[np.float64], float]:
-    """The dominant plane of the depth image: unit normal (3,) towards the camera and
+    """The table plane of the depth image: unit normal (3,) towards the camera and
     offset ``normal @ x`` (metres) of its points.
 
     A robust least-squares fit: the plane through a subsample of the valid depth pixels
     is refitted on its inliers (within 3 MAD and at most 15 mm), a few times: every
     ``stride``-th pixel (16: 3,600 samples of a 1280 x 720 frame, 1,200 of a VGA one)
-    is plenty for three numbers. The table
-    and the napkin lying on it are one plane at this tolerance. Deterministic.
+    is plenty for three numbers. The table and the napkin lying on it are one plane at
+    this tolerance. A large object near the camera (a robot arm) can make the dominant
+    plane something else, so a plane is taken for the table only if it faces the camera
+    within ``max_tilt_deg`` (SPEC's cameras tilt up to 15 degrees; default 35 leaves room
+    for wrinkled, folded cloth) and fewer than ``below_share`` of the samples lie more
+    than ``below_mm`` beyond it (the table is the lowest surface; objects stand on it).
+    Otherwise its samples are set aside and the fit is tried again. Deterministic.
 
     Raises
     ------
@@ -81,20 +118,19 @@ def estimate_table_plane(
     pix = np.stack([uu * stride, vv * stride], axis=1).astype(np.float64)
     # (3, n): coordinates in rows, so that every reduction runs along contiguous memory
     pts = np.ascontiguousarray(intrinsics.deproject(pix, sub[vv, uu]).T)
-    keep = np.ones(pts.shape[1], dtype=bool)
-    normal = np.array([0.0, 0.0, -1.0])
-    caps = (0.10, 0.04) + (0.015,) * max(iterations - 2, 0)  # metres: narrow down slowly
-    for cap in caps[:iterations]:
-        centre = pts[:, keep].mean(axis=1)
-        rel = pts[:, keep] - centre[:, None]
-        _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
-        normal = vecs[:, 0]
-        resid = np.abs(normal @ pts - normal @ centre)
-        mad = np.median(resid[keep])
-        new_keep = resid < min(max(3.0 * 1.4826 * mad, 0.003), cap)
-        if new_keep.sum() < 50:
+    active = np.ones(pts.shape[1], dtype=bool)
+    cos_tilt = np.cos(np.radians(max_tilt_deg))
+    normal, centre, keep = _fit_plane(pts, active, iterations)
+    for _ in range(3):
+        if -normal[2] < cos_tilt:  # not facing the camera: an object's side
+            rest = active & ~keep
+        else:
+            height = normal @ pts - normal @ centre
+            rest = active & (height < -below_mm * 1e-3)
+            if rest.sum() < max(50, below_share * active.sum()):
+                break  # nothing much beyond it: the table
+        if rest.sum() < 50:
             break
-        keep = new_keep
-    if normal @ (-centre) < 0:  # point towards the camera at the origin
-        normal = -normal
+        active = rest
+        normal, centre, keep = _fit_plane(pts, active, iterations)
     return normal, float(normal @ centre)
