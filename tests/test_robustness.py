@@ -296,3 +296,18 @@ def test_srgb_lut_is_the_standard_transfer_function():
     lut = srgb_lut()
     assert lut[0] == 0 and lut[255] == pytest.approx(1.0)
     assert lut[128] == pytest.approx(0.2158605, abs=1e-6)
+
+
+@pytest.mark.parametrize("arm", ["level", "slanted"])
+def test_the_table_plane_is_found_under_a_large_arm_near_the_camera(arm):
+    from dgli_vision.perception.lift import estimate_table_plane
+
+    depth = np.full((720, 1280), 600, np.uint16)  # the table, straight down, 600 mm
+    u = np.arange(1280)[None, :].repeat(720, axis=0)
+    if arm == "level":  # the top of an arm 250 mm above the table over 60% of the view
+        depth[:, :768] = 350
+    else:  # its side, seen obliquely
+        depth[:, :768] = (250 + 0.3 * u[:, :768]).astype(np.uint16)
+    normal, offset = estimate_table_plane(depth, DEFAULT_INTRINSICS)
+    np.testing.assert_allclose(normal, [0.0, 0.0, -1.0], atol=1e-6)
+    assert offset == pytest.approx(-0.6, abs=1e-6)
