@@ -54,11 +54,22 @@ class EvidenceParams:
         How far beyond the outline of the located stickers an object must reach to be
         over the napkin. Default 15 mm: the stickers sit 20 mm and more inside the
         edges, and an object beside the napkin never reaches in.
+    near_radii : float
+        How close, in sticker radii, a missing sticker's predicted place must come to a
+        highlight, an object or the image border to be unknown. Default 1.5: the
+        prediction is good to a few millimetres, and half a sticker covered is enough to
+        lose it.
+    min_corner_support : int
+        With an object over the napkin, a missing sticker is unknown unless at least this
+        many stickers of its corner were seen. Default 2: a corner folded over moves its
+        four stickers together, so with fewer seen its flap may lie under the object.
     """
 
     stretch_tolerance_mm: float = 15.0
     fit_tolerance_mm: float = 10.0
     napkin_margin_mm: float = 15.0
+    near_radii: float = 1.5
+    min_corner_support: int = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -244,7 +255,7 @@ def assess_stickers(
             for u, v in zip(us, vs)
         )
     z_typ = float(np.nanmedian(pts[seen, 2])) if seen.any() else 0.6
-    radius_px = 1.5 * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
+    radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
     missing = np.flatnonzero(~seen)
     if napkin is not None:
         near_occ = napkin.near(napkin.occluder, predicted[missing], radius_px)
@@ -259,7 +270,7 @@ def assess_stickers(
             -radius_px <= u <= w - 1 + radius_px and -radius_px <= v <= h - 1 + radius_px
         ):
             why = "out of view"
-        elif near_occ[k] or (occluded and group_support[sid] < 2):
+        elif near_occ[k] or (occluded and group_support[sid] < p.min_corner_support):
             why = "possibly under an object above the napkin"
         elif near_hl[k]:
             why = "in a highlight"
