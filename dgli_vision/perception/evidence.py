@@ -51,9 +51,9 @@ class EvidenceParams:
         Residual of a sticker under a rigid fit for it to lie on the same flat part of
         the cloth. Default 10 mm: wrinkles are up to about 10 mm out of plane.
     napkin_margin_mm : float
-        How far beyond the outline of the located stickers an object must reach to be
-        over the napkin. Default 15 mm: the stickers sit 20 mm and more inside the
-        edges, and an object beside the napkin never reaches in.
+        How near the napkin, in the image, an object above the table must come to be
+        over it. Default 15 mm: the napkin's own outline is found to a sample or two, and
+        an object set down beside the napkin keeps farther off.
     near_radii : float
         How close, in sticker radii, a missing sticker's predicted place must come to a
         highlight, an object or the image border to be unknown. Default 1.5: the
@@ -61,15 +61,16 @@ class EvidenceParams:
         lose it.
     min_corner_support : int
         With an object over the napkin, a missing sticker is unknown unless at least this
-        many stickers of its corner were seen. Default 2: a corner folded over moves its
-        four stickers together, so with fewer seen its flap may lie under the object.
+        many stickers of its corner were seen. Default 3: a corner folded over moves its
+        four stickers together, and three of them fix where the fourth lies; with fewer,
+        its flap may lie under the object.
     """
 
     stretch_tolerance_mm: float = 15.0
     fit_tolerance_mm: float = 10.0
     napkin_margin_mm: float = 15.0
     near_radii: float = 1.5
-    min_corner_support: int = 2
+    min_corner_support: int = 3
 
 
 @dataclass(frozen=True, eq=False)
@@ -182,6 +183,33 @@ def _rigid_prediction(
     return uv_m @ r1.T + t1, mask
 
 
+def _over_napkin(
+    napkin: NapkinView, margin_mm: float, located: NDArray, intrinsics: Intrinsics
+) -> bool:
+    """Does an object above the table touch the napkin in the image (or stand within
+    the outline of the located stickers)?"""
+    import cv2
+
+    if not napkin.occluder.any():
+        return False
+    if napkin.cloth is not None:
+        z = float(np.nanmedian(located[:, 2])) if len(located) else 0.6
+        reach = max(1, round(margin_mm * 1e-3 * intrinsics.fx / z / napkin.stride))
+        kernel = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
+        near_cloth = cv2.dilate(napkin.cloth.astype(np.uint8), kernel).astype(bool)
+        if (near_cloth & napkin.occluder).any():
+            return True
+    if len(located) < 3:
+        return False
+    hull = cv2.convexHull(intrinsics.project(located).astype(np.float32))
+    vs, us = np.nonzero(napkin.occluder)
+    return any(
+        cv2.pointPolygonTest(hull, (float(u * napkin.stride), float(v * napkin.stride)), False)
+        >= 0
+        for u, v in zip(us, vs)
+    )
+
+
 def assess_stickers(
     markers: Markers3D,
     intrinsics: Intrinsics,
@@ -235,25 +263,14 @@ def assess_stickers(
     todo = np.isnan(pred3[:, 0]) & ~seen
     if todo.any():
         overall = _rigid_prediction(uv_m, pts, seen, tol)
-        if overall is not None and overall[1].sum() >= 4:
+        # only a flat part that spans corners says where another corner would lie
+        if overall is not None and len(set(corner_of[overall[1]])) >= 2:
             pred3[todo] = overall[0][todo]
     ok = np.isfinite(pred3[:, 0]) & (pred3[:, 2] > 0)
     predicted[ok] = intrinsics.project(pred3[ok])
-    occluded = False
-    if napkin is not None and napkin.occluder.any() and seen.sum() >= 3:
-        # Is the object over the napkin: inside the outline of the located stickers?
-        import cv2
-
-        located = intrinsics.project(pts[seen]).astype(np.float32)
-        hull = cv2.convexHull(located)
-        z = float(np.nanmedian(pts[seen, 2]))
-        reach_px = p.napkin_margin_mm * 1e-3 * intrinsics.fx / z
-        vs, us = np.nonzero(napkin.occluder)
-        occluded = any(
-            cv2.pointPolygonTest(hull, (float(u * napkin.stride), float(v * napkin.stride)), True)
-            > -reach_px
-            for u, v in zip(us, vs)
-        )
+    occluded = napkin is not None and _over_napkin(
+        napkin, p.napkin_margin_mm, pts[seen], intrinsics
+    )
     z_typ = float(np.nanmedian(pts[seen, 2])) if seen.any() else 0.6
     radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
     missing = np.flatnonzero(~seen)

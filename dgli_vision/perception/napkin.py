@@ -103,7 +103,9 @@ class NapkinView:
     highlight : ndarray of bool, shape (H // stride + 1, W // stride + 1)
         Blown-out or much-brighter-than-napkin near-white samples.
     occluder : ndarray of bool, same shape
-        Samples of an object above the napkin (raised, not napkin-coloured).
+        Samples of an object above the table (raised, not napkin-coloured).
+    cloth : ndarray of bool, same shape
+        Samples of the napkin: bright and neutral once balanced.
     stride : int
         Subsampling of the masks, pixels.
     """
@@ -113,6 +115,7 @@ class NapkinView:
     highlight: NDArray[np.bool_]
     occluder: NDArray[np.bool_]
     stride: int
+    cloth: NDArray[np.bool_] | None = None
 
     def near(self, mask: NDArray[np.bool_], uv: NDArray, radius_px: float) -> NDArray[np.bool_]:
         """Which pixels ``uv`` (n, 2) have a ``mask`` sample within ``radius_px``."""
@@ -203,6 +206,7 @@ def find_napkin(
 
     lum, chroma = balanced(white)
     lum, chroma = lum.reshape(shape), chroma.reshape(shape)
+    cloth = (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
     highlight = clipped.reshape(shape) | (
         (lum >= p.highlight_level) & (chroma <= p.highlight_chroma * lum)
     )
@@ -225,4 +229,4 @@ def find_napkin(
         occluder = cv2.morphologyEx(
             occluder.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8)
         ).astype(bool)
-    return NapkinView(white, lut, highlight, occluder, s)
+    return NapkinView(white, lut, highlight, occluder, s, cloth)
