@@ -667,10 +667,13 @@ def robustness(
     jobs = jobs or os.cpu_count() or 1
     scores = []
     for name in names:
-        score = score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs)
-        scores.append(score)
-        if not as_json:
-            click.echo(f"{name}: {score.right}/{score.n} right, {score.wrong} wrong", err=True)
+        for score in score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs):
+            scores.append(score)
+            if not as_json:
+                click.echo(
+                    f"{score.condition}: {score.right}/{score.n} right, {score.wrong} wrong",
+                    err=True,
+                )
     header, rows = robustness_table(scores)
     table = markdown_table(header, rows)
     if as_json:

@@ -70,8 +70,12 @@ def _init(refs: ReferenceSet) -> None:
     cv2.setNumThreads(1)
 
 
-def _one(args: tuple[str, int, int, str]) -> tuple[str, str, str | None, str | None, str | None]:
-    """Render sample ``k`` of a class under a condition and classify it."""
+def _one(
+    args: tuple[str, int, int, str],
+) -> tuple[str, str, str | None, str | None, tuple[str, ...]]:
+    """Render sample ``k`` of a class under a condition and classify it: name, truth
+    (``class/variant``), predicted class and variant (None: cannot tell), and the
+    conditions drawn."""
     from .dataset import render_sample
     from .io import RGBDFrame
     from .pipeline import classify_frame
@@ -85,9 +89,10 @@ def _one(args: tuple[str, int, int, str]) -> tuple[str, str, str | None, str | N
     result = classify_frame(frame, _REFS)
     p = result.prediction
     truth = f"{sample.state.class_id}/{sample.state.variant}"
+    drawn = sample.conditions.names
     if p is None:
-        return sample.name, truth, None, None, result.reason
-    return sample.name, truth, p.class_id, p.variant, None
+        return sample.name, truth, None, None, drawn
+    return sample.name, truth, p.class_id, p.variant, drawn
 
 
 def score_condition(
@@ -98,7 +103,7 @@ def score_condition(
     seed: int,
     jobs: int = 1,
     on_progress: Callable[[int], None] | None = None,
-) -> ConditionScore:
+) -> list[ConditionScore]:
     """Render ``per_class`` pairs of every class under ``condition`` and classify them.
 
     Parameters
@@ -114,7 +119,9 @@ def score_condition(
 
     Returns
     -------
-    ConditionScore
+    list of ConditionScore
+        One; for ``"combo"`` also the pairs whose three conditions include the gripper
+        and those whose do not.
     """
     tasks = [(condition, seed, k, c) for c in CLASS_IDS for k in range(per_class)]
     if jobs > 1:
@@ -136,9 +143,19 @@ def score_condition(
             outcomes.append(_one(t))
             if on_progress:
                 on_progress(1)
+    scores = [_tally(condition, outcomes)]
+    if condition == "combo":
+        scores.append(_tally("combo with gripper", [o for o in outcomes if "gripper" in o[4]]))
+        scores.append(
+            _tally("combo without gripper", [o for o in outcomes if "gripper" not in o[4]])
+        )
+    return scores
+
+
+def _tally(label: str, outcomes: list) -> ConditionScore:
     right = abstained = wrong = variant_right = 0
     cases = []
-    for name, truth, cls, variant, _reason in outcomes:
+    for name, truth, cls, variant, drawn in outcomes:
         true_cls, true_var = truth.split("/", 1)
         if cls is None:
             abstained += 1
@@ -147,9 +164,9 @@ def score_condition(
             variant_right += str(variant) == true_var
         else:
             wrong += 1
-            cases.append(f"{name}: {truth} -> {cls}/{variant}")
+            cases.append(f"{name} ({'+'.join(drawn) or 'clean'}): {truth} -> {cls}/{variant}")
     return ConditionScore(
-        condition, len(tasks), right, abstained, wrong, variant_right, tuple(cases)
+        label, len(outcomes), right, abstained, wrong, variant_right, tuple(cases)
     )
 
 

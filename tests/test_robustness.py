@@ -311,3 +311,28 @@ def test_the_table_plane_is_found_under_a_large_arm_near_the_camera(arm):
     normal, offset = estimate_table_plane(depth, DEFAULT_INTRINSICS)
     np.testing.assert_allclose(normal, [0.0, 0.0, -1.0], atol=1e-6)
     assert offset == pytest.approx(-0.6, abs=1e-6)
+
+
+def test_the_robustness_command_scores_a_condition(tmp_path):
+    out = tmp_path / "table.md"
+    res = CliRunner().invoke(
+        main,
+        [
+            "robustness",
+            "--per-class",
+            "1",
+            "--conditions",
+            "cast",
+            "-j",
+            "1",
+            "--json",
+            "--markdown",
+            str(out),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    (row,) = data["rows"]
+    assert row["condition"] == "cast" and row["pairs"] == "12"
+    assert row["wrong"] == "0%" and data["wrong"] == {"cast": []}
+    assert "| cast | 12 |" in out.read_text()
