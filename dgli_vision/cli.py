@@ -14,7 +14,7 @@ from typing import Any, TypeVar
 
 import click
 
-from .conditions import CONDITION_HELP
+from .condition_names import CONDITION_HELP
 from .errors import DgliError
 
 F = TypeVar("F", bound=Callable[..., Any])
@@ -657,7 +657,7 @@ def robustness(
     """
     import os
 
-    from .conditions import CONDITION_NAMES
+    from .condition_names import CONDITION_NAMES
     from .references import load_references
     from .report import markdown_table
     from .robustness import robustness_table, score_condition

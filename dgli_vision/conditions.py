@@ -15,14 +15,16 @@ each condition, not tuned to any held-out set.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .camera import Intrinsics
+from .condition_names import CONDITION_HELP, CONDITION_NAMES
 
 __all__ = [
+    "CONDITION_HELP",
     "CONDITION_NAMES",
     "Conditions",
     "SceneObject",
@@ -32,40 +34,6 @@ __all__ = [
     "realistic_depth",
     "scene_objects",
 ]
-
-#: Every condition ``dgli render --conditions`` knows, in the order of the robustness table.
-CONDITION_NAMES: tuple[str, ...] = (
-    "jpeg",
-    "cast",
-    "dim",
-    "gloss",
-    "shadow",
-    "clutter",
-    "gripper",
-    "distortion",
-    "depth",
-    "vga",
-    "wood",
-    "combo",
-)
-
-#: What each condition is, for help texts and reports.
-CONDITION_HELP: dict[str, str] = {
-    "jpeg": "colour saved as JPEG, quality 70-92",
-    "cast": "no white balance: tungsten (R x1.25-1.45, B x0.55-0.72) or blue cast",
-    "dim": "exposure 0.35-0.55 of normal, sensor noise sigma 6-10 levels",
-    "gloss": "glossy stickers: a lamp's mirror highlight on one sticker",
-    "shadow": "a robot arm's soft shadow across the napkin (35-60% of the light)",
-    "clutter": "3-6 saturated objects on the table (cups, boxes, caps, tape, a post-it)",
-    "gripper": "a dark gripper and arm 60-200 mm above the napkin",
-    "distortion": "uncorrected radial lens distortion k1 0.06-0.12",
-    "depth": "flying pixels, parallax holes, 1-3 px registration offset, 2-4 mm noise, "
-    "black mats without depth",
-    "vga": "640 x 480, fx = fy = 500, camera 600-850 mm",
-    "wood": "a light-wood table (saturation about 0.3, with grain)",
-    "combo": "three of the above at once",
-}
-
 
 @dataclass(frozen=True)
 class SceneObject:
@@ -144,7 +112,6 @@ class Conditions:
     depth_noise_mm: float = 1.0
     registration_px: tuple[int, int] = (0, 0)
     wood_table: bool = False
-    extra: dict = field(default_factory=dict)
 
     @property
     def label(self) -> str:

@@ -85,7 +85,8 @@ def _one(
     sample = render_sample(class_id, k, seed, conditions=names)
     r = sample.result
     frame = RGBDFrame(r.color, r.depth_mm, r.intrinsics, sample.name, sample.name, "render")
-    assert _REFS is not None
+    if _REFS is None:
+        raise RuntimeError("worker started without references (initializer not run)")
     result = classify_frame(frame, _REFS)
     p = result.prediction
     truth = f"{sample.state.class_id}/{sample.state.variant}"

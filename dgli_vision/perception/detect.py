@@ -303,8 +303,7 @@ def _refine(
     (the halo is no sticker colour)."""
     import cv2
 
-    assert c.region is not None
-    if c.recovered:
+    if c.recovered or c.region is None:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     h, w = c.region.shape
     x0, y0 = 2 * c.origin[0], 2 * c.origin[1]

@@ -97,10 +97,12 @@ class StickerEvidence:
 
     @property
     def seen(self) -> NDArray[np.bool_]:
+        """Stickers located, shape (16,)."""
         return self.status == SEEN
 
     @property
     def unknown(self) -> NDArray[np.bool_]:
+        """Stickers neither seen nor evidence of a fold, shape (16,)."""
         return self.status == UNKNOWN
 
     def summary(self) -> str:

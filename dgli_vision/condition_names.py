@@ -1,0 +1,39 @@
+"""Names of the capture conditions the renderer knows, in their own module so that the
+command line can offer them without importing numpy (see :mod:`dgli_vision.conditions`)."""
+
+from __future__ import annotations
+
+__all__ = ["CONDITION_HELP", "CONDITION_NAMES"]
+
+#: Every condition ``dgli render --conditions`` knows, in the order of the robustness table.
+CONDITION_NAMES: tuple[str, ...] = (
+    "jpeg",
+    "cast",
+    "dim",
+    "gloss",
+    "shadow",
+    "clutter",
+    "gripper",
+    "distortion",
+    "depth",
+    "vga",
+    "wood",
+    "combo",
+)
+
+#: What each condition is, for help texts and reports.
+CONDITION_HELP: dict[str, str] = {
+    "jpeg": "colour saved as JPEG, quality 70-92",
+    "cast": "no white balance: tungsten (R x1.25-1.45, B x0.55-0.72) or blue cast",
+    "dim": "exposure 0.35-0.55 of normal, sensor noise sigma 6-10 levels",
+    "gloss": "glossy stickers: a lamp's mirror highlight on one sticker",
+    "shadow": "a robot arm's soft shadow across the napkin (35-60% of the light)",
+    "clutter": "3-6 saturated objects on the table (cups, boxes, caps, tape, a post-it)",
+    "gripper": "a dark gripper and arm 60-200 mm above the napkin",
+    "distortion": "uncorrected radial lens distortion k1 0.06-0.12",
+    "depth": "flying pixels, parallax holes, 1-3 px registration offset, 2-4 mm noise, "
+    "black mats without depth",
+    "vga": "640 x 480, fx = fy = 500, camera 600-850 mm",
+    "wood": "a light-wood table (saturation about 0.3, with grain)",
+    "combo": "three of the above at once",
+}
