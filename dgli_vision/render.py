@@ -323,11 +323,13 @@ def render(
     gid = hits["geometry_ids"]
     on_cloth = gid == scene.cloth_id
     on_table = gid == scene.table_id
-    hit_xy = pose.position[:2] + dirs[:, :2] * np.where(np.isfinite(t_hit), t_hit, 0)[:, None]
+    hit_xy = None  # world (x, y) of every hit, for the conditions that need it
+    if cond.wood_table or cond.shadow:
+        hit_xy = pose.position[:2] + dirs[:, :2] * np.where(np.isfinite(t_hit), t_hit, 0)[:, None]
 
     # Albedo (linear RGB) of every pixel.
     albedo = np.zeros((h * w, 3))
-    if cond.wood_table:
+    if hit_xy is not None and cond.wood_table:
         albedo[on_table] = wood_albedo(hit_xy[on_table], cond.seed)
     else:
         albedo[on_table] = lighting.table_rgb
@@ -345,7 +347,7 @@ def render(
     normals = hits["primitive_normals"].astype(np.float64)
     lambert = np.abs(normals @ light)
     shade = lighting.ambient + (1 - lighting.ambient) * lambert
-    if cond.shadow:
+    if hit_xy is not None and cond.shadow:
         shade = shade * shadow_factor(hit_xy, cond, state.mesh.xyz.mean(axis=0))
     linear = albedo * shade[:, None]
     spot = highlight_spot(cond, layout.sticker_uv, state.visible)
@@ -353,7 +355,8 @@ def render(
         centre, sigma, peak, _ = spot
         lobe = np.exp(-((cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
         linear[on_cloth] += (peak * lobe * (1 - tex[:, 3]))[:, None]
-    linear = linear * cond.exposure * np.asarray(cond.colour_gains)
+    if cond.exposure != 1.0 or cond.colour_gains != (1.0, 1.0, 1.0):
+        linear = linear * cond.exposure * np.asarray(cond.colour_gains)
     if sensor.enabled:
         exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
         gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
