@@ -370,7 +370,7 @@ def detect_stickers(
     med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
     disc_r_mm = layout.disc_diameter_mm / 2
     # Search at half resolution while stickers stay large enough there.
-    full_color = color
+    full_color, full_fx = color, intrinsics.fx
     halve = (
         bool(med_depth > 0)
         and (disc_r_mm * intrinsics.fx / med_depth >= 2 * params.search_radius_px)
@@ -460,7 +460,10 @@ def detect_stickers(
             where = (float(cu), float(cv))
         inside_colour = inside & (labels[y0:y1, x0:x1] > 0)
         area = area0
-        ratio = area / expected
+        # Halved, a blob loses about half a pixel of its rim to blending with the cloth;
+        # its area is judged again at full resolution (see ``take``).
+        rim = 0.5 if halve else 0.0
+        ratio = area / (np.pi * max(r_exp - rim, 1.0) ** 2)
         if ratio < params.min_area_ratio:
             rejected.append(
                 Rejection(
@@ -550,13 +553,25 @@ def detect_stickers(
     scores = np.zeros(n)
     depths = np.full(n, np.nan)
 
-    def take(sid: int, c: _Candidate, score: float) -> None:
+    def take(sid: int, c: _Candidate, score: float) -> bool:
+        where, area = c.where, c.area
         if halve:
-            centroids[sid], areas[sid] = _refine(full_color, napkin.lut, hue_lut, params, c)
-        else:
-            centroids[sid], areas[sid] = c.where, c.area
+            where, area = _refine(full_color, napkin.lut, hue_lut, params, c)
+            expected = np.pi * (disc_r_mm * full_fx / c.z_mm) ** 2
+            if area < params.min_area_ratio * expected:
+                rejected.append(
+                    Rejection(
+                        ((where[0] - 0.5) / 2, (where[1] - 0.5) / 2),
+                        area / 4,
+                        f"too small for a sticker at {c.z_mm:.0f} mm "
+                        f"({area / expected:.2f} of a disc at full resolution)",
+                    )
+                )
+                return False
+        centroids[sid], areas[sid] = where, area
         scores[sid] = score
         depths[sid] = c.z_mm
+        return True
 
     pending = []
     for c in sorted(candidates, key=lambda c: -c.score):
