@@ -44,6 +44,13 @@ def report_option(help_text: str) -> Callable[[F], F]:
     return click.option("--report", "report_dir", type=click.Path(file_okay=False), help=help_text)
 
 
+overwrite_option = click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Replace existing files that dgli did not write (never needed for its own output).",
+)
+
+
 def output_option(help_text: str) -> Callable[[F], F]:
     """``-o/--output FILE``: the file a command writes."""
     return click.option(
@@ -87,7 +94,10 @@ def _command_line() -> str:
         value = ctx.params.get(param.name)
         if isinstance(param, click.Argument):
             words.append(shlex.quote(str(value)))
-        elif value not in (None, False, ()) and value != param.default:
+        elif value is not None and value is not False and value != () and (
+            value != param.default
+            or ctx.get_parameter_source(param.name) == click.core.ParameterSource.COMMANDLINE
+        ):
             flag = max(param.opts, key=len)
             words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
     return " ".join(words)
@@ -118,8 +128,9 @@ def _progress(items: list, label: str):
 )
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the database.")
 @click.option("--no-wrinkles", is_flag=True, help="Fold cleanly, without wrinkles.")
+@overwrite_option
 @_handle_errors
-def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
+def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool, overwrite: bool) -> None:
     """Write a simulated database of cloth states to OUT (meshes, truth, index)."""
     from .cloth.states import CLASS_IDS
     from .database import simulate_states
@@ -138,7 +149,7 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
         "wrinkles": not no_wrinkles,
         "package_version": _package_version(),
     }
-    index = write_database(out, states, provenance)
+    index = write_database(out, states, provenance, overwrite=overwrite)
     click.echo(f"wrote {len(states)} states to {index}")
 
 
@@ -155,6 +166,7 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool) -> None:
 )
 @references_option
 @colours_option
+@overwrite_option
 @_handle_errors
 def evaluate(
     folder: str,
@@ -163,6 +175,7 @@ def evaluate(
     jobs: int | None,
     references_path: str | None,
     colours_path: str | None,
+    overwrite: bool,
 ) -> None:
     """Classify every labelled pair of FOLDER and report accuracy and confusions."""
     import os
@@ -172,15 +185,18 @@ def evaluate(
     from .io import (
         file_sha256,
         find_pairs,
+        guard_outputs,
         read_color,
         read_colours,
-        write_json,
-        write_png,
-        write_text,
+        write_outputs,
     )
     from .references import default_references_path, load_references
 
     pairs = find_pairs(folder)
+    if report_dir:  # fail before the work, not after it
+        guard_outputs(
+            [Path(report_dir) / n for n in ("report.md", "summary.json")], overwrite=overwrite
+        )
     refs_path = Path(references_path) if references_path else default_references_path()
     refs = load_references(refs_path)
     colours = read_colours(colours_path) if colours_path else None
@@ -227,13 +243,12 @@ def evaluate(
             "jobs": jobs,
         }
         out = Path(report_dir)
-        for name, content in build_report(result, meta, read_color).items():
-            if isinstance(content, str):
-                write_text(out / name, content)
-            elif isinstance(content, dict):
-                write_json(out / name, content)
-            else:
-                write_png(out / name, content)
+        files = build_report(result, meta, read_color)
+        write_outputs(
+            {out / name: content for name, content in files.items()},
+            overwrite=overwrite,
+            command=meta["command"],
+        )
         click.echo(f"report written to {out / 'report.md'}", err=True)
 
 
@@ -270,14 +285,24 @@ def _parse_conditions(
     + ", ".join(f"{k} ({v})" for k, v in CONDITION_HELP.items())
     + ".",
 )
+@overwrite_option
 @_handle_errors
 def render_cmd(
-    out: str, per_class: int, seed: int, clean: bool, nominal: bool, conditions: tuple[str, ...]
+    out: str,
+    per_class: int,
+    seed: int,
+    clean: bool,
+    nominal: bool,
+    conditions: tuple[str, ...],
+    overwrite: bool,
 ) -> None:
     """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4)."""
     from .cloth.states import CLASS_IDS
-    from .dataset import render_samples
-    from .io import write_labelled_folder
+    from .dataset import render_samples, sample_name
+    from .io import guard_outputs, labelled_folder_files, write_labelled_folder
+
+    names = [sample_name(c, k) for c in CLASS_IDS for k in range(per_class)]
+    guard_outputs(labelled_folder_files(out, names), overwrite=overwrite)  # before the work
 
     samples = []
     with _progress(list(CLASS_IDS), "rendering") as classes:
@@ -298,10 +323,10 @@ def render_cmd(
         "per_class": per_class,
         "clean": clean,
         "nominal": nominal,
-        "conditions": list(conditions),
+        **({"conditions": list(conditions)} if conditions else {}),
         "package_version": _package_version(),
     }
-    labels = write_labelled_folder(out, samples, provenance)
+    labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite)
     click.echo(f"wrote {len(samples)} pairs to {out} (labels: {labels})")
 
 
@@ -313,8 +338,9 @@ def references() -> None:
 @references.command("build")
 @click.argument("db", type=click.Path())
 @output_option("Reference file to write.")
+@overwrite_option
 @_handle_errors
-def references_build(db: str, output: str) -> None:
+def references_build(db: str, output: str, overwrite: bool) -> None:
     """Pick one representative per class and variant from the simulated database DB."""
     from .io import read_database, write_references
     from .references import build_references
@@ -328,7 +354,7 @@ def references_build(db: str, output: str) -> None:
         "method": "per (class, variant): the state nearest (Spearman) to the group centroid",
     }
     refs = build_references(records, provenance=provenance)
-    write_references(output, refs)
+    write_references(output, refs, overwrite=overwrite)
     click.echo(f"wrote {len(refs)} references from {len(records)} states to {output}")
 
 
@@ -344,8 +370,9 @@ def _sequence_records(name: str):
 @click.argument("db", type=click.Path())
 @report_option("Write the table and heatmaps here.")
 @json_option("Print the table as JSON.")
+@overwrite_option
 @_handle_errors
-def compare(db: str, report_dir: str | None, as_json: bool) -> None:
+def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> None:
     """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
 
     Columns: the database labelled by class, the three folding sequences labelled by
@@ -357,9 +384,11 @@ def compare(db: str, report_dir: str | None, as_json: bool) -> None:
     import numpy as np
 
     from .compare import davies_bouldin_table, distance_matrices
-    from .io import read_database, write_json, write_png, write_text
+    from .io import guard_outputs, read_database, write_outputs
     from .report import csv_table, heatmap_image, markdown_table
 
+    if report_dir:  # fail before the work, not after it
+        guard_outputs([Path(report_dir) / "table.json"], overwrite=overwrite)
     records, _ = read_database(db)
     keys = [f"{c}/{v or ''}" for c, v in zip(records.classes, records.variants)]
     order = np.argsort(np.asarray(keys), kind="stable")  # by class, then variant
@@ -382,21 +411,20 @@ def compare(db: str, report_dir: str | None, as_json: bool) -> None:
         click.echo(markdown_table(["representation", *columns], rows), nl=False)
     if report_dir:
         out = Path(report_dir)
-        write_json(out / "table.json", table)
-        write_text(
-            out / "table.md",
-            "# Davies-Bouldin index (lower is better)\n\n"
+        files: dict[Path, Any] = {
+            out / "table.json": table,
+            out / "table.md": "# Davies-Bouldin index (lower is better)\n\n"
             + markdown_table(["representation", *columns], rows),
-        )
-        write_text(out / "table.csv", csv_table(["representation", *columns], rows))
+            out / "table.csv": csv_table(["representation", *columns], rows),
+        }
         for name, mat in distance_matrices(records).items():
-            img = heatmap_image(
+            files[out / f"distances_{name}.png"] = heatmap_image(
                 mat,
                 title=f"{name}: distances, samples by class",
                 groups=records.classes,
                 value_label="distance",
             )
-            write_png(out / f"distances_{name}.png", img)
+        write_outputs(files, overwrite=overwrite, command=_command_line())
         click.echo(f"report written to {out}", err=True)
 
 
@@ -405,19 +433,26 @@ def compare(db: str, report_dir: str | None, as_json: bool) -> None:
 @references_option
 @report_option("Write the heatmap and frames here.")
 @json_option("Print a JSON object.")
+@overwrite_option
 @_handle_errors
 def sequence(
-    name: str, references_path: str | None, report_dir: str | None, as_json: bool
+    name: str,
+    references_path: str | None,
+    report_dir: str | None,
+    as_json: bool,
+    overwrite: bool,
 ) -> None:
     """Folding sequence NAME: frame distance matrix and detected state changes."""
     from pathlib import Path
 
     from .cloth.sequences import SEQUENCES
     from .compare import analyse_sequence
-    from .io import write_json, write_png
+    from .io import guard_outputs, write_outputs
     from .references import load_references
     from .report import heatmap_image
 
+    if report_dir:  # fail before the work, not after it
+        guard_outputs([Path(report_dir) / f"sequence_{name}.json"], overwrite=overwrite)
     refs = load_references(references_path)
     records = _sequence_records(name)
     result = analyse_sequence(records, refs)
@@ -444,14 +479,17 @@ def sequence(
         )
     if report_dir:
         out = Path(report_dir)
-        write_json(out / f"sequence_{name}.json", summary)
         img = heatmap_image(
             result.distances,
             title=f"sequence {name}: Spearman distance of dGLI",
             groups=result.truth,
             value_label="1 - rho",
         )
-        write_png(out / f"sequence_{name}.png", img)
+        write_outputs(
+            {out / f"sequence_{name}.json": summary, out / f"sequence_{name}.png": img},
+            overwrite=overwrite,
+            command=_command_line(),
+        )
 
 
 def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
@@ -538,6 +576,7 @@ def verdict_line(result: Any) -> str:
     type=click.Path(dir_okay=False),
     help="Write the image with stickers, segments and verdict.",
 )
+@overwrite_option
 @_handle_errors
 def classify_cmd(
     color: str,
@@ -547,16 +586,21 @@ def classify_cmd(
     colours_path: str | None,
     as_json: bool,
     overlay: str | None,
+    overwrite: bool,
 ) -> None:
     """Classify the cloth state in one colour + depth pair.
 
     Exit 1 when no class can be given: too few stickers seen, or a confidence below
     the documented threshold ("cannot tell", with the reason).
     """
-    from .io import read_colours, read_frame, write_png
+    from pathlib import Path
+
+    from .io import guard_outputs, read_colours, read_frame, write_outputs
     from .pipeline import classify_frame
     from .references import load_references
 
+    if overlay:
+        guard_outputs([overlay], overwrite=overwrite)
     frame = read_frame(color, depth, intrinsics)
     refs = load_references(references_path)
     colours = read_colours(colours_path) if colours_path else None
@@ -565,12 +609,10 @@ def classify_cmd(
         from .report import overlay_image
 
         detail = f"{int(result.observation.visible.sum())}/16 stickers"
-        write_png(
-            overlay,
-            overlay_image(
-                frame.color, result.detections.centroids, verdict_line(result), detail=detail
-            ),
+        image = overlay_image(
+            frame.color, result.detections.centroids, verdict_line(result), detail=detail
         )
+        write_outputs({Path(overlay): image}, overwrite=overwrite, command=_command_line())
     if as_json:
         click.echo(json.dumps(result_to_json(result, color, depth)))
     else:
@@ -594,17 +636,21 @@ def classify_main() -> None:
 @click.argument("depth", type=click.Path(dir_okay=False))
 @output_option("Colours file to write (JSON).")
 @intrinsics_option
+@overwrite_option
 @_handle_errors
-def calibrate(color: str, depth: str, output: str, intrinsics: str | None) -> None:
+def calibrate(
+    color: str, depth: str, output: str, intrinsics: str | None, overwrite: bool
+) -> None:
     """Measure the printed sticker colours from one image of the flat napkin.
 
     All 16 stickers must be in view. Use the result with --colours on classify and
     evaluate when stickers print far from the nominal colours.
     """
-    from .io import read_frame, write_colours
+    from .io import guard_outputs, read_frame, write_colours
     from .layout import default_layout
     from .perception.calibrate import calibrate_colours
 
+    guard_outputs([output], overwrite=overwrite)
     frame = read_frame(color, depth, intrinsics)
     colours = calibrate_colours(
         frame.color, frame.depth_mm, frame.intrinsics, default_layout(), source=color
@@ -613,6 +659,7 @@ def calibrate(color: str, depth: str, output: str, intrinsics: str | None) -> No
         output,
         colours,
         {"command": _command_line(), "package_version": _package_version()},
+        overwrite=overwrite,
     )
     for name, rgb in colours.items():
         click.echo(f"{name:<7} {rgb}")
@@ -641,6 +688,7 @@ def calibrate(color: str, depth: str, output: str, intrinsics: str | None) -> No
 )
 @references_option
 @json_option("Print the table as JSON.")
+@overwrite_option
 @_handle_errors
 def robustness(
     per_class: int,
@@ -650,18 +698,23 @@ def robustness(
     markdown: str | None,
     references_path: str | None,
     as_json: bool,
+    overwrite: bool,
 ) -> None:
     """Render fresh pairs under each capture condition and score the answers.
 
     Right, "cannot tell" (exit 1) and wrong, per condition: the robustness table.
     """
     import os
+    from pathlib import Path
 
     from .condition_names import CONDITION_NAMES
+    from .io import guard_outputs, write_outputs
     from .references import load_references
     from .report import markdown_table
     from .robustness import robustness_table, score_condition
 
+    if markdown:
+        guard_outputs([markdown], overwrite=overwrite)
     refs = load_references(references_path)
     names = conditions or ("clean", *CONDITION_NAMES)
     jobs = jobs or os.cpu_count() or 1
@@ -693,11 +746,11 @@ def robustness(
             for case in s.wrong_cases:
                 click.echo(f"wrong under {s.condition}: {case}")
     if markdown:
-        from .io import write_text
-
-        write_text(
-            markdown,
-            f"Robustness: `{_command_line()}`\n\n" + table,
+        command = _command_line()
+        write_outputs(
+            {Path(markdown): f"Robustness: `{command}`\n\n" + table},
+            overwrite=overwrite,
+            command=command,
         )
 
 
@@ -749,15 +802,26 @@ def _format_figure(value: float, unit: str) -> str:
     type=click.Path(file_okay=False),
     help="Labelled folder for the pipeline benchmarks.",
 )
+@overwrite_option
 @_handle_errors
-def bench(states: int, repeats: int, markdown: str | None, only: str | None, samples: str) -> None:
+def bench(
+    states: int,
+    repeats: int,
+    markdown: str | None,
+    only: str | None,
+    samples: str,
+    overwrite: bool,
+) -> None:
     """Measure the benchmark figures of DESIGN.md (one core where it says so)."""
     import platform
     import shutil
     from pathlib import Path
 
     from .bench import run_dgli_benchmarks, run_pipeline_benchmarks
+    from .io import guard_outputs, write_outputs
 
+    if markdown:
+        guard_outputs([markdown], overwrite=overwrite)
     results = []
     if only in (None, "dgli"):
         results += run_dgli_benchmarks(n_states=states, repeats=repeats)
@@ -772,8 +836,6 @@ def bench(states: int, repeats: int, markdown: str | None, only: str | None, sam
         rows.append((r.name, value, r.goal, verdict))
         click.echo(f"{r.name:<60} {value:>18}  {r.goal:<16} {verdict}")
     if markdown:
-        from .io import write_text
-
         lines = [
             "| benchmark | figure | goal | verdict |",
             "|---|---|---|---|",
@@ -782,4 +844,8 @@ def bench(states: int, repeats: int, markdown: str | None, only: str | None, sam
             f"Machine: {platform.machine()}, Python {platform.python_version()}, "
             f"numpy {__import__('numpy').__version__}.",
         ]
-        write_text(markdown, "\n".join(lines) + "\n")
+        write_outputs(
+            {Path(markdown): "\n".join(lines) + "\n"},
+            overwrite=overwrite,
+            command=_command_line(),
+        )

@@ -13,7 +13,7 @@ from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .conditions import Conditions, draw_conditions
 from .render import Lighting, RenderResult, SensorModel, render
 
-__all__ = ["RenderedSample", "random_camera", "render_sample", "render_samples"]
+__all__ = ["RenderedSample", "random_camera", "render_sample", "render_samples", "sample_name"]
 
 #: Nominal scene of SPEC section 4: straight down from 520 mm.
 NOMINAL_HEIGHT_M = 0.52
@@ -128,6 +128,11 @@ def render_samples(
             )
 
 
+def sample_name(class_id: str, k: int) -> str:
+    """Name of sample ``k`` of a class in a rendered folder (``"05_003"``)."""
+    return f"{class_id}_{k:03d}"
+
+
 def render_sample(
     class_id: str,
     k: int,
@@ -160,4 +165,4 @@ def render_sample(
         rng=rng,
         conditions=cond,
     )
-    return RenderedSample(f"{class_id}_{k:03d}", state, result, camera, lighting, cond)
+    return RenderedSample(sample_name(class_id, k), state, result, camera, lighting, cond)

@@ -11,6 +11,7 @@ __all__ = [
     "DetectionError",
     "DgliError",
     "InvalidInputError",
+    "OverwriteError",
     "ReferenceError_",
     "UnreadableInputError",
 ]
@@ -43,3 +44,7 @@ class DetectionError(DgliError):
 
 class ReferenceError_(DgliError):
     """The reference set is missing, malformed or incompatible."""
+
+
+class OverwriteError(DgliError):
+    """A command would replace a file it did not write (exit code 2; ``--overwrite``)."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -12,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .camera import DEFAULT_INTRINSICS, Intrinsics
-from .errors import CalibrationError, InvalidInputError, UnreadableInputError
+from .errors import CalibrationError, InvalidInputError, OverwriteError, UnreadableInputError
 from .references import ReferenceSet, references_from_dict, references_to_dict
 
 if TYPE_CHECKING:
@@ -24,6 +25,8 @@ __all__ = [
     "RGBDFrame",
     "file_sha256",
     "find_pairs",
+    "guard_outputs",
+    "labelled_folder_files",
     "parse_intrinsics",
     "read_color",
     "read_database",
@@ -33,12 +36,14 @@ __all__ = [
     "read_json",
     "read_mesh_ply",
     "read_references",
+    "record_outputs",
     "write_color",
     "write_database",
     "write_depth",
     "write_json",
     "write_labelled_folder",
     "write_mesh_ply",
+    "write_outputs",
     "write_png",
     "write_references",
     "write_text",
@@ -125,22 +130,123 @@ def file_sha256(path: str | Path) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
+# --- what the tool wrote: never replace a user's file ----------------------------------
+
+#: Each folder a command writes into keeps this record of the files the tool wrote there
+#: and their checksums; a file listed with the checksum it still has may be replaced.
+MANIFEST_NAME = ".dgli-outputs.json"
+MANIFEST_FORMAT = "dgli-outputs"
+
+
+def _manifest(folder: Path) -> dict[str, Any]:
+    path = folder / MANIFEST_NAME
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT:
+        return {}
+    files = data.get("files")
+    return files if isinstance(files, dict) else {}
+
+
+def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> None:
+    """Refuse to replace an existing file that dgli did not write.
+
+    A file may be replaced when it does not exist, when ``overwrite`` is set, or when the
+    record of its folder (:data:`MANIFEST_NAME`, kept by :func:`record_outputs`) lists it
+    with the checksum it still has: the tool's own earlier output, untouched since.
+
+    Raises
+    ------
+    OverwriteError
+        Naming the first file that would be replaced.
+    """
+    manifests: dict[Path, dict[str, Any]] = {}
+    for path in paths:
+        p = Path(path)
+        if p.is_dir():
+            raise OverwriteError(f"'{p}' is a directory; expected a file to write")
+        if overwrite or not p.exists():
+            continue
+        folder = p.parent
+        if folder not in manifests:
+            manifests[folder] = _manifest(folder)
+        entry = manifests[folder].get(p.name)
+        if isinstance(entry, dict) and entry.get("sha256") == file_sha256(p):
+            continue
+        raise OverwriteError(
+            f"refusing to replace '{p}': dgli did not write it (or it was changed since); "
+            "use --overwrite to replace it"
+        )
+
+
+def record_outputs(paths: Iterable[str | Path], command: str) -> None:
+    """Add written files, with their checksums and the command, to their folders' records."""
+    by_folder: dict[Path, list[Path]] = {}
+    for path in paths:
+        p = Path(path)
+        by_folder.setdefault(p.parent, []).append(p)
+    for folder, files in by_folder.items():
+        listed = _manifest(folder)
+        for p in files:
+            if p.is_file():
+                listed[p.name] = {"sha256": file_sha256(p), "command": command}
+        write_json(
+            folder / MANIFEST_NAME,
+            {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
+        )
+
+
+def write_outputs(
+    files: dict[Path, str | dict | NDArray[np.uint8]], *, overwrite: bool, command: str
+) -> None:
+    """Write a set of report files (text, JSON or a BGR image each), after checking with
+    :func:`guard_outputs` that none replaces a user's file, and record them."""
+    guard_outputs(files, overwrite=overwrite)
+    for path, content in files.items():
+        if isinstance(content, str):
+            write_text(path, content)
+        elif isinstance(content, dict):
+            write_json(path, content)
+        else:
+            write_png(path, content)
+    record_outputs(files, command)
+
+
 # --- simulated databases -------------------------------------------------------------
 
 DB_FORMAT = "dgli-simulated-db"
 
 
 def write_database(
-    out: str | Path, states: list[tuple[str, ClothState]], provenance: dict[str, Any]
+    out: str | Path,
+    states: list[tuple[str, ClothState]],
+    provenance: dict[str, Any],
+    *,
+    overwrite: bool = False,
 ) -> Path:
     """Write states as ``meshes/<id>.ply``, ``truth/<id>.json`` and ``index.json``.
+
+    Existing files are replaced only if dgli wrote them or with ``overwrite``
+    (:func:`guard_outputs`).
 
     Returns
     -------
     Path
         The index file.
+
+    Raises
+    ------
+    OverwriteError
     """
     root = Path(out)
+    planned = [
+        *(root / "meshes" / f"{sid}.ply" for sid, _ in states),
+        *(root / "truth" / f"{sid}.json" for sid, _ in states),
+        root / "index.json",
+    ]
+    guard_outputs(planned, overwrite=overwrite)
     entries = []
     triangles = None
     for sid, state in states:
@@ -174,6 +280,7 @@ def write_database(
     write_json(
         index, {"format": DB_FORMAT, "version": 1, "provenance": provenance, "states": entries}
     )
+    record_outputs(planned, str(provenance.get("command", "")))
     return index
 
 
@@ -236,18 +343,27 @@ def read_references(path: str | Path) -> ReferenceSet:
     return references_from_dict(read_json(path, what="reference set"), source=str(path))
 
 
-def write_references(path: str | Path, refs: ReferenceSet) -> None:
-    """Write a reference set as JSON."""
+def write_references(path: str | Path, refs: ReferenceSet, *, overwrite: bool = False) -> None:
+    """Write a reference set as JSON (replacing a file only if dgli wrote it, or with
+    ``overwrite``)."""
+    guard_outputs([path], overwrite=overwrite)
     write_json(path, references_to_dict(refs))
+    record_outputs([path], str(refs.provenance.get("command", "")))
 
 
 COLOURS_FORMAT = "dgli-colours"
 
 
 def write_colours(
-    path: str | Path, colours: dict[str, tuple[int, int, int]], provenance: dict[str, Any]
+    path: str | Path,
+    colours: dict[str, tuple[int, int, int]],
+    provenance: dict[str, Any],
+    *,
+    overwrite: bool = False,
 ) -> None:
-    """Write calibrated sticker colours (``dgli calibrate``) as JSON."""
+    """Write calibrated sticker colours (``dgli calibrate``) as JSON (replacing a file
+    only if dgli wrote it, or with ``overwrite``)."""
+    guard_outputs([path], overwrite=overwrite)
     write_json(
         path,
         {
@@ -258,6 +374,7 @@ def write_colours(
             "provenance": provenance,
         },
     )
+    record_outputs([path], str(provenance.get("command", "")))
 
 
 def read_colours(path: str | Path) -> dict[str, tuple[int, int, int]]:
@@ -523,14 +640,31 @@ def write_depth(path: str | Path, depth_mm: NDArray[np.uint16]) -> None:
     write_png(path, depth_mm)
 
 
-def write_labelled_folder(out: str | Path, samples: list, provenance: dict[str, Any]) -> Path:
+def labelled_folder_files(out: str | Path, names: Iterable[str]) -> list[Path]:
+    """The files :func:`write_labelled_folder` writes for samples of these names."""
+    root = Path(out)
+    pairs = [root / f"{n}_{kind}.png" for n in names for kind in ("color", "depth")]
+    return [*pairs, root / "intrinsics.json", root / "labels.csv", root / "truth.json"]
+
+
+def write_labelled_folder(
+    out: str | Path, samples: list, provenance: dict[str, Any], *, overwrite: bool = False
+) -> Path:
     """Write rendered samples as a labelled folder (SPEC section 4) with ``truth.json``.
 
     ``samples`` are :class:`~dgli_vision.dataset.RenderedSample`; writes
     ``<name>_color.png``, ``<name>_depth.png``, ``intrinsics.json`` (of the first sample;
-    all must share it), ``labels.csv`` and ``truth.json``. Returns the labels file.
+    all must share it), ``labels.csv`` and ``truth.json``. Existing files are replaced
+    only if dgli wrote them or with ``overwrite`` (:func:`guard_outputs`). Returns the
+    labels file.
+
+    Raises
+    ------
+    OverwriteError
     """
     root = Path(out)
+    planned = labelled_folder_files(root, [s.name for s in samples])
+    guard_outputs(planned, overwrite=overwrite)
     rows = []
     truth = {}
     intr = None
@@ -563,6 +697,7 @@ def write_labelled_folder(out: str | Path, samples: list, provenance: dict[str, 
     labels = root / "labels.csv"
     write_text(labels, csv_table(["color", "depth", "label", "variant"], rows))
     write_json(root / "truth.json", {"provenance": provenance, "images": truth})
+    record_outputs(planned, str(provenance.get("command", "")))
     return labels
 
 

@@ -1,0 +1,116 @@
+"""Nothing lost: no command replaces a file it did not write, unless told --overwrite."""
+
+from __future__ import annotations
+
+import hashlib
+import shutil
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+from dgli_vision.cli import classify_cmd, main
+from dgli_vision.errors import OverwriteError
+from dgli_vision.io import MANIFEST_NAME, guard_outputs, record_outputs, write_text
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
+
+
+def checksums(folder: Path) -> dict[str, str]:
+    return {
+        str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.rglob("*"))
+        if p.is_file()
+    }
+
+
+@pytest.fixture()
+def user_folder(tmp_path: Path) -> Path:
+    """A folder of the user's own files, named as the commands' outputs would be."""
+    folder = tmp_path / "mine"
+    names = [
+        "01_000_color.png",  # render
+        "labels.csv",
+        "index.json",  # simulate
+        "refs.json",  # references build -o
+        "colours.json",  # calibrate -o
+        "report.md",  # evaluate --report
+        "table.json",  # compare --report
+        "sequence_I.json",  # sequence --report
+        "overlay.png",  # classify --overlay
+        "bench.md",  # bench --markdown
+        "robustness.md",  # robustness --markdown
+    ]
+    for name in names:
+        write_text(folder / name, f"the user's own {name}\n")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def database(tmp_path_factory) -> Path:
+    db = tmp_path_factory.mktemp("db")
+    res = CliRunner().invoke(main, ["simulate", str(db), "--per-class", "1"])
+    assert res.exit_code == 0, res.output
+    return db
+
+
+def test_no_writing_command_replaces_a_users_file(user_folder, database):
+    before = checksums(user_folder)
+    color, depth = str(SAMPLES / "01_000_color.png"), str(SAMPLES / "01_000_depth.png")
+    f = str(user_folder)
+    commands = [
+        (main, ["render", f, "--per-class", "1"], "01_000_color.png"),
+        (main, ["simulate", f, "--per-class", "1"], "index.json"),
+        (main, ["references", "build", str(database), "-o", f + "/refs.json"], "refs.json"),
+        (main, ["calibrate", color, depth, "-o", f + "/colours.json"], "colours.json"),
+        (main, ["evaluate", str(SAMPLES), "--report", f, "-j", "1"], "report.md"),
+        (main, ["compare", str(database), "--report", f], "table.json"),
+        (main, ["sequence", "I", "--report", f], "sequence_I.json"),
+        (classify_cmd, [color, depth, "--overlay", f + "/overlay.png"], "overlay.png"),
+        (main, ["bench", "--only", "dgli", "--markdown", f + "/bench.md"], "bench.md"),
+        (
+            main,
+            ["robustness", "--per-class", "1", "--markdown", f + "/robustness.md"],
+            "robustness.md",
+        ),
+    ]
+    for cmd, argv, victim in commands:
+        res = CliRunner().invoke(cmd, argv)
+        assert res.exit_code == 2, (argv, res.output)
+        lines = res.output.strip().splitlines()
+        assert lines[-1].startswith("error: refusing to replace"), (argv, res.output)
+        assert victim in lines[-1] and "--overwrite" in lines[-1]
+        assert "Traceback" not in res.output
+    assert checksums(user_folder) == before
+
+
+def test_overwrite_replaces_and_own_output_needs_no_flag(tmp_path):
+    folder = tmp_path / "set"
+    write_text(folder / "labels.csv", "color,depth,label\n")
+    args = ["render", str(folder), "--per-class", "1", "--clean"]
+    assert CliRunner().invoke(main, args).exit_code == 2
+    res = CliRunner().invoke(main, [*args, "--overwrite"])
+    assert res.exit_code == 0, res.output
+    assert "01_000_color.png" in (folder / "labels.csv").read_text()
+    # the tool's own output, untouched since, is replaced without the flag
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    # but not once the user has edited it
+    (folder / "labels.csv").write_text("color,depth,label\nmine.png,mine_d.png,01\n")
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2 and "labels.csv" in res.output
+
+
+def test_the_record_lists_what_was_written_with_checksums(tmp_path):
+    out = tmp_path / "a.txt"
+    write_text(out, "x\n")
+    with pytest.raises(OverwriteError, match=r"a\.txt"):
+        guard_outputs([out])
+    record_outputs([out], "dgli test")
+    guard_outputs([out])  # now it is the tool's own
+    assert (tmp_path / MANIFEST_NAME).is_file()
+    shutil.copy(out, tmp_path / "b.txt")
+    with pytest.raises(OverwriteError, match=r"b\.txt"):
+        guard_outputs([tmp_path / "b.txt"])
+    with pytest.raises(OverwriteError, match="is a directory"):
+        guard_outputs([tmp_path])
