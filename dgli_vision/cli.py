@@ -166,6 +166,12 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool, overwrite: 
 )
 @references_option
 @colours_option
+@click.option(
+    "--lenient",
+    is_flag=True,
+    help="Skip (and list) label rows with an unknown class or variant, or repeated, "
+    "instead of stopping.",
+)
 @overwrite_option
 @_handle_errors
 def evaluate(
@@ -175,16 +181,22 @@ def evaluate(
     jobs: int | None,
     references_path: str | None,
     colours_path: str | None,
+    lenient: bool,
     overwrite: bool,
 ) -> None:
-    """Classify every labelled pair of FOLDER and report accuracy and confusions."""
+    """Classify every labelled pair of FOLDER and report accuracy and confusions.
+
+    Labels are checked first: an unknown class or variant, or a pair listed twice,
+    stops the run (exit 2) unless --lenient; pairs that cannot be read are listed with
+    their error and the run goes on.
+    """
     import os
     from pathlib import Path
 
     from .evaluate import timed_evaluation
     from .io import (
         file_sha256,
-        find_pairs,
+        find_labelled_pairs,
         guard_outputs,
         read_color,
         read_colours,
@@ -192,7 +204,10 @@ def evaluate(
     )
     from .references import default_references_path, load_references
 
-    pairs = find_pairs(folder)
+    pairs, problems = find_labelled_pairs(folder, lenient=lenient)
+    for problem in problems:
+        if problem.kind != "missing file":  # those are listed with the failures
+            click.echo(f"skipped: {problem.message}", err=True)
     if report_dir:  # fail before the work, not after it
         guard_outputs(
             [Path(report_dir) / n for n in ("report.md", "summary.json")], overwrite=overwrite
@@ -208,8 +223,9 @@ def evaluate(
             )
     else:
         result = timed_evaluation(pairs, refs, jobs=jobs, colours=colours)
+    skipped = [p.message for p in problems if p.kind != "missing file"]
     if as_json:
-        click.echo(json.dumps(result.to_dict()))
+        click.echo(json.dumps({**result.to_dict(), "skipped": skipped}))
     else:
         from .report import markdown_table
 
@@ -241,6 +257,7 @@ def evaluate(
             "references_sha256": file_sha256(refs_path),
             "package_version": _package_version(),
             "jobs": jobs,
+            "skipped": skipped,
         }
         out = Path(report_dir)
         files = build_report(result, meta, read_color)

@@ -88,7 +88,8 @@ def _classify_pair(
         frame = read_frame(pair.color, pair.depth, threads=False)  # one pair per core
         result = classify_frame(frame, refs, colours=colours)
     except DgliError as exc:
-        return PairOutcome(pair, error=str(exc))
+        where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
+        return PairOutcome(pair, error=f"{exc}{where}")
     p = result.prediction
     coords = tuple(float(v) for v in result.coordinates)
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)

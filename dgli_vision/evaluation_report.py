@@ -155,6 +155,10 @@ def build_report(
         )
     else:
         md.append("None.\n")
+    if meta.get("skipped"):
+        md += ["## Label rows skipped (--lenient)", ""]
+        md += [f"- {message}" for message in meta["skipped"]]
+        md.append("")
     if "distances.png" in files:
         md += [
             "## Distances between all evaluated samples",

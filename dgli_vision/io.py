@@ -21,9 +21,11 @@ if TYPE_CHECKING:
     from .database import StateRecords
 
 __all__ = [
+    "LabelProblem",
     "LabelledPair",
     "RGBDFrame",
     "file_sha256",
+    "find_labelled_pairs",
     "find_pairs",
     "guard_outputs",
     "labelled_folder_files",
@@ -706,27 +708,122 @@ def write_labelled_folder(
 
 @dataclass(frozen=True)
 class LabelledPair:
-    """One colour + depth pair of a labelled folder, with its true class and variant."""
+    """One colour + depth pair of a labelled folder, with its true class and variant.
+
+    ``line`` is the pair's line in ``labels.csv`` (None for class folders).
+    """
 
     color: str
     depth: str
     label: str
     variant: str | None = None
+    line: int | None = None
+
+
+@dataclass(frozen=True)
+class LabelProblem:
+    """A row of a labelled folder that cannot be used as it stands.
+
+    Attributes
+    ----------
+    where : str
+        ``labels.csv line 7`` or the pair's colour path (class folders).
+    kind : str
+        ``"unknown class"``, ``"unknown variant"``, ``"duplicate"`` or ``"missing file"``.
+    message : str
+        One line saying what is wrong.
+    """
+
+    where: str
+    kind: str
+    message: str
 
 
 def find_pairs(folder: str | Path) -> list[LabelledPair]:
-    """The labelled pairs of a folder (SPEC section 4), sorted by colour path.
-
-    Labels come from ``labels.csv`` (``color,depth,label[,variant]``, paths relative to
-    the folder) or, without it, from the first directory level below the folder, whose
-    name starts with the class id (``02_corner-over/...``); pairs are
-    ``<name>_color.png`` + ``<name>_depth.png``. A colour image without its depth image is
-    still listed (reading it will fail and be reported).
+    """The labelled pairs of a folder, strictly checked (see :func:`find_labelled_pairs`).
 
     Raises
     ------
     UnreadableInputError, InvalidInputError
-        The folder is missing, or ``labels.csv`` is malformed, or no pair is found.
+    """
+    return find_labelled_pairs(folder)[0]
+
+
+def _check_labels(
+    pairs: list[LabelledPair], where: list[str]
+) -> tuple[list[LabelledPair], list[LabelProblem]]:
+    """Split pairs into usable ones and problems (unknown class or variant, duplicates,
+    missing files). Pairs with missing files stay usable: reading them fails and is
+    reported with the batch."""
+    from .classes import CLASS_NAMES, VARIANTS
+
+    keep, problems = [], []
+    seen: dict[tuple[str, str], str] = {}
+    for pair, at in zip(pairs, where):
+        if pair.label not in CLASS_NAMES:
+            problems.append(
+                LabelProblem(
+                    at,
+                    "unknown class",
+                    f"{at}: class {pair.label!r} is not one of 01-12",
+                )
+            )
+            continue
+        if pair.variant is not None and pair.variant not in VARIANTS[pair.label]:
+            allowed = ", ".join(v or "(none)" for v in VARIANTS[pair.label])
+            problems.append(
+                LabelProblem(
+                    at,
+                    "unknown variant",
+                    f"{at}: variant {pair.variant!r} is not one of class {pair.label}'s "
+                    f"({allowed})",
+                )
+            )
+            continue
+        key = (str(Path(pair.color).resolve()), str(Path(pair.depth).resolve()))
+        if key in seen:
+            problems.append(
+                LabelProblem(at, "duplicate", f"{at}: the same pair as {seen[key]}")
+            )
+            continue
+        seen[key] = at
+        for kind, path in (("colour image", pair.color), ("depth image", pair.depth)):
+            if not Path(path).is_file():
+                problems.append(
+                    LabelProblem(at, "missing file", f"{at}: {kind} '{path}' does not exist")
+                )
+                break
+        keep.append(pair)
+    return keep, problems
+
+
+def find_labelled_pairs(
+    folder: str | Path, *, lenient: bool = False
+) -> tuple[list[LabelledPair], list[LabelProblem]]:
+    """The labelled pairs of a folder (SPEC section 4), sorted by colour path, and the
+    problems found in its labels.
+
+    Labels come from ``labels.csv`` (``color,depth,label[,variant]``, paths relative to
+    the folder) or, without it, from the first directory level below the folder, whose
+    name starts with the class id (``02_corner-over/...``); pairs are
+    ``<name>_color.png`` + ``<name>_depth.png``.
+
+    Every row is checked: an unknown class id, a variant the class does not have, or a
+    pair listed twice is an error unless ``lenient``, which skips the row and lists it;
+    a row whose files are missing is listed and kept (reading it fails, and a batch
+    reports it among its failures).
+
+    Returns
+    -------
+    pairs : list of LabelledPair
+    problems : list of LabelProblem
+        Each problem once, by line of ``labels.csv`` (or by pair for class folders).
+
+    Raises
+    ------
+    UnreadableInputError, InvalidInputError
+        The folder is missing, ``labels.csv`` is malformed, no pair is found, or (not
+        ``lenient``) a row has an unknown class or variant or repeats another.
     """
     import csv
 
@@ -735,6 +832,7 @@ def find_pairs(folder: str | Path) -> list[LabelledPair]:
         raise UnreadableInputError(f"folder '{root}' does not exist or is not a directory")
     labels = root / "labels.csv"
     pairs = []
+    where = []
     if labels.is_file():
         try:
             with labels.open(newline="", encoding="utf-8") as fh:
@@ -756,8 +854,10 @@ def find_pairs(folder: str | Path) -> list[LabelledPair]:
                             str(root / row["depth"]),
                             label.zfill(2),
                             variant,
+                            k,
                         )
                     )
+                    where.append(f"'{labels}' line {k}")
         except (OSError, UnicodeDecodeError, csv.Error) as exc:
             raise UnreadableInputError(f"cannot read labels file '{labels}': {exc}") from None
     else:
@@ -771,9 +871,17 @@ def find_pairs(folder: str | Path) -> list[LabelledPair]:
                 continue
             depth = color.with_name(color.name[: -len("_color.png")] + "_depth.png")
             pairs.append(LabelledPair(str(color), str(depth), label))
+            where.append(f"'{color}'")
     if not pairs:
         raise InvalidInputError(
             f"folder '{root}' holds no labelled pairs (no labels.csv and no "
             "<class>_*/<name>_color.png files)"
         )
-    return sorted(pairs, key=lambda p: p.color)
+    pairs, problems = _check_labels(pairs, where)
+    fatal = [p for p in problems if p.kind != "missing file"]
+    if fatal and not lenient:
+        more = f" (and {len(fatal) - 1} more)" if len(fatal) > 1 else ""
+        raise InvalidInputError(f"{fatal[0].message}{more}; fix the labels or use --lenient")
+    if not pairs:
+        raise InvalidInputError(f"folder '{root}' holds no usable labelled pairs")
+    return sorted(pairs, key=lambda p: p.color), problems

@@ -114,3 +114,48 @@ def test_the_record_lists_what_was_written_with_checksums(tmp_path):
         guard_outputs([tmp_path / "b.txt"])
     with pytest.raises(OverwriteError, match="is a directory"):
         guard_outputs([tmp_path])
+
+
+def _labelled(tmp_path: Path, rows: list[str]) -> Path:
+    folder = tmp_path / "set"
+    folder.mkdir()
+    for name in ("01_000", "02_000"):
+        for kind in ("color", "depth"):
+            shutil.copy(SAMPLES / f"{name}_{kind}.png", folder / f"{name}_{kind}.png")
+    shutil.copy(SAMPLES / "intrinsics.json", folder / "intrinsics.json")
+    (folder / "labels.csv").write_text("color,depth,label,variant\n" + "\n".join(rows) + "\n")
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("02_000_color.png,02_000_depth.png,13,", "line 3: class '13' is not one of 01-12"),
+        ("02_000_color.png,02_000_depth.png,02,AB", "line 3: variant 'AB' is not one of"),
+        ("01_000_color.png,01_000_depth.png,01,", "line 3: the same pair as"),
+    ],
+)
+def test_bad_label_rows_stop_the_run_unless_lenient(tmp_path, row, message):
+    folder = _labelled(tmp_path, ["01_000_color.png,01_000_depth.png,01,", row])
+    res = CliRunner().invoke(main, ["evaluate", str(folder), "-j", "1"])
+    assert res.exit_code == 2 and message in res.output and "--lenient" in res.output
+    assert "Traceback" not in res.output
+    res = CliRunner().invoke(main, ["evaluate", str(folder), "-j", "1", "--lenient", "--json"])
+    assert res.exit_code == 0, res.output
+    out = res.output.strip().splitlines()
+    data = __import__("json").loads(out[-1])
+    assert data["n"] == 1 and len(data["skipped"]) == 1 and message in data["skipped"][0]
+    assert sum(message in line for line in out) == 2  # listed once on stderr, once in JSON
+
+
+def test_a_row_with_a_missing_file_is_reported_once_with_its_line(tmp_path):
+    folder = _labelled(
+        tmp_path,
+        ["01_000_color.png,01_000_depth.png,01,", "gone_color.png,gone_depth.png,02,A"],
+    )
+    res = CliRunner().invoke(main, ["evaluate", str(folder), "-j", "1", "--json"])
+    assert res.exit_code == 0, res.output
+    data = __import__("json").loads(res.output.strip().splitlines()[-1])
+    (failure,) = data["failures"]
+    assert "does not exist" in failure["error"] and "line 3" in failure["error"]
+    assert data["skipped"] == []
