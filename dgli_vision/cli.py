@@ -112,6 +112,42 @@ def _package_version() -> str:
         return "unknown"
 
 
+def _pair_key(pair: Any) -> tuple[str, str]:
+    from pathlib import Path
+
+    return str(Path(pair.color).resolve()), str(Path(pair.depth).resolve())
+
+
+def _earlier_outcomes(path: Any, pairs: list) -> dict[tuple[str, str], Any]:
+    """Outcomes of ``pairs`` already in a results.jsonl (malformed lines left out)."""
+    from .evaluate import outcome_from_dict
+    from .io import read_jsonl
+
+    wanted = {_pair_key(p) for p in pairs}
+    done = {}
+    for item in read_jsonl(path):
+        try:
+            outcome = outcome_from_dict(item)
+        except (KeyError, TypeError, ValueError):
+            continue
+        if _pair_key(outcome.pair) in wanted:
+            done[_pair_key(outcome.pair)] = outcome
+    return done
+
+
+def _progress_bar(length: int, label: str, *, quiet: bool = False):
+    """A progress bar on a terminal; an object that ignores updates otherwise."""
+    if sys.stderr.isatty() and not quiet:
+        return click.progressbar(length=length, label=label, file=sys.stderr)
+    from contextlib import nullcontext
+
+    class _Silent:
+        def update(self, n: int) -> None:
+            pass
+
+    return nullcontext(_Silent())
+
+
 def _progress(items: list, label: str):
     """A progress bar on a terminal; the plain iterable otherwise."""
     if sys.stderr.isatty():
@@ -172,6 +208,12 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool, overwrite: 
     help="Skip (and list) label rows with an unknown class or variant, or repeated, "
     "instead of stopping.",
 )
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted run: keep the pairs already in the report folder's "
+    "results.jsonl and classify the rest.",
+)
 @overwrite_option
 @_handle_errors
 def evaluate(
@@ -182,24 +224,31 @@ def evaluate(
     references_path: str | None,
     colours_path: str | None,
     lenient: bool,
+    resume: bool,
     overwrite: bool,
 ) -> None:
     """Classify every labelled pair of FOLDER and report accuracy and confusions.
 
     Labels are checked first: an unknown class or variant, or a pair listed twice,
     stops the run (exit 2) unless --lenient; pairs that cannot be read are listed with
-    their error and the run goes on.
+    their error and the run goes on. With --report, each pair's result is appended to
+    results.jsonl as it is done; Ctrl-C writes the report of what is done and exits 130,
+    and --resume goes on from there, giving the same report as an uninterrupted run.
     """
     import os
+    import time
     from pathlib import Path
 
-    from .evaluate import timed_evaluation
+    from .errors import InvalidInputError, OverwriteError
+    from .evaluate import evaluate_pairs, outcome_to_dict, summarise
     from .io import (
+        JsonLinesWriter,
         file_sha256,
         find_labelled_pairs,
         guard_outputs,
         read_color,
         read_colours,
+        record_outputs,
         write_outputs,
     )
     from .references import default_references_path, load_references
@@ -208,21 +257,44 @@ def evaluate(
     for problem in problems:
         if problem.kind != "missing file":  # those are listed with the failures
             click.echo(f"skipped: {problem.message}", err=True)
+    if resume and not report_dir:
+        raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
     if report_dir:  # fail before the work, not after it
         guard_outputs(
             [Path(report_dir) / n for n in ("report.md", "summary.json")], overwrite=overwrite
         )
+        earlier = Path(report_dir) / "results.jsonl"
+        if earlier.exists() and not (resume or overwrite):
+            raise OverwriteError(
+                f"'{earlier}' holds the results of an earlier run; use --resume to go on "
+                "with it, or --overwrite to start again"
+            )
     refs_path = Path(references_path) if references_path else default_references_path()
     refs = load_references(refs_path)
     colours = read_colours(colours_path) if colours_path else None
     jobs = jobs or os.cpu_count() or 1
-    if sys.stderr.isatty() and not as_json:
-        with click.progressbar(length=len(pairs), label="classifying", file=sys.stderr) as bar:
-            result = timed_evaluation(
-                pairs, refs, jobs=jobs, on_progress=bar.update, colours=colours
-            )
-    else:
-        result = timed_evaluation(pairs, refs, jobs=jobs, colours=colours)
+    results_path = Path(report_dir) / "results.jsonl" if report_dir else None
+    done = _earlier_outcomes(results_path, pairs) if resume and results_path else {}
+    todo = [p for p in pairs if _pair_key(p) not in done]
+    writer = JsonLinesWriter(results_path, append=resume) if results_path else None
+    interrupted = False
+    t0 = time.perf_counter()
+    try:
+        with _progress_bar(len(todo), "classifying", quiet=as_json) as bar:
+            if todo:
+                for outcome in evaluate_pairs(
+                    todo, refs, jobs=jobs, on_progress=bar.update, colours=colours
+                ):
+                    if writer:  # flushed at once: an interrupted run keeps its work
+                        writer.write(outcome_to_dict(outcome))
+                    done[_pair_key(outcome.pair)] = outcome
+    except KeyboardInterrupt:
+        interrupted = True
+    finally:
+        if writer:
+            writer.close()
+    outcomes = [done[_pair_key(p)] for p in pairs if _pair_key(p) in done]
+    result = summarise(outcomes, time.perf_counter() - t0)
     skipped = [p.message for p in problems if p.kind != "missing file"]
     if as_json:
         click.echo(json.dumps({**result.to_dict(), "skipped": skipped}))
@@ -263,10 +335,18 @@ def evaluate(
         files = build_report(result, meta, read_color)
         write_outputs(
             {out / name: content for name, content in files.items()},
-            overwrite=overwrite,
+            overwrite=overwrite or resume,
             command=meta["command"],
         )
+        record_outputs([out / "results.jsonl"], meta["command"])
         click.echo(f"report written to {out / 'report.md'}", err=True)
+    if interrupted:
+        click.echo(
+            f"interrupted: {len(outcomes)} of {len(pairs)} pairs done"
+            + ("; go on with the same command and --resume" if report_dir else ""),
+            err=True,
+        )
+        sys.exit(130)
 
 
 def _parse_conditions(

@@ -26,6 +26,8 @@ __all__ = [
     "PairOutcome",
     "coordinate_matrix",
     "evaluate_pairs",
+    "outcome_from_dict",
+    "outcome_to_dict",
     "summarise",
     "timed_evaluation",
 ]
@@ -66,9 +68,17 @@ _WORKER_COLOURS: dict | None = None
 
 
 def _init_worker(refs: ReferenceSet, colours: dict | None = None) -> None:
-    """Each worker is one of ``jobs`` processes: keep it to one thread (no oversubscription)."""
+    """Each worker is one of ``jobs`` processes: keep it to one thread (no oversubscription).
+
+    Workers ignore Ctrl-C: the parent stops the batch and lets running pairs finish, so a
+    terminal's interrupt (sent to the whole process group) leaves no half-written state
+    and no worker tracebacks.
+    """
+    import signal
+
     import cv2
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     global _WORKER_REFS, _WORKER_COLOURS
     _WORKER_REFS = refs
     _WORKER_COLOURS = colours
@@ -146,13 +156,16 @@ def evaluate_pairs(
     # Spawned, not forked: the parent may hold OpenCV, Open3D or decoding threads, and a
     # forked child inherits their locks. Start-up is cheap (the pipeline imports in 0.1 s).
     ctx = mp.get_context("spawn")
-    with ProcessPoolExecutor(
+    pool = ProcessPoolExecutor(
         jobs, mp_context=ctx, initializer=_init_worker, initargs=(references, colours)
-    ) as pool:
+    )
+    try:
         for outcome in pool.map(_classify_pair, pairs, chunksize=2):
             yield outcome
             if on_progress:
                 on_progress(1)
+    finally:  # also on Ctrl-C or when the caller stops early: drop what has not started
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 @dataclass(frozen=True)
@@ -190,6 +203,36 @@ class EvaluationResult:
 
 
 NO_CLASS = "none"
+
+
+def outcome_to_dict(outcome: PairOutcome) -> dict[str, Any]:
+    """JSON-ready form of an outcome (one line of ``results.jsonl``)."""
+    from dataclasses import asdict
+
+    return asdict(outcome)
+
+
+def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
+    """The outcome of :func:`outcome_to_dict`.
+
+    Raises
+    ------
+    ValueError, KeyError, TypeError
+        Malformed data.
+    """
+    pair = LabelledPair(**data["pair"])
+    return PairOutcome(
+        pair,
+        data.get("predicted"),
+        data.get("predicted_variant"),
+        data.get("distance"),
+        data.get("runner_up"),
+        data.get("runner_up_distance"),
+        tuple(float(v) for v in data.get("coordinates") or ()),
+        tuple((float(u), float(v)) for u, v in data.get("centroids") or ()),
+        data.get("reason"),
+        data.get("error"),
+    )
 
 
 def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResult:

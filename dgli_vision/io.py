@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from .database import StateRecords
 
 __all__ = [
+    "JsonLinesWriter",
     "LabelProblem",
     "LabelledPair",
     "RGBDFrame",
@@ -36,6 +37,7 @@ __all__ = [
     "read_frame",
     "read_intrinsics",
     "read_json",
+    "read_jsonl",
     "read_mesh_ply",
     "read_references",
     "record_outputs",
@@ -214,6 +216,50 @@ def write_outputs(
         else:
             write_png(path, content)
     record_outputs(files, command)
+
+
+def read_jsonl(path: str | Path) -> list[Any]:
+    """The objects of a JSON-lines file; a line that is not valid JSON (the last one of
+    a file whose writer was killed) is left out."""
+    out = []
+    try:
+        with Path(path).open(encoding="utf-8") as fh:
+            for line in fh:
+                try:
+                    out.append(json.loads(line))
+                except ValueError:
+                    continue
+    except FileNotFoundError:
+        return []
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UnreadableInputError(f"cannot read '{path}': {exc}") from None
+    return out
+
+
+class JsonLinesWriter:
+    """Appends one JSON object per line and flushes each, so that whatever stops the
+    process (Ctrl-C, a kill, a full disk) keeps every line written before it."""
+
+    def __init__(self, path: str | Path, *, append: bool) -> None:
+        p = Path(path)
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            self._fh = p.open("a" if append else "w", encoding="utf-8")
+        except OSError as exc:
+            raise UnreadableInputError(f"cannot write '{p}': {exc.strerror}") from None
+        self.path = p
+
+    def write(self, obj: Any) -> None:
+        """Append ``obj`` as one line and flush it to the operating system."""
+        try:
+            self._fh.write(json.dumps(obj) + "\n")
+            self._fh.flush()
+        except OSError as exc:
+            raise UnreadableInputError(f"cannot write '{self.path}': {exc.strerror}") from None
+
+    def close(self) -> None:
+        """Close the file."""
+        self._fh.close()
 
 
 # --- simulated databases -------------------------------------------------------------

@@ -1,0 +1,109 @@
+"""Interrupted batches keep their work: Ctrl-C or a kill, then --resume, gives the report
+of an uninterrupted run."""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
+DGLI = str(Path(sys.executable).parent / "dgli")
+COPIES = 4  # 48 pairs: long enough to interrupt on one core
+
+
+@pytest.fixture(scope="module")
+def batch(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("batch")
+    with open(SAMPLES / "labels.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    out = ["color,depth,label,variant"]
+    for c in range(COPIES):
+        for row in rows:
+            color, depth = f"c{c}_{row['color']}", f"c{c}_{row['depth']}"
+            os.link(SAMPLES / row["color"], folder / color)
+            os.link(SAMPLES / row["depth"], folder / depth)
+            out.append(f"{color},{depth},{row['label']},{row['variant']}")
+    (folder / "labels.csv").write_text("\n".join(out) + "\n")
+    os.link(SAMPLES / "intrinsics.json", folder / "intrinsics.json")
+    return folder
+
+
+def lines(path: Path) -> int:
+    return len(path.read_text().splitlines()) if path.exists() else 0
+
+
+def interrupt(args: list[str], results: Path, sig: int) -> subprocess.CompletedProcess:
+    """Run dgli, and send ``sig`` once a few results are on disk."""
+    proc = subprocess.Popen(
+        [DGLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
+    deadline = time.monotonic() + 120
+    while lines(results) < 4 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert proc.poll() is None, "the batch ended before it could be interrupted"
+    proc.send_signal(sig)
+    out, err = proc.communicate(timeout=120)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
+
+
+def comparable(report: Path) -> dict:
+    summary = json.loads((report / "summary.json").read_text())
+    for volatile in ("seconds", "command", "jobs"):
+        summary.pop(volatile)
+    return {
+        "summary": summary,
+        "confusion": (report / "confusion.csv").read_text(),
+        "per_class": (report / "per_class.csv").read_text(),
+    }
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(batch, tmp_path_factory) -> dict:
+    report = tmp_path_factory.mktemp("whole") / "report"
+    res = subprocess.run(
+        [DGLI, "evaluate", str(batch), "--report", str(report), "-j", "1"],
+        capture_output=True,
+        text=True,
+    )
+    assert res.returncode == 0, res.stderr
+    return comparable(report)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL], ids=["SIGINT", "SIGKILL"])
+def test_an_interrupted_batch_resumes_to_the_same_report(batch, uninterrupted, tmp_path, sig):
+    report = tmp_path / "report"
+    results = report / "results.jsonl"
+    args = ["evaluate", str(batch), "--report", str(report), "-j", "1"]
+    res = interrupt(args, results, sig)
+    done = lines(results)
+    assert 4 <= done < 12 * COPIES
+    if sig == signal.SIGINT:
+        assert res.returncode == 130
+        assert f"interrupted: {done} of {12 * COPIES} pairs done" in res.stderr
+        assert "--resume" in res.stderr and "Traceback" not in res.stderr
+        partial = json.loads((report / "summary.json").read_text())
+        assert partial["n"] == done  # the report of what is done
+    else:
+        assert res.returncode == -signal.SIGKILL
+    again = subprocess.run([DGLI, *args], capture_output=True, text=True)
+    assert again.returncode == 2 and "--resume" in again.stderr  # never silently redone
+    resumed = subprocess.run([DGLI, *args, "--resume"], capture_output=True, text=True)
+    assert resumed.returncode == 0, resumed.stderr
+    assert lines(results) == 12 * COPIES
+    assert comparable(report) == uninterrupted
+
+
+def test_ctrl_c_with_workers_stops_cleanly(batch, tmp_path):
+    report = tmp_path / "report"
+    args = ["evaluate", str(batch), "--report", str(report), "-j", "2"]
+    res = interrupt(args, report / "results.jsonl", signal.SIGINT)
+    assert res.returncode == 130 and "Traceback" not in res.stderr
+    assert (report / "report.md").is_file()
