@@ -43,7 +43,13 @@ def lines(path: Path) -> int:
 def interrupt(args: list[str], results: Path, sig: int) -> subprocess.CompletedProcess:
     """Run dgli, and send ``sig`` once a few results are on disk."""
     proc = subprocess.Popen(
-        [DGLI, *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        [DGLI, *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        # as from a terminal: a shell may start background jobs with Ctrl-C ignored,
+        # and the test runner, and so dgli, would inherit that
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     deadline = time.monotonic() + 120
     while lines(results) < 4 and proc.poll() is None and time.monotonic() < deadline:
