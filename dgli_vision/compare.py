@@ -113,7 +113,9 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
     """
     coords = records.hidden_coordinates()
     predicted = tuple(
-        classify_coordinates(coords[k], references, records.visible[k]).class_id
+        classify_coordinates(
+            coords[k], references, records.visible[k], records.unknown[k]
+        ).class_id
         for k in range(len(records))
     )
     return SequenceAnalysis(

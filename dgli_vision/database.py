@@ -13,8 +13,26 @@ from numpy.typing import NDArray
 
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .dgli import cloth_coordinates
+from .fold_graph import fold_edges
 
-__all__ = ["StateRecords", "records_from_states", "simulate_states", "state_id"]
+__all__ = [
+    "FOLD_BINS_DEG",
+    "LIFTED_MM",
+    "StateRecords",
+    "records_from_states",
+    "simulate_folds_in_progress",
+    "simulate_states",
+    "state_id",
+]
+
+#: A sticker not visible this high above the table (mm) is on cloth held up, seen
+#: edge-on, not under a layer lying on it (wrinkles stay below 10 mm).
+LIFTED_MM = 20.0
+
+#: Fold angles (degrees) of the states with a fold in progress, in bins: each bin is a
+#: group of its own in the reference set, so that a frame finds a near reference at any
+#: point of a fold. 90 degrees is a bin edge: SPEC's rule changes the class there.
+FOLD_BINS_DEG: tuple[tuple[float, float], ...] = ((10, 50), (50, 90), (90, 130), (130, 170))
 
 
 def state_id(class_id: str, k: int) -> str:
@@ -55,6 +73,41 @@ def simulate_states(
     return out
 
 
+def simulate_folds_in_progress(
+    per_group: int, seed: int, **kwargs
+) -> list[tuple[str, ClothState]]:
+    """States with a fold in progress: for every fold a robot can make on the table
+    (every edge of :func:`~dgli_vision.fold_graph.fold_edges` but folds under, which
+    cannot turn through the table) and every bin of :data:`FOLD_BINS_DEG`, ``per_group``
+    states with that fold turned to an angle drawn in the bin.
+
+    Each state is labelled by SPEC's 90-degree rule; ``params["stage"]`` names the fold
+    and the bin (``"rising B over, 50-90 deg"``). State ``k`` of edge ``e`` and bin ``b``
+    draws from a generator seeded by ``(seed, 100 + e, b, k)``.
+
+    Returns
+    -------
+    list of (str, ClothState)
+        ``(id, state)``, ids ``"m<edge>_<bin>_<k>"``.
+    """
+    if per_group < 1:
+        raise ValueError(f"per_group must be at least 1, got {per_group}")
+    out = []
+    for e, (_, (class_id, variant), fold) in enumerate(fold_edges()):
+        if "under" in fold:
+            continue
+        for b, (lo, hi) in enumerate(FOLD_BINS_DEG):
+            for k in range(per_group):
+                rng = np.random.default_rng([seed, 100 + e, b, k])
+                angle = float(rng.uniform(lo, hi))
+                state = sample_state(
+                    class_id, variant, rng, last_fold=fold, last_fold_deg=angle, **kwargs
+                )
+                state.params["stage"] += f", {lo:g}-{hi:g} deg"
+                out.append((f"m{e:02d}_{b}_{k:02d}", state))
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class StateRecords:
     """The truth of n states as arrays (what references and comparisons need).
@@ -74,6 +127,8 @@ class StateRecords:
         Corners A-D, metres.
     boundary : ndarray, shape (n, m, 3)
         Boundary polylines, metres.
+    stages : tuple of str
+        ``""`` for a state with every fold laid flat, else the fold in progress.
     """
 
     ids: tuple[str, ...]
@@ -85,6 +140,23 @@ class StateRecords:
     coordinates: NDArray[np.float64]
     corner_points: NDArray[np.float64]
     boundary: NDArray[np.float64]
+    stages: tuple[str, ...] = ()
+
+    def __post_init__(self) -> None:
+        if not self.stages:
+            object.__setattr__(self, "stages", ("",) * len(self.ids))
+
+    @property
+    def unknown(self) -> NDArray[np.bool_]:
+        """Stickers not visible that stand more than :data:`LIFTED_MM` above the table,
+        shape (n, 16): on a flap held up, seen edge-on, which no camera can call
+        hidden by cloth or not."""
+        return ~self.visible & (self.sticker_points[..., 2] > LIFTED_MM * 1e-3)
+
+    @property
+    def folded(self) -> NDArray[np.bool_]:
+        """States with every fold laid flat (no fold in progress), shape (n,)."""
+        return np.array([not s for s in self.stages], dtype=bool)
 
     def __len__(self) -> int:
         return len(self.ids)
@@ -102,6 +174,7 @@ class StateRecords:
             self.coordinates[idx],
             self.corner_points[idx],
             self.boundary[idx],
+            tuple(self.stages[i] for i in idx),
         )
 
     def hidden_coordinates(self) -> NDArray[np.float64]:
@@ -125,4 +198,5 @@ def records_from_states(states: list[tuple[str, ClothState]]) -> StateRecords:
         coordinates=cloth_coordinates(points.reshape(len(states), -1, 2, 3)),
         corner_points=np.stack([s.corner_points for _, s in states]),
         boundary=np.stack([s.boundary for _, s in states]),
+        stages=tuple(str(s.params.get("stage", "")) for _, s in states),
     )

@@ -349,7 +349,9 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
     if not isinstance(index, dict) or index.get("format") != DB_FORMAT:
         raise InvalidInputError(f"'{index_path}' is not a dgli simulated database index")
     root = index_path.parent
-    ids, classes, variants, points, vis, frac, corners, boundary = ([] for _ in range(8))
+    ids, classes, variants, points, vis, frac, corners, boundary, stages = (
+        [] for _ in range(9)
+    )
     for entry in index.get("states", []):
         truth_path = root / entry["truth"]
         truth = read_json(truth_path, what="state truth")
@@ -364,6 +366,8 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
         ids.append(str(truth["id"]))
         classes.append(str(truth["class"]))
         variants.append(truth.get("variant"))
+        params = truth.get("params")
+        stages.append(str(params.get("stage", "")) if isinstance(params, dict) else "")
         points.append(pts)
         vis.append(v)
         frac.append(f)
@@ -382,6 +386,7 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
         cloth_coordinates(pts.reshape(len(ids), -1, 2, 3)),
         np.stack(corners),
         np.stack(boundary),
+        tuple(stages),
     )
     return records, dict(index.get("provenance") or {})
 

@@ -53,6 +53,10 @@ class Reference:
         Id of the representative state in its database.
     n_samples : int
         Size of the group.
+    stage : str
+        ``""`` for a state with every fold laid flat; else the fold in progress and its
+        angles (``"rising B over, 50-90 deg"``: below 90 degrees the state is still the
+        one before that fold).
     """
 
     class_id: str
@@ -62,6 +66,7 @@ class Reference:
     visible_rate: NDArray[np.float64]
     source: str = ""
     n_samples: int = 1
+    stage: str = ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,7 +91,11 @@ class ReferenceSet:
 def build_references(
     records: StateRecords, *, provenance: dict[str, Any] | None = None
 ) -> ReferenceSet:
-    """Pick the representative of every (class, variant) group of ``records``.
+    """Pick the representative of every (class, variant, stage) group of ``records``.
+
+    States with a fold in progress (``records.stages``) form groups of their own, one
+    per fold and angle bin, so that a frame taken mid-fold finds a near reference of its
+    class.
 
     Parameters
     ----------
@@ -98,14 +107,14 @@ def build_references(
     Returns
     -------
     ReferenceSet
-        References in class, then variant order.
+        References in class, variant, then stage order.
     """
-    groups: dict[tuple[str, str | None], list[int]] = {}
-    for i, key in enumerate(zip(records.classes, records.variants)):
+    groups: dict[tuple[str, str | None, str], list[int]] = {}
+    for i, key in enumerate(zip(records.classes, records.variants, records.stages)):
         groups.setdefault(key, []).append(i)
     refs = []
-    for (class_id, variant), members in sorted(
-        groups.items(), key=lambda kv: (kv[0][0], kv[0][1] or "")
+    for (class_id, variant, stage), members in sorted(
+        groups.items(), key=lambda kv: (kv[0][0], kv[0][1] or "", kv[0][2])
     ):
         coords = records.coordinates[members]
         centroid = coords.mean(axis=0, keepdims=True)
@@ -116,9 +125,11 @@ def build_references(
                 name=CLASS_NAMES[class_id],
                 variant=variant,
                 coordinates=records.coordinates[best].copy(),
-                visible_rate=records.visible[members].mean(axis=0),
+                # a sticker on a flap held up is seen or unknown, never evidence of a fold
+                visible_rate=(records.visible | records.unknown)[members].mean(axis=0),
                 source=records.ids[best],
                 n_samples=len(members),
+                stage=stage,
             )
         )
     return ReferenceSet(tuple(refs), dict(provenance or {}))
@@ -138,6 +149,7 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
                 "variant": r.variant,
                 "source": r.source,
                 "n_samples": r.n_samples,
+                **({"stage": r.stage} if r.stage else {}),
                 "coordinates": [round(float(v), 10) for v in r.coordinates],
                 "visible_rate": [round(float(v), 4) for v in r.visible_rate],
             }
@@ -186,6 +198,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
                 rate,
                 str(item.get("source", "")),
                 int(item.get("n_samples", 1)),
+                str(item.get("stage") or ""),
             )
         )
     if len({r.class_id for r in refs}) < 2:

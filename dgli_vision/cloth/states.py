@@ -17,6 +17,7 @@ from scipy.spatial import cKDTree
 
 from ..classes import CLASS_IDS, CLASS_NAMES, CORNERS, VARIANTS
 from ..dgli import cloth_coordinates
+from ..fold_graph import unfold
 from ..layout import NapkinLayout, default_layout
 from .fold import fold
 from .mesh import ClothMesh, flat_mesh
@@ -181,11 +182,13 @@ def _steps_for(
     u = rng.uniform
     params: dict[str, Any] = {}
     steps: list[FoldStep] = []
+    words: list[str] = []  # each step's fold in the words of :mod:`dgli_vision.fold_graph`
 
     def corner(name: str, lo: float, hi: float, *, under: bool = False) -> None:
         legs = (float(u(lo, hi)), float(u(lo, hi)))
         params.setdefault("legs_mm", {})[name] = legs
         steps.append(corner_fold_line(layout, name, *legs, under=under))
+        words.append(f"{name} {'under' if under else 'over'}")
 
     if class_id == "01":
         pass
@@ -204,6 +207,8 @@ def _steps_for(
             legs = (leg_shared, leg_other) if name == side[0] else (leg_other, leg_shared)
             params.setdefault("legs_mm", {})[name] = legs
             steps.append(corner_fold_line(layout, name, *legs))
+            crossing = f" crossing {first}" if class_id == "05" and name == top else ""
+            words.append(f"{name} over{crossing}")
         params["order"] = [first, top]
     elif class_id == "06":
         for name in variant:
@@ -219,20 +224,25 @@ def _steps_for(
         inset = float(u(125, 140))
         params["inset_mm"] = inset
         steps.append(side_fold_line(layout, variant, inset, under=class_id == "10"))
+        words.append(f"{variant} strip {'under' if class_id == '10' else 'over'}")
     elif class_id == "11":
         inset = float(u(198, 210))
         params["inset_mm"] = inset
         steps.append(side_fold_line(layout, variant, inset))
+        words.append(f"{variant} half")
     elif class_id == "12":
         offsets = (float(u(-10, 10)), float(u(-10, 10)))
         params["diagonal_offsets_mm"] = offsets
         steps.append(diagonal_fold_line(layout, variant, *offsets))
+        words.append(f"{variant} diagonal")
     else:
         raise ValueError(f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}")
     order = list(range(len(steps)))
     if class_id in ("06", "07", "08"):
         rng.shuffle(order)  # the order of non-overlapping folds does not matter
         steps = [steps[i] for i in order]
+        words = [words[i] for i in order]
+    params["folds"] = words
     return steps, params
 
 
@@ -373,6 +383,8 @@ def sample_state(
     wrinkles: bool = True,
     placement: bool = True,
     spacing_mm: float = 5.0,
+    last_fold_deg: float | None = None,
+    last_fold: str | None = None,
 ) -> ClothState:
     """Draw one state of a class (SPEC section 3's parameter ranges).
 
@@ -393,6 +405,15 @@ def sample_state(
         origin); otherwise the napkin is centred at the origin, unrotated.
     spacing_mm : float, keyword-only
         Mesh spacing.
+    last_fold_deg : float, keyword-only, optional
+        A fold in progress: the state's last fold turned only this far from flat
+        (degrees, in (0, 180)). By SPEC's rule the state keeps its class beyond 90
+        degrees, and below it is the state before that fold
+        (:func:`dgli_vision.fold_graph.unfold`); ``params["stage"]`` says which fold is
+        in progress (``"settling B over"``, ``"rising B over"``).
+    last_fold : str, keyword-only, optional
+        Which of the state's folds is made last (a word of
+        :func:`dgli_vision.fold_graph.folds_of`); default as drawn.
 
     Returns
     -------
@@ -408,11 +429,30 @@ def sample_state(
         raise ValueError(f"class {class_id} has variants {options}, got {variant!r}")
     layout = layout or default_layout()
     steps, params = _steps_for(class_id, variant, layout, rng)
+    if last_fold is not None:
+        if last_fold not in params["folds"]:
+            raise ValueError(f"{class_id}/{variant} has no fold {last_fold!r}")
+        k = params["folds"].index(last_fold)
+        steps = steps[:k] + steps[k + 1 :] + [steps[k]]
+        params["folds"] = params["folds"][:k] + params["folds"][k + 1 :] + [last_fold]
+    angles = None
+    if last_fold_deg is not None:
+        if not steps:
+            raise ValueError(f"class {class_id} has no fold to leave in progress")
+        if not 0 < last_fold_deg < 180:
+            raise ValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
+        angles = [np.pi] * (len(steps) - 1) + [float(np.radians(last_fold_deg))]
+        moving = params["folds"][-1]
+        params["stage"] = f"{'settling' if last_fold_deg > 90 else 'rising'} {moving}"
+        params["last_fold_deg"] = float(last_fold_deg)
+        if last_fold_deg <= 90:
+            class_id, variant = unfold((class_id, variant), moving)
     return make_state(
         class_id,
         variant,
         steps,
         layout=layout,
+        angles=angles,
         wrinkle_mm=float(rng.uniform(0, 8)) if wrinkles else 0.0,
         yaw=float(rng.uniform(0, 2 * np.pi)) if placement else 0.0,
         offset_m=tuple(rng.uniform(-0.05, 0.05, size=2)) if placement else (0.0, 0.0),

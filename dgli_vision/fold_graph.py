@@ -1,0 +1,102 @@
+"""Which states are one fold apart, derived from the classes' definitions.
+
+Every state (class and variant) is described by the folds it is made of (SPEC section 3):
+a corner folded over or under, a strip, a half or a diagonal fold, and for two crossing
+flaps which one lies on top (it was folded second). A state is one fold away from another
+when its folds are the other's plus one more. That graph is what a folding robot can do
+next, and what :mod:`dgli_vision.track` lets a sequence of frames move along.
+"""
+
+from __future__ import annotations
+
+from functools import lru_cache
+
+from .classes import CLASS_IDS, CORNERS, VARIANTS
+
+__all__ = ["StateKey", "fold_edges", "folds_of", "neighbours", "state_keys", "unfold"]
+
+#: A state: (class id, variant).
+StateKey = tuple[str, "str | None"]
+
+
+def folds_of(class_id: str, variant: str | None) -> frozenset[str]:
+    """The folds a state is made of, as words (``"A over"``, ``"AB half"``...).
+
+    Parameters
+    ----------
+    class_id : str
+    variant : str or None
+
+    Returns
+    -------
+    frozenset of str
+    """
+    if variant not in VARIANTS.get(class_id, ()):
+        raise ValueError(f"unknown state {class_id}/{variant}")
+    if class_id == "01":
+        return frozenset()
+    if class_id == "02":
+        return frozenset({f"{variant} over"})
+    if class_id == "03":
+        return frozenset({f"{variant} under"})
+    if class_id in ("04", "06"):
+        return frozenset(f"{c} over" for c in variant)
+    if class_id == "05":
+        side, top = variant.split("/")
+        first = side.replace(top, "")
+        return frozenset({f"{first} over", f"{top} over crossing {first}"})
+    if class_id == "07":
+        return frozenset(f"{c} over" for c in CORNERS if c != variant)
+    if class_id == "08":
+        return frozenset(f"{c} over" for c in CORNERS)
+    word = {"09": "strip over", "10": "strip under", "11": "half", "12": "diagonal"}[class_id]
+    return frozenset({f"{variant} {word}"})
+
+
+@lru_cache(maxsize=1)
+def state_keys() -> tuple[StateKey, ...]:
+    """Every state (class, variant), in class then variant order."""
+    return tuple((c, v) for c in CLASS_IDS for v in VARIANTS[c])
+
+
+@lru_cache(maxsize=1)
+def _by_folds() -> dict[frozenset[str], StateKey]:
+    return {folds_of(*key): key for key in state_keys()}
+
+
+@lru_cache(maxsize=1)
+def fold_edges() -> tuple[tuple[StateKey, StateKey, str], ...]:
+    """Every (state, state one fold further, the fold), in state order."""
+    by_folds = _by_folds()
+    edges = []
+    for key in state_keys():
+        folds = folds_of(*key)
+        for fold in sorted(folds):
+            before = by_folds.get(folds - {fold})
+            if before is not None:
+                edges.append((before, key, fold))
+    return tuple(sorted(edges, key=lambda e: (state_keys().index(e[0]), state_keys().index(e[1]))))
+
+
+def neighbours(key: StateKey) -> tuple[StateKey, ...]:
+    """States one fold or one unfold away from ``key``."""
+    out = [b for a, b, _ in fold_edges() if a == key] + [a for a, b, _ in fold_edges() if b == key]
+    return tuple(sorted(set(out), key=state_keys().index))
+
+
+def unfold(key: StateKey, fold: str) -> StateKey:
+    """The state ``key`` was in before ``fold`` (one of its folds) was made.
+
+    Raises
+    ------
+    ValueError
+        When ``fold`` is not one of the state's folds, or taking it away leaves no state
+        (the first flap of two crossing ones cannot be unfolded from under the second).
+    """
+    folds = folds_of(*key)
+    if fold not in folds:
+        raise ValueError(f"{key[0]}/{key[1]} has no fold {fold!r}")
+    before = _by_folds().get(folds - {fold})
+    if before is None:
+        raise ValueError(f"unfolding {fold!r} from {key[0]}/{key[1]} leaves no state")
+    return before
