@@ -164,12 +164,26 @@ def _progress(items: list, label: str):
 )
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the database.")
 @click.option("--no-wrinkles", is_flag=True, help="Fold cleanly, without wrinkles.")
+@click.option(
+    "--in-progress",
+    default=3,
+    show_default=True,
+    type=click.IntRange(0),
+    help="States with a fold in progress, per fold and angle bin (0: none).",
+)
 @overwrite_option
 @_handle_errors
-def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool, overwrite: bool) -> None:
-    """Write a simulated database of cloth states to OUT (meshes, truth, index)."""
+def simulate(
+    out: str, per_class: int, seed: int, no_wrinkles: bool, in_progress: int, overwrite: bool
+) -> None:
+    """Write a simulated database of cloth states to OUT (meshes, truth, index).
+
+    Besides PER-CLASS states of every class with its folds laid flat, the database holds
+    states with one fold in progress (every fold a robot can make, turned 10-170
+    degrees), labelled by the 90-degree rule; `dgli compare` leaves them out.
+    """
     from .cloth.states import CLASS_IDS
-    from .database import simulate_states
+    from .database import simulate_folds_in_progress, simulate_states
     from .io import write_database
 
     states = []
@@ -178,10 +192,13 @@ def simulate(out: str, per_class: int, seed: int, no_wrinkles: bool, overwrite: 
             states += simulate_states(
                 per_class, seed, classes=(class_id,), wrinkles=not no_wrinkles
             )
+    if in_progress:
+        states += simulate_folds_in_progress(in_progress, seed, wrinkles=not no_wrinkles)
     provenance = {
         "command": _command_line(),
         "seed": seed,
         "per_class": per_class,
+        "in_progress": in_progress,
         "wrinkles": not no_wrinkles,
         "package_version": _package_version(),
     }
@@ -382,6 +399,20 @@ def _parse_conditions(
     + ", ".join(f"{k} ({v})" for k, v in CONDITION_HELP.items())
     + ".",
 )
+@click.option(
+    "--sequence",
+    type=click.Choice(["I", "II", "III"]),
+    default=None,
+    help="Render this folding sequence as one recording instead (frames in order, "
+    "frames.csv, labels by the 90-degree rule).",
+)
+@click.option(
+    "--frames",
+    default=25,
+    show_default=True,
+    type=click.IntRange(2),
+    help="Frames of --sequence, spread evenly over its folds.",
+)
 @overwrite_option
 @_handle_errors
 def render_cmd(
@@ -391,39 +422,57 @@ def render_cmd(
     clean: bool,
     nominal: bool,
     conditions: tuple[str, ...],
+    sequence: str | None,
+    frames: int,
     overwrite: bool,
 ) -> None:
-    """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4)."""
+    """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4).
+
+    With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
+    """
     from .cloth.states import CLASS_IDS
-    from .dataset import render_samples, sample_name
+    from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
     from .io import guard_outputs, labelled_folder_files, write_labelled_folder
 
-    names = [sample_name(c, k) for c in CLASS_IDS for k in range(per_class)]
-    guard_outputs(labelled_folder_files(out, names), overwrite=overwrite)  # before the work
+    if sequence:
+        names = [f"{sequence}_{k:03d}" for k in range(frames)]
+    else:
+        names = [sample_name(c, k) for c in CLASS_IDS for k in range(per_class)]
+    planned = labelled_folder_files(out, names, frames=bool(sequence))
+    guard_outputs(planned, overwrite=overwrite)  # before the work
 
     samples = []
-    with _progress(list(CLASS_IDS), "rendering") as classes:
-        for class_id in classes:
-            samples += list(
-                render_samples(
-                    per_class,
-                    seed,
-                    classes=(class_id,),
-                    nominal=nominal,
-                    clean=clean,
-                    conditions=conditions,
-                )
+    if sequence:
+        with _progress(list(range(frames)), "rendering") as bar:
+            stream = render_sequence(
+                sequence, frames, seed, nominal=nominal, clean=clean, conditions=conditions
             )
+            for sample, _ in zip(stream, bar):
+                samples.append(sample)
+    else:
+        with _progress(list(CLASS_IDS), "rendering") as classes:
+            for class_id in classes:
+                samples += list(
+                    render_samples(
+                        per_class,
+                        seed,
+                        classes=(class_id,),
+                        nominal=nominal,
+                        clean=clean,
+                        conditions=conditions,
+                    )
+                )
     provenance = {
         "command": _command_line(),
         "seed": seed,
-        "per_class": per_class,
+        **({"sequence": sequence, "frames": frames} if sequence else {"per_class": per_class}),
         "clean": clean,
         "nominal": nominal,
         **({"conditions": list(conditions)} if conditions else {}),
         "package_version": _package_version(),
     }
-    labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite)
+    times = [k * SEQUENCE_FRAME_SECONDS for k in range(frames)] if sequence else None
+    labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
     click.echo(f"wrote {len(samples)} pairs to {out} (labels: {labels})")
 
 

@@ -9,17 +9,35 @@ from typing import Any
 import numpy as np
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
+from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .conditions import Conditions, draw_conditions
 from .render import Lighting, RenderResult, SensorModel, render
 
-__all__ = ["RenderedSample", "random_camera", "render_sample", "render_samples", "sample_name"]
+__all__ = [
+    "SEQUENCE_FRAME_SECONDS",
+    "RenderedSample",
+    "random_camera",
+    "render_sample",
+    "render_samples",
+    "render_sequence",
+    "sample_name",
+]
+
+#: Time between the frames of a rendered sequence (``frames.csv``), seconds.
+SEQUENCE_FRAME_SECONDS = 0.5
 
 #: Nominal scene of SPEC section 4: straight down from 520 mm.
 NOMINAL_HEIGHT_M = 0.52
 #: The ``vga`` condition's camera: 640 x 480, fx = fy = 500, 600-850 mm away.
 VGA_INTRINSICS = Intrinsics(640, 480, 500.0, 500.0, 319.5, 239.5)
 VGA_HEIGHT_RANGE_M = (0.60, 0.85)
+
+
+def _fits_all(
+    states: list[ClothState], pose: CameraPose, intrinsics: Intrinsics, margin_px: float
+) -> bool:
+    return all(_fits(s, pose, intrinsics, margin_px) for s in states)
 
 
 def _fits(state: ClothState, pose: CameraPose, intrinsics: Intrinsics, margin_px: float) -> bool:
@@ -166,3 +184,76 @@ def render_sample(
         conditions=cond,
     )
     return RenderedSample(sample_name(class_id, k), state, result, camera, lighting, cond)
+
+
+def render_sequence(
+    name: str,
+    n_frames: int,
+    seed: int,
+    *,
+    nominal: bool = False,
+    clean: bool = False,
+    intrinsics: Intrinsics = DEFAULT_INTRINSICS,
+    conditions: tuple[str, ...] = (),
+) -> Iterator[RenderedSample]:
+    """Render folding sequence ``name`` as ``n_frames`` frames of one recording.
+
+    The frames are spread evenly over the sequence's folds, from flat to the last fold
+    laid flat, each labelled by SPEC's 90-degree rule. The seed draws the fold sizes
+    (within the ranges of the sequence's classes), the wrinkles, the napkin's place, the
+    camera, the light and the capture conditions once for the whole recording; only the
+    sensor noise changes from frame to frame. The camera sees the whole napkin in every
+    frame.
+
+    Yields
+    ------
+    RenderedSample
+        Named ``"<name>_<frame>"`` (``"II_007"``); ``state.params["progress"]`` is where
+        the frame is in the sequence.
+    """
+    if name not in SEQUENCES:
+        raise ValueError(f"unknown sequence {name!r}; expected one of {', '.join(SEQUENCES)}")
+    index = list(SEQUENCES).index(name)
+    rng = np.random.default_rng([seed, 1000 + index])
+    cond = draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23]))
+    intr, heights = intrinsics, (0.45, 0.70)
+    if "vga" in cond.names:
+        intr, heights = VGA_INTRINSICS, VGA_HEIGHT_RANGE_M
+    steps = sequence_steps(name, rng=rng)
+    wrinkle_seed = [seed, 1000 + index, 5]
+    scene = {
+        "wrinkle_mm": 0.0 if nominal else float(rng.uniform(0, 8)),
+        "yaw": 0.0 if nominal else float(rng.uniform(0, 2 * np.pi)),
+        "offset_m": (0.0, 0.0) if nominal else tuple(rng.uniform(-0.03, 0.03, size=2)),
+    }
+    progress = sequence_progress(name, n_frames)
+
+    def state_at(p: float) -> ClothState:
+        return sequence_state(
+            name, p, steps=steps, rng=np.random.default_rng(wrinkle_seed), **scene
+        )
+
+    # the camera must see the napkin at every stage, flaps held up included
+    probes = [state_at(p) for p in np.linspace(0, len(steps), 4 * len(steps) + 1)]
+    for _ in range(50):
+        pose, camera = random_camera(
+            probes[0], rng, intrinsics=intr, nominal=nominal, height_range_m=heights
+        )
+        if _fits_all(probes, pose, intr, 10.0):
+            break
+    else:
+        raise ValueError(f"no camera pose in range sees the whole of sequence {name}")
+    lighting = Lighting() if nominal else Lighting.random(rng)
+    sensor = SensorModel(enabled=not clean)
+    for k, p in enumerate(progress):
+        state = state_at(p)
+        result = render(
+            state,
+            pose,
+            intrinsics=intr,
+            lighting=lighting,
+            sensor=sensor,
+            rng=np.random.default_rng([seed, 1000 + index, k, 7]),
+            conditions=cond,
+        )
+        yield RenderedSample(f"{name}_{k:03d}", state, result, camera, lighting, cond)

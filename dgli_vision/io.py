@@ -693,31 +693,43 @@ def write_depth(path: str | Path, depth_mm: NDArray[np.uint16]) -> None:
     write_png(path, depth_mm)
 
 
-def labelled_folder_files(out: str | Path, names: Iterable[str]) -> list[Path]:
-    """The files :func:`write_labelled_folder` writes for samples of these names."""
+def labelled_folder_files(
+    out: str | Path, names: Iterable[str], *, frames: bool = False
+) -> list[Path]:
+    """The files :func:`write_labelled_folder` writes for samples of these names
+    (``frames``: with a ``frames.csv``)."""
     root = Path(out)
     pairs = [root / f"{n}_{kind}.png" for n in names for kind in ("color", "depth")]
-    return [*pairs, root / "intrinsics.json", root / "labels.csv", root / "truth.json"]
+    extra = [root / "frames.csv"] if frames else []
+    return [*pairs, root / "intrinsics.json", root / "labels.csv", root / "truth.json", *extra]
 
 
 def write_labelled_folder(
-    out: str | Path, samples: list, provenance: dict[str, Any], *, overwrite: bool = False
+    out: str | Path,
+    samples: list,
+    provenance: dict[str, Any],
+    *,
+    overwrite: bool = False,
+    times: list[float] | None = None,
 ) -> Path:
     """Write rendered samples as a labelled folder (SPEC section 4) with ``truth.json``.
 
     ``samples`` are :class:`~dgli_vision.dataset.RenderedSample`; writes
     ``<name>_color.png``, ``<name>_depth.png``, ``intrinsics.json`` (of the first sample;
-    all must share it), ``labels.csv`` and ``truth.json``. Existing files are replaced
-    only if dgli wrote them or with ``overwrite`` (:func:`guard_outputs`). Returns the
-    labels file.
+    all must share it), ``labels.csv`` and ``truth.json``; with ``times`` (seconds, one
+    per sample) also ``frames.csv`` (``color,depth,time``: the frames of a recording in
+    order). Existing files are replaced only if dgli wrote them or with ``overwrite``
+    (:func:`guard_outputs`). Returns the labels file.
 
     Raises
     ------
     OverwriteError
     """
     root = Path(out)
-    planned = labelled_folder_files(root, [s.name for s in samples])
+    planned = labelled_folder_files(root, [s.name for s in samples], frames=times is not None)
     guard_outputs(planned, overwrite=overwrite)
+    if times is not None and len(times) != len(samples):
+        raise ValueError(f"{len(times)} times for {len(samples)} samples")
     rows = []
     truth = {}
     intr = None
@@ -749,6 +761,14 @@ def write_labelled_folder(
 
     labels = root / "labels.csv"
     write_text(labels, csv_table(["color", "depth", "label", "variant"], rows))
+    if times is not None:
+        write_text(
+            root / "frames.csv",
+            csv_table(
+                ["color", "depth", "time"],
+                [(c, d, f"{t:.3f}") for (c, d, *_), t in zip(rows, times)],
+            ),
+        )
     write_json(root / "truth.json", {"provenance": provenance, "images": truth})
     record_outputs(planned, str(provenance.get("command", "")))
     return labels

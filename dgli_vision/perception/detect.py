@@ -104,6 +104,18 @@ class DetectorParams:
         keeps at least this radius there, pixels; their centres are then measured at
         full resolution. Default 6: the dot (0.4 radii) keeps a core of a few clean
         pixels, and a 1280 x 720 frame from up to 750 mm is searched at 640 x 360.
+    tilt_agreement : float
+        Largest difference between the foreshortening read from a blob's shape (minor /
+        major axis) and from the tilt of its own depth for it to be taken as a tilted
+        disc. Default 0.25: the depth of a sticker's few hundred pixels gives the tilt
+        to about 10 degrees; a half disc on flat cloth (shape 0.53, depth 1.0) fails.
+    flat_foreshortening : float
+        Above this cosine of the angle between the surface and the line of sight, a
+        sticker is taken as seen face-on (the checks above apply unchanged). Default
+        0.85 (32 degrees): SPEC's tilted cameras and wrinkles stay within it.
+    min_foreshortening : float
+        Below this cosine a sticker is seen too obliquely to be read (its dot shrinks
+        to a line). Default 0.25 (75 degrees): the 12 mm dot keeps about 3 mm.
     """
 
     min_saturation: int = 115
@@ -125,6 +137,9 @@ class DetectorParams:
     highlight_reach: float = 1.6
     napkin_blown_level: int = 240
     search_radius_px: float = 6.0
+    tilt_agreement: float = 0.25
+    flat_foreshortening: float = 0.85
+    min_foreshortening: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -246,6 +261,53 @@ class _Candidate:
     origin: tuple[int, int] = (0, 0)  # (x0, y0) of the window below, search image
     region: NDArray[np.bool_] | None = None  # the blob in its window, search image
     recovered: bool = False  # washed-out pixels were added to it
+    foreshortening: float = 1.0  # minor / major axis expected from the surface's tilt
+
+
+def _foreshortening(
+    depth_roi: NDArray, mask: NDArray[np.bool_], x0: int, y0: int, intrinsics: Intrinsics
+) -> float:
+    """How much the surface of a blob is tilted against the optical axis, from the
+    depth of the blob's own pixels: ``|n_z|`` of the plane fitted to them (1.0 when too
+    little depth is read).
+
+    Under a pinhole camera a disc parallel to the image plane images as a circle
+    wherever it is in the view; tilted, it images as (nearly) an ellipse whose minor /
+    major axis ratio is this cosine. Only the sticker's own pixels are used: around a
+    sticker partly under an object or a flap lies another surface.
+    """
+    h, w = depth_roi.shape
+    yy, xx = np.mgrid[y0 : y0 + h, x0 : x0 + w]
+    near = mask & (depth_roi > 0)
+    if near.sum() < 12:
+        return 1.0
+    z = depth_roi[near].astype(np.float64)
+    pts = np.column_stack(
+        [
+            (xx[near] - intrinsics.cx) / intrinsics.fx * z,
+            (yy[near] - intrinsics.cy) / intrinsics.fy * z,
+            z,
+        ]
+    )
+    keep = np.ones(len(pts), dtype=bool)
+    for _ in range(2):  # drop flying pixels at the blob's rim
+        normal = np.linalg.svd(pts[keep] - pts[keep].mean(axis=0), full_matrices=False)[2][-1]
+        off = np.abs((pts - np.median(pts[keep], axis=0)) @ normal)
+        keep = off < max(3.0, 2.5 * float(np.median(off[keep])))
+        if keep.sum() < 12:
+            return 1.0
+    normal = np.linalg.svd(pts[keep] - pts[keep].mean(axis=0), full_matrices=False)[2][-1]
+    return float(abs(normal[2]))
+
+
+def _ellipse_of(m: dict) -> tuple[float, float]:
+    """Minor / major axis ratio of a blob's moment ellipse and the image angle of its
+    minor axis (radians)."""
+    mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
+    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    major, minor = mu20 + mu02 + common, max(mu20 + mu02 - common, 1e-9)
+    major_angle = 0.5 * np.arctan2(2 * mu11, mu20 - mu02)
+    return float(np.sqrt(minor / major)), float(major_angle + np.pi / 2)
 
 
 def _median(values: NDArray) -> float:
@@ -427,11 +489,29 @@ def detect_stickers(
             rejected.append(Rejection(where, area0, "no depth to judge its size"))
             continue
         r_exp = disc_r_mm * intrinsics.fx / z_mm
-        expected = np.pi * r_exp**2
         # A window around the blob, one expected diameter wider on each side.
         pad = int(np.ceil(2 * r_exp)) + 2
         x0, y0 = max(x - pad, 0), max(y - pad, 0)
         x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
+        # A sticker on a flap held up at an angle images as an ellipse: its minor axis is
+        # shortened by the tilt read from the depth around it.
+        tilt = _foreshortening(depth_roi, roi.astype(bool), x, y, intrinsics)
+        fore, minor_angle = 1.0, 0.0
+        if tilt <= params.flat_foreshortening:
+            # The sticker's own depth says it is tilted; how much, its shape says more
+            # precisely than a plane fitted to a few noisy millimetres of depth. The two
+            # must agree: a disc cut by an edge is also elongated, but flat.
+            q, minor_angle = _ellipse_of(m)
+            if abs(q - tilt) <= params.tilt_agreement:
+                fore = min(q, 1.0)
+        if fore < params.min_foreshortening:
+            rejected.append(
+                Rejection(
+                    (float(cu), float(cv)), area0, f"seen too obliquely (foreshortened {fore:.2f})"
+                )
+            )
+            continue
+        expected = np.pi * r_exp**2 * fore
         inside = np.zeros((y1 - y0, x1 - x0), bool)
         inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
         win = norm[y0:y1, x0:x1]
@@ -463,7 +543,7 @@ def detect_stickers(
         # Halved, a blob loses about half a pixel of its rim to blending with the cloth;
         # its area is judged again at full resolution (see ``take``).
         rim = 0.5 if halve else 0.0
-        ratio = area / (np.pi * max(r_exp - rim, 1.0) ** 2)
+        ratio = area / (np.pi * max(r_exp - rim, 1.0) * max(fore * r_exp - rim, 1.0))
         if ratio < params.min_area_ratio:
             rejected.append(
                 Rejection(
@@ -485,7 +565,7 @@ def detect_stickers(
         mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
         common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
         elongation = np.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
-        if solidity < params.min_solidity or elongation > params.max_elongation:
+        if solidity < params.min_solidity or elongation * fore > params.max_elongation:
             rejected.append(
                 Rejection(
                     where,
@@ -497,9 +577,14 @@ def detect_stickers(
         # Disc and dot colours: majority labels of an outer band and the inner part of
         # the blob's equivalent circle (radius from the *expected* disc when the blob is
         # partly covered, so that the dot stays inside the inner part).
-        radius = np.sqrt(max(area, expected) / np.pi)
-        r = np.hypot(xx - cu, yy - cv) / radius
-        fill = inside[r < 1.0].sum() / (np.pi * radius**2)
+        radius = np.sqrt(max(area, expected) / (np.pi * fore))  # the major semi-axis
+        if fore < 1.0:  # elliptic radius: the minor axis along the normal's projection
+            ca, sa = np.cos(minor_angle), np.sin(minor_angle)
+            along, across = (xx - cu) * ca + (yy - cv) * sa, -(xx - cu) * sa + (yy - cv) * ca
+            r = np.hypot(along / fore, across) / radius
+        else:
+            r = np.hypot(xx - cu, yy - cv) / radius
+        fill = inside[r < 1.0].sum() / (np.pi * radius**2 * fore)
         if fill < params.min_fill:
             rejected.append(Rejection(where, area, f"not a whole disc (covers {fill:.2f} of one)"))
             continue
@@ -546,7 +631,7 @@ def detect_stickers(
         score = float(purity * min(ratio, 1 / ratio) * solidity)
         score *= 0.8 if recovered else 1.0
         candidates.append(
-            _Candidate(score, where, area, z_mm, disc, dot, (x0, y0), inside, recovered)
+            _Candidate(score, where, area, z_mm, disc, dot, (x0, y0), inside, recovered, fore)
         )
     centroids = np.full((n, 2), np.nan)
     areas = np.full(n, np.nan)
@@ -557,7 +642,7 @@ def detect_stickers(
         where, area = c.where, c.area
         if halve:
             where, area = _refine(full_color, napkin.lut, hue_lut, params, c)
-            expected = np.pi * (disc_r_mm * full_fx / c.z_mm) ** 2
+            expected = np.pi * (disc_r_mm * full_fx / c.z_mm) ** 2 * c.foreshortening
             if area < params.min_area_ratio * expected:
                 rejected.append(
                     Rejection(

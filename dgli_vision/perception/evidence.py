@@ -64,6 +64,15 @@ class EvidenceParams:
         many stickers of its corner were seen. Default 3: a corner folded over moves its
         four stickers together, and three of them fix where the fourth lies; with fewer,
         its flap may lie under the object.
+    held_up_reach : float
+        How near cloth held up (a flap being folded) must come to the place a missing
+        sticker would have lying flat, as a fraction of the napkin's shorter side, for
+        the sticker to be possibly on it, seen edge-on. Default 0.5: a flap turns about
+        its fold line, and no sticker lies farther from a fold line than half the napkin.
+    cover_mm : float
+        How much higher than the napkin around it the surface over a missing sticker's
+        flat place must stand for the sticker to be under a layer held above it (not on
+        the raised flap itself). Default 12 mm: above wrinkles and a folded layer.
     """
 
     stretch_tolerance_mm: float = 15.0
@@ -71,6 +80,8 @@ class EvidenceParams:
     napkin_margin_mm: float = 15.0
     near_radii: float = 1.5
     min_corner_support: int = 3
+    held_up_reach: float = 0.5
+    cover_mm: float = 12.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -212,6 +223,54 @@ def _over_napkin(
     )
 
 
+def _sample_height(napkin: NapkinView, uv: NDArray) -> NDArray[np.float64]:
+    """Median height above the table (mm) of the 3 x 3 mask samples around pixels
+    ``uv`` (n, 2); NaN where there is no reading."""
+    assert napkin.height_mm is not None
+    hgt = napkin.height_mm
+    out = np.full(len(uv), np.nan)
+    for k, (u, v) in enumerate(np.asarray(uv, dtype=np.float64)):
+        if not (np.isfinite(u) and np.isfinite(v)):
+            continue
+        i, j = round(v / napkin.stride), round(u / napkin.stride)
+        win = hgt[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
+        if win.size and np.isfinite(win).any():
+            out[k] = float(np.nanmedian(win))
+    return out
+
+
+def _held_up(
+    napkin: NapkinView | None,
+    predicted: NDArray,
+    missing: NDArray,
+    located: NDArray,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    p: EvidenceParams,
+    z_typ: float,
+) -> NDArray[np.bool_]:
+    """Which missing stickers may be on cloth held up, seen edge-on (not hidden).
+
+    Cloth held up (a flap being folded) near the place where the sticker would lie flat,
+    and nothing standing over that place: the sticker has gone up with its flap. A
+    sticker whose flat place has a layer hovering over it is under the flap, hidden.
+    """
+    out = np.zeros(len(missing), dtype=bool)
+    if napkin is None or napkin.raised is None or not napkin.raised.any():
+        return out
+    reach_px = p.held_up_reach * min(layout.width_mm, layout.height_mm) * 1e-3
+    reach_px *= intrinsics.fx / z_typ
+    where = predicted[missing]
+    unplaced = ~np.isfinite(where[:, 0])
+    out = napkin.near(napkin.raised, where, reach_px) | unplaced
+    if napkin.height_mm is not None and len(located):
+        base = _sample_height(napkin, intrinsics.project(located))
+        ground = float(np.nanmedian(base)) if np.isfinite(base).any() else 0.0
+        over = _sample_height(napkin, where)
+        out &= ~(np.isfinite(over) & (over > ground + p.cover_mm))
+    return out
+
+
 def assess_stickers(
     markers: Markers3D,
     intrinsics: Intrinsics,
@@ -281,6 +340,7 @@ def assess_stickers(
         near_hl = napkin.near(napkin.highlight, predicted[missing], radius_px)
     else:
         near_occ = near_hl = np.zeros(len(missing), dtype=bool)
+    held_up = _held_up(napkin, predicted, missing, pts[seen], intrinsics, layout, p, z_typ)
     w, h = intrinsics.width, intrinsics.height
     for k, sid in enumerate(missing):
         u, v = predicted[sid]
@@ -293,6 +353,8 @@ def assess_stickers(
             why = "possibly under an object above the napkin"
         elif near_hl[k]:
             why = "in a highlight"
+        elif held_up[k]:
+            why = "possibly on cloth held up (seen edge-on)"
         elif dropped is not None and dropped[sid] and np.isnan(u):
             why = "found where the napkin cannot be"
         if why:
