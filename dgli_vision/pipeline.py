@@ -97,7 +97,14 @@ def observe(
         colours=colours,
     )
     markers, dropped = drop_inconsistent(lift_stickers(detections, frame.intrinsics), layout)
-    evidence = assess_stickers(markers, frame.intrinsics, layout, napkin, dropped=dropped)
+    evidence = assess_stickers(
+        markers,
+        frame.intrinsics,
+        layout,
+        napkin,
+        dropped=dropped,
+        foreshortening=detections.foreshortening,
+    )
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan

@@ -167,6 +167,9 @@ class StickerDetections:
         Median valid depth inside the blob, mm (NaN where none).
     rejected : tuple of Rejection
         Blobs that looked like candidates but were rejected, with the reason.
+    foreshortening : ndarray, shape (16,), optional
+        Minor / major axis of each sticker's image (1 face-on; lower on a tilted
+        flap); NaN where not found.
     """
 
     centroids: NDArray[np.float64]
@@ -174,6 +177,7 @@ class StickerDetections:
     scores: NDArray[np.float64]
     depth_mm: NDArray[np.float64]
     rejected: tuple[Rejection, ...] = field(default_factory=tuple)
+    foreshortening: NDArray[np.float64] | None = None
 
     @property
     def found(self) -> NDArray[np.bool_]:
@@ -637,6 +641,7 @@ def detect_stickers(
     areas = np.full(n, np.nan)
     scores = np.zeros(n)
     depths = np.full(n, np.nan)
+    fores = np.full(n, np.nan)
 
     def take(sid: int, c: _Candidate, score: float) -> bool:
         where, area = c.where, c.area
@@ -656,6 +661,7 @@ def detect_stickers(
         centroids[sid], areas[sid] = where, area
         scores[sid] = score
         depths[sid] = c.z_mm
+        fores[sid] = c.foreshortening
         return True
 
     pending = []
@@ -701,4 +707,4 @@ def detect_stickers(
             Rejection((2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), 4 * r.area_px, why)
             for r, why in ((r, r.reason) for r in rejected)
         ]
-    return StickerDetections(centroids, areas, scores, depths, tuple(rejected))
+    return StickerDetections(centroids, areas, scores, depths, tuple(rejected), fores)

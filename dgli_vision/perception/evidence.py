@@ -73,6 +73,10 @@ class EvidenceParams:
         How much higher than the napkin around it the surface over a missing sticker's
         flat place must stand for the sticker to be under a layer held above it (not on
         the raised flap itself). Default 12 mm: above wrinkles and a folded layer.
+    steep_foreshortening : float
+        A sticker seen more foreshortened than this (minor / major axis) lies on cloth
+        held up steeply. Default 0.6 (53 degrees from flat): a flap turned past 120
+        degrees lies over the napkin at a gentle angle and shows its stickers better.
     """
 
     stretch_tolerance_mm: float = 15.0
@@ -82,6 +86,7 @@ class EvidenceParams:
     min_corner_support: int = 3
     held_up_reach: float = 0.5
     cover_mm: float = 12.0
+    steep_foreshortening: float = 0.6
 
 
 @dataclass(frozen=True, eq=False)
@@ -196,6 +201,23 @@ def _rigid_prediction(
     return uv_m @ r1.T + t1, mask
 
 
+def _without_stickers(
+    napkin: NapkinView, located: NDArray, intrinsics: Intrinsics, radius_px: float
+) -> NapkinView:
+    """The napkin view with the located stickers taken out of its object mask: a
+    sticker on a flap held up is a raised, coloured patch, not an object."""
+    import dataclasses
+
+    if not napkin.occluder.any() or not len(located):
+        return napkin
+    hh, ww = napkin.occluder.shape
+    vs, us = np.mgrid[0:hh, 0:ww] * napkin.stride
+    mine = np.zeros((hh, ww), dtype=bool)
+    for u, v in intrinsics.project(located):
+        mine |= np.hypot(us - u, vs - v) <= radius_px + napkin.stride
+    return dataclasses.replace(napkin, occluder=napkin.occluder & ~mine)
+
+
 def _over_napkin(
     napkin: NapkinView, margin_mm: float, located: NDArray, intrinsics: Intrinsics
 ) -> bool:
@@ -244,25 +266,57 @@ def _held_up(
     predicted: NDArray,
     missing: NDArray,
     located: NDArray,
+    steep: NDArray[np.bool_],
     intrinsics: Intrinsics,
     layout: NapkinLayout,
     p: EvidenceParams,
     z_typ: float,
 ) -> NDArray[np.bool_]:
-    """Which missing stickers may be on cloth held up, seen edge-on (not hidden).
+    """Which missing stickers may be on a flap held up steeply, seen edge-on.
 
-    Cloth held up (a flap being folded) near the place where the sticker would lie flat,
-    and nothing standing over that place: the sticker has gone up with its flap. A
-    sticker whose flat place has a layer hovering over it is under the flap, hidden.
+    A patch of cloth held up above the table is *steep* when a sticker seen on it is
+    strongly foreshortened, or when no sticker is seen on it at all (a flap edge-on
+    shows none). A missing sticker near a steep patch, whose flat place has no layer
+    hovering over it, may have gone up with its flap: unknown. A flap lying at a gentle
+    angle over the napkin shows its stickers face-on, and what is missing under it is
+    hidden.
+
+    Parameters
+    ----------
+    located : ndarray, shape (k, 3)
+        The located stickers, camera frame.
+    steep : ndarray of bool, shape (k,)
+        Which of them are seen strongly foreshortened.
     """
+    import cv2
+
     out = np.zeros(len(missing), dtype=bool)
     if napkin is None or napkin.raised is None or not napkin.raised.any():
         return out
+    n_parts, parts = cv2.connectedComponents(napkin.raised.astype(np.uint8), connectivity=8)
+    steep_parts = np.ones(n_parts, dtype=bool)
+    steep_parts[0] = False
+    if len(located):
+        px = intrinsics.project(located)
+        ij = np.rint(px[:, ::-1] / napkin.stride).astype(int)
+        gentle = np.zeros(n_parts, dtype=bool)
+        for (i, j), is_steep in zip(ij, steep):
+            win = parts[max(i - 3, 0) : i + 4, max(j - 3, 0) : j + 4]  # past the sticker
+            for lab in np.unique(win[win > 0]):
+                if is_steep:
+                    gentle[lab] = False
+                    steep_parts[lab] = True
+                elif steep_parts[lab]:
+                    gentle[lab] = True
+        steep_parts &= ~gentle
+    if not steep_parts.any():
+        return out
+    steep_mask = steep_parts[parts]
     reach_px = p.held_up_reach * min(layout.width_mm, layout.height_mm) * 1e-3
     reach_px *= intrinsics.fx / z_typ
     where = predicted[missing]
     unplaced = ~np.isfinite(where[:, 0])
-    out = napkin.near(napkin.raised, where, reach_px) | unplaced
+    out = napkin.near(steep_mask, where, reach_px) | unplaced
     if napkin.height_mm is not None and len(located):
         base = _sample_height(napkin, intrinsics.project(located))
         ground = float(np.nanmedian(base)) if np.isfinite(base).any() else 0.0
@@ -279,6 +333,7 @@ def assess_stickers(
     *,
     dropped: NDArray[np.bool_] | None = None,
     params: EvidenceParams | None = None,
+    foreshortening: NDArray[np.float64] | None = None,
 ) -> StickerEvidence:
     """Decide, for each sticker, seen, hidden by cloth, or unknown.
 
@@ -293,6 +348,9 @@ def assess_stickers(
     dropped : ndarray of bool, shape (16,), keyword-only, optional
         Stickers dropped as false detections.
     params : EvidenceParams, keyword-only, optional
+    foreshortening : ndarray, shape (16,), keyword-only, optional
+        How foreshortened each located sticker is (detector); tells a flap held up
+        steeply from one lying over the napkin.
 
     Returns
     -------
@@ -329,18 +387,24 @@ def assess_stickers(
             pred3[todo] = overall[0][todo]
     ok = np.isfinite(pred3[:, 0]) & (pred3[:, 2] > 0)
     predicted[ok] = intrinsics.project(pred3[ok])
+    z_typ = float(np.nanmedian(pts[seen, 2])) if seen.any() else 0.6
+    radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
+    if napkin is not None:
+        napkin = _without_stickers(napkin, pts[seen], intrinsics, radius_px)
     occluded = napkin is not None and _over_napkin(
         napkin, p.napkin_margin_mm, pts[seen], intrinsics
     )
-    z_typ = float(np.nanmedian(pts[seen, 2])) if seen.any() else 0.6
-    radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
     missing = np.flatnonzero(~seen)
     if napkin is not None:
         near_occ = napkin.near(napkin.occluder, predicted[missing], radius_px)
         near_hl = napkin.near(napkin.highlight, predicted[missing], radius_px)
     else:
         near_occ = near_hl = np.zeros(len(missing), dtype=bool)
-    held_up = _held_up(napkin, predicted, missing, pts[seen], intrinsics, layout, p, z_typ)
+    fore = foreshortening if foreshortening is not None else np.ones(n)
+    steep = np.nan_to_num(fore[seen], nan=1.0) < p.steep_foreshortening
+    held_up = _held_up(
+        napkin, predicted, missing, pts[seen], steep, intrinsics, layout, p, z_typ
+    )
     w, h = intrinsics.width, intrinsics.height
     for k, sid in enumerate(missing):
         u, v = predicted[sid]
