@@ -638,6 +638,139 @@ def sequence(
         )
 
 
+@main.command()
+@click.argument("folder", type=click.Path())
+@report_option("Write the timeline (CSV, JSON, picture) and the frame distance heatmap here.")
+@json_option("Print the timeline as JSON.")
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1),
+    default=None,
+    help="Worker processes [default: all cores].",
+)
+@references_option
+@colours_option
+@overwrite_option
+@_handle_errors
+def track(
+    folder: str,
+    report_dir: str | None,
+    as_json: bool,
+    jobs: int | None,
+    references_path: str | None,
+    colours_path: str | None,
+    overwrite: bool,
+) -> None:
+    """The state timeline of the frames of FOLDER, a recording.
+
+    Frames are taken in the order of FOLDER/frames.csv (color,depth[,time]) or by name.
+    Each is classified, then the states are smoothed over time (a hidden Markov model
+    whose moves are single folds and unfolds). A frame that cannot be read is a gap,
+    listed; the run goes on. With a labels.csv, the timeline is scored. Exit 1 when no
+    frame could be classified at all.
+    """
+    import os
+    from pathlib import Path
+
+    from .classes import CLASS_IDS, CLASS_NAMES
+    from .evaluate import coordinate_matrix, evaluate_pairs
+    from .io import guard_outputs, read_colours, write_outputs
+    from .recording import read_recording
+    from .references import load_references
+    from .report import csv_table, heatmap_image, timeline_image
+    from .track import TIMELINE_COLUMNS, timeline_rows, timeline_to_dict, track_outcomes
+
+    recording = read_recording(folder)
+    if report_dir:  # fail before the work, not after it
+        guard_outputs([Path(report_dir) / "timeline.json"], overwrite=overwrite)
+    refs = load_references(references_path)
+    colours = read_colours(colours_path) if colours_path else None
+    jobs = jobs or os.cpu_count() or 1
+    frames = list(recording.frames)
+    with _progress_bar(len(frames), "tracking", quiet=as_json) as bar:
+        outcomes = list(
+            evaluate_pairs(
+                frames, refs, jobs=jobs, on_progress=bar.update, colours=colours, distances=True
+            )
+        )
+    timeline = track_outcomes(
+        outcomes, refs, times=recording.times, labelled=recording.labelled
+    )
+    data = {"folder": folder, "n_frames": len(frames), **timeline_to_dict(timeline)}
+    if as_json:
+        click.echo(json.dumps(data))
+    else:
+        def state(key: tuple[str, str | None]) -> str:
+            return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
+
+        first = timeline.frames[0]
+        click.echo(
+            f"{len(frames)} frames; starts as "
+            f"{state((first.smoothed_class, first.smoothed_variant))}"
+        )
+        for t, a, b in timeline.changes:
+            click.echo(f"  frame {t}: {state(a)} -> {state(b)}")
+        for f in timeline.frames:
+            if f.gap:
+                click.echo(f"gap: frame {f.index} ({f.color}): {f.note}")
+        sc = timeline.score
+        if sc is not None:
+            click.echo(
+                f"frame accuracy {sc.raw_accuracy:.0%} raw, {sc.smoothed_accuracy:.0%} "
+                f"smoothed; state changes true {list(sc.true_changes)}, found "
+                f"{list(sc.found_changes)} (precision {sc.precision:.2f}, recall "
+                f"{sc.recall:.2f}, within 2 frames)"
+            )
+    if report_dir:
+        out = Path(report_dir)
+        picture = timeline_image(
+            CLASS_IDS,
+            [f.smoothed_class for f in timeline.frames],
+            [f.raw_class for f in timeline.frames],
+            truth=[f.label or "" for f in timeline.frames] if recording.labelled else None,
+            names=CLASS_NAMES,
+            title=f"timeline of {folder}",
+        )
+        heat = heatmap_image(
+            _frame_distances(coordinate_matrix(outcomes)),
+            title="frames: Spearman distance of dGLI",
+            value_label="1 - rho",
+        )
+        write_outputs(
+            {
+                out / "timeline.json": {"command": _command_line(), **data},
+                out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
+                out / "timeline.png": picture,
+                out / "distances.png": heat,
+            },
+            overwrite=overwrite,
+            command=_command_line(),
+        )
+        click.echo(f"report written to {out}", err=True)
+    if all(f.gap for f in timeline.frames):
+        sys.exit(1)
+
+
+def _frame_distances(coords: Any) -> Any:
+    """Spearman distances between frames over the coordinates both know (NaN when fewer
+    than 3)."""
+    import numpy as np
+
+    from .distance import pairwise_spearman
+
+    n = len(coords)
+    out = np.full((n, n), np.nan)
+    known = np.isfinite(coords)
+    for i in range(n):
+        for j in range(i, n):
+            both = known[i] & known[j]
+            if both.sum() >= 3:
+                d = pairwise_spearman(coords[i][both][None], coords[j][both][None])[0, 0]
+                out[i, j] = out[j, i] = d
+    return out
+
+
 def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
     """The JSON object of DESIGN.md for one classified pair."""
     import numpy as np

@@ -11,6 +11,7 @@ import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 import numpy as np
@@ -51,6 +52,8 @@ class PairOutcome:
     centroids: tuple[tuple[float, float], ...] = ()
     reason: str | None = None
     error: str | None = None
+    confidence: float | None = None
+    distances: tuple[float, ...] = ()
 
     @property
     def correct(self) -> bool:
@@ -86,8 +89,12 @@ def _init_worker(refs: ReferenceSet, colours: dict | None = None) -> None:
 
 
 def _classify_pair(
-    pair: LabelledPair, refs: ReferenceSet | None = None, colours: dict | None = None
+    pair: LabelledPair,
+    refs: ReferenceSet | None = None,
+    colours: dict | None = None,
+    distances: bool = False,
 ) -> PairOutcome:
+    from .classify import reference_distances
     from .pipeline import classify_frame
 
     if refs is None:
@@ -103,8 +110,22 @@ def _classify_pair(
     p = result.prediction
     coords = tuple(float(v) for v in result.coordinates)
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
+    dist: tuple[float, ...] = ()
+    if distances and result.best_guess is not None:  # to every reference, for tracking
+        obs = result.observation
+        d = reference_distances(result.coordinates, refs, obs.visible, obs.unknown)
+        dist = tuple(round(float(v), 6) for v in d)
+    guess = result.best_guess
+    confidence = guess.confidence if guess is not None else None
     if p is None:
-        return PairOutcome(pair, coordinates=coords, centroids=cents, reason=result.reason)
+        return PairOutcome(
+            pair,
+            coordinates=coords,
+            centroids=cents,
+            reason=result.reason,
+            confidence=confidence,
+            distances=dist,
+        )
     return PairOutcome(
         pair,
         p.class_id,
@@ -114,6 +135,8 @@ def _classify_pair(
         p.runner_up.distance if p.runner_up else None,
         coords,
         cents,
+        confidence=confidence,
+        distances=dist,
     )
 
 
@@ -124,6 +147,7 @@ def evaluate_pairs(
     jobs: int = 1,
     on_progress: Callable[[int], None] | None = None,
     colours: dict | None = None,
+    distances: bool = False,
 ) -> Iterator[PairOutcome]:
     """Classify labelled pairs, in input order, with ``jobs`` worker processes.
 
@@ -137,6 +161,9 @@ def evaluate_pairs(
         Called with 1 after each pair (for a progress bar).
     colours : dict, keyword-only, optional
         Calibrated sticker colours (``dgli calibrate``).
+    distances : bool, keyword-only
+        Keep each pair's distance to every reference (``PairOutcome.distances``), the
+        evidence :mod:`dgli_vision.track` smooths over time.
 
     Yields
     ------
@@ -147,7 +174,7 @@ def evaluate_pairs(
         raise ValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1:
         for pair in pairs:
-            yield _classify_pair(pair, references, colours)
+            yield _classify_pair(pair, references, colours, distances)
             if on_progress:
                 on_progress(1)
         return
@@ -160,7 +187,8 @@ def evaluate_pairs(
         jobs, mp_context=ctx, initializer=_init_worker, initargs=(references, colours)
     )
     try:
-        for outcome in pool.map(_classify_pair, pairs, chunksize=2):
+        work = partial(_classify_pair, distances=distances)
+        for outcome in pool.map(work, pairs, chunksize=2):
             yield outcome
             if on_progress:
                 on_progress(1)
@@ -232,6 +260,8 @@ def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
         tuple((float(u), float(v)) for u, v in data.get("centroids") or ()),
         data.get("reason"),
         data.get("error"),
+        data.get("confidence"),
+        tuple(float(v) for v in data.get("distances") or ()),
     )
 
 
