@@ -26,6 +26,8 @@ from .references import ReferenceSet
 __all__ = [
     "FULL_COORDINATES",
     "FULL_MARGIN",
+    "LIFTED_MM",
+    "LIFTED_WEIGHT",
     "MIN_CONFIDENCE",
     "MIN_COORDINATES",
     "VISIBILITY_WEIGHT",
@@ -42,6 +44,15 @@ MIN_COORDINATES = 3
 FULL_COORDINATES = 6
 #: Weight of the visibility term against the Spearman distance (both in [0, 2]).
 VISIBILITY_WEIGHT = 1.0
+#: A sticker this high above the table (mm) is on cloth held up (a flap being folded):
+#: wrinkles stay below 10 mm and a folded layer adds a few. Not seen, it is unknown (on
+#: a flap seen edge-on), not evidence of a layer lying on it.
+LIFTED_MM = 20.0
+#: Weight of the height term: the mean, over the stickers seen, of how far the
+#: observation (standing above the table or not) is from the reference's rate. A
+#: completed fold lies flat; a flap held up stands 20 mm and more above the table, which
+#: tells a fold in progress from a finished one whose stickers fall in similar places.
+LIFTED_WEIGHT = 1.0
 #: Margin to the runner-up (distance units, Spearman + visibility) that earns full
 #: confidence. On fresh renders of every class under every capture condition
 #: (``dgli robustness``) right answers have a median margin near 0.3; the wrong ones
@@ -140,6 +151,7 @@ def reference_distances(
     references: ReferenceSet,
     visible: ArrayLike | None = None,
     unknown: ArrayLike | None = None,
+    lifted: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Distance of one observation to every reference, shape (k,).
 
@@ -153,6 +165,10 @@ def reference_distances(
     unknown : array_like of bool, shape (16,), optional
         Stickers not seen for a reason other than cloth on top (out of view, under an
         object, in a highlight): no evidence either way, left out of the visibility term.
+    lifted : array_like of float, shape (16,), optional
+        1 for a sticker standing more than :data:`LIFTED_MM` above the table, 0 for one
+        lying on it, NaN where that is not known: compared with the references' rates
+        (:data:`LIFTED_WEIGHT`).
 
     Raises
     ------
@@ -187,6 +203,12 @@ def reference_distances(
         if use.any():
             gap = np.abs(vis[None, use] - rates[:, use]).mean(axis=1)
             dist = dist + VISIBILITY_WEIGHT * gap
+    if lifted is not None:
+        up = np.asarray(lifted, dtype=np.float64)
+        told = np.isfinite(up)
+        if told.any():
+            gap = np.abs(up[None, told] - references.lifted_rates()[:, told]).mean(axis=1)
+            dist = dist + LIFTED_WEIGHT * gap
     return dist
 
 
@@ -195,6 +217,7 @@ def classify_coordinates(
     references: ReferenceSet,
     visible: ArrayLike | None = None,
     unknown: ArrayLike | None = None,
+    lifted: ArrayLike | None = None,
 ) -> Prediction:
     """Nearest reference of an observation (see :func:`reference_distances`).
 
@@ -207,12 +230,15 @@ def classify_coordinates(
         Which stickers were seen (SPEC order); improves the verdict when given.
     unknown : array_like of bool, shape (16,), optional
         Stickers that are neither seen nor evidence of a fold.
+    lifted : array_like of float, shape (16,), optional
+        1 where a sticker stands above the table, 0 where it lies on it, NaN where not
+        known (see :func:`reference_distances`).
 
     Returns
     -------
     Prediction
     """
-    dist = reference_distances(coords, references, visible, unknown)
+    dist = reference_distances(coords, references, visible, unknown, lifted)
     order = np.argsort(dist, kind="stable")
     best = references.references[order[0]]
     runner = None

@@ -588,7 +588,11 @@ def sequence(
     as_json: bool,
     overwrite: bool,
 ) -> None:
-    """Folding sequence NAME: frame distance matrix and detected state changes."""
+    """Folding sequence NAME: frame distance matrix and detected state changes.
+
+    The simulator's frames of the sequence, each compared with the references as a
+    camera above would see it, then smoothed over time as `dgli track` does.
+    """
     from pathlib import Path
 
     from .cloth.sequences import SEQUENCES
@@ -608,20 +612,23 @@ def sequence(
         "frames": len(records),
         "truth": list(result.truth),
         "predicted": list(result.predicted),
+        "smoothed": list(result.smoothed),
         "true_changes": list(result.true_changes),
         "detected_changes": list(result.detected_changes),
         "frame_accuracy": round(result.frame_accuracy, 4),
+        "smoothed_accuracy": round(result.smoothed_accuracy, 4),
     }
     if as_json:
         click.echo(json.dumps(summary))
     else:
         click.echo(f"sequence {name}: {SEQUENCES[name][0]} ({len(records)} frames)")
         click.echo(f"  truth:     {' '.join(result.truth)}")
-        click.echo(f"  predicted: {' '.join(result.predicted)}")
+        click.echo(f"  per frame: {' '.join(result.predicted)}")
+        click.echo(f"  smoothed:  {' '.join(result.smoothed)}")
         click.echo(
             f"  state changes: true at frames {list(result.true_changes)}, "
-            f"detected at {list(result.detected_changes)}; "
-            f"frame accuracy {result.frame_accuracy:.0%}"
+            f"detected at {list(result.detected_changes)}; frame accuracy "
+            f"{result.frame_accuracy:.0%} per frame, {result.smoothed_accuracy:.0%} smoothed"
         )
     if report_dir:
         out = Path(report_dir)

@@ -9,7 +9,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .baselines import corner_distances, pairwise_curve_distances, segment_distances
-from .classify import classify_coordinates
+from .classify import reference_distances
 from .database import StateRecords
 from .distance import davies_bouldin, pairwise_spearman
 from .references import ReferenceSet
@@ -82,46 +82,67 @@ class SequenceAnalysis:
     ----------
     distances : ndarray, shape (n, n)
         Spearman distances between the frames' dGLI coordinates.
-    truth, predicted : tuple of str
-        True and predicted class of every frame.
+    truth : tuple of str
+        True class of every frame.
+    predicted : tuple of str
+        Each frame's own nearest class.
+    smoothed : tuple of str
+        The classes after smoothing over time (:mod:`dgli_vision.track`).
     true_changes, detected_changes : tuple of int
-        Frames where the (true / predicted) class differs from the previous frame.
+        Frames where the true / smoothed class differs from the previous frame's.
     """
 
     distances: NDArray[np.float64]
     truth: tuple[str, ...]
     predicted: tuple[str, ...]
+    smoothed: tuple[str, ...]
     true_changes: tuple[int, ...]
     detected_changes: tuple[int, ...]
 
     @property
     def frame_accuracy(self) -> float:
-        """Fraction of frames whose predicted class is the true one."""
+        """Fraction of frames whose own predicted class is the true one."""
         return float(np.mean([t == p for t, p in zip(self.truth, self.predicted)]))
 
-
-def _changes(labels: tuple[str, ...]) -> tuple[int, ...]:
-    return tuple(k for k in range(1, len(labels)) if labels[k] != labels[k - 1])
+    @property
+    def smoothed_accuracy(self) -> float:
+        """Fraction of frames whose smoothed class is the true one."""
+        return float(np.mean([t == p for t, p in zip(self.truth, self.smoothed)]))
 
 
 def analyse_sequence(records: StateRecords, references: ReferenceSet) -> SequenceAnalysis:
     """Distance matrix of the frames, and the frames where the state changes.
 
-    Each frame is classified against ``references`` (visible stickers as evidence, hidden
-    stickers' coordinates removed); a change is a frame whose class differs from the
-    previous frame's.
+    Each frame is compared with ``references`` as a camera straight above would see it
+    (stickers hidden by cloth as evidence, coordinates of their segments removed, those
+    on a flap held up unknown); the per-frame distances are smoothed over time with the
+    tracker's hidden Markov model, and a change is a frame whose smoothed class differs
+    from the previous frame's.
     """
+    from .track import change_frames, smooth
+
     coords = records.hidden_coordinates()
-    predicted = tuple(
-        classify_coordinates(
-            coords[k], references, records.visible[k], records.unknown[k]
-        ).class_id
-        for k in range(len(records))
+    dist = np.array(
+        [
+            reference_distances(
+                coords[k],
+                references,
+                records.visible[k],
+                records.unknown[k],
+                np.where(
+                    records.visible[k] | records.unknown[k], records.lifted[k], np.nan
+                ),
+            )
+            for k in range(len(records))
+        ]
     )
+    predicted = tuple(references.references[int(np.argmin(d))].class_id for d in dist)
+    smoothed = tuple(c for c, _ in smooth(dist, references)[0])
     return SequenceAnalysis(
         distances=pairwise_spearman(records.coordinates),
         truth=records.classes,
         predicted=predicted,
-        true_changes=_changes(records.classes),
-        detected_changes=_changes(predicted),
+        smoothed=smoothed,
+        true_changes=tuple(change_frames(records.classes)),
+        detected_changes=tuple(change_frames(smoothed)),
     )

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from .classify import LIFTED_MM
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .dgli import cloth_coordinates
 from .fold_graph import fold_edges
@@ -24,10 +25,6 @@ __all__ = [
     "simulate_states",
     "state_id",
 ]
-
-#: A sticker not visible this high above the table (mm) is on cloth held up, seen
-#: edge-on, not under a layer lying on it (wrinkles stay below 10 mm).
-LIFTED_MM = 20.0
 
 #: Fold angles (degrees) of the states with a fold in progress, in bins: each bin is a
 #: group of its own in the reference set, so that a frame finds a near reference at any
@@ -147,11 +144,16 @@ class StateRecords:
             object.__setattr__(self, "stages", ("",) * len(self.ids))
 
     @property
+    def lifted(self) -> NDArray[np.bool_]:
+        """Stickers standing more than :data:`LIFTED_MM` above the table, shape (n, 16)."""
+        return self.sticker_points[..., 2] > LIFTED_MM * 1e-3
+
+    @property
     def unknown(self) -> NDArray[np.bool_]:
         """Stickers not visible that stand more than :data:`LIFTED_MM` above the table,
         shape (n, 16): on a flap held up, seen edge-on, which no camera can call
         hidden by cloth or not."""
-        return ~self.visible & (self.sticker_points[..., 2] > LIFTED_MM * 1e-3)
+        return ~self.visible & self.lifted
 
     @property
     def folded(self) -> NDArray[np.bool_]:

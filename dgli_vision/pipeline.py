@@ -11,13 +11,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
+from .classify import LIFTED_MM, MIN_CONFIDENCE, Prediction, classify_coordinates
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .io import RGBDFrame
 from .layout import NapkinLayout, default_layout
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
-from .perception.evidence import StickerEvidence, assess_stickers, drop_inconsistent
+from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from .perception.napkin import find_napkin
 from .references import ReferenceSet
@@ -39,12 +39,28 @@ class ClothObservation:
         Table normal, towards the camera (the direction of the dGLI derivative).
     evidence : StickerEvidence or None
         Which missing stickers are hidden by cloth and which are unknown, and why.
+    heights_mm : ndarray, shape (16,), optional
+        Height of each located sticker above the table plane, mm (NaN where missing).
     """
 
     segments: NDArray[np.float64]
     visible: NDArray[np.bool_]
     up: NDArray[np.float64]
     evidence: StickerEvidence | None = None
+    heights_mm: NDArray[np.float64] | None = None
+
+    @property
+    def lifted(self) -> NDArray[np.float64] | None:
+        """1 for a sticker standing more than ``LIFTED_MM`` above the table, 0 for one on
+        it, NaN where not known, shape (16,). A missing sticker that may have gone up
+        with a flap held up steeply counts as standing."""
+        if self.heights_mm is None:
+            return None
+        out = np.where(self.visible, (self.heights_mm > LIFTED_MM).astype(float), np.nan)
+        if self.evidence is not None:
+            held = [why == HELD_UP for why in self.evidence.reasons]
+            out[np.asarray(held) & self.unknown] = 1.0
+        return out
 
     @property
     def unknown(self) -> NDArray[np.bool_]:
@@ -108,7 +124,8 @@ def observe(
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
-    return detections, markers, ClothObservation(segments, visible, up, evidence)
+    heights = (markers.points @ up - offset) * 1e3
+    return detections, markers, ClothObservation(segments, visible, up, evidence, heights)
 
 
 def classify_frame(
@@ -145,7 +162,9 @@ def classify_frame(
     n = int(obs.visible.sum())
     unknown = obs.evidence.summary() if obs.evidence is not None else ""
     try:
-        guess = classify_coordinates(coords, references, obs.visible, obs.unknown)
+        guess = classify_coordinates(
+            coords, references, obs.visible, obs.unknown, obs.lifted
+        )
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         if unknown:

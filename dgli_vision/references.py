@@ -53,6 +53,9 @@ class Reference:
         Id of the representative state in its database.
     n_samples : int
         Size of the group.
+    lifted_rate : ndarray, shape (16,)
+        Fraction of the group's states in which each sticker stood more than
+        ``classify.LIFTED_MM`` above the table (on a flap held up).
     stage : str
         ``""`` for a state with every fold laid flat; else the fold in progress and its
         angles (``"rising B over, 50-90 deg"``: below 90 degrees the state is still the
@@ -67,6 +70,7 @@ class Reference:
     source: str = ""
     n_samples: int = 1
     stage: str = ""
+    lifted_rate: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
 
 
 @dataclass(frozen=True, eq=False)
@@ -86,6 +90,10 @@ class ReferenceSet:
     def visible_rates(self) -> NDArray[np.float64]:
         """Sticker visibility rates of all references, shape (k, 16)."""
         return np.stack([r.visible_rate for r in self.references])
+
+    def lifted_rates(self) -> NDArray[np.float64]:
+        """Rates of each sticker standing above the table, shape (k, 16)."""
+        return np.stack([r.lifted_rate for r in self.references])
 
 
 def build_references(
@@ -130,6 +138,7 @@ def build_references(
                 source=records.ids[best],
                 n_samples=len(members),
                 stage=stage,
+                lifted_rate=records.lifted[members].mean(axis=0),
             )
         )
     return ReferenceSet(tuple(refs), dict(provenance or {}))
@@ -152,6 +161,11 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
                 **({"stage": r.stage} if r.stage else {}),
                 "coordinates": [round(float(v), 10) for v in r.coordinates],
                 "visible_rate": [round(float(v), 4) for v in r.visible_rate],
+                **(
+                    {"lifted_rate": [round(float(v), 4) for v in r.lifted_rate]}
+                    if r.lifted_rate.any()
+                    else {}
+                ),
             }
             for r in refs.references
         ],
@@ -189,6 +203,12 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             raise ReferenceError_(f"'{source}': reference {k} needs 28 finite coordinates")
         if rate.shape != (16,):
             raise ReferenceError_(f"'{source}': reference {k} needs 16 visibility rates")
+        try:
+            lifted = np.asarray(item.get("lifted_rate") or np.zeros(16), dtype=np.float64)
+        except (TypeError, ValueError):
+            lifted = np.zeros(0)
+        if lifted.shape != (16,):
+            raise ReferenceError_(f"'{source}': reference {k} needs 16 lifted rates")
         refs.append(
             Reference(
                 class_id,
@@ -199,6 +219,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
                 str(item.get("source", "")),
                 int(item.get("n_samples", 1)),
                 str(item.get("stage") or ""),
+                lifted,
             )
         )
     if len({r.class_id for r in refs}) < 2:

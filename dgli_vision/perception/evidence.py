@@ -25,6 +25,7 @@ from .lift import Markers3D
 from .napkin import NapkinView
 
 __all__ = [
+    "HELD_UP",
     "HIDDEN",
     "SEEN",
     "UNKNOWN",
@@ -35,6 +36,8 @@ __all__ = [
 ]
 
 SEEN, HIDDEN, UNKNOWN = 1, 0, -1
+#: Why a sticker is unknown when it may be on a flap held up steeply.
+HELD_UP = "possibly on cloth held up (seen edge-on)"
 
 
 @dataclass(frozen=True)
@@ -418,7 +421,7 @@ def assess_stickers(
         elif near_hl[k]:
             why = "in a highlight"
         elif held_up[k]:
-            why = "possibly on cloth held up (seen edge-on)"
+            why = HELD_UP
         elif dropped is not None and dropped[sid] and np.isnan(u):
             why = "found where the napkin cannot be"
         if why:
