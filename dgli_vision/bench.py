@@ -295,6 +295,7 @@ def run_pipeline_benchmarks(
     from .pipeline import classify_frame
     from .references import load_references
     from .render import render
+    from .track import track_outcomes
 
     results = []
     pairs = find_pairs(samples_dir)
@@ -363,5 +364,20 @@ def run_pipeline_benchmarks(
     results.append(BenchResult(f"evaluate {len(many)} pairs, -j 2", t2, "s"))
     results.append(
         BenchResult("evaluate speed-up -j 2 / -j 1", t1 / t2, "x", "close to 2x", t1 / t2 >= 1.6)
+    )
+    # dgli track: 300 frames (the sample pairs in turn), classified with 2 workers and
+    # smoothed over time; what a recording of a folding episode costs.
+    frames = (pairs * (300 // len(pairs) + 1))[:300]
+
+    def track() -> None:
+        outcomes = list(evaluate_pairs(frames, refs, jobs=2, distances=True))
+        track_outcomes(outcomes, refs)
+
+    t_track = _median_seconds(track, 1)
+    fps = len(frames) / t_track
+    results.append(
+        BenchResult(
+            "track 300 frames of 1280x720, -j 2", fps, "frames/s", ">= 20 frames/s", fps >= 20
+        )
     )
     return results

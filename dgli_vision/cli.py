@@ -536,6 +536,7 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     if report_dir:  # fail before the work, not after it
         guard_outputs([Path(report_dir) / "table.json"], overwrite=overwrite)
     records, _ = read_database(db)
+    records = records.subset(records.folded)  # the paper's states: every fold laid flat
     keys = [f"{c}/{v or ''}" for c, v in zip(records.classes, records.variants)]
     order = np.argsort(np.asarray(keys), kind="stable")  # by class, then variant
     records = records.subset(order)

@@ -16,6 +16,7 @@ from dgli_vision.baselines import (
     hausdorff,
     segment_distances,
 )
+from dgli_vision.classes import CLASS_IDS
 from dgli_vision.cli import main
 from dgli_vision.cloth.sequences import folding_sequence
 
@@ -66,14 +67,16 @@ def test_sequence_truth_changes_past_ninety_degrees():
 @pytest.fixture(scope="module")
 def small_db(tmp_path_factory):
     out = tmp_path_factory.mktemp("db")
-    result = run(["simulate", str(out), "--per-class", "2", "--seed", "5"])
+    args = ["simulate", str(out), "--per-class", "2", "--seed", "5", "--in-progress", "1"]
+    result = run(args)
     assert result.exit_code == 0, result.output
     return out
 
 
 def test_simulate_is_deterministic(small_db, tmp_path):
     again = tmp_path / "again"
-    assert run(["simulate", str(again), "--per-class", "2", "--seed", "5"]).exit_code == 0
+    args = ["simulate", str(again), "--per-class", "2", "--seed", "5", "--in-progress", "1"]
+    assert run(args).exit_code == 0
     for name in ("truth/05_001.json", "meshes/12_000.ply"):
         assert (again / name).read_bytes() == (small_db / name).read_bytes()
     index_a, index_b = (json.loads((d / "index.json").read_text()) for d in (small_db, again))
@@ -138,3 +141,15 @@ def test_database_meshes_read_back(small_db):
     truth = json.loads((small_db / "truth" / "02_000.json").read_text())
     assert xyz.shape == (81 * 81, 3) and tri.shape == (2 * 80 * 80, 3)
     assert xyz[:, 2].min() >= 0 and truth["class"] == "02"
+
+
+def test_references_from_a_database_with_folds_in_progress(small_db, tmp_path):
+    out = tmp_path / "refs.json"
+    assert run(["references", "build", str(small_db), "-o", str(out)]).exit_code == 0
+    refs = json.loads(out.read_text())["references"]
+    finished = [r for r in refs if not r.get("stage")]
+    moving = [r for r in refs if r.get("stage")]
+    assert {r["class"] for r in finished} == set(CLASS_IDS) and len(moving) == 52 * 4
+    rising = [r for r in moving if r["stage"].startswith("rising A over, 50-90")]
+    assert {r["class"] for r in rising} == {"01"}  # below 90 degrees: not folded yet
+    assert all(max(r["lifted_rate"]) > 0 for r in moving if "50-90" in r["stage"])

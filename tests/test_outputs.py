@@ -49,7 +49,7 @@ def user_folder(tmp_path: Path) -> Path:
 @pytest.fixture(scope="module")
 def database(tmp_path_factory) -> Path:
     db = tmp_path_factory.mktemp("db")
-    res = CliRunner().invoke(main, ["simulate", str(db), "--per-class", "1"])
+    res = CliRunner().invoke(main, ["simulate", str(db), "--per-class", "1", "--in-progress", "0"])
     assert res.exit_code == 0, res.output
     return db
 
@@ -60,7 +60,7 @@ def test_no_writing_command_replaces_a_users_file(user_folder, database):
     f = str(user_folder)
     commands = [
         (main, ["render", f, "--per-class", "1"], "01_000_color.png"),
-        (main, ["simulate", f, "--per-class", "1"], "index.json"),
+        (main, ["simulate", f, "--per-class", "1", "--in-progress", "0"], "index.json"),
         (main, ["references", "build", str(database), "-o", f + "/refs.json"], "refs.json"),
         (main, ["calibrate", color, depth, "-o", f + "/colours.json"], "colours.json"),
         (main, ["evaluate", str(SAMPLES), "--report", f, "-j", "1"], "report.md"),
