@@ -293,15 +293,21 @@ def _foreshortening(
             z,
         ]
     )
-    keep = np.ones(len(pts), dtype=bool)
-    for _ in range(2):  # drop flying pixels at the blob's rim
-        normal = np.linalg.svd(pts[keep] - pts[keep].mean(axis=0), full_matrices=False)[2][-1]
-        off = np.abs((pts - np.median(pts[keep], axis=0)) @ normal)
-        keep = off < max(3.0, 2.5 * float(np.median(off[keep])))
-        if keep.sum() < 12:
-            return 1.0
-    normal = np.linalg.svd(pts[keep] - pts[keep].mean(axis=0), full_matrices=False)[2][-1]
-    return float(abs(normal[2]))
+    normal = _plane_normal(pts)
+    if abs(normal[2]) > 0.95:  # face-on, as nearly every sticker on a lying napkin is
+        return float(abs(normal[2]))
+    # drop flying pixels at the blob's rim, then fit again
+    off = np.abs((pts - pts.mean(axis=0)) @ normal)
+    keep = off < max(3.0, 2.5 * _median(off))
+    if keep.sum() < 12:
+        return 1.0
+    return float(abs(_plane_normal(pts[keep])[2]))
+
+
+def _plane_normal(pts: NDArray) -> NDArray:
+    """Unit normal of the least-squares plane through points (n, 3)."""
+    centred = pts - pts.mean(axis=0)
+    return np.linalg.eigh(centred.T @ centred)[1][:, 0]
 
 
 def _ellipse_of(m: dict) -> tuple[float, float]:
@@ -499,15 +505,15 @@ def detect_stickers(
         x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
         # A sticker on a flap held up at an angle images as an ellipse: its minor axis is
         # shortened by the tilt read from the depth around it.
-        tilt = _foreshortening(depth_roi, roi.astype(bool), x, y, intrinsics)
         fore, minor_angle = 1.0, 0.0
-        if tilt <= params.flat_foreshortening:
-            # The sticker's own depth says it is tilted; how much, its shape says more
-            # precisely than a plane fitted to a few noisy millimetres of depth. The two
-            # must agree: a disc cut by an edge is also elongated, but flat.
-            q, minor_angle = _ellipse_of(m)
-            if abs(q - tilt) <= params.tilt_agreement:
-                fore = min(q, 1.0)
+        q, angle = _ellipse_of(m)
+        if q <= params.flat_foreshortening:  # elongated: tilted, or cut by an edge?
+            # The sticker's own depth says whether it is tilted; how much, its shape says
+            # more precisely than a plane fitted to a few noisy millimetres of depth. The
+            # two must agree: a disc cut by an edge is also elongated, but flat.
+            tilt = _foreshortening(depth_roi, roi.astype(bool), x, y, intrinsics)
+            if tilt <= params.flat_foreshortening and abs(q - tilt) <= params.tilt_agreement:
+                fore, minor_angle = q, angle
         if fore < params.min_foreshortening:
             rejected.append(
                 Rejection(
