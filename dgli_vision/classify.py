@@ -18,6 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .classes import LIFTED_MM
 from .dgli import pair_indices
 from .distance import pairwise_spearman
 from .errors import DetectionError
@@ -44,10 +45,6 @@ MIN_COORDINATES = 3
 FULL_COORDINATES = 6
 #: Weight of the visibility term against the Spearman distance (both in [0, 2]).
 VISIBILITY_WEIGHT = 1.0
-#: A sticker this high above the table (mm) is on cloth held up (a flap being folded):
-#: wrinkles stay below 10 mm and a folded layer adds a few. Not seen, it is unknown (on
-#: a flap seen edge-on), not evidence of a layer lying on it.
-LIFTED_MM = 20.0
 #: Weight of the height term: the mean, over the stickers seen, of how far the
 #: observation (standing above the table or not) is from the reference's rate. A
 #: completed fold lies flat; a flap held up stands 20 mm and more above the table, which

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .classify import LIFTED_MM
+from .classes import LIFTED_MM
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .dgli import cloth_coordinates
 from .fold_graph import fold_edges

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .classify import LIFTED_MM, MIN_CONFIDENCE, Prediction, classify_coordinates
+from .classes import LIFTED_MM
+from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .io import RGBDFrame

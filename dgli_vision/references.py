@@ -55,7 +55,7 @@ class Reference:
         Size of the group.
     lifted_rate : ndarray, shape (16,)
         Fraction of the group's states in which each sticker stood more than
-        ``classify.LIFTED_MM`` above the table (on a flap held up).
+        ``classes.LIFTED_MM`` above the table (on a flap held up).
     stage : str
         ``""`` for a state with every fold laid flat; else the fold in progress and its
         angles (``"rising B over, 50-90 deg"``: below 90 degrees the state is still the
