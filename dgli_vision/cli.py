@@ -522,14 +522,17 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
 
     Columns: the database labelled by class, the three folding sequences labelled by
-    their frames' true class, and the database labelled by class and variant.
+    their frames' true class, the database labelled by class and variant, and by class
+    and variant with mirror images merged (the grouping comparable to the paper's
+    corner-specific classes; see the report).
     """
     import dataclasses
     from pathlib import Path
 
     import numpy as np
 
-    from .compare import davies_bouldin_table, distance_matrices
+    from .compare import COMPARE_COLUMN_NOTES, davies_bouldin_table, distance_matrices
+    from .fold_graph import mirror_group
     from .io import guard_outputs, read_database, write_outputs
     from .report import csv_table, heatmap_image, markdown_table
 
@@ -543,25 +546,36 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     by_variant = dataclasses.replace(
         records, classes=tuple(f"{c}/{v}" for c, v in zip(records.classes, records.variants))
     )
+    mirrored = dataclasses.replace(
+        records,
+        classes=tuple(mirror_group(k) for k in zip(records.classes, records.variants)),
+    )
     datasets = {
         "database": records,
         **{n: _sequence_records(n) for n in ("I", "II", "III")},
         "database by variant": by_variant,
+        "by variant, mirrors merged": mirrored,
     }
     table = davies_bouldin_table(datasets)
+    table["column_notes"] = COMPARE_COLUMN_NOTES
     columns = table["columns"]
     rows = [[name, *vals] for name, vals in table["rows"].items()]
+    notes = "\n".join(f"- **{k}**: {v}" for k, v in COMPARE_COLUMN_NOTES.items())
     if as_json:
         click.echo(json.dumps(table))
     else:
         click.echo("Davies-Bouldin index (lower is better)")
         click.echo(markdown_table(["representation", *columns], rows), nl=False)
+        click.echo("columns: " + "; ".join(f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()))
     if report_dir:
         out = Path(report_dir)
         files: dict[Path, Any] = {
             out / "table.json": table,
             out / "table.md": "# Davies-Bouldin index (lower is better)\n\n"
-            + markdown_table(["representation", *columns], rows),
+            + markdown_table(["representation", *columns], rows)
+            + "\n## What each column groups\n\n"
+            + notes
+            + "\n",
             out / "table.csv": csv_table(["representation", *columns], rows),
         }
         for name, mat in distance_matrices(records).items():

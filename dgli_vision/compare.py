@@ -15,6 +15,7 @@ from .distance import davies_bouldin, pairwise_spearman
 from .references import ReferenceSet
 
 __all__ = [
+    "COMPARE_COLUMN_NOTES",
     "REPRESENTATIONS",
     "SequenceAnalysis",
     "analyse_sequence",
@@ -29,6 +30,20 @@ def _dgli_with_visibility(records: StateRecords) -> NDArray[np.float64]:
     vis = records.visible.astype(float)
     return pairwise_spearman(records.coordinates) + np.abs(vis[:, None] - vis[None]).mean(axis=2)
 
+
+#: What each column of ``dgli compare`` groups, and why.
+COMPARE_COLUMN_NOTES: dict[str, str] = {
+    "database": "the simulated states by class (12 groups; a class pools its corners or "
+    "sides, so a group holds shapes that differ by rotation of the fold)",
+    "I, II, III": "the frames of each folding sequence by their true class",
+    "database by variant": "by class and variant (44 groups); over and under mirror "
+    "images are separate groups although the dGLI cannot tell them apart",
+    "by variant, mirrors merged": "by class and variant with mirror images through the "
+    "table merged (02/03 by corner, 09/10 by side, 05 XY/X with XY/Y; 32 groups, derived "
+    "from the fold definitions): the dGLI of a mirror image is the same, so this is the "
+    "grouping comparable to the paper's corner-specific classes, whose database has no "
+    "fold under",
+}
 
 REPRESENTATIONS: dict[str, Callable[[StateRecords], NDArray[np.float64]]] = {
     "dgli": lambda r: pairwise_spearman(r.coordinates),

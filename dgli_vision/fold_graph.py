@@ -13,7 +13,15 @@ from functools import lru_cache
 
 from .classes import CLASS_IDS, CORNERS, VARIANTS
 
-__all__ = ["StateKey", "fold_edges", "folds_of", "neighbours", "state_keys", "unfold"]
+__all__ = [
+    "StateKey",
+    "fold_edges",
+    "folds_of",
+    "mirror_group",
+    "neighbours",
+    "state_keys",
+    "unfold",
+]
 
 #: A state: (class id, variant).
 StateKey = tuple[str, "str | None"]
@@ -100,3 +108,29 @@ def unfold(key: StateKey, fold: str) -> StateKey:
     if before is None:
         raise ValueError(f"unfolding {fold!r} from {key[0]}/{key[1]} leaves no state")
     return before
+
+
+def mirror_group(key: StateKey) -> str:
+    """The states that are mirror images of each other through the table plane, as one
+    label (``"02/A|03/A"``; a state without a mirror partner keeps ``"12/B"``).
+
+    Mirroring the cloth through the table turns every fold over into one under and
+    reverses the order in which layers lie; the dGLI does not change (the linking
+    integral changes sign, and so does the derivative's direction). So two states whose
+    folds differ only by over / under, or, for two crossing flaps, by which flap lies on
+    top, have the same cloth coordinates up to cloth thickness: 02 / 03 by corner,
+    09 / 10 by side, and 05 ``XY/X`` / ``XY/Y``.
+    """
+
+    def shape(k: StateKey) -> tuple[frozenset[str], bool]:
+        words, crossing = set(), False
+        for w in folds_of(*k):
+            w = w.replace(" over", "").replace(" under", "")
+            if " crossing " in w:
+                crossing, w = True, w.split(" crossing ")[0]
+            words.add(w)
+        return frozenset(words), crossing
+
+    mine = shape(key)
+    same = [k for k in state_keys() if shape(k) == mine]
+    return "|".join(f"{c}/{v or ''}" for c, v in same)

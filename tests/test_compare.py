@@ -93,7 +93,15 @@ def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
     result = run(["compare", str(small_db), "--report", str(report), "--json"])
     assert result.exit_code == 0, result.output
     table = json.loads((report / "table.json").read_text())
-    assert table["columns"] == ["database", "I", "II", "III", "database by variant"]
+    assert table["columns"] == [
+        "database",
+        "I",
+        "II",
+        "III",
+        "database by variant",
+        "by variant, mirrors merged",
+    ]
+    assert "mirror" in (report / "table.md").read_text()
     assert set(table["rows"]) == {
         "dgli",
         "dgli+visibility",
@@ -155,3 +163,43 @@ def test_references_from_a_database_with_folds_in_progress(small_db, tmp_path):
         motion, fold = r["stage"].split(",")[0].split(" ", 1)
         assert (fold in folds_of(r["class"], r["variant"])) == (motion == "settling")
     assert all(max(r["lifted_rate"]) > 0 for r in moving if "50-90" in r["stage"])
+
+
+# --- the mirror symmetry (why visibility is part of the classifier) --------------------
+
+
+def test_the_dgli_is_unchanged_by_a_mirror_through_the_table():
+    from dgli_vision.dgli import cloth_coordinates
+
+    rng = np.random.default_rng(14)
+    segments = rng.normal(scale=0.1, size=(200, 8, 2, 3))
+    mirrored = segments * np.array([1.0, 1.0, -1.0])
+    up = np.array([0.0, 0.0, 1.0])
+    a, b = cloth_coordinates(segments, up), cloth_coordinates(mirrored, up)
+    np.testing.assert_allclose(b, a, atol=1e-9)
+    assert np.abs(a).max() > 0.1  # not trivially zero
+
+
+@pytest.mark.parametrize(("over", "under", "variant"), [("02", "03", "C"), ("09", "10", "DA")])
+def test_a_fold_over_and_the_same_fold_under_have_the_same_coordinates(over, under, variant):
+    from dgli_vision.cloth.states import sample_state
+    from dgli_vision.distance import pairwise_spearman
+
+    for seed in range(3):
+        a = sample_state(over, variant, seed).coordinates()
+        b = sample_state(under, variant, seed).coordinates()
+        # the same fold drawn the same way: apart only by cloth thickness (1 mm)
+        assert pairwise_spearman(a[None], b[None])[0, 0] < 0.02
+
+
+def test_mirror_images_are_derived_from_the_fold_definitions():
+    from dgli_vision.fold_graph import mirror_group, state_keys
+
+    merged = sorted({mirror_group(k) for k in state_keys() if "|" in mirror_group(k)})
+    assert merged == sorted(
+        [f"02/{c}|03/{c}" for c in "ABCD"]
+        + [f"09/{s}|10/{s}" for s in ("AB", "BC", "CD", "DA")]
+        + ["05/AB/A|05/AB/B", "05/BC/B|05/BC/C", "05/CD/C|05/CD/D", "05/DA/D|05/DA/A"]
+    )
+    assert len({mirror_group(k) for k in state_keys()}) == 32
+    assert mirror_group(("12", "B")) == "12/B"
