@@ -22,19 +22,19 @@ F = TypeVar("F", bound=Callable[..., Any])
 # Options shared by several commands: one name, one help text, one validation.
 intrinsics_option = click.option(
     "--intrinsics",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     help="Open3D intrinsics JSON (default: intrinsics.json beside COLOR, else nominal Kinect).",
 )
 colours_option = click.option(
     "--colours",
     "colours_path",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     help="Sticker colours measured by 'dgli calibrate' [default: the printed nominal ones].",
 )
 references_option = click.option(
     "--references",
     "references_path",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     help="Reference set file [default: references/default.json or $DGLI_REFERENCES].",
 )
 
@@ -54,7 +54,7 @@ overwrite_option = click.option(
 def output_option(help_text: str) -> Callable[[F], F]:
     """``-o/--output FILE``: the file a command writes."""
     return click.option(
-        "-o", "--output", required=True, type=click.Path(dir_okay=False), help=help_text
+        "-o", "--output", required=True, type=click.Path(), help=help_text
     )
 
 
@@ -866,15 +866,15 @@ def verdict_line(result: Any) -> str:
 
 
 @click.command("classify")
-@click.argument("color", type=click.Path(dir_okay=False))
-@click.argument("depth", type=click.Path(dir_okay=False))
+@click.argument("color", type=click.Path())
+@click.argument("depth", type=click.Path())
 @intrinsics_option
 @references_option
 @colours_option
 @json_option("Print one JSON object.")
 @click.option(
     "--overlay",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     help="Write the image with stickers, segments and verdict.",
 )
 @overwrite_option
@@ -933,8 +933,8 @@ def classify_main() -> None:
 
 
 @main.command()
-@click.argument("color", type=click.Path(dir_okay=False))
-@click.argument("depth", type=click.Path(dir_okay=False))
+@click.argument("color", type=click.Path())
+@click.argument("depth", type=click.Path())
 @output_option("Colours file to write (JSON).")
 @intrinsics_option
 @overwrite_option
@@ -984,7 +984,7 @@ def calibrate(
 )
 @click.option(
     "--markdown",
-    type=click.Path(dir_okay=False),
+    type=click.Path(),
     help="Also write the table as Markdown to this file.",
 )
 @references_option
@@ -1090,7 +1090,7 @@ def _format_figure(value: float, unit: str) -> str:
 @click.option("--repeats", default=5, show_default=True, help="Timing rounds (best is kept).")
 @click.option(
     "--markdown",
-    type=click.Path(dir_okay=False, writable=True),
+    type=click.Path(),
     help="Also write the figures as a Markdown table to this file.",
 )
 @click.option(

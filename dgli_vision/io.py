@@ -526,7 +526,8 @@ def _describe(image: NDArray) -> str:
 
 
 def read_color(path: str | Path) -> NDArray[np.uint8]:
-    """Read an 8-bit colour image (PNG or JPEG) as RGB (H, W, 3).
+    """Read a colour image (8-bit PNG or JPEG, or 16-bit PNG scaled to 8 bits) as RGB
+    (H, W, 3).
 
     Raises
     ------
@@ -536,6 +537,9 @@ def read_color(path: str | Path) -> NDArray[np.uint8]:
 
     p = Path(path)
     image = _imread(p, "colour image")
+    if image.dtype == np.uint16 and image.ndim == 3:
+        # 16-bit colour (a common camera export): to 8 bits, rounding (65535 -> 255)
+        image = ((image.astype(np.uint32) * 255 + 32767) // 65535).astype(np.uint8)
     if image.dtype != np.uint8:
         raise InvalidInputError(
             f"colour image '{p}' is {_describe(image)}; expected an 8-bit RGB image"

@@ -1,0 +1,121 @@
+"""One call from code: a colour + depth pair, from files or from a live camera, to a
+verdict."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .camera import DEFAULT_INTRINSICS, Intrinsics
+from .classify import MIN_CONFIDENCE, Prediction
+from .errors import CalibrationError, DetectionError, InvalidInputError
+from .io import RGBDFrame, read_color, read_depth, read_intrinsics
+from .references import ReferenceSet, load_references
+
+__all__ = ["classify_pair"]
+
+
+@lru_cache(maxsize=4)
+def _references(path: str | None) -> ReferenceSet:
+    return load_references(path)
+
+
+def _color_array(color: NDArray) -> NDArray[np.uint8]:
+    a = np.asarray(color)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise InvalidInputError(f"colour array has shape {a.shape}; expected (H, W, 3) RGB")
+    if a.dtype == np.uint16:
+        a = ((a.astype(np.uint32) * 255 + 32767) // 65535).astype(np.uint8)
+    if a.dtype != np.uint8:
+        raise InvalidInputError(f"colour array is {a.dtype}; expected uint8 (or uint16) RGB")
+    return np.ascontiguousarray(a)
+
+
+def _depth_array(depth: NDArray) -> NDArray[np.uint16]:
+    a = np.asarray(depth)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[..., 0]
+    if a.ndim != 2 or a.dtype != np.uint16:
+        raise InvalidInputError(
+            f"depth array is {a.dtype} of shape {a.shape}; expected (H, W) uint16 in mm"
+        )
+    return np.ascontiguousarray(a)
+
+
+def classify_pair(
+    color: str | Path | NDArray,
+    depth: str | Path | NDArray,
+    intrinsics: Intrinsics | str | Path | None = None,
+    references: ReferenceSet | str | Path | None = None,
+    *,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> Prediction:
+    """Classify one registered colour + depth pair.
+
+    Parameters
+    ----------
+    color : path or ndarray
+        A colour image file, or an RGB array (H, W, 3) of uint8 (uint16 is scaled).
+    depth : path or ndarray
+        A 16-bit depth PNG, or a uint16 array (H, W) in mm registered to the colour
+        image (0 = no reading).
+    intrinsics : Intrinsics or path, optional
+        Default: ``intrinsics.json`` beside a colour image file, else the nominal
+        1280 x 720 Kinect camera.
+    references : ReferenceSet or path, optional
+        Default: the shipped reference set (loaded once and kept).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``).
+
+    Returns
+    -------
+    Prediction
+        The nearest state with its ``confidence``. Below
+        :data:`~dgli_vision.classify.MIN_CONFIDENCE` (0.25) the command line says
+        "cannot tell": a robot should treat such an answer the same way.
+
+    Raises
+    ------
+    DgliError
+        Unreadable or invalid input (one line naming the file or array and the
+        problem), or too few stickers seen to rank the references
+        (:class:`~dgli_vision.errors.DetectionError`).
+    """
+    from .pipeline import classify_frame
+
+    color_path = str(color) if isinstance(color, (str, Path)) else "<array>"
+    depth_path = str(depth) if isinstance(depth, (str, Path)) else "<array>"
+    rgb = read_color(color) if isinstance(color, (str, Path)) else _color_array(color)
+    mm = read_depth(depth) if isinstance(depth, (str, Path)) else _depth_array(depth)
+    if rgb.shape[:2] != mm.shape:
+        raise InvalidInputError(
+            f"depth {depth_path} is {mm.shape[1]}x{mm.shape[0]} but colour {color_path} is "
+            f"{rgb.shape[1]}x{rgb.shape[0]}; expected registered images of the same size"
+        )
+    source = "given"
+    if isinstance(intrinsics, Intrinsics):
+        intr = intrinsics
+    elif intrinsics is not None:
+        intr, source = read_intrinsics(intrinsics), str(intrinsics)
+    elif color_path != "<array>" and (Path(color_path).parent / "intrinsics.json").is_file():
+        source = str(Path(color_path).parent / "intrinsics.json")
+        intr = read_intrinsics(source)
+    else:
+        intr, source = DEFAULT_INTRINSICS, "default"
+    if (intr.width, intr.height) != (mm.shape[1], mm.shape[0]):
+        raise CalibrationError(
+            f"intrinsics ({source}) are for {intr.width}x{intr.height} images but the pair "
+            f"is {mm.shape[1]}x{mm.shape[0]}"
+        )
+    if isinstance(references, ReferenceSet):
+        refs = references
+    else:
+        refs = _references(str(references) if references is not None else None)
+    frame = RGBDFrame(rgb, mm, intr, color_path, depth_path, source)
+    result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+    if result.best_guess is None:
+        raise DetectionError(f"{color_path}: {result.reason}")
+    return result.best_guess

@@ -1,0 +1,64 @@
+"""A user's first day: inputs users have, and one call from code."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+import dgli_vision
+from dgli_vision.cli import main
+from dgli_vision.errors import DgliError
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
+COLOR, DEPTH = SAMPLES / "05_000_color.png", SAMPLES / "05_000_depth.png"
+
+
+def test_a_16_bit_colour_png_is_read_as_its_8_bit_image(tmp_path):
+    bgr = cv2.imread(str(COLOR))
+    path = tmp_path / "c16_color.png"
+    cv2.imwrite(str(path), bgr.astype(np.uint16) * 257)
+    a = dgli_vision.classify_pair(path, DEPTH, SAMPLES / "intrinsics.json")
+    b = dgli_vision.classify_pair(COLOR, DEPTH)
+    assert (a.class_id, a.variant, a.distance) == (b.class_id, b.variant, b.distance)
+
+
+@pytest.mark.parametrize("which", ["color", "depth", "--intrinsics", "--references"])
+def test_a_directory_where_a_file_belongs_is_a_one_line_error(which, tmp_path):
+    args = [str(COLOR), str(DEPTH)]
+    if which == "color":
+        args[0] = str(tmp_path)
+    elif which == "depth":
+        args[1] = str(tmp_path)
+    else:
+        args += [which, str(tmp_path)]
+    r = CliRunner().invoke(main, ["classify", *args])
+    assert r.exit_code == 2
+    lines = r.output.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and str(tmp_path) in lines[0]
+    assert "is a directory" in lines[0]
+
+
+def test_classify_pair_takes_arrays_from_a_live_camera_like_files():
+    rgb = cv2.cvtColor(cv2.imread(str(COLOR)), cv2.COLOR_BGR2RGB)
+    depth = cv2.imread(str(DEPTH), cv2.IMREAD_UNCHANGED)
+    from_arrays = dgli_vision.classify_pair(rgb, depth, SAMPLES / "intrinsics.json")
+    from_files = dgli_vision.classify_pair(COLOR, DEPTH)
+    assert from_arrays == from_files
+    assert from_files.class_id == "05" and from_files.confidence >= 0.25
+
+
+@pytest.mark.parametrize(
+    ("color", "depth"),
+    [
+        (np.zeros((720, 1280), np.uint8), np.zeros((720, 1280), np.uint16)),  # grey
+        (np.zeros((720, 1280, 3), np.uint8), np.zeros((720, 1280), np.float32)),  # metres?
+        (np.zeros((720, 1280, 3), np.uint8), np.zeros((480, 640), np.uint16)),  # unregistered
+    ],
+)
+def test_classify_pair_refuses_arrays_it_cannot_use(color, depth):
+    with pytest.raises(DgliError):
+        dgli_vision.classify_pair(color, depth)
