@@ -39,6 +39,16 @@ references_option = click.option(
 )
 
 
+#: ``-j/--jobs N``: worker processes, all cores by default.
+jobs_option = click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1),
+    default=None,
+    help="Worker processes [default: all cores].",
+)
+
+
 def report_option(help_text: str) -> Callable[[F], F]:
     """``--report DIR``: a folder to write a report into."""
     return click.option("--report", "report_dir", type=click.Path(file_okay=False), help=help_text)
@@ -210,13 +220,7 @@ def simulate(
 @click.argument("folder", type=click.Path())
 @report_option("Write a report here.")
 @json_option("Print the summary as JSON.")
-@click.option(
-    "-j",
-    "--jobs",
-    type=click.IntRange(1),
-    default=None,
-    help="Worker processes [default: all cores].",
-)
+@jobs_option
 @references_option
 @colours_option
 @click.option(
@@ -664,13 +668,7 @@ def sequence(
 @click.argument("folder", type=click.Path())
 @report_option("Write the timeline (CSV, JSON, picture) and the frame distance heatmap here.")
 @json_option("Print the timeline as JSON.")
-@click.option(
-    "-j",
-    "--jobs",
-    type=click.IntRange(1),
-    default=None,
-    help="Worker processes [default: all cores].",
-)
+@jobs_option
 @references_option
 @colours_option
 @overwrite_option
@@ -697,6 +695,7 @@ def track(
 
     from .classes import CLASS_IDS, CLASS_NAMES
     from .evaluate import coordinate_matrix, evaluate_pairs
+    from .evaluation_report import sample_distance_matrix
     from .io import guard_outputs, read_colours, write_outputs
     from .recording import read_recording
     from .references import load_references
@@ -755,7 +754,7 @@ def track(
             title=f"timeline of {folder}",
         )
         heat = heatmap_image(
-            _frame_distances(coordinate_matrix(outcomes)),
+            sample_distance_matrix(coordinate_matrix(outcomes)),
             title="frames: Spearman distance of dGLI",
             value_label="1 - rho",
         )
@@ -772,25 +771,6 @@ def track(
         click.echo(f"report written to {out}", err=True)
     if all(f.gap for f in timeline.frames):
         sys.exit(1)
-
-
-def _frame_distances(coords: Any) -> Any:
-    """Spearman distances between frames over the coordinates both know (NaN when fewer
-    than 3)."""
-    import numpy as np
-
-    from .distance import pairwise_spearman
-
-    n = len(coords)
-    out = np.full((n, n), np.nan)
-    known = np.isfinite(coords)
-    for i in range(n):
-        for j in range(i, n):
-            both = known[i] & known[j]
-            if both.sum() >= 3:
-                d = pairwise_spearman(coords[i][both][None], coords[j][both][None])[0, 0]
-                out[i, j] = out[j, i] = d
-    return out
 
 
 def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
@@ -979,9 +959,7 @@ def calibrate(
     default="",
     help="Conditions to score, comma-separated [default: clean and all].",
 )
-@click.option(
-    "-j", "--jobs", type=click.IntRange(1), default=None, help="Worker processes [all cores]."
-)
+@jobs_option
 @click.option(
     "--markdown",
     type=click.Path(),

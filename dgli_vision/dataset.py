@@ -151,6 +151,16 @@ def sample_name(class_id: str, k: int) -> str:
     return f"{class_id}_{k:03d}"
 
 
+def _camera_for(
+    cond: Conditions, intrinsics: Intrinsics
+) -> tuple[Intrinsics, tuple[float, float]]:
+    """The camera and its height range (m) under the drawn conditions (``vga`` swaps
+    both)."""
+    if "vga" in cond.names:
+        return VGA_INTRINSICS, VGA_HEIGHT_RANGE_M
+    return intrinsics, (0.45, 0.70)
+
+
 def render_sample(
     class_id: str,
     k: int,
@@ -165,9 +175,7 @@ def render_sample(
     options = VARIANTS[class_id]
     rng = np.random.default_rng([seed, int(class_id), k, 7])
     cond = draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23]))
-    intr, heights = intrinsics, (0.45, 0.70)
-    if "vga" in cond.names:
-        intr, heights = VGA_INTRINSICS, VGA_HEIGHT_RANGE_M
+    intr, heights = _camera_for(cond, intrinsics)
     state = sample_state(class_id, options[(k + seed) % len(options)], rng)
     pose, camera = random_camera(
         state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights
@@ -216,9 +224,7 @@ def render_sequence(
     index = list(SEQUENCES).index(name)
     rng = np.random.default_rng([seed, 1000 + index])
     cond = draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23]))
-    intr, heights = intrinsics, (0.45, 0.70)
-    if "vga" in cond.names:
-        intr, heights = VGA_INTRINSICS, VGA_HEIGHT_RANGE_M
+    intr, heights = _camera_for(cond, intrinsics)
     steps = sequence_steps(name, rng=rng)
     wrinkle_seed = [seed, 1000 + index, 5]
     scene = {
