@@ -725,10 +725,14 @@ def track(
         def state(key: tuple[str, str | None]) -> str:
             return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
 
-        first = timeline.frames[0]
+        first = next((f for f in timeline.frames if not f.gap), None)
         click.echo(
-            f"{len(frames)} frames; starts as "
-            f"{state((first.smoothed_class, first.smoothed_variant))}"
+            f"{len(frames)} frames; "
+            + (
+                f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
+                if first
+                else "no frame could be classified"
+            )
         )
         for t, a, b in timeline.changes:
             click.echo(f"  frame {t}: {state(a)} -> {state(b)}")
