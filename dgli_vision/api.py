@@ -12,7 +12,7 @@ from numpy.typing import NDArray
 from .camera import DEFAULT_INTRINSICS, Intrinsics
 from .classify import MIN_CONFIDENCE, Prediction
 from .errors import CalibrationError, DetectionError, InvalidInputError
-from .io import RGBDFrame, read_color, read_depth, read_intrinsics
+from .frames import RGBDFrame, read_color, read_depth, read_intrinsics
 from .references import ReferenceSet, load_references
 
 __all__ = ["classify_pair"]

@@ -291,7 +291,8 @@ def run_pipeline_benchmarks(
     from .cloth.states import sample_state
     from .database import simulate_states
     from .evaluate import evaluate_pairs
-    from .io import find_pairs, read_frame
+    from .frames import read_frame
+    from .labelled import find_pairs
     from .pipeline import classify_frame
     from .references import load_references
     from .render import render

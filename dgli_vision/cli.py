@@ -194,7 +194,7 @@ def simulate(
     """
     from .cloth.states import CLASS_IDS
     from .database import simulate_folds_in_progress, simulate_states
-    from .io import write_database
+    from .database_files import write_database
 
     states = []
     with _progress(list(CLASS_IDS), "simulating") as classes:
@@ -260,18 +260,12 @@ def evaluate(
     import time
     from pathlib import Path
 
+    from .colours_file import read_colours
     from .errors import InvalidInputError, OverwriteError
     from .evaluate import evaluate_pairs, outcome_to_dict, summarise
-    from .io import (
-        JsonLinesWriter,
-        file_sha256,
-        find_labelled_pairs,
-        guard_outputs,
-        read_color,
-        read_colours,
-        record_outputs,
-        write_outputs,
-    )
+    from .frames import read_color
+    from .io import JsonLinesWriter, file_sha256, guard_outputs, record_outputs, write_outputs
+    from .labelled import find_labelled_pairs
     from .references import default_references_path, load_references
 
     pairs, problems = find_labelled_pairs(folder, lenient=lenient)
@@ -436,7 +430,8 @@ def render_cmd(
     """
     from .cloth.states import CLASS_IDS
     from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
-    from .io import guard_outputs, labelled_folder_files, write_labelled_folder
+    from .io import guard_outputs
+    from .labelled import labelled_folder_files, write_labelled_folder
 
     if sequence:
         names = [f"{sequence}_{k:03d}" for k in range(frames)]
@@ -492,8 +487,8 @@ def references() -> None:
 @_handle_errors
 def references_build(db: str, output: str, overwrite: bool) -> None:
     """Pick one representative per class and variant from the simulated database DB."""
-    from .io import read_database, write_references
-    from .references import build_references
+    from .database_files import read_database
+    from .references import build_references, write_references
 
     records, db_provenance = read_database(db)
     provenance = {
@@ -536,8 +531,9 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     import numpy as np
 
     from .compare import COMPARE_COLUMN_NOTES, davies_bouldin_table, distance_matrices
+    from .database_files import read_database
     from .fold_graph import mirror_group
-    from .io import guard_outputs, read_database, write_outputs
+    from .io import guard_outputs, write_outputs
     from .report import csv_table, heatmap_image, markdown_table
 
     if report_dir:  # fail before the work, not after it
@@ -694,9 +690,10 @@ def track(
     from pathlib import Path
 
     from .classes import CLASS_IDS, CLASS_NAMES
+    from .colours_file import read_colours
     from .evaluate import coordinate_matrix, evaluate_pairs
     from .evaluation_report import sample_distance_matrix
-    from .io import guard_outputs, read_colours, write_outputs
+    from .io import guard_outputs, write_outputs
     from .recording import read_recording
     from .references import load_references
     from .report import csv_table, heatmap_image, timeline_image
@@ -880,7 +877,9 @@ def classify_cmd(
     """
     from pathlib import Path
 
-    from .io import guard_outputs, read_colours, read_frame, write_outputs
+    from .colours_file import read_colours
+    from .frames import read_frame
+    from .io import guard_outputs, write_outputs
     from .pipeline import classify_frame
     from .references import load_references
 
@@ -931,7 +930,9 @@ def calibrate(
     All 16 stickers must be in view. Use the result with --colours on classify and
     evaluate when stickers print far from the nominal colours.
     """
-    from .io import guard_outputs, read_frame, write_colours
+    from .colours_file import write_colours
+    from .frames import read_frame
+    from .io import guard_outputs
     from .layout import default_layout
     from .perception.calibrate import calibrate_colours
 

@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 
 from .classes import VARIANTS
 from .errors import DgliError
-from .io import LabelledPair, read_frame
+from .frames import read_frame
+from .labelled import LabelledPair
 from .references import ReferenceSet
 
 __all__ = [

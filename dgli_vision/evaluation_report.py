@@ -1,7 +1,7 @@
 """The evaluation report: what ``dgli evaluate --report DIR`` writes, built in memory.
 
 :func:`build_report` returns file names with their content (text or image arrays); the
-CLI hands them to :mod:`dgli_vision.io`. Nothing here touches the disk.
+CLI hands them to :mod:`dgli_vision.io` to write. Nothing here touches the disk.
 """
 
 from __future__ import annotations

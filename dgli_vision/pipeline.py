@@ -15,7 +15,7 @@ from .classes import LIFTED_MM
 from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
 from .dgli import cloth_coordinates
 from .errors import DetectionError
-from .io import RGBDFrame
+from .frames import RGBDFrame
 from .layout import NapkinLayout, default_layout
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
 from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .errors import InvalidInputError, UnreadableInputError
-from .io import LabelledPair, find_labelled_pairs
+from .labelled import LabelledPair, find_labelled_pairs
 
 __all__ = ["Recording", "read_recording"]
 

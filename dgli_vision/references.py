@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 from .classes import CLASS_NAMES
 from .distance import pairwise_spearman
 from .errors import ReferenceError_
+from .io import guard_outputs, read_json, record_outputs, write_json
 
 if TYPE_CHECKING:
     from .database import StateRecords
@@ -29,8 +30,10 @@ __all__ = [
     "build_references",
     "default_references_path",
     "load_references",
+    "read_references",
     "references_from_dict",
     "references_to_dict",
+    "write_references",
 ]
 
 FORMAT = "dgli-references"
@@ -244,6 +247,17 @@ def load_references(path: str | Path | None = None) -> ReferenceSet:
     UnreadableInputError, ReferenceError_
         Missing, unreadable or malformed file.
     """
-    from .io import read_references
-
     return read_references(path if path is not None else default_references_path())
+
+
+def read_references(path: str | Path) -> ReferenceSet:
+    """Load a reference set file (see :mod:`dgli_vision.references`)."""
+    return references_from_dict(read_json(path, what="reference set"), source=str(path))
+
+
+def write_references(path: str | Path, refs: ReferenceSet, *, overwrite: bool = False) -> None:
+    """Write a reference set as JSON (replacing a file only if dgli wrote it, or with
+    ``overwrite``)."""
+    guard_outputs([path], overwrite=overwrite)
+    write_json(path, references_to_dict(refs))
+    record_outputs([path], str(refs.provenance.get("command", "")))

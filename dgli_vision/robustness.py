@@ -77,7 +77,7 @@ def _one(
     (``class/variant``), predicted class and variant (None: cannot tell), and the
     conditions drawn."""
     from .dataset import render_sample
-    from .io import RGBDFrame
+    from .frames import RGBDFrame
     from .pipeline import classify_frame
 
     condition, seed, k, class_id = args

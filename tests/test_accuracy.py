@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from dgli_vision.dataset import render_samples
-from dgli_vision.io import RGBDFrame
+from dgli_vision.frames import RGBDFrame
 from dgli_vision.pipeline import classify_frame
 from dgli_vision.references import load_references
 

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from dgli_vision.cli import main
 from dgli_vision.evaluate import PairOutcome, summarise
-from dgli_vision.io import LabelledPair, find_pairs
+from dgli_vision.labelled import LabelledPair, find_pairs
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 
@@ -155,7 +155,7 @@ def test_workers_start_cleanly_after_threads_in_the_parent():
     from dgli_vision.camera import look_at_table
     from dgli_vision.cloth import sample_state
     from dgli_vision.evaluate import evaluate_pairs
-    from dgli_vision.io import read_frame
+    from dgli_vision.frames import read_frame
     from dgli_vision.references import load_references
     from dgli_vision.render import SensorModel, render
 

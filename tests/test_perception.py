@@ -8,7 +8,7 @@ import pytest
 
 from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
 from dgli_vision.cloth import sample_state
-from dgli_vision.io import RGBDFrame
+from dgli_vision.frames import RGBDFrame
 from dgli_vision.layout import default_layout
 from dgli_vision.perception import detect_stickers, estimate_table_normal, lift_stickers
 from dgli_vision.pipeline import observe

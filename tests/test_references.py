@@ -10,8 +10,12 @@ import pytest
 from dgli_vision.classify import classify_coordinates
 from dgli_vision.database import records_from_states, simulate_states
 from dgli_vision.errors import DetectionError, ReferenceError_
-from dgli_vision.io import read_references, write_references
-from dgli_vision.references import build_references, load_references
+from dgli_vision.references import (
+    build_references,
+    load_references,
+    read_references,
+    write_references,
+)
 
 
 @pytest.fixture(scope="module")

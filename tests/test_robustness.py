@@ -20,7 +20,7 @@ from dgli_vision.cloth import sample_state
 from dgli_vision.colour import srgb_lut
 from dgli_vision.conditions import CONDITION_NAMES, draw_conditions
 from dgli_vision.dataset import VGA_INTRINSICS, render_sample
-from dgli_vision.io import RGBDFrame, write_color, write_depth
+from dgli_vision.frames import RGBDFrame, write_color, write_depth
 from dgli_vision.layout import default_layout
 from dgli_vision.perception.calibrate import calibrate_colours
 from dgli_vision.perception.detect import detect_stickers

@@ -1,0 +1,145 @@
+"""Simulated databases on disk: ``meshes/<id>.ply``, ``truth/<id>.json`` and ``index.json``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from .errors import InvalidInputError
+from .io import guard_outputs, read_json, record_outputs, write_json, write_mesh_ply
+
+if TYPE_CHECKING:
+    from .cloth.states import ClothState
+    from .database import StateRecords
+
+__all__ = [
+    "DB_FORMAT",
+    "read_database",
+    "write_database",
+]
+
+DB_FORMAT = "dgli-simulated-db"
+
+
+def write_database(
+    out: str | Path,
+    states: list[tuple[str, ClothState]],
+    provenance: dict[str, Any],
+    *,
+    overwrite: bool = False,
+) -> Path:
+    """Write states as ``meshes/<id>.ply``, ``truth/<id>.json`` and ``index.json``.
+
+    Existing files are replaced only if dgli wrote them or with ``overwrite``
+    (:func:`guard_outputs`).
+
+    Returns
+    -------
+    Path
+        The index file.
+
+    Raises
+    ------
+    OverwriteError
+    """
+    root = Path(out)
+    planned = [
+        *(root / "meshes" / f"{sid}.ply" for sid, _ in states),
+        *(root / "truth" / f"{sid}.json" for sid, _ in states),
+        root / "index.json",
+    ]
+    guard_outputs(planned, overwrite=overwrite)
+    entries = []
+    triangles = None
+    for sid, state in states:
+        if triangles is None:
+            triangles = state.mesh.triangles()
+        write_mesh_ply(root / "meshes" / f"{sid}.ply", state.mesh.xyz, triangles)
+        truth = {
+            "id": sid,
+            "class": state.class_id,
+            "name": state.name,
+            "variant": state.variant,
+            "sticker_points_m": np.round(state.sticker_points, 7).tolist(),
+            "visible": state.visible.tolist(),
+            "visible_fraction": np.round(state.visible_fraction, 4).tolist(),
+            "coordinates": np.round(state.coordinates(), 10).tolist(),
+            "corner_points_m": np.round(state.corner_points, 7).tolist(),
+            "boundary_m": np.round(state.boundary, 7).tolist(),
+            "params": state.params,
+        }
+        write_json(root / "truth" / f"{sid}.json", truth)
+        entries.append(
+            {
+                "id": sid,
+                "class": state.class_id,
+                "variant": state.variant,
+                "mesh": f"meshes/{sid}.ply",
+                "truth": f"truth/{sid}.json",
+            }
+        )
+    index = root / "index.json"
+    write_json(
+        index, {"format": DB_FORMAT, "version": 1, "provenance": provenance, "states": entries}
+    )
+    record_outputs(planned, str(provenance.get("command", "")))
+    return index
+
+
+def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
+    """Read a database folder (or its ``index.json``) into records and provenance.
+
+    Raises
+    ------
+    UnreadableInputError, InvalidInputError
+        Naming the file that is missing or wrong.
+    """
+    from .database import StateRecords
+    from .dgli import cloth_coordinates
+
+    p = Path(path)
+    index_path = p / "index.json" if p.is_dir() else p
+    index = read_json(index_path, what="database index")
+    if not isinstance(index, dict) or index.get("format") != DB_FORMAT:
+        raise InvalidInputError(f"'{index_path}' is not a dgli simulated database index")
+    root = index_path.parent
+    ids, classes, variants, points, vis, frac, corners, boundary, stages = ([] for _ in range(9))
+    for entry in index.get("states", []):
+        truth_path = root / entry["truth"]
+        truth = read_json(truth_path, what="state truth")
+        try:
+            pts = np.asarray(truth["sticker_points_m"], dtype=np.float64).reshape(16, 3)
+            v = np.asarray(truth["visible"], dtype=bool).reshape(16)
+            f = np.asarray(truth["visible_fraction"], dtype=np.float64).reshape(16)
+            cp = np.asarray(truth["corner_points_m"], dtype=np.float64).reshape(4, 3)
+            bd = np.asarray(truth["boundary_m"], dtype=np.float64).reshape(-1, 3)
+        except (KeyError, ValueError, TypeError) as exc:
+            raise InvalidInputError(f"state truth '{truth_path}' is malformed ({exc})") from None
+        ids.append(str(truth["id"]))
+        classes.append(str(truth["class"]))
+        variants.append(truth.get("variant"))
+        params = truth.get("params")
+        stages.append(str(params.get("stage", "")) if isinstance(params, dict) else "")
+        points.append(pts)
+        vis.append(v)
+        frac.append(f)
+        corners.append(cp)
+        boundary.append(bd)
+    if not ids:
+        raise InvalidInputError(f"database '{index_path}' lists no states")
+    pts = np.stack(points)
+    records = StateRecords(
+        tuple(ids),
+        tuple(classes),
+        tuple(variants),
+        pts,
+        np.stack(vis),
+        np.stack(frac),
+        cloth_coordinates(pts.reshape(len(ids), -1, 2, 3)),
+        np.stack(corners),
+        np.stack(boundary),
+        tuple(stages),
+    )
+    return records, dict(index.get("provenance") or {})
