@@ -8,6 +8,7 @@ each sticker was visible in its group, which the classifier uses as evidence.
 from __future__ import annotations
 
 import os
+from importlib import resources
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -17,7 +18,7 @@ from numpy.typing import NDArray
 
 from .classes import CLASS_NAMES
 from .distance import pairwise_spearman
-from .errors import ReferenceError_
+from .errors import ReferenceError_, UnreadableInputError
 from .io import guard_outputs, read_json, record_outputs, write_json
 
 if TYPE_CHECKING:
@@ -38,6 +39,9 @@ __all__ = [
 
 FORMAT = "dgli-references"
 FORMAT_VERSION = 1
+
+#: Where a wheel carries the shipped reference set (copied there by ``setup.py``).
+PACKAGED_REFERENCES = "data/references/default.json"
 
 
 @dataclass(frozen=True, eq=False)
@@ -231,12 +235,18 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
 
 
 def default_references_path() -> Path:
-    """The shipped reference set: ``$DGLI_REFERENCES`` or ``references/default.json`` of
-    the source tree this package runs from."""
+    """The shipped reference set.
+
+    In order: ``$DGLI_REFERENCES``; ``references/default.json`` of the source tree this
+    package runs from (a clone); the copy packaged inside an installed wheel.
+    """
     env = os.environ.get("DGLI_REFERENCES")
     if env:
         return Path(env)
-    return Path(__file__).resolve().parent.parent / "references" / "default.json"
+    tree = Path(__file__).resolve().parent.parent
+    if (tree / "pyproject.toml").is_file() and (tree / "references" / "default.json").is_file():
+        return tree / "references" / "default.json"
+    return Path(str(resources.files("dgli_vision").joinpath(PACKAGED_REFERENCES)))
 
 
 def load_references(path: str | Path | None = None) -> ReferenceSet:
@@ -247,7 +257,13 @@ def load_references(path: str | Path | None = None) -> ReferenceSet:
     UnreadableInputError, ReferenceError_
         Missing, unreadable or malformed file.
     """
-    return read_references(path if path is not None else default_references_path())
+    if path is None:
+        path = default_references_path()
+        if not path.is_file():
+            raise UnreadableInputError(
+                f"no reference set at '{path}': give --references FILE or set DGLI_REFERENCES"
+            )
+    return read_references(path)
 
 
 def read_references(path: str | Path) -> ReferenceSet:
