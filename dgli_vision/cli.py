@@ -39,6 +39,32 @@ references_option = click.option(
 )
 
 
+def _parse_size(
+    ctx: click.Context, param: click.Parameter, value: str | None
+) -> tuple[float, float] | None:
+    from .layout import parse_size
+
+    if value is None:
+        return None
+    try:
+        return parse_size(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc)) from None
+
+
+#: ``--size W[xH]``: the napkin's size in mm (the stickers keep their distances from the
+#: corners; fold sizes scale with the cloth).
+size_option = click.option(
+    "--size",
+    "size_mm",
+    callback=_parse_size,
+    default=None,
+    metavar="W[xH]",
+    help="Napkin size in mm, e.g. 300 or 500x700 [default: 400]. The stickers keep their "
+    "distances from the corners; fold sizes scale with the cloth.",
+)
+
+
 #: ``-j/--jobs N``: worker processes, all cores by default.
 jobs_option = click.option(
     "-j",
@@ -181,10 +207,17 @@ def _progress(items: list, label: str):
     type=click.IntRange(0),
     help="States with a fold in progress, per fold and angle bin (0: none).",
 )
+@size_option
 @overwrite_option
 @_handle_errors
 def simulate(
-    out: str, per_class: int, seed: int, no_wrinkles: bool, in_progress: int, overwrite: bool
+    out: str,
+    per_class: int,
+    seed: int,
+    no_wrinkles: bool,
+    in_progress: int,
+    size_mm: tuple[float, float] | None,
+    overwrite: bool,
 ) -> None:
     """Write a simulated database of cloth states to OUT (meshes, truth, index).
 
@@ -195,21 +228,23 @@ def simulate(
     from .cloth.states import CLASS_IDS
     from .database import simulate_folds_in_progress, simulate_states
     from .database_files import write_database
+    from .layout import layout_of_size
 
+    layout = layout_of_size(size_mm)
+    kw = {"wrinkles": not no_wrinkles, "layout": layout}
     states = []
     with _progress(list(CLASS_IDS), "simulating") as classes:
         for class_id in classes:
-            states += simulate_states(
-                per_class, seed, classes=(class_id,), wrinkles=not no_wrinkles
-            )
+            states += simulate_states(per_class, seed, classes=(class_id,), **kw)
     if in_progress:
-        states += simulate_folds_in_progress(in_progress, seed, wrinkles=not no_wrinkles)
+        states += simulate_folds_in_progress(in_progress, seed, **kw)
     provenance = {
         "command": _command_line(),
         "seed": seed,
         "per_class": per_class,
         "in_progress": in_progress,
         "wrinkles": not no_wrinkles,
+        **({} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}),
         "package_version": _package_version(),
     }
     index = write_database(out, states, provenance, overwrite=overwrite)
@@ -411,6 +446,7 @@ def _parse_conditions(
     type=click.IntRange(2),
     help="Frames of --sequence, spread evenly over its folds.",
 )
+@size_option
 @overwrite_option
 @_handle_errors
 def render_cmd(
@@ -422,6 +458,7 @@ def render_cmd(
     conditions: tuple[str, ...],
     sequence: str | None,
     frames: int,
+    size_mm: tuple[float, float] | None,
     overwrite: bool,
 ) -> None:
     """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4).
@@ -432,6 +469,7 @@ def render_cmd(
     from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
     from .io import guard_outputs
     from .labelled import labelled_folder_files, write_labelled_folder
+    from .layout import layout_of_size
 
     if sequence:
         names = [f"{sequence}_{k:03d}" for k in range(frames)]
@@ -440,11 +478,18 @@ def render_cmd(
     planned = labelled_folder_files(out, names, frames=bool(sequence))
     guard_outputs(planned, overwrite=overwrite)  # before the work
 
+    layout = layout_of_size(size_mm)
     samples = []
     if sequence:
         with _progress(list(range(frames)), "rendering") as bar:
             stream = render_sequence(
-                sequence, frames, seed, nominal=nominal, clean=clean, conditions=conditions
+                sequence,
+                frames,
+                seed,
+                nominal=nominal,
+                clean=clean,
+                conditions=conditions,
+                layout=layout,
             )
             for sample, _ in zip(stream, bar):
                 samples.append(sample)
@@ -459,6 +504,7 @@ def render_cmd(
                         nominal=nominal,
                         clean=clean,
                         conditions=conditions,
+                        layout=layout,
                     )
                 )
     provenance = {
@@ -468,6 +514,7 @@ def render_cmd(
         "clean": clean,
         "nominal": nominal,
         **({"conditions": list(conditions)} if conditions else {}),
+        **({} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}),
         "package_version": _package_version(),
     }
     times = [k * SEQUENCE_FRAME_SECONDS for k in range(frames)] if sequence else None
@@ -483,16 +530,33 @@ def references() -> None:
 @references.command("build")
 @click.argument("db", type=click.Path())
 @output_option("Reference file to write.")
+@size_option
 @overwrite_option
 @_handle_errors
-def references_build(db: str, output: str, overwrite: bool) -> None:
-    """Pick one representative per class and variant from the simulated database DB."""
+def references_build(
+    db: str, output: str, size_mm: tuple[float, float] | None, overwrite: bool
+) -> None:
+    """Pick one representative per class and variant from the simulated database DB.
+
+    The set is for the napkin size DB was simulated for; --size only checks it.
+    """
     from .database_files import read_database
+    from .errors import InvalidInputError
+    from .layout import layout_of_size
     from .references import build_references, write_references
 
     records, db_provenance = read_database(db)
+    simulated = db_provenance.get("napkin_mm")
+    have = layout_of_size(None if simulated is None else tuple(simulated))
+    if size_mm is not None and (have.width_mm, have.height_mm) != size_mm:
+        raise InvalidInputError(
+            f"'{db}' was simulated for a {have.width_mm:g} x {have.height_mm:g} mm napkin, "
+            f"not {size_mm[0]:g} x {size_mm[1]:g}: run `dgli simulate --size "
+            f"{size_mm[0]:g}x{size_mm[1]:g}` first"
+        )
     provenance = {
         "command": _command_line(),
+        **({} if have.is_nominal else {"napkin_mm": [have.width_mm, have.height_mm]}),
         "database": db_provenance,
         "n_states": len(records),
         "package_version": _package_version(),

@@ -12,6 +12,7 @@ from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .conditions import Conditions, draw_conditions
+from .layout import NapkinLayout, default_layout
 from .render import Lighting, RenderResult, SensorModel, render
 
 __all__ = [
@@ -122,6 +123,7 @@ def render_samples(
     clean: bool = False,
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
     conditions: tuple[str, ...] = (),
+    layout: NapkinLayout | None = None,
 ) -> Iterator[RenderedSample]:
     """Render ``per_class`` pairs of every class (variants in turn, starting at the
     seed's), deterministically.
@@ -131,7 +133,8 @@ def render_samples(
     state of the simulated database made with the same seed. ``conditions`` (names of
     :data:`dgli_vision.conditions.CONDITION_NAMES`) are drawn from a further stream, so
     the same seed gives the same states and cameras with and without them (``vga``
-    changes the camera).
+    changes the camera). ``layout`` gives another napkin size (fold sizes scale with it,
+    and the camera stands back for a larger napkin).
     """
     for class_id in classes:
         for k in range(per_class):
@@ -143,6 +146,7 @@ def render_samples(
                 clean=clean,
                 intrinsics=intrinsics,
                 conditions=conditions,
+                layout=layout,
             )
 
 
@@ -152,13 +156,16 @@ def sample_name(class_id: str, k: int) -> str:
 
 
 def _camera_for(
-    cond: Conditions, intrinsics: Intrinsics
+    cond: Conditions, intrinsics: Intrinsics, layout: NapkinLayout
 ) -> tuple[Intrinsics, tuple[float, float]]:
     """The camera and its height range (m) under the drawn conditions (``vga`` swaps
-    both)."""
-    if "vga" in cond.names:
-        return VGA_INTRINSICS, VGA_HEIGHT_RANGE_M
-    return intrinsics, (0.45, 0.70)
+    both); the range moves back in proportion for a napkin larger than the nominal one."""
+    intr, (lo, hi) = (VGA_INTRINSICS, VGA_HEIGHT_RANGE_M) if "vga" in cond.names else (
+        intrinsics,
+        (0.45, 0.70),
+    )
+    grow = max(1.0, *layout.fold_scale)
+    return intr, (lo * grow, hi * grow)
 
 
 def render_sample(
@@ -170,13 +177,15 @@ def render_sample(
     clean: bool = False,
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
     conditions: tuple[str, ...] = (),
+    layout: NapkinLayout | None = None,
 ) -> RenderedSample:
     """Sample ``k`` of class ``class_id`` of :func:`render_samples` (same arguments)."""
+    layout = layout or default_layout()
     options = VARIANTS[class_id]
     rng = np.random.default_rng([seed, int(class_id), k, 7])
     cond = draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23]))
-    intr, heights = _camera_for(cond, intrinsics)
-    state = sample_state(class_id, options[(k + seed) % len(options)], rng)
+    intr, heights = _camera_for(cond, intrinsics, layout)
+    state = sample_state(class_id, options[(k + seed) % len(options)], rng, layout=layout)
     pose, camera = random_camera(
         state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights
     )
@@ -190,6 +199,7 @@ def render_sample(
         sensor=sensor,
         rng=rng,
         conditions=cond,
+        layout=layout,
     )
     return RenderedSample(sample_name(class_id, k), state, result, camera, lighting, cond)
 
@@ -203,6 +213,7 @@ def render_sequence(
     clean: bool = False,
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
     conditions: tuple[str, ...] = (),
+    layout: NapkinLayout | None = None,
 ) -> Iterator[RenderedSample]:
     """Render folding sequence ``name`` as ``n_frames`` frames of one recording.
 
@@ -222,10 +233,11 @@ def render_sequence(
     if name not in SEQUENCES:
         raise ValueError(f"unknown sequence {name!r}; expected one of {', '.join(SEQUENCES)}")
     index = list(SEQUENCES).index(name)
+    layout = layout or default_layout()
     rng = np.random.default_rng([seed, 1000 + index])
     cond = draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23]))
-    intr, heights = _camera_for(cond, intrinsics)
-    steps = sequence_steps(name, rng=rng)
+    intr, heights = _camera_for(cond, intrinsics, layout)
+    steps = sequence_steps(name, layout, rng=rng)
     wrinkle_seed = [seed, 1000 + index, 5]
     scene = {
         "wrinkle_mm": 0.0 if nominal else float(rng.uniform(0, 8)),
@@ -236,7 +248,7 @@ def render_sequence(
 
     def state_at(p: float) -> ClothState:
         return sequence_state(
-            name, p, steps=steps, rng=np.random.default_rng(wrinkle_seed), **scene
+            name, p, steps=steps, layout=layout, rng=np.random.default_rng(wrinkle_seed), **scene
         )
 
     # the camera must see the napkin at every stage, flaps held up included
@@ -261,5 +273,6 @@ def render_sequence(
             sensor=sensor,
             rng=np.random.default_rng([seed, 1000 + index, k, 7]),
             conditions=cond,
+            layout=layout,
         )
         yield RenderedSample(f"{name}_{k:03d}", state, result, camera, lighting, cond)

@@ -19,7 +19,14 @@ from numpy.typing import NDArray
 
 from .dgli import cloth_coordinates
 
-__all__ = ["NapkinLayout", "default_layout", "layout_from_dict", "load_layout"]
+__all__ = [
+    "NapkinLayout",
+    "default_layout",
+    "layout_from_dict",
+    "layout_of_size",
+    "load_layout",
+    "parse_size",
+]
 
 
 def _readonly(a: NDArray) -> NDArray:
@@ -53,6 +60,9 @@ class NapkinLayout:
         Nominal printed sRGB colour of each colour name.
     disc_diameter_mm, dot_diameter_mm : float
         Sticker disc and dot diameters, mm.
+    nominal_mm : tuple of float
+        The layout file's napkin size (W, H), mm; other sizes keep the stickers' distances
+        from the corners and scale the fold sizes (:attr:`fold_scale`).
     """
 
     width_mm: float
@@ -69,6 +79,18 @@ class NapkinLayout:
     colours_srgb: dict[str, tuple[int, int, int]]
     disc_diameter_mm: float
     dot_diameter_mm: float
+    nominal_mm: tuple[float, float] = (400.0, 400.0)
+
+    @property
+    def fold_scale(self) -> tuple[float, float]:
+        """How much longer than on the nominal napkin a length across the napkin is,
+        along u (width) and along v (height): fold sizes scale with the cloth."""
+        return self.width_mm / self.nominal_mm[0], self.height_mm / self.nominal_mm[1]
+
+    @property
+    def is_nominal(self) -> bool:
+        """True for the napkin size of the layout file."""
+        return (self.width_mm, self.height_mm) == self.nominal_mm
 
     @property
     def n_segments(self) -> int:
@@ -121,7 +143,10 @@ def layout_from_dict(
     far = float(data["segment_far_mm"])
     inset = float(data["segment_inset_mm"])
     if min(w, h) < 2 * far + 2 * inset:
-        raise ValueError(f"napkin {w} x {h} mm is too small for segments {far} mm from corners")
+        raise ValueError(
+            f"a {w:g} x {h:g} mm napkin is too small: its stickers sit {far:g} mm from the "
+            f"corners and {inset:g} mm in, so each side needs at least {2 * far + 2 * inset:g} mm"
+        )
     names = tuple(data["corners"])
     corner_uv = np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
     pos = dict(zip(names, corner_uv))
@@ -162,6 +187,7 @@ def layout_from_dict(
         colours_srgb={k: tuple(int(c) for c in v) for k, v in data["colours_srgb"].items()},
         disc_diameter_mm=float(data["sticker_disc_diameter_mm"]),
         dot_diameter_mm=float(data["sticker_dot_diameter_mm"]),
+        nominal_mm=(float(data["width_mm"]), float(data["height_mm"])),
     )
 
 
@@ -180,3 +206,31 @@ def load_layout(*, width_mm: float | None = None, height_mm: float | None = None
 def default_layout() -> NapkinLayout:
     """The packaged layout at its nominal size (cached)."""
     return load_layout()
+
+
+@lru_cache(maxsize=8)
+def layout_of_size(size_mm: tuple[float, float] | None) -> NapkinLayout:
+    """The packaged layout for a W x H napkin (cached); None: the nominal size."""
+    if size_mm is None:
+        return default_layout()
+    return load_layout(width_mm=float(size_mm[0]), height_mm=float(size_mm[1]))
+
+
+def parse_size(text: str) -> tuple[float, float]:
+    """A napkin size from ``"W"`` (square) or ``"WxH"``, in mm.
+
+    Raises
+    ------
+    ValueError
+        Not one or two positive numbers, or too small for the stickers.
+    """
+    bad = f"napkin size {text!r} is not W or WxH in mm (e.g. 400 or 500x700)"
+    try:
+        values = [float(s) for s in text.lower().replace("mm", "").split("x")]
+    except ValueError:
+        raise ValueError(bad) from None
+    if len(values) not in (1, 2) or not all(np.isfinite(v) and v > 0 for v in values):
+        raise ValueError(bad)
+    w, h = values[0], values[-1]
+    load_layout(width_mm=w, height_mm=h)  # checks the stickers fit
+    return w, h

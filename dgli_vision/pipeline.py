@@ -16,7 +16,7 @@ from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
-from .layout import NapkinLayout, default_layout
+from .layout import NapkinLayout, default_layout, layout_of_size
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
 from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
@@ -145,6 +145,7 @@ def classify_frame(
     frame : RGBDFrame
     references : ReferenceSet
     layout : NapkinLayout, keyword-only, optional
+        Default: the packaged layout at the napkin size the references were built for.
     params : DetectorParams, keyword-only, optional
     min_confidence : float, keyword-only
         Below this confidence the answer is "cannot tell" (default
@@ -158,6 +159,7 @@ def classify_frame(
         With ``prediction`` None and a ``reason`` when too few stickers were seen or
         the confidence is below ``min_confidence``.
     """
+    layout = layout or layout_of_size(references.napkin_mm)
     detections, markers, obs = observe(frame, layout, params, colours=colours)
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())

@@ -8,8 +8,8 @@ each sticker was visible in its group, which the classifier uses as evidence.
 from __future__ import annotations
 
 import os
-from importlib import resources
 from dataclasses import dataclass, field
+from importlib import resources
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -89,6 +89,14 @@ class ReferenceSet:
 
     def __len__(self) -> int:
         return len(self.references)
+
+    @property
+    def napkin_mm(self) -> tuple[float, float] | None:
+        """The napkin size (W, H) in mm the set was simulated for; None: the nominal one."""
+        size = self.provenance.get("napkin_mm")
+        if size is None:
+            return None
+        return float(size[0]), float(size[1])
 
     def matrix(self) -> NDArray[np.float64]:
         """Coordinates of all references, shape (k, 28)."""

@@ -184,8 +184,23 @@ def _steps_for(
     steps: list[FoldStep] = []
     words: list[str] = []  # each step's fold in the words of :mod:`dgli_vision.fold_graph`
 
+    def along(a: str, b: str) -> float:
+        """Scale of a fold size measured from corner a towards corner b."""
+        d = np.abs(layout.corner_uv[_corner_index(b)] - layout.corner_uv[_corner_index(a)])
+        return float(d @ np.array(layout.fold_scale) / d.sum())
+
+    def legs_scale(name: str) -> tuple[float, float]:
+        """Scales of a corner's legs along its leaving and its arriving edge."""
+        k = _corner_index(name)
+        return along(name, CORNERS[(k + 1) % 4]), along(name, CORNERS[k - 1])
+
+    def across(side: str) -> float:
+        """Scale of a fold size measured from a side into the napkin."""
+        return along(side[1], CORNERS[(_corner_index(side[1]) + 1) % 4])
+
     def corner(name: str, lo: float, hi: float, *, under: bool = False) -> None:
-        legs = (float(u(lo, hi)), float(u(lo, hi)))
+        s_out, s_in = legs_scale(name)
+        legs = (float(u(lo, hi)) * s_out, float(u(lo, hi)) * s_in)
         params.setdefault("legs_mm", {})[name] = legs
         steps.append(corner_fold_line(layout, name, *legs, under=under))
         words.append(f"{name} {'under' if under else 'over'}")
@@ -205,6 +220,7 @@ def _steps_for(
             leg_shared = float(u(*shared))
             leg_other = float(u(*other))
             legs = (leg_shared, leg_other) if name == side[0] else (leg_other, leg_shared)
+            legs = tuple(leg * s for leg, s in zip(legs, legs_scale(name)))
             params.setdefault("legs_mm", {})[name] = legs
             steps.append(corner_fold_line(layout, name, *legs))
             crossing = f" crossing {first}" if class_id == "05" and name == top else ""
@@ -221,17 +237,18 @@ def _steps_for(
         for name in CORNERS:
             corner(name, 170, 200)
     elif class_id in ("09", "10"):
-        inset = float(u(125, 140))
+        inset = float(u(125, 140)) * across(variant)
         params["inset_mm"] = inset
         steps.append(side_fold_line(layout, variant, inset, under=class_id == "10"))
         words.append(f"{variant} strip {'under' if class_id == '10' else 'over'}")
     elif class_id == "11":
-        inset = float(u(198, 210))
+        inset = float(u(198, 210)) * across(variant)
         params["inset_mm"] = inset
         steps.append(side_fold_line(layout, variant, inset))
         words.append(f"{variant} half")
     elif class_id == "12":
-        offsets = (float(u(-10, 10)), float(u(-10, 10)))
+        s = min(layout.fold_scale)
+        offsets = (float(u(-10, 10)) * s, float(u(-10, 10)) * s)
         params["diagonal_offsets_mm"] = offsets
         steps.append(diagonal_fold_line(layout, variant, *offsets))
         words.append(f"{variant} diagonal")
