@@ -89,9 +89,7 @@ overwrite_option = click.option(
 
 def output_option(help_text: str) -> Callable[[F], F]:
     """``-o/--output FILE``: the file a command writes."""
-    return click.option(
-        "-o", "--output", required=True, type=click.Path(), help=help_text
-    )
+    return click.option("-o", "--output", required=True, type=click.Path(), help=help_text)
 
 
 def json_option(help_text: str = "Print one JSON object.") -> Callable[[F], F]:
@@ -130,9 +128,14 @@ def _command_line() -> str:
         value = ctx.params.get(param.name)
         if isinstance(param, click.Argument):
             words.append(shlex.quote(str(value)))
-        elif value is not None and value is not False and value != () and (
-            value != param.default
-            or ctx.get_parameter_source(param.name) == click.core.ParameterSource.COMMANDLINE
+        elif (
+            value is not None
+            and value is not False
+            and value != ()
+            and (
+                value != param.default
+                or ctx.get_parameter_source(param.name) == click.core.ParameterSource.COMMANDLINE
+            )
         ):
             flag = max(param.opts, key=len)
             words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
@@ -399,9 +402,7 @@ def evaluate(
         sys.exit(130)
 
 
-def _parse_conditions(
-    ctx: click.Context, param: click.Parameter, value: str
-) -> tuple[str, ...]:
+def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
     names = tuple(n.strip() for n in value.split(",") if n.strip())
     unknown = [n for n in names if n not in CONDITION_HELP and n != "clean"]
     if unknown:
@@ -776,13 +777,12 @@ def track(
                 frames, refs, jobs=jobs, on_progress=bar.update, colours=colours, distances=True
             )
         )
-    timeline = track_outcomes(
-        outcomes, refs, times=recording.times, labelled=recording.labelled
-    )
+    timeline = track_outcomes(outcomes, refs, times=recording.times, labelled=recording.labelled)
     data = {"folder": folder, "n_frames": len(frames), **timeline_to_dict(timeline)}
     if as_json:
         click.echo(json.dumps(data))
     else:
+
         def state(key: tuple[str, str | None]) -> str:
             return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
 
@@ -882,9 +882,7 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
     out["stickers"] = {
         "found": int(found.sum()),
         "missing": np.flatnonzero(~found).tolist(),
-        "unknown": {
-            str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)
-        }
+        "unknown": {str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)}
         if evidence is not None
         else {},
     }
@@ -1100,6 +1098,38 @@ def robustness(
             overwrite=overwrite,
             command=command,
         )
+
+
+@main.command()
+@click.argument("out", type=click.Path(dir_okay=False))
+@size_option
+@overwrite_option
+@_handle_errors
+def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> None:
+    """Write the printable sticker kit to OUT (SVG in millimetres, prints at 1:1) and a
+    PNG preview beside it.
+
+    The kit holds every sticker twice (front and back face) and a placement template for
+    each corner, with a 100 mm bar to check the print scale.
+    """
+    from pathlib import Path
+
+    from .errors import InvalidInputError
+    from .io import write_outputs
+    from .layout import layout_of_size
+    from .sticker_sheet import sheet_image, sheet_svg, sticker_sheet
+
+    svg = Path(out)
+    if svg.suffix.lower() != ".svg":
+        raise InvalidInputError(f"'{out}': the sticker kit is written as SVG; name it *.svg")
+    preview = svg.with_suffix(".png")
+    sheet = sticker_sheet(layout_of_size(size_mm))
+    write_outputs(
+        {svg: sheet_svg(sheet), preview: sheet_image(sheet)},
+        overwrite=overwrite,
+        command=_command_line(),
+    )
+    click.echo(f"wrote {svg} (print at 100 %, A3) and its preview {preview}")
 
 
 @main.command()
