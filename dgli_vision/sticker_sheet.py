@@ -92,7 +92,16 @@ class Sheet:
             self.shapes.append(Line(a, b, c, d, **kw))
 
 
-def _sticker(sheet: Sheet, layout: NapkinLayout, k: int, x: float, y: float, tag: str) -> None:
+def _sticker(
+    sheet: Sheet,
+    layout: NapkinLayout,
+    k: int,
+    x: float,
+    y: float,
+    tag: str,
+    *,
+    id_size: float = 3.0,
+) -> None:
     """Sticker ``k`` centred at (x, y): disc, dot, and its id below."""
     disc, dot = layout.sticker_disc[k], layout.sticker_dot[k]
     sheet.shapes.append(
@@ -101,7 +110,9 @@ def _sticker(sheet: Sheet, layout: NapkinLayout, k: int, x: float, y: float, tag
     sheet.shapes.append(
         Circle(x, y, layout.dot_diameter_mm / 2, fill=layout.colours_srgb[dot], id=f"{tag}-dot")
     )
-    sheet.shapes.append(Text(x, y + layout.disc_diameter_mm / 2 + 3.4, f"{k}", 3.0, middle=True))
+    sheet.shapes.append(
+        Text(x, y + layout.disc_diameter_mm / 2 + 0.4 + id_size, f"{k}", id_size, middle=True)
+    )
 
 
 def _corner_stickers(layout: NapkinLayout, corner: str) -> list[int]:
@@ -245,7 +256,7 @@ def napkin_drawing(layout: NapkinLayout, *, margin_mm: float = 30.0) -> Sheet:
         add(Line(x0, y0, x1, y1, width=2.0, colour=GREY))
         mx, my = (x0 + x1) / 2, (y0 + y1) / 2
         inward = np.array(page(np.array([w / 2, h / 2]))) - (mx, my)
-        inward = inward / np.linalg.norm(inward) * 24
+        inward = inward / np.linalg.norm(inward) * 40
         add(
             Text(
                 mx + inward[0], my + inward[1] + 4, f"s{i}", 10, colour=(120, 0, 120), middle=True
@@ -253,7 +264,7 @@ def napkin_drawing(layout: NapkinLayout, *, margin_mm: float = 30.0) -> Sheet:
         )
     for k, uv in enumerate(layout.sticker_uv):
         x, y = page(uv)
-        _sticker(sheet, layout, k, x, y, f"napkin-{k}")
+        _sticker(sheet, layout, k, x, y, f"napkin-{k}", id_size=11.0)
     return sheet
 
 

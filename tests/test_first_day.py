@@ -62,3 +62,41 @@ def test_classify_pair_takes_arrays_from_a_live_camera_like_files():
 def test_classify_pair_refuses_arrays_it_cannot_use(color, depth):
     with pytest.raises(DgliError):
         dgli_vision.classify_pair(color, depth)
+
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+
+
+@pytest.mark.parametrize("md", DOCS, ids=lambda p: p.name)
+def test_the_docs_link_only_inside_the_repository(md):
+    import re
+
+    for link in re.findall(r"\]\(([^)\s]+)\)", md.read_text(encoding="utf-8")):
+        if link.startswith("#"):
+            continue
+        assert not link.startswith(("http:", "https:")), link
+        target = (md.parent / link.split("#")[0]).resolve()
+        assert target.exists() and ROOT in target.parents, f"{md.name}: {link}"
+
+
+def test_the_napkin_page_gives_the_layout_of_the_package():
+    import re
+
+    from dgli_vision.layout import default_layout
+
+    layout = default_layout()
+    text = (ROOT / "docs" / "napkin.md").read_text(encoding="utf-8")
+    positions = {
+        int(k): (float(u), float(v)) for k, u, v in re.findall(r"(\d+): \((\d+), (\d+)\)", text)
+    }
+    assert positions == {k: tuple(uv) for k, uv in enumerate(layout.sticker_uv)}
+    colours = {}
+    for row in re.findall(r"^\|(.*)\|$", text, flags=re.M):
+        cells = [c.strip() for c in row.split("|")]
+        for k, disc, dot in (cells[0:3], cells[4:7]) if len(cells) == 7 else ():
+            if k.isdigit():
+                colours[int(k)] = (disc, dot.split()[0])
+    assert colours == {
+        k: (layout.sticker_disc[k], layout.sticker_dot[k]) for k in range(layout.n_stickers)
+    }
