@@ -114,9 +114,7 @@ def _classify_pair(
     dist: tuple[float, ...] = ()
     if distances and result.best_guess is not None:  # to every reference, for tracking
         obs = result.observation
-        d = reference_distances(
-            result.coordinates, refs, obs.visible, obs.unknown, obs.lifted
-        )
+        d = reference_distances(result.coordinates, refs, obs.visible, obs.unknown, obs.lifted)
         dist = tuple(round(float(v), 6) for v in d)
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None
@@ -181,22 +179,96 @@ def evaluate_pairs(
             if on_progress:
                 on_progress(1)
         return
+    for outcome in _shared_work(pairs, references, jobs, colours, distances):
+        yield outcome
+        if on_progress:
+            on_progress(1)
+
+
+_POOL: tuple[tuple, ProcessPoolExecutor] | None = None
+
+
+def _worker_pool(
+    workers: int, references: ReferenceSet, colours: dict | None
+) -> ProcessPoolExecutor:
+    """The worker processes, kept between calls with the same references and colours
+    (a robustness run or a program classifying batch after batch starts them once)."""
+    global _POOL
+    # the set itself, not its id: compared by identity, and kept alive while in use
+    key = (workers, references, None if colours is None else tuple(sorted(colours.items())))
+    if _POOL is not None and _POOL[0] == key:
+        return _POOL[1]
+    _shutdown_pool()
+    import atexit
     import multiprocessing as mp
 
     # Spawned, not forked: the parent may hold OpenCV, Open3D or decoding threads, and a
-    # forked child inherits their locks. Start-up is cheap (the pipeline imports in 0.1 s).
-    ctx = mp.get_context("spawn")
+    # forked child inherits their locks.
     pool = ProcessPoolExecutor(
-        jobs, mp_context=ctx, initializer=_init_worker, initargs=(references, colours)
+        workers,
+        mp_context=mp.get_context("spawn"),
+        initializer=_init_worker,
+        initargs=(references, colours),
     )
+    if _POOL is None:
+        atexit.register(_shutdown_pool)
+    _POOL = (key, pool)
+    return pool
+
+
+def _shutdown_pool() -> None:
+    global _POOL
+    if _POOL is not None:
+        _POOL[1].shutdown(wait=True, cancel_futures=True)
+        _POOL = None
+
+
+def _shared_work(
+    pairs: list[LabelledPair],
+    references: ReferenceSet,
+    jobs: int,
+    colours: dict | None,
+    distances: bool,
+) -> Iterator[PairOutcome]:
+    """Outcomes in input order from ``jobs - 1`` worker processes and this process.
+
+    This process classifies pairs too, from the first moment: the workers take a few
+    tenths of a second to start (spawn, imports, references), during which it is already
+    at work, and there is one process per core, not one more. The workers stay up for the
+    next call (:func:`_worker_pool`); each is kept a few pairs ahead so that it never
+    waits for this process.
+    """
+    from concurrent.futures import FIRST_COMPLETED, Future, wait
+
+    import cv2
+
+    pool = _worker_pool(jobs - 1, references, colours)
+    work = partial(_classify_pair, distances=distances)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one process per core, this one included
+    done: dict[int, PairOutcome] = {}
+    pending: dict[Future, int] = {}
+    handed, given = 0, 0  # next pair to hand out; next outcome to yield
     try:
-        work = partial(_classify_pair, distances=distances)
-        for outcome in pool.map(work, pairs, chunksize=2):
-            yield outcome
-            if on_progress:
-                on_progress(1)
+        while given < len(pairs):
+            while len(pending) < 6 * (jobs - 1) and handed < len(pairs):
+                pending[pool.submit(work, pairs[handed])] = handed
+                handed += 1
+            for future in [f for f in pending if f.done()]:
+                done[pending.pop(future)] = future.result()
+            while given in done:
+                yield done.pop(given)
+                given += 1
+            if handed < len(pairs):
+                done[handed] = _classify_pair(pairs[handed], references, colours, distances)
+                handed += 1
+            elif pending and given not in done:
+                wait(pending, return_when=FIRST_COMPLETED)
     finally:  # also on Ctrl-C or when the caller stops early: drop what has not started
-        pool.shutdown(wait=True, cancel_futures=True)
+        cv2.setNumThreads(threads)
+        for future in pending:
+            future.cancel()
+        wait(pending)
 
 
 @dataclass(frozen=True)
@@ -338,9 +410,7 @@ def timed_evaluation(
     """:func:`evaluate_pairs` and :func:`summarise`, timed."""
     t0 = time.perf_counter()
     outcomes = list(
-        evaluate_pairs(
-            pairs, references, jobs=jobs, on_progress=on_progress, colours=colours
-        )
+        evaluate_pairs(pairs, references, jobs=jobs, on_progress=on_progress, colours=colours)
     )
     return summarise(outcomes, time.perf_counter() - t0)
 

@@ -164,3 +164,25 @@ def test_workers_start_cleanly_after_threads_in_the_parent():
     read_frame(pairs[0].color, pairs[0].depth)
     outs = list(evaluate_pairs(pairs, load_references(), jobs=2))
     assert [o.predicted for o in outs] == [p.label for p in pairs]
+
+
+def test_the_workers_stay_up_between_batches_with_the_same_references():
+    from dgli_vision import evaluate
+    from dgli_vision.references import load_references
+
+    pairs = find_pairs(SAMPLES)
+    refs = load_references()
+    first = list(evaluate.evaluate_pairs(pairs, refs, jobs=2, distances=True))
+    pool = evaluate._POOL[1]
+    again = list(evaluate.evaluate_pairs(pairs[::-1], refs, jobs=2, distances=True))
+    assert evaluate._POOL[1] is pool  # not started again
+    # in input order, the same outcomes as in one process, whoever classified each pair
+    alone = list(evaluate.evaluate_pairs(pairs, refs, jobs=1, distances=True))
+
+    def as_json(outcomes):  # NaN (unknown coordinates) compares equal as JSON text
+        return [json.dumps(evaluate.outcome_to_dict(o)) + str(o.distances) for o in outcomes]
+
+    assert as_json(first) == as_json(alone) and as_json(again) == as_json(alone[::-1])
+    other = load_references()  # another set: the workers must not keep the old one
+    list(evaluate.evaluate_pairs(pairs[:2], other, jobs=2))
+    assert evaluate._POOL[1] is not pool
