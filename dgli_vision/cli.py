@@ -462,7 +462,8 @@ def render_cmd(
     size_mm: tuple[float, float] | None,
     overwrite: bool,
 ) -> None:
-    """Render a labelled RGB-D folder of simulated states to OUT (SPEC section 4).
+    """Render a labelled RGB-D folder of simulated states to OUT (the labelled-folder
+    format of docs/napkin.md).
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
     """
@@ -839,7 +840,7 @@ def track(
 
 
 def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
-    """The JSON object of DESIGN.md for one classified pair."""
+    """The JSON object of `--json` for one classified pair (see the README)."""
     import numpy as np
 
     found = result.observation.visible
@@ -1136,7 +1137,7 @@ def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> 
 @json_option("Print a JSON object.")
 @_handle_errors
 def coords(as_json: bool) -> None:
-    """Show the 28 dGLI cloth coordinates of the flat napkin (SPEC section 2)."""
+    """Show the 28 dGLI cloth coordinates of the flat napkin."""
     from .dgli import pair_indices
     from .layout import default_layout
 
@@ -1190,7 +1191,7 @@ def bench(
     samples: str,
     overwrite: bool,
 ) -> None:
-    """Measure the benchmark figures of DESIGN.md (one core where it says so)."""
+    """Measure the benchmark figures against their budgets (one core where a budget says so)."""
     import platform
     import shutil
     from pathlib import Path
