@@ -65,6 +65,12 @@ size_option = click.option(
 )
 
 
+def _napkin_provenance(layout: Any) -> dict[str, Any]:
+    """``{"napkin_mm": [W, H]}`` for a napkin of other than the nominal size, else ``{}``
+    (so that files of the nominal napkin stay as they were)."""
+    return {} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}
+
+
 #: ``-j/--jobs N``: worker processes, all cores by default.
 jobs_option = click.option(
     "-j",
@@ -247,7 +253,7 @@ def simulate(
         "per_class": per_class,
         "in_progress": in_progress,
         "wrinkles": not no_wrinkles,
-        **({} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}),
+        **_napkin_provenance(layout),
         "package_version": _package_version(),
     }
     index = write_database(out, states, provenance, overwrite=overwrite)
@@ -516,7 +522,7 @@ def render_cmd(
         "clean": clean,
         "nominal": nominal,
         **({"conditions": list(conditions)} if conditions else {}),
-        **({} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}),
+        **_napkin_provenance(layout),
         "package_version": _package_version(),
     }
     times = [k * SEQUENCE_FRAME_SECONDS for k in range(frames)] if sequence else None
@@ -558,7 +564,7 @@ def references_build(
         )
     provenance = {
         "command": _command_line(),
-        **({} if have.is_nominal else {"napkin_mm": [have.width_mm, have.height_mm]}),
+        **_napkin_provenance(have),
         "database": db_provenance,
         "n_states": len(records),
         "package_version": _package_version(),
