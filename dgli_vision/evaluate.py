@@ -263,12 +263,27 @@ def _shared_work(
                 done[handed] = _classify_pair(pairs[handed], references, colours, distances)
                 handed += 1
             elif pending and given not in done:
-                wait(pending, return_when=FIRST_COMPLETED)
+                stolen = _take_back(pending)
+                if stolen is None:
+                    wait(pending, return_when=FIRST_COMPLETED)
+                else:  # the tail: a waiting worker pair is done here rather than idling
+                    done[stolen] = _classify_pair(pairs[stolen], references, colours, distances)
     finally:  # also on Ctrl-C or when the caller stops early: drop what has not started
         cv2.setNumThreads(threads)
         for future in pending:
             future.cancel()
         wait(pending)
+
+
+def _take_back(pending: dict) -> int | None:
+    """Cancel the last-handed pair no worker has started, and return its index (None if
+    every pending pair is already running): at the end of a batch this process takes the
+    queued pairs back instead of waiting for one worker to work through them alone."""
+    for future, index in sorted(pending.items(), key=lambda item: -item[1]):
+        if future.cancel():
+            del pending[future]
+            return index
+    return None
 
 
 @dataclass(frozen=True)

@@ -186,3 +186,20 @@ def test_the_workers_stay_up_between_batches_with_the_same_references():
     other = load_references()  # another set: the workers must not keep the old one
     list(evaluate.evaluate_pairs(pairs[:2], other, jobs=2))
     assert evaluate._POOL[1] is not pool
+
+
+def test_the_tail_of_a_batch_is_taken_back_from_a_busy_worker():
+    """At the end of a batch this process takes back the queued pairs no worker has
+    started (the latest first), and leaves running ones alone."""
+    from concurrent.futures import Future
+
+    from dgli_vision.evaluate import _take_back
+
+    running, queued_early, queued_late = Future(), Future(), Future()
+    running.set_running_or_notify_cancel()
+    pending = {running: 3, queued_early: 4, queued_late: 5}
+    assert _take_back(pending) == 5
+    assert queued_late.cancelled() and queued_late not in pending
+    assert _take_back(pending) == 4
+    assert _take_back(pending) is None  # only the running pair is left
+    assert pending == {running: 3} and not running.cancelled()
