@@ -103,6 +103,48 @@ def json_option(help_text: str = "Print one JSON object.") -> Callable[[F], F]:
     return click.option("--json", "as_json", is_flag=True, help=help_text)
 
 
+def recording_options(fn: F) -> F:
+    """Options for reading a recorded episode (a ROS or RealSense bag)."""
+    options = [
+        click.option("--color-topic", help="A bag's colour image topic [default: found by type "
+                     "and name, e.g. /camera/color/image_raw]."),
+        click.option("--depth-topic", help="A bag's depth topic, aligned to colour [default: "
+                     "e.g. /camera/aligned_depth_to_color/image_raw]."),
+        click.option("--info-topic", help="A bag's CameraInfo topic [default: the colour "
+                     "camera's camera_info]."),
+        click.option("--tolerance", "tolerance_ms", type=click.FloatRange(0, min_open=True),
+                     default=20.0, show_default=True,
+                     help="Largest time between a colour image and its depth, in ms."),
+        click.option("--labels", "labels_path", type=click.Path(),
+                     help="A bag's labels: CSV with frame (from 0) or time (s from the start), "
+                     "label and optionally variant."),
+    ]
+    for option in reversed(options):
+        fn = option(fn)
+    return fn
+
+
+def _open_recording(path: str, opts: dict[str, Any]) -> Any:
+    """The recording at ``path`` with the options of :func:`recording_options`."""
+    from .recording import open_recording
+
+    return open_recording(
+        path,
+        color_topic=opts["color_topic"],
+        depth_topic=opts["depth_topic"],
+        info_topic=opts["info_topic"],
+        tolerance=opts["tolerance_ms"] / 1000.0,
+        labels=opts["labels_path"],
+    )
+
+
+def _recording_notes(recording: Any, quiet: bool = False) -> None:
+    """A recording's notes on stderr (topics read, distortion, frames without a partner)."""
+    if not quiet and recording.kind != "folder":
+        for note in recording.notes:
+            click.echo(f"{recording.kind}: {note}", err=True)
+
+
 def _handle_errors(fn: F) -> F:
     """Turn a DgliError into one line on stderr and its exit code (never a traceback)."""
 
@@ -733,12 +775,13 @@ def sequence(
 
 
 @main.command()
-@click.argument("folder", type=click.Path())
+@click.argument("folder", metavar="RECORDING", type=click.Path())
 @report_option("Write the timeline (CSV, JSON, picture) and the frame distance heatmap here.")
 @json_option("Print the timeline as JSON.")
 @jobs_option
 @references_option
 @colours_option
+@recording_options
 @overwrite_option
 @_handle_errors
 def track(
@@ -749,14 +792,17 @@ def track(
     references_path: str | None,
     colours_path: str | None,
     overwrite: bool,
+    **recording_opts: Any,
 ) -> None:
-    """The state timeline of the frames of FOLDER, a recording.
+    """The state timeline of the frames of RECORDING.
 
-    Frames are taken in the order of FOLDER/frames.csv (color,depth[,time]) or by name.
-    Each is classified, then the states are smoothed over time (a hidden Markov model
-    whose moves are single folds and unfolds). A frame that cannot be read is a gap,
-    listed; the run goes on. With a labels.csv, the timeline is scored. Exit 1 when no
-    frame could be classified at all.
+    RECORDING is a folder of pairs (in the order of its frames.csv, color,depth[,time],
+    or by name), a ROS 1 .bag, a ROS 2 bag (.db3, .mcap or its folder; needs the
+    'recordings' extra) or a RealSense SDK .bag. A bag is read as it is classified.
+    Each frame is classified, then the states are smoothed over time (a hidden Markov
+    model whose moves are single folds and unfolds). A frame that cannot be read is a
+    gap, listed; the run goes on. With labels (a folder's labels.csv, a bag's --labels),
+    the timeline is scored. Exit 1 when no frame could be classified at all.
     """
     import os
     from pathlib import Path
@@ -766,26 +812,37 @@ def track(
     from .evaluate import coordinate_matrix, evaluate_pairs
     from .evaluation_report import sample_distance_matrix
     from .io import guard_outputs, write_outputs
-    from .recording import read_recording
     from .references import load_references
     from .report import csv_table, heatmap_image, timeline_image
     from .track import TIMELINE_COLUMNS, timeline_rows, timeline_to_dict, track_outcomes
 
-    recording = read_recording(folder)
+    recording = _open_recording(folder, recording_opts)
     if report_dir:  # fail before the work, not after it
         guard_outputs([Path(report_dir) / "timeline.json"], overwrite=overwrite)
     refs = load_references(references_path)
     colours = read_colours(colours_path) if colours_path else None
     jobs = jobs or os.cpu_count() or 1
-    frames = list(recording.frames)
-    with _progress_bar(len(frames), "tracking", quiet=as_json) as bar:
+    with _progress_bar(recording.count, "tracking", quiet=as_json) as bar:
         outcomes = list(
             evaluate_pairs(
-                frames, refs, jobs=jobs, on_progress=bar.update, colours=colours, distances=True
+                recording.frames,
+                refs,
+                jobs=jobs,
+                on_progress=bar.update,
+                colours=colours,
+                distances=True,
             )
         )
-    timeline = track_outcomes(outcomes, refs, times=recording.times, labelled=recording.labelled)
-    data = {"folder": folder, "n_frames": len(frames), **timeline_to_dict(timeline)}
+    _recording_notes(recording, quiet=as_json)
+    labelled = recording.labelled and all(o.pair.label for o in outcomes)
+    times = [o.pair.time for o in outcomes]
+    timeline = track_outcomes(outcomes, refs, times=times, labelled=labelled)
+    data = {
+        "folder": folder,
+        "recording": {"kind": recording.kind, "notes": list(recording.notes)},
+        "n_frames": len(outcomes),
+        **timeline_to_dict(timeline),
+    }
     if as_json:
         click.echo(json.dumps(data))
     else:
@@ -795,7 +852,7 @@ def track(
 
         first = next((f for f in timeline.frames if not f.gap), None)
         click.echo(
-            f"{len(frames)} frames; "
+            f"{len(outcomes)} frames; "
             + (
                 f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
                 if first
@@ -821,7 +878,7 @@ def track(
             CLASS_IDS,
             [f.smoothed_class for f in timeline.frames],
             [f.raw_class for f in timeline.frames],
-            truth=[f.label or "" for f in timeline.frames] if recording.labelled else None,
+            truth=[f.label or "" for f in timeline.frames] if labelled else None,
             names=CLASS_NAMES,
             title=f"timeline of {folder}",
         )

@@ -19,7 +19,6 @@ from numpy.typing import NDArray
 
 from .classes import VARIANTS
 from .errors import DgliError
-from .frames import read_frame
 from .labelled import LabelledPair
 from .references import ReferenceSet
 
@@ -103,11 +102,11 @@ def _classify_pair(
     if refs is None:
         raise RuntimeError("worker started without references (pool initializer not run)")
     try:
-        frame = read_frame(pair.color, pair.depth, threads=False)  # one pair per core
+        frame = pair.load()  # one thread: one pair per core
         result = classify_frame(frame, refs, colours=colours)
     except DgliError as exc:
         where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
-        return PairOutcome(pair, error=f"{exc}{where}")
+        return PairOutcome(pair.light(), error=f"{exc}{where}")
     p = result.prediction
     coords = tuple(float(v) for v in result.coordinates)
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
@@ -120,7 +119,7 @@ def _classify_pair(
     confidence = guess.confidence if guess is not None else None
     if p is None:
         return PairOutcome(
-            pair,
+            pair.light(),
             coordinates=coords,
             centroids=cents,
             reason=result.reason,
@@ -128,7 +127,7 @@ def _classify_pair(
             distances=dist,
         )
     return PairOutcome(
-        pair,
+        pair.light(),
         p.class_id,
         p.variant,
         p.distance,
@@ -142,7 +141,7 @@ def _classify_pair(
 
 
 def evaluate_pairs(
-    pairs: list[LabelledPair],
+    pairs: Iterable[LabelledPair],
     references: ReferenceSet,
     *,
     jobs: int = 1,
@@ -154,7 +153,9 @@ def evaluate_pairs(
 
     Parameters
     ----------
-    pairs : list of LabelledPair
+    pairs : iterable of LabelledPair
+        Taken one at a time, as the work goes (a recording's frames are read as they are
+        classified, never all held).
     references : ReferenceSet
     jobs : int, keyword-only
         Worker processes; 1 runs in this process.
@@ -224,7 +225,7 @@ def _shutdown_pool() -> None:
 
 
 def _shared_work(
-    pairs: list[LabelledPair],
+    pairs: Iterable[LabelledPair],
     references: ReferenceSet,
     jobs: int,
     colours: dict | None,
@@ -246,28 +247,41 @@ def _shared_work(
     work = partial(_classify_pair, distances=distances)
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # one process per core, this one included
+    todo = iter(pairs)  # taken one at a time: a recording is read as it is classified
     done: dict[int, PairOutcome] = {}
     pending: dict[Future, int] = {}
-    handed, given = 0, 0  # next pair to hand out; next outcome to yield
+    mine: dict[int, LabelledPair] = {}  # handed to a worker, kept in case it is taken back
+    handed, given, more = 0, 0, True  # next index to hand out; next to yield
     try:
-        while given < len(pairs):
-            while len(pending) < 6 * (jobs - 1) and handed < len(pairs):
-                pending[pool.submit(work, pairs[handed])] = handed
+        while more or given < handed:
+            while more and len(pending) < 6 * (jobs - 1):
+                pair = next(todo, None)
+                if pair is None:
+                    more = False
+                    break
+                pending[pool.submit(work, pair)] = handed
+                mine[handed] = pair
                 handed += 1
             for future in [f for f in pending if f.done()]:
-                done[pending.pop(future)] = future.result()
+                index = pending.pop(future)
+                done[index] = future.result()
+                del mine[index]
             while given in done:
                 yield done.pop(given)
                 given += 1
-            if handed < len(pairs):
-                done[handed] = _classify_pair(pairs[handed], references, colours, distances)
+            pair = next(todo, None) if more else None
+            if pair is not None:
+                done[handed] = _classify_pair(pair, references, colours, distances)
                 handed += 1
-            elif pending and given not in done:
+                continue
+            more = False
+            if pending and given not in done:
                 stolen = _take_back(pending)
                 if stolen is None:
                     wait(pending, return_when=FIRST_COMPLETED)
                 else:  # the tail: a waiting worker pair is done here rather than idling
-                    done[stolen] = _classify_pair(pairs[stolen], references, colours, distances)
+                    pair = mine.pop(stolen)
+                    done[stolen] = _classify_pair(pair, references, colours, distances)
     finally:  # also on Ctrl-C or when the caller stops early: drop what has not started
         cv2.setNumThreads(threads)
         for future in pending:

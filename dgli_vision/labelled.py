@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InvalidInputError, UnreadableInputError
-from .frames import write_color, write_depth
+from .frames import RGBDFrame, read_frame, write_color, write_depth
 from .io import guard_outputs, record_outputs, write_json, write_text
 
 __all__ = [
@@ -109,7 +109,8 @@ def write_labelled_folder(
 class LabelledPair:
     """One colour + depth pair of a labelled folder, with its true class and variant.
 
-    ``line`` is the pair's line in ``labels.csv`` (None for class folders).
+    ``line`` is the pair's line in ``labels.csv`` (None for class folders); ``time`` is
+    the frame's time in seconds in a recording (None when not known).
     """
 
     color: str
@@ -117,6 +118,20 @@ class LabelledPair:
     label: str
     variant: str | None = None
     line: int | None = None
+    time: float | None = None
+
+    def load(self) -> RGBDFrame:
+        """The validated frame (:func:`~dgli_vision.frames.read_frame`, one thread).
+
+        Raises
+        ------
+        UnreadableInputError, InvalidInputError, CalibrationError
+        """
+        return read_frame(self.color, self.depth, threads=False)
+
+    def light(self) -> LabelledPair:
+        """This pair as names only (what an outcome keeps)."""
+        return self
 
 
 @dataclass(frozen=True)

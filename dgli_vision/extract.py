@@ -1,0 +1,127 @@
+"""Write a recording's frames as a folder of PNG pairs (``dgli extract``): the
+labelled-folder format with a ``frames.csv`` of times, which every command reads.
+
+Frames are decoded and written one at a time (two writer threads; PNG encoding releases
+the GIL), so memory does not grow with the episode.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .errors import DgliError, InvalidInputError
+from .frames import write_color, write_depth
+from .io import guard_outputs, record_outputs, write_json, write_text
+from .recording import Recording, select_frames
+from .report import csv_table
+
+__all__ = ["ExtractResult", "extract_recording"]
+
+
+@dataclass
+class ExtractResult:
+    """What :func:`extract_recording` wrote.
+
+    Attributes
+    ----------
+    written : int
+        Frames written.
+    skipped : list of str
+        Frames that could not be written (no depth near them, an image that does not
+        decode), one line each.
+    frames_csv : Path
+    """
+
+    written: int = 0
+    skipped: list[str] = field(default_factory=list)
+    frames_csv: Path | None = None
+
+
+def extract_recording(
+    recording: Recording,
+    out: str | Path,
+    *,
+    every: int = 1,
+    start: float | None = None,
+    end: float | None = None,
+    overwrite: bool = False,
+    command: str = "",
+    on_progress: Callable[[int], None] | None = None,
+) -> ExtractResult:
+    """Write ``recording``'s frames to ``out`` as ``frame_NNNNNN_color.png`` /
+    ``_depth.png``, ``intrinsics.json``, ``frames.csv`` (``color,depth,time``, seconds
+    from the start) and, for a labelled recording, ``labels.csv``.
+
+    Parameters
+    ----------
+    recording : Recording
+    out : str or Path
+    every : int, keyword-only
+        Keep every N-th frame (frame numbers keep counting all frames).
+    start, end : float, keyword-only, optional
+        Seconds from the start of the recording.
+    overwrite : bool, keyword-only
+        Replace files dgli did not write.
+    command : str, keyword-only
+        Recorded beside the files.
+    on_progress : callable, keyword-only
+        Called with 1 per frame read.
+
+    Raises
+    ------
+    OverwriteError, InvalidInputError
+        A file in the way; frames of different sizes or intrinsics in one recording.
+    """
+    root = Path(out)
+    listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
+    guard_outputs(listing, overwrite=overwrite)
+    result = ExtractResult()
+    rows: list[tuple[str, str, str, str, str]] = []
+    written: list[Path] = []
+    intr = None
+    jobs: list[Future] = []
+    with ThreadPoolExecutor(2) as pool:
+        for index, pair in select_frames(recording.frames, every=every, start=start, end=end):
+            if on_progress:
+                on_progress(1)
+            try:
+                frame = pair.load()
+            except DgliError as exc:
+                result.skipped.append(str(exc))
+                continue
+            if intr is None:
+                intr = frame.intrinsics
+            elif frame.intrinsics != intr:
+                raise InvalidInputError(
+                    f"{pair.color}: the camera intrinsics change within the recording; a "
+                    "folder holds one intrinsics.json: extract each part with --start/--end"
+                )
+            name = f"frame_{index:06d}"
+            color, depth = root / f"{name}_color.png", root / f"{name}_depth.png"
+            guard_outputs([color, depth], overwrite=overwrite)
+            while len(jobs) >= 4:  # a few frames in flight, never the whole episode
+                jobs.pop(0).result()
+            jobs.append(pool.submit(write_color, color, frame.color))
+            jobs.append(pool.submit(write_depth, depth, frame.depth_mm))
+            written += [color, depth]
+            t = "" if pair.time is None else f"{pair.time:.6f}"
+            rows.append((color.name, depth.name, t, pair.label, pair.variant or ""))
+        for job in jobs:
+            job.result()
+    if intr is not None:
+        write_json(root / "intrinsics.json", intr.to_open3d_dict())
+        written.append(root / "intrinsics.json")
+    write_text(root / "frames.csv", csv_table(["color", "depth", "time"], [r[:3] for r in rows]))
+    written.append(root / "frames.csv")
+    if recording.labelled and rows and all(r[3] for r in rows):
+        labels = [(c, d, lab, var) for c, d, _, lab, var in rows]
+        write_text(root / "labels.csv", csv_table(["color", "depth", "label", "variant"], labels))
+        written.append(root / "labels.csv")
+    record_outputs(written, command)
+    result.written = len(rows)
+    result.frames_csv = root / "frames.csv"
+    return result
+
