@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import json
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from functools import wraps
 from typing import Any, TypeVar
 
@@ -106,18 +106,35 @@ def json_option(help_text: str = "Print one JSON object.") -> Callable[[F], F]:
 def recording_options(fn: F) -> F:
     """Options for reading a recorded episode (a ROS or RealSense bag)."""
     options = [
-        click.option("--color-topic", help="A bag's colour image topic [default: found by type "
-                     "and name, e.g. /camera/color/image_raw]."),
-        click.option("--depth-topic", help="A bag's depth topic, aligned to colour [default: "
-                     "e.g. /camera/aligned_depth_to_color/image_raw]."),
-        click.option("--info-topic", help="A bag's CameraInfo topic [default: the colour "
-                     "camera's camera_info]."),
-        click.option("--tolerance", "tolerance_ms", type=click.FloatRange(0, min_open=True),
-                     default=20.0, show_default=True,
-                     help="Largest time between a colour image and its depth, in ms."),
-        click.option("--labels", "labels_path", type=click.Path(),
-                     help="A bag's labels: CSV with frame (from 0) or time (s from the start), "
-                     "label and optionally variant."),
+        click.option(
+            "--color-topic",
+            help="A bag's colour image topic [default: found by type "
+            "and name, e.g. /camera/color/image_raw].",
+        ),
+        click.option(
+            "--depth-topic",
+            help="A bag's depth topic, aligned to colour [default: "
+            "e.g. /camera/aligned_depth_to_color/image_raw].",
+        ),
+        click.option(
+            "--info-topic",
+            help="A bag's CameraInfo topic [default: the colour camera's camera_info].",
+        ),
+        click.option(
+            "--tolerance",
+            "tolerance_ms",
+            type=click.FloatRange(0, min_open=True),
+            default=20.0,
+            show_default=True,
+            help="Largest time between a colour image and its depth, in ms.",
+        ),
+        click.option(
+            "--labels",
+            "labels_path",
+            type=click.Path(),
+            help="A bag's labels: CSV with frame (from 0) or time (s from the start), "
+            "label and optionally variant.",
+        ),
     ]
     for option in reversed(options):
         fn = option(fn)
@@ -205,19 +222,20 @@ def _pair_key(pair: Any) -> tuple[str, str]:
     return str(Path(pair.color).resolve()), str(Path(pair.depth).resolve())
 
 
-def _earlier_outcomes(path: Any, pairs: list) -> dict[tuple[str, str], Any]:
-    """Outcomes of ``pairs`` already in a results.jsonl (malformed lines left out)."""
+def _earlier_outcomes(path: Any, pairs: list | None) -> dict[tuple[str, str], Any]:
+    """Outcomes of ``pairs`` (None: any) already in a results.jsonl (malformed lines
+    left out)."""
     from .evaluate import outcome_from_dict
     from .io import read_jsonl
 
-    wanted = {_pair_key(p) for p in pairs}
+    wanted = None if pairs is None else {_pair_key(p) for p in pairs}
     done = {}
     for item in read_jsonl(path):
         try:
             outcome = outcome_from_dict(item)
         except (KeyError, TypeError, ValueError):
             continue
-        if _pair_key(outcome.pair) in wanted:
+        if wanted is None or _pair_key(outcome.pair) in wanted:
             done[_pair_key(outcome.pair)] = outcome
     return done
 
@@ -309,6 +327,7 @@ def simulate(
 @jobs_option
 @references_option
 @colours_option
+@recording_options
 @click.option(
     "--lenient",
     is_flag=True,
@@ -333,8 +352,11 @@ def evaluate(
     lenient: bool,
     resume: bool,
     overwrite: bool,
+    **recording_opts: Any,
 ) -> None:
     """Classify every labelled pair of FOLDER and report accuracy and confusions.
+
+    FOLDER may also be a recorded episode (a ROS or RealSense bag) with --labels.
 
     Labels are checked first: an unknown class or variant, or a pair listed twice,
     stops the run (exit 2) unless --lenient; pairs that cannot be read are listed with
@@ -352,9 +374,20 @@ def evaluate(
     from .frames import read_color
     from .io import JsonLinesWriter, file_sha256, guard_outputs, record_outputs, write_outputs
     from .labelled import find_labelled_pairs
+    from .recording import is_recording_file
     from .references import default_references_path, load_references
 
-    pairs, problems = find_labelled_pairs(folder, lenient=lenient)
+    recording = None
+    if is_recording_file(folder):
+        if not recording_opts["labels_path"]:
+            raise InvalidInputError(
+                f"recording '{folder}' needs --labels FILE to be evaluated (CSV: frame or "
+                "time, label, variant); 'dgli track' reads it without labels"
+            )
+        recording = _open_recording(folder, recording_opts)
+        pairs, problems = [], []
+    else:
+        pairs, problems = find_labelled_pairs(folder, lenient=lenient)
     for problem in problems:
         if problem.kind != "missing file":  # those are listed with the failures
             click.echo(f"skipped: {problem.message}", err=True)
@@ -375,16 +408,29 @@ def evaluate(
     colours = read_colours(colours_path) if colours_path else None
     jobs = jobs or os.cpu_count() or 1
     results_path = Path(report_dir) / "results.jsonl" if report_dir else None
-    done = _earlier_outcomes(results_path, pairs) if resume and results_path else {}
-    todo = [p for p in pairs if _pair_key(p) not in done]
+    wanted = None if recording else pairs
+    done = _earlier_outcomes(results_path, wanted) if resume and results_path else {}
+    unlabelled: list[str] = []
+
+    def todo() -> Iterator[Any]:  # a recording's frames are read as they are classified
+        for pair in recording.frames if recording else pairs:
+            if recording and not pair.label:
+                unlabelled.append(pair.color)
+                continue
+            if recording:
+                pairs.append(pair.light())
+            if _pair_key(pair) not in done:
+                yield pair
+
     writer = JsonLinesWriter(results_path, append=resume) if results_path else None
     interrupted = False
     t0 = time.perf_counter()
+    count = recording.count if recording else sum(_pair_key(p) not in done for p in pairs)
     try:
-        with _progress_bar(len(todo), "classifying", quiet=as_json) as bar:
-            if todo:
+        with _progress_bar(count, "classifying", quiet=as_json) as bar:
+            if count:
                 for outcome in evaluate_pairs(
-                    todo, refs, jobs=jobs, on_progress=bar.update, colours=colours
+                    todo(), refs, jobs=jobs, on_progress=bar.update, colours=colours
                 ):
                     if writer:  # flushed at once: an interrupted run keeps its work
                         writer.write(outcome_to_dict(outcome))
@@ -397,6 +443,9 @@ def evaluate(
     outcomes = [done[_pair_key(p)] for p in pairs if _pair_key(p) in done]
     result = summarise(outcomes, time.perf_counter() - t0)
     skipped = [p.message for p in problems if p.kind != "missing file"]
+    if recording:
+        _recording_notes(recording, quiet=as_json)
+        skipped += [f"{name}: no label" for name in unlabelled]
     if as_json:
         click.echo(json.dumps({**result.to_dict(), "skipped": skipped}))
     else:
@@ -900,6 +949,63 @@ def track(
         click.echo(f"report written to {out}", err=True)
     if all(f.gap for f in timeline.frames):
         sys.exit(1)
+
+
+@main.command()
+@click.argument("recording_path", metavar="RECORDING", type=click.Path())
+@click.argument("out", type=click.Path(file_okay=False))
+@click.option(
+    "--every", default=1, show_default=True, type=click.IntRange(1), help="Keep every N-th frame."
+)
+@click.option(
+    "--start",
+    type=float,
+    default=None,
+    help="First second to keep, from the start of the recording.",
+)
+@click.option(
+    "--end", type=float, default=None, help="Last second to keep, from the start of the recording."
+)
+@recording_options
+@overwrite_option
+@_handle_errors
+def extract(
+    recording_path: str,
+    out: str,
+    every: int,
+    start: float | None,
+    end: float | None,
+    overwrite: bool,
+    **recording_opts: Any,
+) -> None:
+    """Write the frames of RECORDING (a ROS or RealSense bag) to OUT as PNG pairs.
+
+    OUT gets frame_NNNNNN_color.png / _depth.png (NNNNNN: the frame's number in the
+    recording), intrinsics.json, frames.csv (color,depth,time in seconds from the start)
+    and, with --labels, labels.csv: the folder format every command reads. Frames that
+    cannot be written (no depth near them in time) are listed, not lost silently.
+    """
+    from .errors import InvalidInputError
+    from .extract import extract_recording
+
+    if start is not None and end is not None and end < start:
+        raise InvalidInputError(f"--end {end} is before --start {start}")
+    recording = _open_recording(recording_path, recording_opts)
+    with _progress_bar(recording.count, "extracting") as bar:
+        result = extract_recording(
+            recording,
+            out,
+            every=every,
+            start=start,
+            end=end,
+            overwrite=overwrite,
+            command=_command_line(),
+            on_progress=bar.update,
+        )
+    _recording_notes(recording)
+    for line in result.skipped:
+        click.echo(f"skipped: {line}", err=True)
+    click.echo(f"wrote {result.written} frames to {out} (frames: {result.frames_csv})")
 
 
 def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
