@@ -55,7 +55,8 @@ def read_realsense_bag(path: str | Path) -> tuple[int, Iterator[RealSenseFrame]]
     path = Path(path)
     reader = o3d.t.io.RSBagReader()
     try:
-        opened = reader.open(str(path))
+        with o3d.utility.VerbosityContextManager(o3d.utility.VerbosityLevel.Error):
+            opened = reader.open(str(path))
     except RuntimeError as exc:
         opened, why = False, str(exc).strip().splitlines()[-1] if str(exc).strip() else ""
     else:

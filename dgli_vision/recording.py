@@ -348,26 +348,26 @@ def _bag_recording(
     ]
     ms = round(tolerance * 1000)
 
-    def pairs() -> Iterator[RecordedPair]:
+    state: dict = {"intr": None, "t0": None}  # the latest camera info; the first stamp
+
+    def events() -> Iterator[tuple[str, float, object]]:
+        with RosBag(p) as bag:
+            for item in read_bag_messages(bag, topics):
+                if isinstance(item, InfoMessage):
+                    state["intr"] = item.intrinsics
+                    if item.note and item.note not in notes:
+                        notes.append(item.note)
+                    continue
+                assert isinstance(item, BagMessage)
+                if state["t0"] is None:
+                    state["t0"] = item.time
+                yield item.stream, item.time, (item.payload, state["intr"])
+
+    def frames_of(stream: Iterator[tuple[str, float, object]]) -> Iterator[RecordedPair]:
         from .pairing import pair_by_time
 
-        state: dict = {"intr": None, "t0": None}
-
-        def events() -> Iterator[tuple[str, float, object]]:
-            with RosBag(p) as bag:
-                for item in read_bag_messages(bag, topics):
-                    if isinstance(item, InfoMessage):
-                        state["intr"] = item.intrinsics
-                        if item.note and item.note not in notes:
-                            notes.append(item.note)
-                        continue
-                    assert isinstance(item, BagMessage)
-                    if state["t0"] is None:
-                        state["t0"] = item.time
-                    yield item.stream, item.time, (item.payload, state["intr"])
-
         index = 0
-        for paired in pair_by_time(events(), tolerance):
+        for paired in pair_by_time(stream, tolerance):
             if paired.color is None:
                 notes.append(
                     f"depth frame at {paired.depth_time - state['t0']:.3f} s on "
@@ -389,6 +389,13 @@ def _bag_recording(
                 _check_first(pair)
             yield pair
             index += 1
+
+    def pairs() -> Iterator[RecordedPair]:
+        stream = events()
+        try:
+            yield from frames_of(stream)
+        finally:  # the bag is closed even when the caller stops early
+            stream.close()
 
     return Recording(pairs(), topics.counts[topics.color], False, str(p), kind, notes)
 
