@@ -382,3 +382,63 @@ def run_pipeline_benchmarks(
         )
     )
     return results
+
+
+_PEAK_RSS = (
+    "import resource, subprocess, sys; "
+    "subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL); "
+    "print(resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss)"
+)
+
+
+def run_recording_benchmarks(
+    samples_dir: str, *, n_frames: int = 300, repeats: int = 3
+) -> list[BenchResult]:
+    """``dgli track`` on a recorded ROS 2 episode: frames per second of the whole command
+    (start-up included) and the peak memory of its largest process.
+
+    The episode is ``n_frames`` 1280 x 720 frames of the sample pairs in turn at 30 Hz,
+    raw ``rgb8`` colour and ``16UC1`` aligned depth with their ``CameraInfo``, written
+    as MCAP with ``rosbags`` into a temporary folder (about 1.4 GB for 300 frames).
+    Empty without the ``recordings`` extra.
+    """
+    import importlib.util
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    if importlib.util.find_spec("rosbags") is None:
+        return []
+    from .bag_writer import write_bag
+    from .frames import read_frame
+    from .labelled import find_pairs
+
+    frames = [read_frame(p.color, p.depth) for p in find_pairs(samples_dir)]
+
+    def episode():
+        for k in range(n_frames):
+            f = frames[k % len(frames)]
+            yield 1.7e9 + k / 30, f.color, f.depth_mm
+
+    with tempfile.TemporaryDirectory(prefix="dgli-bench-") as tmp:
+        bag = write_bag(Path(tmp) / "episode", episode(), frames[0].intrinsics)
+        size = sum(p.stat().st_size for p in bag.iterdir()) / 2**20
+        track = [sys.executable, "-m", "dgli_vision", "track", str(bag), "-j", "2", "--json"]
+        t = _median_seconds(
+            lambda: subprocess.run(track, check=True, capture_output=True), repeats
+        )
+        peak_kib = int(
+            subprocess.run(
+                [sys.executable, "-c", _PEAK_RSS, *track],
+                check=True,
+                capture_output=True,
+                text=True,
+            ).stdout
+        )
+    fps, peak = n_frames / t, peak_kib / 1024
+    name = f"track a {n_frames}-frame 1280x720 ROS 2 episode ({size:,.0f} MB MCAP), -j 2"
+    return [
+        BenchResult(name, fps, "frames/s", ">= 20 frames/s", fps >= 20),
+        BenchResult("  peak memory of its largest process", peak, "MB", "< 500 MB", peak < 500),
+    ]

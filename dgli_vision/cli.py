@@ -1341,7 +1341,9 @@ def _format_figure(value: float, unit: str) -> str:
     help="Also write the figures as a Markdown table to this file.",
 )
 @click.option(
-    "--only", type=click.Choice(["dgli", "pipeline"]), help="Run one group of benchmarks only."
+    "--only",
+    type=click.Choice(["dgli", "pipeline", "recording"]),
+    help="Run one group of benchmarks only.",
 )
 @click.option(
     "--samples",
@@ -1365,7 +1367,7 @@ def bench(
     import shutil
     from pathlib import Path
 
-    from .bench import run_dgli_benchmarks, run_pipeline_benchmarks
+    from .bench import run_dgli_benchmarks, run_pipeline_benchmarks, run_recording_benchmarks
     from .io import guard_outputs, write_outputs
 
     if markdown:
@@ -1377,6 +1379,8 @@ def bench(
         exe = Path(sys.executable).parent / "dgli-classify"
         exe_path = str(exe) if exe.exists() else shutil.which("dgli-classify")
         results += run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
+    if only in (None, "recording"):
+        results += run_recording_benchmarks(samples)
     rows = []
     for r in results:
         value = _format_figure(r.value, r.unit)

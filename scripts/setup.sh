@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up: system library for Open3D, a virtual environment in .venv/, the
-# package (editable) with its test extras and the recordings extra (ROS bags). Safe to run again; fast when nothing changed.
+# package (editable) with its test extras and the recordings extra (ROS bags).
+# Safe to run again; fast when nothing changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
