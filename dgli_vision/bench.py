@@ -290,7 +290,7 @@ def run_pipeline_benchmarks(
     from .camera import look_at_table
     from .cloth.states import sample_state
     from .database import simulate_states
-    from .evaluate import evaluate_pairs
+    from .evaluate import _shutdown_pool, evaluate_pairs
     from .frames import read_frame
     from .labelled import find_pairs
     from .pipeline import classify_frame
@@ -359,12 +359,25 @@ def run_pipeline_benchmarks(
         BenchResult("simulate 12 x 20 states (no files)", t_sim, "s", "< 10 s", t_sim < 10)
     )
     many = pairs * max(1, 144 // len(pairs))
-    t1 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=1)), 1)
-    t2 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=2)), 1)
+    # -j 1 and -j 2 in turn, three times, each -j 2 call starting its worker afresh (as a
+    # command does); the median of the three paired ratios, robust to a noisy machine
+    runs = []
+    for _ in range(3):
+        _shutdown_pool()
+        t1 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=1)), 1)
+        t2 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=2)), 1)
+        runs.append((t1 / t2, t1, t2))
+    ratio, t1, t2 = sorted(runs)[1]
     results.append(BenchResult(f"evaluate {len(many)} pairs, -j 1", t1, "s"))
     results.append(BenchResult(f"evaluate {len(many)} pairs, -j 2", t2, "s"))
     results.append(
-        BenchResult("evaluate speed-up -j 2 / -j 1", t1 / t2, "x", ">= 1.8x", t1 / t2 >= 1.8)
+        BenchResult(
+            "evaluate speed-up -j 2 / -j 1 (median of 3 pairs of runs)",
+            ratio,
+            "x",
+            ">= 1.8x",
+            ratio >= 1.8,
+        )
     )
     # dgli track: 300 frames (the sample pairs in turn), classified with 2 workers and
     # smoothed over time; what a recording of a folding episode costs.
