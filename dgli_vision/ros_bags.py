@@ -11,7 +11,7 @@ memory stays flat however long the episode; each frame's pixels stay encoded
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -101,7 +101,23 @@ def _describe(topics: dict[str, str]) -> str:
     return ", ".join(f"{t} ({ty.rsplit('/', 1)[-1]})" for t, ty in sorted(topics.items()))
 
 
-def _pick(candidates: list[str], prefer: tuple[str, ...], what: str, flag: str, src: str) -> str:
+def _pick(
+    images: dict[str, str],
+    wanted: Callable[[str], bool],
+    prefer: tuple[str, ...],
+    what: str,
+    flag: str,
+    src: str,
+) -> str:
+    """The one image topic ``wanted`` selects: raw before its compressed republication,
+    then the first word of ``prefer`` its name contains; an error when none or several."""
+    candidates = [t for t in images if wanted(t)]
+    if not candidates:
+        raise InvalidInputError(
+            f"recording '{src}' has no {what} image topic (images: {_describe(images)}); "
+            f"name one with {flag}"
+        )
+    candidates = [t for t in candidates if images[t] == IMAGE] or candidates
     for word in prefer:
         hits = [t for t in candidates if word in t.lower()]
         if len(hits) == 1:
@@ -165,27 +181,25 @@ def choose_topics(
     if depth:
         depth = named(depth, (IMAGE, COMPRESSED), "--depth-topic")
     else:
-        found = [t for t, ty in images.items() if "depth" in t.lower() and "compressed" not in t]
-        if not found:
-            found = [t for t in images if "depth" in t.lower()]
-        if not found:
-            raise InvalidInputError(
-                f"recording '{src}' has no depth image topic (images: {_describe(images)}); "
-                "name one with --depth-topic"
-            )
-        depth = _pick(found, ("aligned_depth_to_color", "aligned"), "depth", "--depth-topic", src)
+        depth = _pick(
+            images,
+            lambda t: "depth" in t.lower(),
+            ("aligned_depth_to_color", "aligned"),
+            "depth",
+            "--depth-topic",
+            src,
+        )
     if color:
         color = named(color, (IMAGE, COMPRESSED), "--color-topic")
     else:
-        found = [t for t in images if "depth" not in t.lower() and t != depth]
-        raw = [t for t in found if images[t] == IMAGE]
-        found = raw or found  # a raw stream before its compressed republication
-        if not found:
-            raise InvalidInputError(
-                f"recording '{src}' has no colour image topic (images: {_describe(images)}); "
-                "name one with --color-topic"
-            )
-        color = _pick(found, ("color", "rgb"), "colour", "--color-topic", src)
+        color = _pick(
+            images,
+            lambda t: "depth" not in t.lower() and t != depth,
+            ("color", "rgb"),
+            "colour",
+            "--color-topic",
+            src,
+        )
     if info:
         info = named(info, (INFO,), "--info-topic")
     else:
@@ -198,11 +212,14 @@ def choose_topics(
     return BagTopics(color, depth, info, {t: counts.get(t, 0) for t in types})
 
 
+def _info_field(msg: Any, name: str) -> Any:
+    """A ``CameraInfo`` array by its ROS 2 name (``k``, ``d``) or its ROS 1 name (``K``, ``D``)."""
+    value = getattr(msg, name, None)
+    return getattr(msg, name.upper(), None) if value is None else value
+
+
 def _intrinsics(msg: Any) -> tuple[Intrinsics, str | None]:
-    k = getattr(msg, "k", None)
-    k = getattr(msg, "K", None) if k is None else k
-    d = getattr(msg, "d", None)
-    d = getattr(msg, "D", None) if d is None else d
+    k, d = _info_field(msg, "k"), _info_field(msg, "d")
     intr = Intrinsics(int(msg.width), int(msg.height), *(float(k[i]) for i in (0, 4, 2, 5)))
     note = None
     if d is not None and len(d) and any(abs(float(v)) > 1e-12 for v in d):
@@ -234,9 +251,6 @@ def _payload(msg: Any, msgtype: str, stream: str, where: str) -> ImagePayload:
     )
 
 
-_READ_ERRORS: tuple[type[BaseException], ...] = (OSError, EOFError, ValueError, KeyError)
-
-
 def _read_errors() -> tuple[type[BaseException], ...]:
     """What ``rosbags`` raises on a truncated or corrupt bag."""
     import sqlite3
@@ -254,7 +268,10 @@ def _read_errors() -> tuple[type[BaseException], ...]:
         SerdeError,
         sqlite3.DatabaseError,
         struct.error,
-        *_READ_ERRORS,
+        OSError,
+        EOFError,
+        ValueError,
+        KeyError,
     )
 
 
@@ -327,11 +344,10 @@ def read_bag_messages(bag: RosBag, topics: BagTopics) -> Iterator[BagMessage | I
         stream = wanted[conn.topic]
         last_t = bag_ns * 1e-9
         if stream == "info":
-            k = getattr(msg, "k", None)
-            key = (tuple(getattr(msg, "K", ()) if k is None else k), msg.width, msg.height)
-            if key != last_info:
-                last_info = key
-                yield InfoMessage(*_intrinsics(msg))
+            info = InfoMessage(*_intrinsics(msg))
+            if info != last_info:  # drivers repeat it with every frame
+                last_info = info
+                yield info
             continue
         t = _stamp(msg, bag_ns)
         where = f"recording '{bag.path}' topic {conn.topic} at {t:.3f} s"
