@@ -6,7 +6,7 @@ does not pull in the simulator.
 
 from __future__ import annotations
 
-__all__ = ["CLASS_IDS", "CLASS_NAMES", "CORNERS", "LIFTED_MM", "SIDES", "VARIANTS"]
+__all__ = ["CLASS_IDS", "CLASS_NAMES", "CORNERS", "LIFTED_MM", "PAST_BAND_DEG", "SIDES", "VARIANTS"]
 
 CLASS_NAMES: dict[str, str] = {
     "01": "flat",
@@ -47,3 +47,8 @@ VARIANTS: dict[str, tuple[str | None, ...]] = {
 #: wrinkles stay below 10 mm and a folded layer adds a few. Not seen, it is unknown (on
 #: a flap seen edge-on), not evidence of a layer lying on it.
 LIFTED_MM = 20.0
+
+#: A flap measured this many degrees past vertical (or short of it) counts as turned
+#: past 90 degrees (or not) in full; nearer vertical, in proportion. SPEC's rule changes
+#: the class at 90 degrees, and the lean of a flap is measured to a degree or two.
+PAST_BAND_DEG = 3.0

@@ -27,6 +27,8 @@ from .references import ReferenceSet
 __all__ = [
     "FULL_COORDINATES",
     "FULL_MARGIN",
+    "HEIGHT_WEIGHT",
+    "PAST_WEIGHT",
     "LIFTED_MM",
     "LIFTED_WEIGHT",
     "MIN_CONFIDENCE",
@@ -50,6 +52,23 @@ VISIBILITY_WEIGHT = 1.0
 #: completed fold lies flat; a flap held up stands 20 mm and more above the table, which
 #: tells a fold in progress from a finished one whose stickers fall in similar places.
 LIFTED_WEIGHT = 1.0
+#: Weight of the height term: the mean, over the stickers seen, of how far each stands
+#: outside the reference's range of heights (beyond :data:`HEIGHT_SLACK_MM`), as a
+#: fraction of :data:`HEIGHT_SCALE_MM` (capped at 1). It tells a flap held up by how
+#: high it stands, so how wide the fold is: a strip and a half fold at the same angle
+#: have nearly the same cloth coordinates.
+HEIGHT_WEIGHT = 1.0
+#: Weight of the lean term: the mean, over the stickers held up whose flap's lean was
+#: measured, of how far the observation (turned past 90 degrees or not, see
+#: ``ClothObservation.past_vertical``) is from the reference's rate. SPEC's rule
+#: changes the class at 90 degrees, where a flap seen edge-on shows no sticker and the
+#: lean of the raised cloth is all there is to tell.
+PAST_WEIGHT = 1.0
+#: Heights within this of a reference's range agree with it (sensor noise, cloth
+#: layers, a range drawn from a few states).
+HEIGHT_SLACK_MM = 15.0
+#: A sticker this far outside the range (beyond the slack) disagrees in full.
+HEIGHT_SCALE_MM = 50.0
 #: Margin to the runner-up (distance units, Spearman + visibility) that earns full
 #: confidence. On fresh renders of every class under every capture condition
 #: (``dgli robustness``) right answers have a median margin near 0.3; the wrong ones
@@ -149,6 +168,8 @@ def reference_distances(
     visible: ArrayLike | None = None,
     unknown: ArrayLike | None = None,
     lifted: ArrayLike | None = None,
+    heights_mm: ArrayLike | None = None,
+    past: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Distance of one observation to every reference, shape (k,).
 
@@ -166,6 +187,12 @@ def reference_distances(
         1 for a sticker standing more than :data:`LIFTED_MM` above the table, 0 for one
         lying on it, NaN where that is not known: compared with the references' rates
         (:data:`LIFTED_WEIGHT`).
+    heights_mm : array_like of float, shape (16,), optional
+        Height of each sticker seen above the table, mm, NaN where not seen: compared
+        with the references' ranges of heights (:data:`HEIGHT_WEIGHT`).
+    past : array_like of float, shape (16,), optional
+        For stickers on a flap held up: 1 where it has turned past 90 degrees, 0 where
+        not, NaN where not measured (:data:`PAST_WEIGHT`).
 
     Raises
     ------
@@ -206,7 +233,28 @@ def reference_distances(
         if told.any():
             gap = np.abs(up[None, told] - references.lifted_rates()[:, told]).mean(axis=1)
             dist = dist + LIFTED_WEIGHT * gap
+    if heights_mm is not None:
+        dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_ranges())
+    if past is not None:
+        lean = np.asarray(past, dtype=np.float64)
+        told = np.isfinite(lean)
+        if told.any():
+            gap = np.abs(lean[None, told] - references.past_rates()[:, told]).mean(axis=1)
+            dist = dist + PAST_WEIGHT * gap
     return dist
+
+
+def _height_gap(heights_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean disagreement in [0, 1] of the stickers' heights with each reference's ranges
+    (shape (k, 16, 2)); 0 where a reference keeps no ranges."""
+    h = np.asarray(heights_mm, dtype=np.float64)
+    told = np.isfinite(h)
+    if not told.any():
+        return np.zeros(len(ranges))
+    lo, hi = ranges[:, told, 0], ranges[:, told, 1]
+    outside = np.maximum(lo - h[told], h[told] - hi) - HEIGHT_SLACK_MM
+    gap = np.clip(outside / HEIGHT_SCALE_MM, 0.0, 1.0)
+    return np.where(np.isfinite(gap), gap, 0.0).mean(axis=1)
 
 
 def classify_coordinates(
@@ -215,6 +263,8 @@ def classify_coordinates(
     visible: ArrayLike | None = None,
     unknown: ArrayLike | None = None,
     lifted: ArrayLike | None = None,
+    heights_mm: ArrayLike | None = None,
+    past: ArrayLike | None = None,
 ) -> Prediction:
     """Nearest reference of an observation (see :func:`reference_distances`).
 
@@ -230,12 +280,18 @@ def classify_coordinates(
     lifted : array_like of float, shape (16,), optional
         1 where a sticker stands above the table, 0 where it lies on it, NaN where not
         known (see :func:`reference_distances`).
+    heights_mm : array_like of float, shape (16,), optional
+        Heights of the stickers seen, mm (see :func:`reference_distances`).
+    past : array_like of float, shape (16,), optional
+        Whether the flap a sticker held up is on has turned past 90 degrees (see
+        :func:`reference_distances`). A sticker whose flap's lean was measured counts as
+        known for the confidence: it is on that flap, standing.
 
     Returns
     -------
     Prediction
     """
-    dist = reference_distances(coords, references, visible, unknown, lifted)
+    dist = reference_distances(coords, references, visible, unknown, lifted, heights_mm, past)
     order = np.argsort(dist, kind="stable")
     best = references.references[order[0]]
     runner = None
@@ -246,7 +302,12 @@ def classify_coordinates(
             break
     d = float(dist[order[0]])
     margin = (runner.distance - d) if runner else float("inf")
-    n_unknown = int(np.asarray(unknown, dtype=bool).sum()) if unknown is not None else 0
+    n_unknown = 0
+    if unknown is not None:
+        still = np.asarray(unknown, dtype=bool)
+        if past is not None:
+            still = still & ~np.isfinite(np.asarray(past, dtype=np.float64))
+        n_unknown = int(still.sum())
     x = np.asarray(coords, dtype=np.float64)
     n_known = int(np.isfinite(x).sum())
     if visible is not None:  # coordinates of segments with an unseen sticker are not used

@@ -156,6 +156,11 @@ class StateRecords:
         return ~self.visible & self.lifted
 
     @property
+    def past_vertical(self) -> NDArray[np.bool_]:
+        """States whose fold in progress has turned past 90 degrees, shape (n,)."""
+        return np.array([s.startswith("settling") for s in self.stages], dtype=bool)
+
+    @property
     def folded(self) -> NDArray[np.bool_]:
         """States with every fold laid flat (no fold in progress), shape (n,)."""
         return np.array([not s for s in self.stages], dtype=bool)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .classes import LIFTED_MM
+from .classes import LIFTED_MM, PAST_BAND_DEG
 from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
 from .dgli import cloth_coordinates
 from .errors import DetectionError
@@ -19,6 +19,7 @@ from .frames import RGBDFrame
 from .layout import NapkinLayout, default_layout, layout_of_size
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
 from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
+from .perception.flaps import flap_angles
 from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from .perception.napkin import find_napkin
 from .references import ReferenceSet
@@ -42,6 +43,9 @@ class ClothObservation:
         Which missing stickers are hidden by cloth and which are unknown, and why.
     heights_mm : ndarray, shape (16,), optional
         Height of each located sticker above the table plane, mm (NaN where missing).
+    flap_deg : ndarray, shape (16,), optional
+        For a sticker possibly on a flap held up, how far that flap has turned from flat
+        (degrees, from the lean of the raised cloth); NaN where not measured.
     """
 
     segments: NDArray[np.float64]
@@ -49,6 +53,7 @@ class ClothObservation:
     up: NDArray[np.float64]
     evidence: StickerEvidence | None = None
     heights_mm: NDArray[np.float64] | None = None
+    flap_deg: NDArray[np.float64] | None = None
 
     @property
     def lifted(self) -> NDArray[np.float64] | None:
@@ -62,6 +67,15 @@ class ClothObservation:
             held = [why == HELD_UP for why in self.evidence.reasons]
             out[np.asarray(held) & self.unknown] = 1.0
         return out
+
+    @property
+    def past_vertical(self) -> NDArray[np.float64] | None:
+        """For each sticker on a flap held up whose lean was measured: 1 when the flap
+        has turned past 90 degrees, 0 when not (in proportion within
+        ``PAST_BAND_DEG`` of vertical); NaN for the others, shape (16,)."""
+        if self.flap_deg is None:
+            return None
+        return np.clip(0.5 + (self.flap_deg - 90.0) / (2 * PAST_BAND_DEG), 0.0, 1.0)
 
     @property
     def unknown(self) -> NDArray[np.bool_]:
@@ -126,7 +140,13 @@ def observe(
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
     heights = (markers.points @ up - offset) * 1e3
-    return detections, markers, ClothObservation(segments, visible, up, evidence, heights)
+    flaps = flap_angles(
+        frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
+        evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
+    )
+    return detections, markers, ClothObservation(
+        segments, visible, up, evidence, heights, flaps
+    )
 
 
 def classify_frame(
@@ -166,7 +186,8 @@ def classify_frame(
     unknown = obs.evidence.summary() if obs.evidence is not None else ""
     try:
         guess = classify_coordinates(
-            coords, references, obs.visible, obs.unknown, obs.lifted
+            coords, references, obs.visible, obs.unknown, obs.lifted, obs.heights_mm,
+            obs.past_vertical,
         )
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"

@@ -67,6 +67,14 @@ class Reference:
         ``""`` for a state with every fold laid flat; else the fold in progress and its
         angles (``"rising B over, 50-90 deg"``: below 90 degrees the state is still the
         one before that fold).
+    height_range_mm : ndarray, shape (16, 2)
+        Lowest and highest height of each sticker above the table over the group's
+        states, mm (NaN: not known, as in sets written before heights were kept). A flap
+        at 110 degrees stands as high as the fold is wide: a half fold's edge 150-190 mm,
+        a strip's 90-120 mm, where their dGLI coordinates are nearly alike.
+    past_rate : ndarray, shape (16,)
+        Fraction of the group's states in which each sticker stands on a flap turned past
+        90 degrees (0 for every state with its folds laid flat).
     """
 
     class_id: str
@@ -78,6 +86,10 @@ class Reference:
     n_samples: int = 1
     stage: str = ""
     lifted_rate: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
+    height_range_mm: NDArray[np.float64] = field(
+        default_factory=lambda: np.full((16, 2), np.nan)
+    )
+    past_rate: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
 
 
 @dataclass(frozen=True, eq=False)
@@ -110,6 +122,14 @@ class ReferenceSet:
         """Rates of each sticker standing above the table, shape (k, 16)."""
         return np.stack([r.lifted_rate for r in self.references])
 
+    def past_rates(self) -> NDArray[np.float64]:
+        """Rates of each sticker standing on a flap past vertical, shape (k, 16)."""
+        return np.stack([r.past_rate for r in self.references])
+
+    def height_ranges(self) -> NDArray[np.float64]:
+        """Lowest and highest height of each sticker, mm, shape (k, 16, 2)."""
+        return np.stack([r.height_range_mm for r in self.references])
+
 
 def build_references(
     records: StateRecords, *, provenance: dict[str, Any] | None = None
@@ -135,6 +155,8 @@ def build_references(
     groups: dict[tuple[str, str | None, str], list[int]] = {}
     for i, key in enumerate(zip(records.classes, records.variants, records.stages)):
         groups.setdefault(key, []).append(i)
+    heights = records.sticker_points[..., 2] * 1e3
+    past = records.lifted & records.past_vertical[:, None]
     refs = []
     for (class_id, variant, stage), members in sorted(
         groups.items(), key=lambda kv: (kv[0][0], kv[0][1] or "", kv[0][2])
@@ -154,6 +176,9 @@ def build_references(
                 n_samples=len(members),
                 stage=stage,
                 lifted_rate=records.lifted[members].mean(axis=0),
+                height_range_mm=np.stack([heights[members].min(axis=0),
+                                          heights[members].max(axis=0)], axis=1),
+                past_rate=past[members].mean(axis=0),
             )
         )
     return ReferenceSet(tuple(refs), dict(provenance or {}))
@@ -179,6 +204,17 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
                 **(
                     {"lifted_rate": [round(float(v), 4) for v in r.lifted_rate]}
                     if r.lifted_rate.any()
+                    else {}
+                ),
+                **(
+                    {"past_rate": [round(float(v), 4) for v in r.past_rate]}
+                    if r.past_rate.any()
+                    else {}
+                ),
+                **(
+                    {"height_range_mm": [[round(float(v), 1) for v in lh]
+                                         for lh in r.height_range_mm]}
+                    if np.isfinite(r.height_range_mm).all()
                     else {}
                 ),
             }
@@ -224,6 +260,22 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             lifted = np.zeros(0)
         if lifted.shape != (16,):
             raise ReferenceError_(f"'{source}': reference {k} needs 16 lifted rates")
+        try:
+            past = np.asarray(item.get("past_rate") or np.zeros(16), dtype=np.float64)
+        except (TypeError, ValueError):
+            past = np.zeros(0)
+        if past.shape != (16,):
+            raise ReferenceError_(f"'{source}': reference {k} needs 16 past-vertical rates")
+        try:
+            heights = np.asarray(
+                item.get("height_range_mm") or np.full((16, 2), np.nan), dtype=np.float64
+            )
+        except (TypeError, ValueError):
+            heights = np.zeros(0)
+        if heights.shape != (16, 2):
+            raise ReferenceError_(
+                f"'{source}': reference {k} needs 16 height ranges [lowest, highest]"
+            )
         refs.append(
             Reference(
                 class_id,
@@ -235,6 +287,8 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
                 int(item.get("n_samples", 1)),
                 str(item.get("stage") or ""),
                 lifted,
+                heights,
+                past,
             )
         )
     if len({r.class_id for r in refs}) < 2:

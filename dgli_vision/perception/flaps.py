@@ -1,0 +1,169 @@
+"""How far a flap held up has turned: the lean of the raised cloth, from depth alone.
+
+A flap turns about its fold line. A point of it at distance ``s`` from the fold line
+stands ``s sin(theta)`` above the table and lies ``-s cos(theta)`` from the fold line
+towards the rest of the napkin. So across the raised cloth, the horizontal position
+towards the napkin changes with height at the rate ``-cot(theta)``: the top of a flap at
+80 degrees leans out, at 100 degrees it leans in. The slope is fitted over every depth
+sample of the raised cloth, so it needs no sticker: it tells the two sides of vertical
+apart exactly where a flap seen edge-on shows none (SPEC's rule changes the class at 90
+degrees).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..camera import Intrinsics
+from .evidence import HELD_UP, StickerEvidence
+from .napkin import NapkinView
+
+__all__ = ["FlapParams", "flap_angles"]
+
+
+@dataclass(frozen=True)
+class FlapParams:
+    """How the lean of a flap is measured.
+
+    Attributes
+    ----------
+    min_samples : int
+        Depth samples of raised cloth needed for a slope. Default 8: a flap a few
+        degrees from edge-on is a strip two or three samples wide and as long as the
+        flap.
+    min_height_span_mm : float
+        The samples must span this much height. Default 20 mm: below that, the slope is
+        set by depth noise (2-4 mm).
+    reach : float
+        Raised cloth counts for a missing sticker when it comes within this fraction of
+        the napkin's shorter side of the sticker's flat place. Default 0.6: no point of
+        a flap is farther from its fold line than half the napkin, plus the flap's own
+        lean.
+    outlier_mads : float
+        Samples farther than this many median absolute deviations from the first fit
+        (flying pixels at the flap's edge) are left out of the second. Default 3.
+    """
+
+    min_samples: int = 8
+    min_height_span_mm: float = 20.0
+    reach: float = 0.6
+    outlier_mads: float = 3.0
+
+
+def _slope(x: NDArray, h: NDArray, p: FlapParams) -> float:
+    """Robust slope dx/dh (NaN when the samples cannot give one)."""
+    if len(x) < p.min_samples or np.ptp(h) < p.min_height_span_mm:
+        return float("nan")
+    beta, c = np.polyfit(h, x, 1)
+    res = np.abs(x - (beta * h + c))
+    mad = float(np.median(res)) + 1e-6
+    keep = res <= p.outlier_mads * 1.4826 * mad + 1.0
+    if keep.sum() >= p.min_samples and np.ptp(h[keep]) >= p.min_height_span_mm:
+        beta = np.polyfit(h[keep], x[keep], 1)[0]
+    return float(beta)
+
+
+def flap_angles(
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    up: NDArray[np.float64],
+    offset_m: float,
+    napkin: NapkinView | None,
+    points: NDArray[np.float64],
+    heights_mm: NDArray[np.float64],
+    evidence: StickerEvidence | None,
+    *,
+    napkin_side_mm: float,
+    lying_mm: float,
+    params: FlapParams | None = None,
+) -> NDArray[np.float64]:
+    """The angle (degrees from flat) of the flap each sticker held up is on.
+
+    Parameters
+    ----------
+    depth_mm : ndarray of uint16, shape (H, W)
+    intrinsics : Intrinsics
+    up : ndarray, shape (3,)
+        Table normal towards the camera.
+    offset_m : float
+        ``up @ x`` of the table plane, metres.
+    napkin : NapkinView or None
+        Its ``raised`` mask and ``height_mm`` give the raised cloth.
+    points : ndarray, shape (16, 3)
+        Located stickers, camera frame, NaN where missing.
+    heights_mm : ndarray, shape (16,)
+        Their heights above the table.
+    evidence : StickerEvidence or None
+        Which missing stickers may be on cloth held up (:data:`HELD_UP`), and where they
+        would lie flat.
+    napkin_side_mm : float, keyword-only
+        The napkin's shorter side.
+    lying_mm : float, keyword-only
+        A sticker lower than this lies on the table (it gives the napkin's inside).
+    params : FlapParams, keyword-only, optional
+
+    Returns
+    -------
+    ndarray, shape (16,)
+        Degrees in (0, 180) for a sticker held up whose flap's lean could be measured;
+        NaN for every other.
+    """
+    import cv2
+
+    p = params or FlapParams()
+    out = np.full(len(points), np.nan)
+    if evidence is None or napkin is None or napkin.raised is None or napkin.height_mm is None:
+        return out
+    held = evidence.unknown & np.array([why == HELD_UP for why in evidence.reasons])
+    lying = np.isfinite(heights_mm) & (heights_mm < lying_mm)
+    if not held.any() or not napkin.raised.any() or lying.sum() < 3:
+        return out
+    inside = points[lying].mean(axis=0)
+    s = napkin.stride
+    n_parts, parts = cv2.connectedComponents(napkin.raised.astype(np.uint8), connectivity=8)
+    ii, jj = np.nonzero(parts)
+    d = depth_mm[ii * s, jj * s].astype(np.float64) * 1e-3
+    h = napkin.height_mm[ii, jj].astype(np.float64)
+    ok = (d > 0) & np.isfinite(h)
+    ii, jj, d, h = ii[ok], jj[ok], d[ok], h[ok]
+    cloud = intrinsics.deproject(np.column_stack([jj * s, ii * s]).astype(np.float64), d)
+    label = parts[ii, jj]
+
+    def horizontal(v: NDArray) -> NDArray:
+        return v - np.outer(v @ up, up) if v.ndim == 2 else v - (v @ up) * up
+
+    flat_px = evidence.predicted_px
+    rays = np.column_stack(
+        [
+            (flat_px[:, 0] - intrinsics.cx) / intrinsics.fx,
+            (flat_px[:, 1] - intrinsics.cy) / intrinsics.fy,
+            np.ones(len(flat_px)),
+        ]
+    )
+    flat = rays * (offset_m / (rays @ up))[:, None]  # where each would lie on the table
+    reach = p.reach * napkin_side_mm * 1e-3
+    sizes = np.bincount(label, minlength=n_parts)
+    for sid in np.flatnonzero(held):
+        anchor = flat[sid]
+        if np.isfinite(anchor).all():
+            gap = np.linalg.norm(horizontal(cloud - anchor), axis=1)
+            near = gap < reach
+            if not near.any():
+                continue
+            part = label[near][np.argmin(gap[near])]
+        else:  # nowhere to put it: the largest raised part
+            part = int(np.argmax(sizes[1:])) + 1
+            anchor = cloud[label == part].mean(axis=0)
+        mine = label == part
+        towards = horizontal(inside - anchor)
+        norm = float(np.linalg.norm(towards))
+        if norm < 1e-3:
+            continue
+        x = horizontal(cloud[mine] - anchor) @ (towards / norm) * 1e3
+        beta = _slope(x, h[mine], p)  # = -cot(theta)
+        if np.isfinite(beta):
+            out[sid] = 90.0 + float(np.degrees(np.arctan(beta)))
+    return out
