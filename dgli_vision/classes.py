@@ -6,7 +6,15 @@ does not pull in the simulator.
 
 from __future__ import annotations
 
-__all__ = ["CLASS_IDS", "CLASS_NAMES", "CORNERS", "LIFTED_MM", "PAST_BAND_DEG", "SIDES", "VARIANTS"]
+__all__ = [
+    "CLASS_IDS",
+    "CLASS_NAMES",
+    "CORNERS",
+    "LIFTED_MM",
+    "PAST_BAND_DEG",
+    "SIDES",
+    "VARIANTS",
+]
 
 CLASS_NAMES: dict[str, str] = {
     "01": "flat",

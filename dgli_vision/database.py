@@ -29,7 +29,9 @@ __all__ = [
 #: Fold angles (degrees) of the states with a fold in progress, in bins: each bin is a
 #: group of its own in the reference set, so that a frame finds a near reference at any
 #: point of a fold. 90 degrees is a bin edge: SPEC's rule changes the class there.
-FOLD_BINS_DEG: tuple[tuple[float, float], ...] = ((10, 50), (50, 90), (90, 130), (130, 170))
+FOLD_BINS_DEG: tuple[tuple[float, float], ...] = (
+    (10, 50), (50, 90), (90, 130), (130, 160), (160, 178)
+)
 
 
 def state_id(class_id: str, k: int) -> str:

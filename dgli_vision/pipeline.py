@@ -135,6 +135,7 @@ def observe(
         napkin,
         dropped=dropped,
         foreshortening=detections.foreshortening,
+        up=up,
     )
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()

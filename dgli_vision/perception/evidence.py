@@ -264,6 +264,28 @@ def _sample_height(napkin: NapkinView, uv: NDArray) -> NDArray[np.float64]:
     return out
 
 
+def _covered_from_above(
+    napkin: NapkinView,
+    flat: NDArray,
+    up: NDArray,
+    intrinsics: Intrinsics,
+    min_mm: float,
+    top_mm: float,
+) -> NDArray[np.bool_]:
+    """Which 3D points ``flat`` (n, 3) on the table have cloth straight above them,
+    higher than ``min_mm``: some height sample where a point ``H`` above them images
+    reads ``H`` (to half a step). A flap standing beside the point, in front of it for
+    the camera, reads another height there."""
+    out = np.zeros(len(flat), dtype=bool)
+    ok = np.isfinite(flat).all(axis=1)
+    step = 10.0
+    for height in np.arange(min_mm, top_mm + step, step):
+        above = flat[ok] + height * 1e-3 * up
+        seen = _sample_height(napkin, intrinsics.project(above))
+        out[ok] |= np.isfinite(seen) & (np.abs(seen - height) <= step / 2)
+    return out
+
+
 def _held_up(
     napkin: NapkinView | None,
     predicted: NDArray,
@@ -274,6 +296,8 @@ def _held_up(
     layout: NapkinLayout,
     p: EvidenceParams,
     z_typ: float,
+    flat3d: NDArray | None = None,
+    up: NDArray | None = None,
 ) -> NDArray[np.bool_]:
     """Which missing stickers may be on a flap held up steeply, seen edge-on.
 
@@ -290,6 +314,12 @@ def _held_up(
         The located stickers, camera frame.
     steep : ndarray of bool, shape (k,)
         Which of them are seen strongly foreshortened.
+    flat3d : ndarray, shape (16, 3), optional
+        Where each sticker would lie flat, camera frame (NaN where not known).
+    up : ndarray, shape (3,), optional
+        Table normal. With ``flat3d``, a layer over a sticker's flat place is looked for
+        straight above it; without, along the camera's ray (where a flap standing in
+        front of the place, its own, would count).
     """
     import cv2
 
@@ -323,8 +353,14 @@ def _held_up(
     if napkin.height_mm is not None and len(located):
         base = _sample_height(napkin, intrinsics.project(located))
         ground = float(np.nanmedian(base)) if np.isfinite(base).any() else 0.0
-        over = _sample_height(napkin, where)
-        out &= ~(np.isfinite(over) & (over > ground + p.cover_mm))
+        if flat3d is not None and up is not None:
+            top = max(layout.width_mm, layout.height_mm) / 2
+            out &= ~_covered_from_above(
+                napkin, flat3d[missing], up, intrinsics, ground + p.cover_mm, top
+            )
+        else:
+            over = _sample_height(napkin, where)
+            out &= ~(np.isfinite(over) & (over > ground + p.cover_mm))
     return out
 
 
@@ -337,6 +373,7 @@ def assess_stickers(
     dropped: NDArray[np.bool_] | None = None,
     params: EvidenceParams | None = None,
     foreshortening: NDArray[np.float64] | None = None,
+    up: NDArray[np.float64] | None = None,
 ) -> StickerEvidence:
     """Decide, for each sticker, seen, hidden by cloth, or unknown.
 
@@ -354,6 +391,9 @@ def assess_stickers(
     foreshortening : ndarray, shape (16,), keyword-only, optional
         How foreshortened each located sticker is (detector); tells a flap held up
         steeply from one lying over the napkin.
+    up : ndarray, shape (3,), keyword-only, optional
+        Table normal towards the camera: a layer over a missing sticker's flat place is
+        then looked for straight above it (see :func:`_held_up`).
 
     Returns
     -------
@@ -406,7 +446,8 @@ def assess_stickers(
     fore = foreshortening if foreshortening is not None else np.ones(n)
     steep = np.nan_to_num(fore[seen], nan=1.0) < p.steep_foreshortening
     held_up = _held_up(
-        napkin, predicted, missing, pts[seen], steep, intrinsics, layout, p, z_typ
+        napkin, predicted, missing, pts[seen], steep, intrinsics, layout, p, z_typ,
+        pred3 if up is not None else None, up,
     )
     w, h = intrinsics.width, intrinsics.height
     for k, sid in enumerate(missing):

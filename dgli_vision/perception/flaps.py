@@ -45,12 +45,16 @@ class FlapParams:
     outlier_mads : float
         Samples farther than this many median absolute deviations from the first fit
         (flying pixels at the flap's edge) are left out of the second. Default 3.
+    max_pixels : int
+        At most about this many raised pixels are used (evenly thinned): plenty for a
+        slope, and a flap lying at 150 degrees covers a hundred thousand.
     """
 
     min_samples: int = 8
     min_height_span_mm: float = 20.0
     reach: float = 0.6
     outlier_mads: float = 3.0
+    max_pixels: int = 5000
 
 
 def _slope(x: NDArray, h: NDArray, p: FlapParams) -> float:
@@ -64,6 +68,28 @@ def _slope(x: NDArray, h: NDArray, p: FlapParams) -> float:
     if keep.sum() >= p.min_samples and np.ptp(h[keep]) >= p.min_height_span_mm:
         beta = np.polyfit(h[keep], x[keep], 1)[0]
     return float(beta)
+
+
+def _across_fold(
+    cloud: NDArray[np.float64], up: NDArray[np.float64], inwards: NDArray[np.float64]
+) -> NDArray[np.float64] | None:
+    """The horizontal unit vector across the fold line of the flap ``cloud`` (n, 3),
+    pointing the way of ``inwards`` (from the flap's flat place to the napkin lying on
+    the table); None when the flap lies too flat to tell its fold line.
+
+    The flap's plane holds the fold line, which is horizontal; so the horizontal part of
+    the plane's normal runs across it.
+    """
+    if len(cloud) < 3:
+        return None
+    _, _, vt = np.linalg.svd(cloud - cloud.mean(axis=0), full_matrices=False)
+    normal = vt[-1]
+    across = normal - (normal @ up) * up
+    norm = float(np.linalg.norm(across))
+    if norm < 0.2:  # the flap is within 12 degrees of flat
+        return None
+    across /= norm
+    return across if across @ inwards >= 0 else -across
 
 
 def flap_angles(
@@ -115,22 +141,23 @@ def flap_angles(
 
     p = params or FlapParams()
     out = np.full(len(points), np.nan)
-    if evidence is None or napkin is None or napkin.raised is None or napkin.height_mm is None:
+    if evidence is None or napkin is None or napkin.raised is None:
         return out
     held = evidence.unknown & np.array([why == HELD_UP for why in evidence.reasons])
     lying = np.isfinite(heights_mm) & (heights_mm < lying_mm)
     if not held.any() or not napkin.raised.any() or lying.sum() < 3:
         return out
     inside = points[lying].mean(axis=0)
+    if napkin.raised_px is None or not len(napkin.raised_px):
+        return out
     s = napkin.stride
     n_parts, parts = cv2.connectedComponents(napkin.raised.astype(np.uint8), connectivity=8)
-    ii, jj = np.nonzero(parts)
-    d = depth_mm[ii * s, jj * s].astype(np.float64) * 1e-3
-    h = napkin.height_mm[ii, jj].astype(np.float64)
-    ok = (d > 0) & np.isfinite(h)
-    ii, jj, d, h = ii[ok], jj[ok], d[ok], h[ok]
-    cloud = intrinsics.deproject(np.column_stack([jj * s, ii * s]).astype(np.float64), d)
-    label = parts[ii, jj]
+    every = max(1, len(napkin.raised_px) // p.max_pixels)
+    xy = napkin.raised_px[::every]
+    h = napkin.raised_height_mm[::every].astype(np.float64)
+    d = depth_mm[xy[:, 1], xy[:, 0]].astype(np.float64) * 1e-3
+    cloud = intrinsics.deproject(xy.astype(np.float64), d)
+    label = parts[xy[:, 1] // s, xy[:, 0] // s]
 
     def horizontal(v: NDArray) -> NDArray:
         return v - np.outer(v @ up, up) if v.ndim == 2 else v - (v @ up) * up
@@ -158,11 +185,10 @@ def flap_angles(
             part = int(np.argmax(sizes[1:])) + 1
             anchor = cloud[label == part].mean(axis=0)
         mine = label == part
-        towards = horizontal(inside - anchor)
-        norm = float(np.linalg.norm(towards))
-        if norm < 1e-3:
+        towards = _across_fold(cloud[mine], up, inside - anchor)
+        if towards is None:
             continue
-        x = horizontal(cloud[mine] - anchor) @ (towards / norm) * 1e3
+        x = horizontal(cloud[mine] - anchor) @ towards * 1e3
         beta = _slope(x, h[mine], p)  # = -cot(theta)
         if np.isfinite(beta):
             out[sid] = 90.0 + float(np.degrees(np.arctan(beta)))

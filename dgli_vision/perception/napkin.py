@@ -123,6 +123,11 @@ class NapkinView:
         ``NapkinParams.raised_cloth_mm``).
     height_mm : ndarray of float32, same shape, optional
         Height of every sample above the table plane, mm (NaN without a reading).
+    raised_px : ndarray of int, shape (n, 2), optional
+        Every pixel (x, y) of cloth held up, at full resolution (the samples of
+        ``raised`` pool them).
+    raised_height_mm : ndarray of float32, shape (n,), optional
+        Their heights above the table, mm.
     """
 
     white_rgb: NDArray[np.float64]
@@ -133,6 +138,8 @@ class NapkinView:
     cloth: NDArray[np.bool_] | None = None
     raised: NDArray[np.bool_] | None = None
     height_mm: NDArray[np.float32] | None = None
+    raised_px: NDArray[np.intp] | None = None
+    raised_height_mm: NDArray[np.float32] | None = None
 
     def near(self, mask: NDArray[np.bool_], uv: NDArray, radius_px: float) -> NDArray[np.bool_]:
         """Which pixels ``uv`` (n, 2) have a ``mask`` sample within ``radius_px``."""
@@ -145,6 +152,32 @@ class NapkinView:
             if np.all(np.isfinite(p)):
                 out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + self.stride).any())
         return out
+
+
+def _raised_cloth_pixels(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    normal: NDArray[np.float64],
+    offset_m: float,
+    white: NDArray[np.float64],
+    p: NapkinParams,
+) -> tuple[NDArray[np.intp], NDArray[np.float32]]:
+    """Pixels (x, y) of napkin-coloured cloth standing more than ``raised_cloth_mm``
+    above the table, at full resolution, and their heights (mm)."""
+    d = depth_mm.astype(np.float32) * 1e-3
+    u = ((np.arange(d.shape[1]) - intrinsics.cx) / intrinsics.fx).astype(np.float32)
+    v = ((np.arange(d.shape[0]) - intrinsics.cy) / intrinsics.fy).astype(np.float32)
+    slope = u[None, :] * normal[0] + v[:, None] * normal[1] + normal[2]
+    height = (d * slope - offset_m) * 1e3
+    ys, xs = np.nonzero((d > 0) & (height > p.raised_cloth_mm))
+    lin = srgb_lut()[color[ys, xs]] / np.maximum(white, 1e-4)[None, :]  # (n, 3)
+    lum = lin.mean(axis=1)
+    chroma = lin.max(axis=1) - lin.min(axis=1)
+    cloth = (lum >= p.occluder_darkness) & (
+        chroma <= p.occluder_chroma * np.maximum(lum, p.occluder_darkness)
+    )
+    return np.column_stack([xs[cloth], ys[cloth]]), height[ys[cloth], xs[cloth]]
 
 
 def find_napkin(
@@ -246,12 +279,21 @@ def find_napkin(
         opened = np.ones((3, 3), np.uint8)
         occluder = cv2.morphologyEx(occluder.astype(np.uint8), cv2.MORPH_OPEN, opened)
         occluder = occluder.astype(bool)
-        held_up = ((d > 0) & (height_mm > p.raised_cloth_mm) & ~not_napkin).astype(np.uint8)
-        # A flap seen nearly edge-on is a strip a few samples wide: keep connected parts
-        # of some size rather than opening the mask, which would erase it.
+        raised_px, raised_height = _raised_cloth_pixels(
+            color, depth_mm, intrinsics, table_normal, table_offset_m, white, p
+        )
+        held_up = np.zeros(shape, dtype=np.uint8)
+        held_up[raised_px[:, 1] // s, raised_px[:, 0] // s] = 1
+        # A flap seen nearly edge-on is a line a pixel or two wide: every pixel counts
+        # for its sample (pooling), and connected parts of some size are kept rather than
+        # opening the mask, which would erase it.
         _, lab, stats, _ = cv2.connectedComponentsWithStats(held_up, connectivity=8)
         big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= p.min_raised_samples)
         raised_cloth = np.isin(lab, big[big > 0])
+        keep = raised_cloth[raised_px[:, 1] // s, raised_px[:, 0] // s]
         height_mm[d <= 0] = np.nan
-        return NapkinView(white, lut, highlight, occluder, s, cloth, raised_cloth, height_mm)
+        return NapkinView(
+            white, lut, highlight, occluder, s, cloth, raised_cloth, height_mm,
+            raised_px[keep], raised_height[keep],
+        )
     return NapkinView(white, lut, highlight, occluder, s, cloth)
