@@ -147,7 +147,11 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
                 np.where(
                     records.visible[k] | records.unknown[k], records.lifted[k], np.nan
                 ),
-                np.where(records.visible[k], records.sticker_points[k, :, 2] * 1e3, np.nan),
+                np.where(  # held up out of sight: the height its flap gives it
+                    records.visible[k] | records.unknown[k],
+                    records.sticker_points[k, :, 2] * 1e3,
+                    np.nan,
+                ),
                 np.where(records.unknown[k], float(records.past_vertical[k]), np.nan),
             )
             for k in range(len(records))

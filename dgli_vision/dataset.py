@@ -214,6 +214,7 @@ def render_sequence(
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
     conditions: tuple[str, ...] = (),
     layout: NapkinLayout | None = None,
+    progress: list[float] | None = None,
 ) -> Iterator[RenderedSample]:
     """Render folding sequence ``name`` as ``n_frames`` frames of one recording.
 
@@ -223,6 +224,13 @@ def render_sequence(
     camera, the light and the capture conditions once for the whole recording; only the
     sensor noise changes from frame to frame. The camera sees the whole napkin in every
     frame.
+
+    Parameters
+    ----------
+    progress : list of float, keyword-only, optional
+        Render the frames at these points of the sequence instead (``k + f``: the first
+        ``k`` folds laid flat and fold ``k + 1`` turned ``180 f`` degrees); the scene is
+        the same as for the evenly spread frames.
 
     Yields
     ------
@@ -244,7 +252,8 @@ def render_sequence(
         "yaw": 0.0 if nominal else float(rng.uniform(0, 2 * np.pi)),
         "offset_m": (0.0, 0.0) if nominal else tuple(rng.uniform(-0.03, 0.03, size=2)),
     }
-    progress = sequence_progress(name, n_frames)
+    if progress is None:
+        progress = sequence_progress(name, n_frames)
 
     def state_at(p: float) -> ClothState:
         return sequence_state(

@@ -114,8 +114,8 @@ def _classify_pair(
     if distances and result.best_guess is not None:  # to every reference, for tracking
         obs = result.observation
         d = reference_distances(
-            result.coordinates, refs, obs.visible, obs.unknown, obs.lifted, obs.heights_mm,
-            obs.past_vertical,
+            result.coordinates, refs, obs.visible, obs.unknown, obs.lifted,
+            obs.matched_heights_mm, obs.past_vertical,
         )
         dist = tuple(round(float(v), 6) for v in d)
     guess = result.best_guess

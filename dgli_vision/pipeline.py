@@ -46,6 +46,9 @@ class ClothObservation:
     flap_deg : ndarray, shape (16,), optional
         For a sticker possibly on a flap held up, how far that flap has turned from flat
         (degrees, from the lean of the raised cloth); NaN where not measured.
+    flap_height_mm : ndarray, shape (16,), optional
+        For such a sticker, how high it stands on its flap (from the flap's fold line and
+        angle), mm; NaN where not measured.
     """
 
     segments: NDArray[np.float64]
@@ -54,6 +57,7 @@ class ClothObservation:
     evidence: StickerEvidence | None = None
     heights_mm: NDArray[np.float64] | None = None
     flap_deg: NDArray[np.float64] | None = None
+    flap_height_mm: NDArray[np.float64] | None = None
 
     @property
     def lifted(self) -> NDArray[np.float64] | None:
@@ -67,6 +71,17 @@ class ClothObservation:
             held = [why == HELD_UP for why in self.evidence.reasons]
             out[np.asarray(held) & self.unknown] = 1.0
         return out
+
+    @property
+    def matched_heights_mm(self) -> NDArray[np.float64] | None:
+        """Heights to compare with the references: those of the stickers seen, and for
+        stickers held up out of sight, the height their flap gives them (mm, NaN where
+        neither is known), shape (16,)."""
+        if self.heights_mm is None:
+            return None
+        if self.flap_height_mm is None:
+            return np.where(self.visible, self.heights_mm, np.nan)
+        return np.where(self.visible, self.heights_mm, self.flap_height_mm)
 
     @property
     def past_vertical(self) -> NDArray[np.float64] | None:
@@ -141,12 +156,12 @@ def observe(
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
     heights = (markers.points @ up - offset) * 1e3
-    flaps = flap_angles(
+    flap_deg, flap_height = flap_angles(
         frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
         evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
     )
     return detections, markers, ClothObservation(
-        segments, visible, up, evidence, heights, flaps
+        segments, visible, up, evidence, heights, flap_deg, flap_height
     )
 
 
@@ -187,8 +202,8 @@ def classify_frame(
     unknown = obs.evidence.summary() if obs.evidence is not None else ""
     try:
         guess = classify_coordinates(
-            coords, references, obs.visible, obs.unknown, obs.lifted, obs.heights_mm,
-            obs.past_vertical,
+            coords, references, obs.visible, obs.unknown, obs.lifted,
+            obs.matched_heights_mm, obs.past_vertical,
         )
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"

@@ -19,6 +19,7 @@ from dgli_vision.baselines import (
 from dgli_vision.classes import CLASS_IDS
 from dgli_vision.cli import main
 from dgli_vision.cloth.sequences import folding_sequence
+from dgli_vision.database import FOLD_BINS_DEG
 from dgli_vision.fold_graph import folds_of
 
 
@@ -158,11 +159,19 @@ def test_references_from_a_database_with_folds_in_progress(small_db, tmp_path):
     refs = json.loads(out.read_text())["references"]
     finished = [r for r in refs if not r.get("stage")]
     moving = [r for r in refs if r.get("stage")]
-    assert {r["class"] for r in finished} == set(CLASS_IDS) and len(moving) == 52 * 4
+    assert {r["class"] for r in finished} == set(CLASS_IDS)
+    assert len(moving) == 52 * len(FOLD_BINS_DEG)
     for r in moving:  # below 90 degrees the fold is not made yet, beyond it it is
         motion, fold = r["stage"].split(",")[0].split(" ", 1)
         assert (fold in folds_of(r["class"], r["variant"])) == (motion == "settling")
+        # the stickers standing on a flap past vertical are those of a settling fold
+        past = max(r.get("past_rate", [0])) > 0
+        assert past == (motion == "settling" and max(r.get("lifted_rate", [0])) > 0)
+        # a flap held up near vertical stands higher than a fold laid flat
+        if r["stage"].endswith(("50-90 deg", "90-130 deg")):
+            assert max(hi for _, hi in r["height_range_mm"]) > 40
     assert all(max(r["lifted_rate"]) > 0 for r in moving if "50-90" in r["stage"])
+    assert all(max(hi for _, hi in r["height_range_mm"]) < 20 for r in finished)
 
 
 # --- the mirror symmetry (why visibility is part of the classifier) --------------------

@@ -131,10 +131,9 @@ def test_dgli_sequence_finds_exactly_the_true_changes(name):
     frames = folding_sequence(name)
     records = records_from_states([(f"{name}_{k}", s) for k, s in enumerate(frames)])
     result = analyse_sequence(records, REFS)
-    assert len(result.detected_changes) == len(result.true_changes)
-    for found, true in zip(result.detected_changes, result.true_changes):
-        assert abs(found - true) <= 1
-    assert result.smoothed_accuracy >= 0.9
+    # the first frame past 90 degrees already shows the fold: the flap leans in
+    assert list(result.detected_changes) == list(result.true_changes)
+    assert result.smoothed_accuracy == 1.0
 
 
 def test_smoothing_returns_one_state_per_frame():

@@ -124,7 +124,9 @@ def sequence_state(
     -------
     ClothState
         ``params["angles_deg"]`` gives the fold angles, ``params["progress"]`` the
-        progress.
+        progress, and, while a fold is in progress, ``params["stage"]`` says whether it
+        has turned past 90 degrees (``"settling fold 2 of II"``) or not (``"rising
+        ..."``).
     """
     layout = layout or default_layout()
     steps = steps if steps is not None else sequence_steps(name, layout)
@@ -140,6 +142,9 @@ def sequence_state(
         "progress": round(float(progress), 6),
         "angles_deg": [round(float(np.degrees(a)), 3) for a in angles],
     }
+    turned = float(np.degrees(angles[-1])) if angles else 0.0
+    if 0.0 < turned < 180.0:  # as the simulator's folds in progress say it
+        params["stage"] = f"{'settling' if turned > 90 else 'rising'} fold {k + 1} of {name}"
     return make_state(
         class_id,
         variant,

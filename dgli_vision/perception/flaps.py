@@ -57,17 +57,18 @@ class FlapParams:
     max_pixels: int = 5000
 
 
-def _slope(x: NDArray, h: NDArray, p: FlapParams) -> float:
-    """Robust slope dx/dh (NaN when the samples cannot give one)."""
+def _line(x: NDArray, h: NDArray, p: FlapParams) -> tuple[float, float]:
+    """Robust fit ``x = slope * h + at_table``: (slope, at_table), NaN when the samples
+    cannot give one."""
     if len(x) < p.min_samples or np.ptp(h) < p.min_height_span_mm:
-        return float("nan")
+        return float("nan"), float("nan")
     beta, c = np.polyfit(h, x, 1)
     res = np.abs(x - (beta * h + c))
     mad = float(np.median(res)) + 1e-6
     keep = res <= p.outlier_mads * 1.4826 * mad + 1.0
     if keep.sum() >= p.min_samples and np.ptp(h[keep]) >= p.min_height_span_mm:
-        beta = np.polyfit(h[keep], x[keep], 1)[0]
-    return float(beta)
+        beta, c = np.polyfit(h[keep], x[keep], 1)
+    return float(beta), float(c)
 
 
 def _across_fold(
@@ -105,8 +106,9 @@ def flap_angles(
     napkin_side_mm: float,
     lying_mm: float,
     params: FlapParams | None = None,
-) -> NDArray[np.float64]:
-    """The angle (degrees from flat) of the flap each sticker held up is on.
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The angle (degrees from flat) of the flap each sticker held up is on, and how
+    high the sticker stands on it.
 
     Parameters
     ----------
@@ -133,14 +135,20 @@ def flap_angles(
 
     Returns
     -------
-    ndarray, shape (16,)
+    angle_deg : ndarray, shape (16,)
         Degrees in (0, 180) for a sticker held up whose flap's lean could be measured;
         NaN for every other.
+    height_mm : ndarray, shape (16,)
+        Where the sticker's flat place is known: its distance from the fold line (where
+        the fitted flap meets the table) times ``sin(angle)``, mm; NaN otherwise. A half
+        fold's edge stands nearly twice as high as a strip's at the same angle.
     """
     import cv2
 
     p = params or FlapParams()
-    out = np.full(len(points), np.nan)
+    angle = np.full(len(points), np.nan)
+    height = np.full(len(points), np.nan)
+    out = (angle, height)
     if evidence is None or napkin is None or napkin.raised is None:
         return out
     held = evidence.unknown & np.array([why == HELD_UP for why in evidence.reasons])
@@ -175,7 +183,8 @@ def flap_angles(
     sizes = np.bincount(label, minlength=n_parts)
     for sid in np.flatnonzero(held):
         anchor = flat[sid]
-        if np.isfinite(anchor).all():
+        placed = bool(np.isfinite(anchor).all())
+        if placed:
             gap = np.linalg.norm(horizontal(cloud - anchor), axis=1)
             near = gap < reach
             if not near.any():
@@ -189,7 +198,10 @@ def flap_angles(
         if towards is None:
             continue
         x = horizontal(cloud[mine] - anchor) @ towards * 1e3
-        beta = _slope(x, h[mine], p)  # = -cot(theta)
-        if np.isfinite(beta):
-            out[sid] = 90.0 + float(np.degrees(np.arctan(beta)))
-    return out
+        beta, hinge = _line(x, h[mine], p)  # beta = -cot(angle); hinge: x at the table
+        if not np.isfinite(beta):
+            continue
+        angle[sid] = 90.0 + float(np.degrees(np.arctan(beta)))
+        if placed and hinge > 0:  # the sticker turns about the fold line, ``hinge`` away
+            height[sid] = hinge * np.sin(np.radians(angle[sid]))
+    return angle, height
