@@ -223,6 +223,8 @@ def classify_frame(
         why.append("the napkin is partly covered by an object above it")
     if unknown:
         why.append(unknown)
+    if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():
+        why.append(f"a flap held up at about {np.nanmedian(obs.flap_deg):.0f} degrees")
     why.append(f"{n} of {len(obs.visible)} stickers located")
     reason = "cannot tell: " + "; ".join(why)
     return FrameResult(detections, markers, obs, coords, None, reason, guess)

@@ -50,11 +50,13 @@ STAY_PROBABILITY = 0.97
 #: Probability of a move to a state that is not one fold or unfold away (frames lost, a
 #: fold made between two frames): small enough that a single frame never makes one.
 JUMP_PROBABILITY = 1e-9
-#: Distance (Spearman + visibility) worth one nat of evidence. Right answers are nearer
-#: than the runner-up by about 0.2-0.3 (``classify.FULL_MARGIN``): a clear frame weighs
-#: 2-3 nats, a frame whose best two references tie weighs nothing. (0.05 let one
-#: confident wrong frame make a change and come back on rendered sequences.)
-EMISSION_SCALE = 0.1
+#: Distance (Spearman + visibility and height terms) worth one nat of evidence. Right
+#: answers are nearer than the runner-up by 0.05-0.3: a clear frame weighs 1-6 nats, a
+#: frame whose best two references tie weighs nothing, and the last three or four frames
+#: of a recording (a fold just laid flat) can make the change. (With 0.1, four frames of
+#: a finished fold under three capture conditions at once could not; 0.05 once let one
+#: confident wrong frame make a change and come back, before flaps held up were read.)
+EMISSION_SCALE = 0.05
 #: Cost (distance units) of each fold a state has, added to every frame's evidence: when
 #: frames cannot tell two states apart (the stickers that differ are unknown, on a flap
 #: held up), the one with fewer folds holds until the evidence shows the fold, as SPEC's
