@@ -14,6 +14,7 @@ from dgli_vision.references import (
     build_references,
     load_references,
     read_references,
+    references_to_dict,
     write_references,
 )
 
@@ -109,6 +110,49 @@ def test_references_round_trip(tmp_path, shipped):
     again = read_references(path)
     assert len(again) == len(shipped)
     np.testing.assert_allclose(again.matrix(), shipped.matrix(), atol=1e-9)
+    np.testing.assert_allclose(again.height_ranges(), shipped.height_ranges(), atol=0.05)
+    np.testing.assert_allclose(again.past_rates(), shipped.past_rates(), atol=1e-4)
+
+
+def test_a_set_written_before_heights_were_kept_still_classifies(tmp_path, fresh, shipped):
+    """Sets without height ranges or past-vertical rates load; those terms then say
+    nothing, and finished states are classified as before."""
+    data = references_to_dict(shipped)
+    for item in data["references"]:
+        item.pop("height_range_mm", None)
+        item.pop("past_rate", None)
+    path = tmp_path / "old.json"
+    path.write_text(json.dumps(data))
+    old = read_references(path)
+    assert np.isnan(old.height_ranges()).all() and not old.past_rates().any()
+    heights = fresh.sticker_points[:, :, 2] * 1e3
+    for k in range(0, len(fresh), 7):
+        p = classify_coordinates(
+            fresh.coordinates[k], old, fresh.visible[k], heights_mm=heights[k], past=np.zeros(16)
+        )
+        assert p.class_id == fresh.classes[k]
+
+
+def test_height_tells_a_half_fold_from_a_strip_held_up_at_the_same_angle(shipped):
+    """Mid-fold at 110 degrees, with only the flat stickers' coordinates known: the
+    flap's edge stands about 180 mm high for a half fold and 110 mm for a strip."""
+    from dgli_vision.cloth.states import sample_state
+
+    for class_id, stand in (("11", 180.0), ("09", 110.0)):
+        fold = "AB half" if class_id == "11" else "AB strip over"
+        state = sample_state(
+            class_id, "AB", np.random.default_rng(3), last_fold=fold, last_fold_deg=110.0
+        )
+        rec = records_from_states([("x", state)])
+        vis = ~rec.lifted[0]  # the flap's stickers edge-on: held up, not seen
+        heights = np.where(rec.lifted[0], rec.sticker_points[0, :, 2] * 1e3, 0.0)
+        assert abs(np.nanmax(heights) - stand) < 25
+        coords = rec.hidden_coordinates()[0]
+        p = classify_coordinates(
+            coords, shipped, vis, unknown=rec.lifted[0], lifted=rec.lifted[0].astype(float),
+            heights_mm=heights, past=np.where(rec.lifted[0], 1.0, np.nan),
+        )
+        assert p.class_id == class_id
 
 
 @pytest.mark.parametrize(
