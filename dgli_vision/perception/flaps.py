@@ -171,13 +171,7 @@ def flap_angles(
         return v - np.outer(v @ up, up) if v.ndim == 2 else v - (v @ up) * up
 
     flat_px = evidence.predicted_px
-    rays = np.column_stack(
-        [
-            (flat_px[:, 0] - intrinsics.cx) / intrinsics.fx,
-            (flat_px[:, 1] - intrinsics.cy) / intrinsics.fy,
-            np.ones(len(flat_px)),
-        ]
-    )
+    rays = intrinsics.deproject(flat_px, np.ones(len(flat_px)))  # z = 1
     flat = rays * (offset_m / (rays @ up))[:, None]  # where each would lie on the table
     reach = p.reach * napkin_side_mm * 1e-3
     sizes = np.bincount(label, minlength=n_parts)

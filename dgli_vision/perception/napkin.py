@@ -154,6 +154,29 @@ class NapkinView:
         return out
 
 
+def _height_above_table(
+    intrinsics: Intrinsics,
+    normal: NDArray[np.float64],
+    offset_m: float,
+    x: NDArray,
+    y: NDArray,
+    depth_mm: NDArray,
+) -> NDArray[np.float32]:
+    """Height (mm) above the table plane of pixels ``(x, y)`` at z-depths ``depth_mm``
+    (broadcast together): ``(u z, v z, z) . n - offset``."""
+    u = (x - intrinsics.cx) / intrinsics.fx
+    v = (y - intrinsics.cy) / intrinsics.fy
+    slope = (u * normal[0] + v * normal[1] + normal[2]).astype(np.float32)
+    return (np.asarray(depth_mm, dtype=np.float32) * slope - offset_m * 1e3).astype(np.float32)
+
+
+def _not_napkin(lum: NDArray, chroma: NDArray, p: NapkinParams) -> NDArray[np.bool_]:
+    """Too dark or too coloured (balanced brightness and chroma) to be the napkin."""
+    return (lum < p.occluder_darkness) | (
+        chroma > p.occluder_chroma * np.maximum(lum, p.occluder_darkness)
+    )
+
+
 def _raised_cloth_pixels(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
@@ -178,15 +201,8 @@ def _raised_cloth_pixels(
     nearest = cv2.erode(depth_mm - np.uint16(1), np.ones((s, s), np.uint8))[::s, ::s]
     nearest = nearest.astype(np.float32) + 1.0
     gi, gj = np.mgrid[0 : nearest.shape[0], 0 : nearest.shape[1]]
-
-    def height_at(y: NDArray, x: NDArray, d_mm: NDArray) -> NDArray[np.float32]:
-        u = (x - intrinsics.cx) / intrinsics.fx
-        v = (y - intrinsics.cy) / intrinsics.fy
-        slope = u * normal[0] + v * normal[1] + normal[2]
-        return ((d_mm * 1e-3 * slope - offset_m) * 1e3).astype(np.float32)
-
     # a block's slope varies by well under a millimetre of height: 2 mm of slack
-    block_top = height_at(gi * s, gj * s, nearest)
+    block_top = _height_above_table(intrinsics, normal, offset_m, gj * s, gi * s, nearest)
     bi, bj = np.nonzero((nearest < 65535) & (block_top > p.raised_cloth_mm - 2.0))
     if not len(bi):
         empty = np.zeros((0, 2), dtype=np.intp)
@@ -197,15 +213,11 @@ def _raised_cloth_pixels(
     inside = (ys >= 0) & (ys < hh) & (xs >= 0) & (xs < ww)
     ys, xs = ys[inside], xs[inside]
     d = depth_mm[ys, xs]
-    height = height_at(ys, xs, d.astype(np.float32))
+    height = _height_above_table(intrinsics, normal, offset_m, xs, ys, d)
     up_high = (d > 0) & (height > p.raised_cloth_mm)
     ys, xs, height = ys[up_high], xs[up_high], height[up_high]
     lin = srgb_lut()[color[ys, xs]] / np.maximum(white, 1e-4)[None, :]  # (n, 3)
-    lum = lin.mean(axis=1)
-    chroma = lin.max(axis=1) - lin.min(axis=1)
-    cloth = (lum >= p.occluder_darkness) & (
-        chroma <= p.occluder_chroma * np.maximum(lum, p.occluder_darkness)
-    )
+    cloth = ~_not_napkin(lin.mean(axis=1), lin.max(axis=1) - lin.min(axis=1), p)
     return np.column_stack([xs[cloth], ys[cloth]]), height[cloth]
 
 
@@ -291,17 +303,13 @@ def find_napkin(
     )
     occluder = np.zeros(shape, dtype=bool)
     if table_normal is not None and table_offset_m is not None:
-        d = depth_mm[::s, ::s].astype(np.float32) * 1e-3
-        u = (np.arange(shape[1]) * s - intrinsics.cx) / intrinsics.fx
-        v = (np.arange(shape[0]) * s - intrinsics.cy) / intrinsics.fy
-        # height above the plane: (x, y, z) . n - offset with x = u z, y = v z
-        slope = (u[None, :] * table_normal[0] + v[:, None] * table_normal[1] + table_normal[2])
-        height_mm = (d * slope.astype(np.float32) - table_offset_m) * 1e3
-        raised = (d > 0) & (height_mm > p.occluder_height_mm)
-        not_napkin = (lum < p.occluder_darkness) | (
-            chroma > p.occluder_chroma * np.maximum(lum, p.occluder_darkness)
+        d = depth_mm[::s, ::s].astype(np.float32)
+        xs, ys = np.arange(shape[1]) * s, np.arange(shape[0]) * s
+        height_mm = _height_above_table(
+            intrinsics, table_normal, table_offset_m, xs[None, :], ys[:, None], d
         )
-        occluder = raised & not_napkin
+        raised = (d > 0) & (height_mm > p.occluder_height_mm)
+        occluder = raised & _not_napkin(lum, chroma, p)
         # a few isolated samples are depth noise, not an object
         import cv2
 
