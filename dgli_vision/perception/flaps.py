@@ -119,7 +119,9 @@ def flap_angles(
     offset_m : float
         ``up @ x`` of the table plane, metres.
     napkin : NapkinView or None
-        Its ``raised`` mask and ``height_mm`` give the raised cloth.
+        Its ``raised`` mask (parts of cloth held up) and ``raised_px`` /
+        ``raised_height_mm`` (every pixel of them, with its height) give the raised
+        cloth.
     points : ndarray, shape (16, 3)
         Located stickers, camera frame, NaN where missing.
     heights_mm : ndarray, shape (16,)
