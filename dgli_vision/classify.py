@@ -228,20 +228,22 @@ def reference_distances(
             gap = np.abs(vis[None, use] - rates[:, use]).mean(axis=1)
             dist = dist + VISIBILITY_WEIGHT * gap
     if lifted is not None:
-        up = np.asarray(lifted, dtype=np.float64)
-        told = np.isfinite(up)
-        if told.any():
-            gap = np.abs(up[None, told] - references.lifted_rates()[:, told]).mean(axis=1)
-            dist = dist + LIFTED_WEIGHT * gap
+        dist = dist + LIFTED_WEIGHT * _rate_gap(lifted, references.lifted_rates())
     if heights_mm is not None:
         dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_ranges())
     if past is not None:
-        lean = np.asarray(past, dtype=np.float64)
-        told = np.isfinite(lean)
-        if told.any():
-            gap = np.abs(lean[None, told] - references.past_rates()[:, told]).mean(axis=1)
-            dist = dist + PAST_WEIGHT * gap
+        dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
     return dist
+
+
+def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean ``|observed - rate|`` over the stickers told (finite), for each reference
+    (``rates`` shape (k, 16)); 0 when none is told."""
+    x = np.asarray(observed, dtype=np.float64)
+    told = np.isfinite(x)
+    if not told.any():
+        return np.zeros(len(rates))
+    return np.abs(x[None, told] - rates[:, told]).mean(axis=1)
 
 
 def _height_gap(heights_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:

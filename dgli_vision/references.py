@@ -223,6 +223,35 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
     }
 
 
+def _optional_array(
+    item: dict[str, Any],
+    key: str,
+    shape: tuple[int, ...],
+    missing: float,
+    source: str,
+    k: int,
+    what: str,
+) -> NDArray[np.float64]:
+    """``item[key]`` as an array of ``shape``, filled with ``missing`` when the field is
+    absent (sets written before it was kept).
+
+    Raises
+    ------
+    ReferenceError_
+        When the field is there but not numbers of that shape.
+    """
+    value = item.get(key)
+    if value is None:
+        return np.full(shape, missing)
+    try:
+        out = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        out = np.zeros(0)
+    if out.shape != shape:
+        raise ReferenceError_(f"'{source}': reference {k} needs {shape[0]} {what}")
+    return out
+
+
 def references_from_dict(data: Any, *, source: str = "references") -> ReferenceSet:
     """Validate and load the parsed JSON of a reference set.
 
@@ -254,28 +283,14 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             raise ReferenceError_(f"'{source}': reference {k} needs 28 finite coordinates")
         if rate.shape != (16,):
             raise ReferenceError_(f"'{source}': reference {k} needs 16 visibility rates")
-        try:
-            lifted = np.asarray(item.get("lifted_rate") or np.zeros(16), dtype=np.float64)
-        except (TypeError, ValueError):
-            lifted = np.zeros(0)
-        if lifted.shape != (16,):
-            raise ReferenceError_(f"'{source}': reference {k} needs 16 lifted rates")
-        try:
-            past = np.asarray(item.get("past_rate") or np.zeros(16), dtype=np.float64)
-        except (TypeError, ValueError):
-            past = np.zeros(0)
-        if past.shape != (16,):
-            raise ReferenceError_(f"'{source}': reference {k} needs 16 past-vertical rates")
-        try:
-            heights = np.asarray(
-                item.get("height_range_mm") or np.full((16, 2), np.nan), dtype=np.float64
-            )
-        except (TypeError, ValueError):
-            heights = np.zeros(0)
-        if heights.shape != (16, 2):
-            raise ReferenceError_(
-                f"'{source}': reference {k} needs 16 height ranges [lowest, highest]"
-            )
+        lifted = _optional_array(item, "lifted_rate", (16,), 0.0, source, k, "lifted rates")
+        past = _optional_array(
+            item, "past_rate", (16,), 0.0, source, k, "past-vertical rates"
+        )
+        heights = _optional_array(
+            item, "height_range_mm", (16, 2), np.nan, source, k,
+            "height ranges [lowest, highest]",
+        )
         refs.append(
             Reference(
                 class_id,
