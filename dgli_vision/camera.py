@@ -23,7 +23,7 @@ __all__ = ["DEFAULT_INTRINSICS", "CameraPose", "Intrinsics", "look_at_table"]
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Pinhole camera intrinsics (pixels), no distortion.
+    """Pinhole camera intrinsics (pixels), with optional lens distortion.
 
     Attributes
     ----------
@@ -33,6 +33,9 @@ class Intrinsics:
         Focal lengths in pixels.
     cx, cy : float
         Principal point in pixels (pixel-centre convention, see module docstring).
+    distortion : tuple of float
+        OpenCV's distortion coefficients ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``;
+        empty (the default) or all zero for an ideal pinhole.
     """
 
     width: int
@@ -41,18 +44,30 @@ class Intrinsics:
     fy: float
     cx: float
     cy: float
+    distortion: tuple[float, ...] = ()
+
+    @property
+    def distorted(self) -> bool:
+        """True when any distortion coefficient is non-zero."""
+        return any(c != 0.0 for c in self.distortion)
 
     def matrix(self) -> NDArray[np.float64]:
         """The 3 x 3 camera matrix K."""
         return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
 
     def to_open3d_dict(self) -> dict[str, object]:
-        """Open3D ``PinholeCameraIntrinsic`` JSON (matrix stored column-major)."""
-        return {
+        """Open3D ``PinholeCameraIntrinsic`` JSON (matrix stored column-major).
+
+        A lens with distortion adds ``"distortion": [k1, k2, p1, p2, k3...]``, a key
+        Open3D ignores (the file stays loadable there)."""
+        out: dict[str, object] = {
             "width": self.width,
             "height": self.height,
             "intrinsic_matrix": [self.fx, 0.0, 0.0, 0.0, self.fy, 0.0, self.cx, self.cy, 1.0],
         }
+        if self.distorted:
+            out["distortion"] = [float(c) for c in self.distortion]
+        return out
 
     def ray_directions(self) -> NDArray[np.float64]:
         """Camera-frame ray directions (H, W, 3) through pixel centres, z = 1."""
