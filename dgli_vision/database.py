@@ -128,6 +128,9 @@ class StateRecords:
         Boundary polylines, metres.
     stages : tuple of str
         ``""`` for a state with every fold laid flat, else the fold in progress.
+    footprint : ndarray, shape (n,), optional
+        Table area each state's cloth covers, as a fraction of the flat napkin's area
+        (NaN where not known, as in databases written before it was kept).
     """
 
     ids: tuple[str, ...]
@@ -140,10 +143,13 @@ class StateRecords:
     corner_points: NDArray[np.float64]
     boundary: NDArray[np.float64]
     stages: tuple[str, ...] = ()
+    footprint: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         if not self.stages:
             object.__setattr__(self, "stages", ("",) * len(self.ids))
+        if self.footprint is None:
+            object.__setattr__(self, "footprint", np.full(len(self.ids), np.nan))
 
     @property
     def lifted(self) -> NDArray[np.bool_]:
@@ -184,6 +190,7 @@ class StateRecords:
             self.corner_points[idx],
             self.boundary[idx],
             tuple(self.stages[i] for i in idx),
+            self.footprint[idx],
         )
 
     def hidden_coordinates(self) -> NDArray[np.float64]:
@@ -208,4 +215,12 @@ def records_from_states(states: list[tuple[str, ClothState]]) -> StateRecords:
         corner_points=np.stack([s.corner_points for _, s in states]),
         boundary=np.stack([s.boundary for _, s in states]),
         stages=tuple(str(s.params.get("stage", "")) for _, s in states),
+        footprint=np.array([footprint_fraction(s) for _, s in states]),
     )
+
+
+def footprint_fraction(state: ClothState) -> float:
+    """Table area the state's cloth covers, as a fraction of the flat napkin's area."""
+    uv = state.mesh.uv
+    flat = float(np.ptp(uv[:, 0]) * np.ptp(uv[:, 1]))
+    return round(state.mesh.footprint_mm2() / flat, 4)

@@ -51,6 +51,8 @@ def write_database(
         root / "index.json",
     ]
     guard_outputs(planned, overwrite=overwrite)
+    from .database import footprint_fraction
+
     entries = []
     triangles = None
     for sid, state in states:
@@ -68,6 +70,7 @@ def write_database(
             "coordinates": np.round(state.coordinates(), 10).tolist(),
             "corner_points_m": np.round(state.corner_points, 7).tolist(),
             "boundary_m": np.round(state.boundary, 7).tolist(),
+            "footprint": footprint_fraction(state),
             "params": state.params,
         }
         write_json(root / "truth" / f"{sid}.json", truth)
@@ -106,6 +109,7 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
         raise InvalidInputError(f"'{index_path}' is not a dgli simulated database index")
     root = index_path.parent
     ids, classes, variants, points, vis, frac, corners, boundary, stages = ([] for _ in range(9))
+    footprint = []
     for entry in index.get("states", []):
         truth_path = root / entry["truth"]
         truth = read_json(truth_path, what="state truth")
@@ -127,6 +131,8 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
         frac.append(f)
         corners.append(cp)
         boundary.append(bd)
+        fp = truth.get("footprint")
+        footprint.append(float(fp) if isinstance(fp, (int, float)) else np.nan)
     if not ids:
         raise InvalidInputError(f"database '{index_path}' lists no states")
     pts = np.stack(points)
@@ -141,5 +147,6 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
         np.stack(corners),
         np.stack(boundary),
         tuple(stages),
+        np.array(footprint, dtype=np.float64),
     )
     return records, dict(index.get("provenance") or {})

@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from .classes import LIFTED_MM, PAST_BAND_DEG
 from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
+from .consistency import mirror_problem, scale_problem
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
@@ -20,8 +21,10 @@ from .layout import NapkinLayout, default_layout, layout_of_size
 from .perception.detect import DetectorParams, StickerDetections, detect_stickers
 from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from .perception.flaps import flap_angles
+from .perception.footprint import Footprint, measure_footprint
 from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from .perception.napkin import find_napkin
+from .perception.scale import NapkinRuler, measure_napkin
 from .references import ReferenceSet
 
 __all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
@@ -49,6 +52,11 @@ class ClothObservation:
     flap_height_mm : ndarray, shape (16,), optional
         For such a sticker, how high it stands on its flap (from the flap's fold line and
         angle), mm; NaN where not measured.
+    ruler : NapkinRuler, optional
+        The napkin's measured scale and rigidity (distances of same-corner stickers,
+        before any sticker is dropped); None with too few stickers located.
+    footprint : Footprint, optional
+        The table area the cloth covers; None where it cannot be measured.
     """
 
     segments: NDArray[np.float64]
@@ -58,6 +66,8 @@ class ClothObservation:
     heights_mm: NDArray[np.float64] | None = None
     flap_deg: NDArray[np.float64] | None = None
     flap_height_mm: NDArray[np.float64] | None = None
+    ruler: NapkinRuler | None = None
+    footprint: Footprint | None = None
 
     @property
     def lifted(self) -> NDArray[np.float64] | None:
@@ -142,7 +152,9 @@ def observe(
         frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin,
         colours=colours,
     )
-    markers, dropped = drop_inconsistent(lift_stickers(detections, frame.intrinsics), layout)
+    lifted = lift_stickers(detections, frame.intrinsics)
+    ruler = measure_napkin(lifted, layout)
+    markers, dropped = drop_inconsistent(lifted, layout)
     evidence = assess_stickers(
         markers,
         frame.intrinsics,
@@ -160,8 +172,12 @@ def observe(
         frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
         evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
     )
+    footprint = measure_footprint(
+        frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
+        layout.width_mm * layout.height_mm,
+    )
     return detections, markers, ClothObservation(
-        segments, visible, up, evidence, heights, flap_deg, flap_height
+        segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint
     )
 
 
@@ -200,16 +216,27 @@ def classify_frame(
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
     unknown = obs.evidence.summary() if obs.evidence is not None else ""
+    scale = scale_problem(obs.ruler, layout)
+    if scale is not None:
+        return FrameResult(detections, markers, obs, coords, None, f"cannot tell: {scale}")
+    evidence = {
+        "visible": obs.visible, "unknown": obs.unknown, "lifted": obs.lifted,
+        "heights_mm": obs.matched_heights_mm, "past": obs.past_vertical,
+    }
     try:
-        guess = classify_coordinates(
-            coords, references, obs.visible, obs.unknown, obs.lifted,
-            obs.matched_heights_mm, obs.past_vertical,
-        )
+        guess = classify_coordinates(coords, references, **evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         if unknown:
             reason += f" ({unknown})"
         return FrameResult(detections, markers, obs, coords, None, reason)
+    mirror = mirror_problem(
+        coords, references, evidence, obs.footprint, layout.width_mm * layout.height_mm
+    )
+    if mirror is not None:
+        return FrameResult(
+            detections, markers, obs, coords, None, f"cannot tell: {mirror}", guess
+        )
     if guess.confidence >= min_confidence:
         return FrameResult(detections, markers, obs, coords, guess, None, guess)
     ru = guess.runner_up

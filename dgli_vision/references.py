@@ -75,6 +75,9 @@ class Reference:
     past_rate : ndarray, shape (16,)
         Fraction of the group's states in which each sticker stands on a flap turned past
         90 degrees (0 for every state with its folds laid flat).
+    footprint_range : ndarray, shape (2,)
+        Smallest and largest table area the group's cloth covers, as fractions of the
+        flat napkin's area (NaN: not known, as in sets written before it was kept).
     """
 
     class_id: str
@@ -90,6 +93,7 @@ class Reference:
         default_factory=lambda: np.full((16, 2), np.nan)
     )
     past_rate: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
+    footprint_range: NDArray[np.float64] = field(default_factory=lambda: np.full(2, np.nan))
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +133,10 @@ class ReferenceSet:
     def height_ranges(self) -> NDArray[np.float64]:
         """Lowest and highest height of each sticker, mm, shape (k, 16, 2)."""
         return np.stack([r.height_range_mm for r in self.references])
+
+    def footprint_ranges(self) -> NDArray[np.float64]:
+        """Smallest and largest footprint (fraction of the napkin's area), shape (k, 2)."""
+        return np.stack([r.footprint_range for r in self.references])
 
 
 def build_references(
@@ -179,6 +187,8 @@ def build_references(
                 height_range_mm=np.stack([heights[members].min(axis=0),
                                           heights[members].max(axis=0)], axis=1),
                 past_rate=past[members].mean(axis=0),
+                footprint_range=np.array([records.footprint[members].min(),
+                                          records.footprint[members].max()]),
             )
         )
     return ReferenceSet(tuple(refs), dict(provenance or {}))
@@ -215,6 +225,11 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
                     {"height_range_mm": [[round(float(v), 1) for v in lh]
                                          for lh in r.height_range_mm]}
                     if np.isfinite(r.height_range_mm).all()
+                    else {}
+                ),
+                **(
+                    {"footprint_range": [round(float(v), 4) for v in r.footprint_range]}
+                    if np.isfinite(r.footprint_range).all()
                     else {}
                 ),
             }
@@ -291,6 +306,10 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             item, "height_range_mm", (16, 2), np.nan, source, k,
             "height ranges [lowest, highest]",
         )
+        footprint = _optional_array(
+            item, "footprint_range", (2,), np.nan, source, k,
+            "footprint fractions [smallest, largest]",
+        )
         refs.append(
             Reference(
                 class_id,
@@ -304,6 +323,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
                 lifted,
                 heights,
                 past,
+                footprint,
             )
         )
     if len({r.class_id for r in refs}) < 2:

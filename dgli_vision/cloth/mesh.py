@@ -58,6 +58,30 @@ class ClothMesh:
         e = np.concatenate([tri[:, [0, 1]], tri[:, [1, 2]], tri[:, [2, 0]]])
         return np.unique(np.sort(e, axis=1), axis=0)
 
+    def footprint_mm2(self, *, cell_mm: float = 2.0, samples: int = 4) -> float:
+        """Area of the table the cloth covers (its projection on z = 0), mm^2.
+
+        Every grid cell is sampled at ``samples`` x ``samples`` points (bilinear, at the
+        centres of its sub-cells) and the raster cells of side ``cell_mm`` that hold a
+        sample are counted once, however many layers lie there (a fold's flap covers
+        table only once). The raster overestimates by about half a cell along the
+        outline: 1% for a 400 mm napkin.
+        """
+        ny, nx = self.shape
+        grid = self.xyz.reshape(ny, nx, 3)[..., :2] * 1e3  # (ny, nx, 2) mm
+        t = (np.arange(samples) + 0.5) / samples
+        su, sv = np.meshgrid(t, t)
+        su, sv = su.ravel()[:, None, None, None], sv.ravel()[:, None, None, None]
+        pts = (
+            grid[:-1, :-1] * (1 - su) * (1 - sv)
+            + grid[:-1, 1:] * su * (1 - sv)
+            + grid[1:, :-1] * (1 - su) * sv
+            + grid[1:, 1:] * su * sv
+        ).reshape(-1, 2)  # (samples^2 (ny-1) (nx-1), 2)
+        cells = np.floor((pts - pts.min(axis=0)) / cell_mm).astype(np.int64)
+        keys = cells[:, 0] * (int(cells[:, 1].max()) + 1) + cells[:, 1]
+        return float(np.unique(keys).size * cell_mm**2)
+
     def interpolate(self, uv: NDArray[np.float64]) -> NDArray[np.float64]:
         """World positions of material points by bilinear interpolation.
 

@@ -1,0 +1,149 @@
+"""Is this the napkin as SPEC defines it, the right size and the right way round?
+
+Two faults a lab makes every week turn into confident wrong states unless checked:
+
+* **Depth in the wrong units** (or wrong intrinsics) scales every 3D distance. The
+  stickers around a corner keep their distances in every state (folding never
+  stretches cloth), so :class:`~dgli_vision.perception.scale.NapkinRuler` measures the
+  napkin; off by more than :data:`SCALE_TOLERANCE`, no verdict is given.
+* **A mirrored layout.** A napkin lying back face up, or a camera that mirrors its image,
+  shows the corners running clockwise seen from above. The dGLI is a pseudo-scalar
+  (the Gauss linking integral changes sign in a mirror), so a mirrored observation has
+  the negated cloth coordinates of the real state. Both readings are ranked against the
+  references; where the mirrored one fits as well or better, the answer is "cannot
+  tell". A few states are mirror images of each other by their stickers alone (a strip
+  folded under and a half fold over show the same stickers the same way), so the
+  napkin's footprint on the table decides between such readings.
+
+What a front-up state means when the napkin is back face up: SPEC defines the states
+with the front face up, and "over" (towards the camera) would be "under" in the
+napkin's own frame. The tool does not guess which of the two faults it sees (a flat
+napkin looks the same under both): it says what it saw and how to fix it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .classify import reference_distances
+from .layout import NapkinLayout
+from .perception.footprint import Footprint
+from .perception.scale import NapkinRuler
+from .references import ReferenceSet
+
+__all__ = [
+    "FOOTPRINT_SCALE",
+    "FOOTPRINT_SLACK",
+    "MIRROR_MARGIN",
+    "SCALE_TOLERANCE",
+    "footprint_penalty",
+    "mirror_problem",
+    "scale_problem",
+]
+
+#: Largest relative error of the napkin's measured size that still gives a verdict.
+#: Sensor noise and sticker placement give under 1%; an uncorrected lens a few per cent
+#: near the border; a wrong depth-units setting 20% and more.
+SCALE_TOLERANCE = 0.08
+#: How much better (distance units) the front-up reading must fit than the mirrored one.
+#: The closest true pairs (four corners folded against a flat napkin seen mirrored) are
+#: 0.06 apart before the footprint is counted.
+MIRROR_MARGIN = 0.05
+#: Footprint (fraction of the napkin's area) outside a reference's range that is still
+#: agreement: the measurement's error (2% on clean images, 5% in shadow or dim light).
+FOOTPRINT_SLACK = 0.05
+#: Footprint disagreement beyond the slack that counts in full (one distance unit).
+FOOTPRINT_SCALE = 0.1
+
+
+def scale_problem(ruler: NapkinRuler | None, layout: NapkinLayout) -> str | None:
+    """The reason the napkin's measured size rules out a verdict, or None.
+
+    Parameters
+    ----------
+    ruler : NapkinRuler or None
+        The napkin's measured scale (None: too few stickers to tell, no objection).
+    layout : NapkinLayout
+        The napkin's true size.
+    """
+    if ruler is None or abs(ruler.scale - 1.0) <= SCALE_TOLERANCE:
+        return None
+    w, h = layout.width_mm, layout.height_mm
+    if w == h:
+        measured, expected = f"{ruler.scale * w:.0f} mm", f"{w:.0f}"
+    else:
+        measured = f"{ruler.scale * w:.0f} x {ruler.scale * h:.0f} mm"
+        expected = f"{w:.0f} x {h:.0f}"
+    return (
+        f"the napkin measures {measured}, expected {expected} (its stickers are "
+        f"{ruler.scale:.2f} times as far apart as printed: depth units? intrinsics? "
+        "another napkin size?)"
+    )
+
+
+def footprint_penalty(
+    footprint: Footprint | None, references: ReferenceSet, napkin_area_mm2: float
+) -> NDArray[np.float64]:
+    """Disagreement in [0, 1] of the measured footprint with each reference's range,
+    shape (k,): 0 within :data:`FOOTPRINT_SLACK`, 1 beyond it by
+    :data:`FOOTPRINT_SCALE`; 0 where either is unknown."""
+    ranges = references.footprint_ranges()
+    if footprint is None:
+        return np.zeros(len(ranges))
+    lo, hi = footprint.fraction(napkin_area_mm2)
+    gap = np.maximum(ranges[:, 0] - hi, lo - ranges[:, 1])
+    pen = np.clip((gap - FOOTPRINT_SLACK) / FOOTPRINT_SCALE, 0.0, 1.0)
+    return np.where(np.isfinite(pen), pen, 0.0)
+
+
+def _describe(references: ReferenceSet, k: int) -> str:
+    r = references.references[k]
+    return f"{r.class_id} {r.name}" + (f" ({r.variant})" if r.variant else "")
+
+
+def mirror_problem(
+    coords: NDArray[np.float64],
+    references: ReferenceSet,
+    evidence: dict[str, NDArray | None],
+    footprint: Footprint | None,
+    napkin_area_mm2: float,
+) -> str | None:
+    """The reason the observation may be a mirrored napkin, or None when it is not.
+
+    Parameters
+    ----------
+    coords : ndarray, shape (28,)
+        Cloth coordinates as measured (NaN where unknown).
+    references : ReferenceSet
+    evidence : dict
+        The keyword arguments of :func:`~dgli_vision.classify.reference_distances`
+        besides the coordinates (``visible``, ``unknown``, ``lifted``, ``heights_mm``,
+        ``past``): a mirror changes none of them.
+    footprint : Footprint or None
+        The cloth's measured footprint.
+    napkin_area_mm2 : float
+
+    Returns
+    -------
+    str or None
+        Starts with what was seen; the caller prefixes ``"cannot tell: "``.
+    """
+    pen = footprint_penalty(footprint, references, napkin_area_mm2)
+    front = reference_distances(coords, references, **evidence) + pen
+    mirrored = reference_distances(-np.asarray(coords), references, **evidence) + pen
+    i, j = int(np.argmin(front)), int(np.argmin(mirrored))
+    if front[i] + MIRROR_MARGIN <= mirrored[j]:
+        return None
+    fix = "turn the napkin front face up, or switch off the camera's mirroring"
+    if mirrored[j] + MIRROR_MARGIN <= front[i]:
+        return (
+            f"the stickers run clockwise seen from above: the napkin lies back face up "
+            f"or the image is mirrored (mirrored, it reads as {_describe(references, j)} "
+            f"at {mirrored[j]:.3f}); {fix}"
+        )
+    return (
+        f"the stickers fit the napkin front face up ({_describe(references, i)}, "
+        f"{front[i]:.3f}) and mirrored ({_describe(references, j)}, {mirrored[j]:.3f}) "
+        f"nearly alike: the napkin may lie back face up, or the image be mirrored; {fix}"
+    )

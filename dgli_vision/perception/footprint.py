@@ -1,0 +1,164 @@
+"""How much of the table the cloth covers: the napkin's footprint, in mm^2.
+
+Folding never stretches cloth, and every fold changes how much table the napkin covers:
+a flat napkin covers all of its area, a corner fold 86-93% of it, four corners or a half
+fold about half. The footprint is measured from colour (the napkin is white, the table
+much darker once balanced to the napkin's white) and the table plane (each image cell's
+area on the table, from the ray through it), so it needs no depth on the cloth itself.
+
+The footprint is an interval: cloth hidden from the camera by an object above the
+napkin (a gripper) may or may not be there, so the cells of such objects next to the
+cloth widen it. It is ``None`` (not measured) where the cloth region cannot be told from
+the table: it reaches the image border, or it measures more than the whole napkin can
+cover (a table as bright as the napkin).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..camera import Intrinsics
+from ..colour import srgb_lut
+from .napkin import NapkinParams, NapkinView
+
+__all__ = ["Footprint", "FootprintParams", "measure_footprint"]
+
+
+@dataclass(frozen=True)
+class FootprintParams:
+    """How the footprint is measured. Every field has a unit and a reason.
+
+    Attributes
+    ----------
+    cell_px : int
+        Side of the image cells averaged into one sample, pixels. Default 8: a cell is
+        about 7 mm on the cloth at 520 mm, and averaging 64 pixels takes sensor noise of
+        10 levels down to about 1.
+    close_cells : int
+        Side of the closing that fills the stickers' holes in the cloth mask, cells.
+        Default 7: a 30 mm sticker spans 4-5 cells at the nearest camera.
+    max_fraction : float
+        Largest footprint, relative to the napkin's area, taken as measured. Default
+        1.06: a flat napkin measures within about 2% of its area; more means the table
+        merged with the cloth.
+    """
+
+    cell_px: int = 8
+    close_cells: int = 7
+    max_fraction: float = 1.06
+
+
+@dataclass(frozen=True)
+class Footprint:
+    """The table area the napkin covers, as measured.
+
+    Attributes
+    ----------
+    low_mm2, high_mm2 : float
+        The area of the cloth seen, and that plus the area of objects above the napkin
+        that may hide more of it, mm^2.
+    """
+
+    low_mm2: float
+    high_mm2: float
+
+    def fraction(self, napkin_area_mm2: float) -> tuple[float, float]:
+        """The interval as fractions of the napkin's area."""
+        return self.low_mm2 / napkin_area_mm2, self.high_mm2 / napkin_area_mm2
+
+
+def _cell_areas_mm2(
+    intrinsics: Intrinsics, shape: tuple[int, int], cell: int, up: NDArray, offset_m: float
+) -> NDArray[np.float64]:
+    """Area on the table plane (mm^2) of every image cell, shape ``shape``: the corners
+    of each cell's rays meet the plane ``up . x = offset`` at ``offset d / (up . d)``."""
+    h, w = shape
+    ys, xs = np.mgrid[0 : h + 1, 0 : w + 1] * cell - 0.5
+    d = np.stack(
+        [(xs - intrinsics.cx) / intrinsics.fx, (ys - intrinsics.cy) / intrinsics.fy,
+         np.ones(xs.shape)], axis=-1,
+    )  # (h + 1, w + 1, 3)
+    x = offset_m * d / (d @ up)[..., None]
+    ex = x[:-1, 1:] - x[:-1, :-1]
+    ey = x[1:, :-1] - x[:-1, :-1]
+    return np.linalg.norm(np.cross(ex, ey), axis=-1) * 1e6
+
+
+def measure_footprint(
+    color: NDArray[np.uint8],
+    intrinsics: Intrinsics,
+    up: NDArray[np.float64],
+    offset_m: float,
+    napkin: NapkinView,
+    sticker_px: NDArray[np.float64],
+    napkin_area_mm2: float,
+    params: FootprintParams | None = None,
+    napkin_params: NapkinParams | None = None,
+) -> Footprint | None:
+    """The napkin's footprint on the table, or None when it cannot be measured.
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+        RGB image.
+    intrinsics : Intrinsics
+    up : ndarray, shape (3,)
+        Unit table normal towards the camera (camera frame).
+    offset_m : float
+        ``up @ x`` of the table plane's points, metres.
+    napkin : NapkinView
+        The napkin's white and the objects above it.
+    sticker_px : ndarray, shape (n, 2)
+        Pixels (x, y) of the located stickers: the cloth is the part of the white
+        region that holds them (NaN rows are ignored).
+    napkin_area_mm2 : float
+        The flat napkin's area.
+    params, napkin_params : optional
+
+    Returns
+    -------
+    Footprint or None
+    """
+    import cv2
+
+    p = params or FootprintParams()
+    q = napkin_params or NapkinParams()
+    c = p.cell_px
+    h, w = color.shape[0] // c, color.shape[1] // c
+    if h < 4 or w < 4 or float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
+        return None
+    small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
+    lin = srgb_lut()[small] / np.maximum(napkin.white_rgb, 1e-4)  # (h, w, 3), napkin = 1
+    lum = lin.mean(axis=2)
+    chroma = lin.max(axis=2) - lin.min(axis=2)
+    white = (lum >= q.min_napkin_brightness) & (chroma <= q.neutral_chroma * lum)
+    kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
+    white = cv2.morphologyEx(white.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
+    _, labels, _, _ = cv2.connectedComponentsWithStats(white, connectivity=8)
+    px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
+    px = px[np.isfinite(px).all(axis=1)]
+    cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])
+    held = np.unique(labels[cells[:, 1], cells[:, 0]])
+    held = held[held > 0]
+    if held.size == 0:
+        return None
+    cloth = np.isin(labels, held)
+    if cloth[0].any() or cloth[-1].any() or cloth[:, 0].any() or cloth[:, -1].any():
+        return None
+    area = _cell_areas_mm2(intrinsics, (h, w), c, up, offset_m)
+    low = float(area[cloth].sum())
+    if low > p.max_fraction * napkin_area_mm2:
+        return None
+    high = low
+    if napkin.occluder.any():
+        # objects above the table (napkin's own sampling grid) next to the cloth
+        occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), cv2.INTER_NEAREST)
+        near = cv2.dilate(cloth.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+        over = occ.astype(bool) & ~cloth
+        _, olab, _, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), 8)
+        touching = np.unique(olab[near & over])
+        high += float(area[np.isin(olab, touching[touching > 0])].sum())
+    return Footprint(low, min(high, napkin_area_mm2 * p.max_fraction))

@@ -1,0 +1,103 @@
+"""The napkin as its own ruler: how big it measures, and whether it keeps its shape.
+
+The four stickers around a corner lie within 113 mm of each other, on a part of the cloth
+that no fold of SPEC's states bends, and folding never stretches cloth. So the distances
+between located stickers of the same corner are known in advance (42-113 mm), whatever
+the state. Their ratio to the flat napkin's says:
+
+* the **scale** (median ratio): depth in the wrong units (a depth scale of 0.8 makes the
+  napkin measure 320 mm instead of 400) or wrong focal lengths shrink or grow every
+  distance alike;
+* the **isometry error** (spread of the ratios): an uncorrected lens stretches distances
+  radially more than across, so near the image border the corners stop being rigid.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..layout import NapkinLayout
+from .lift import Markers3D
+
+__all__ = ["NapkinRuler", "measure_napkin"]
+
+#: Pairs of sticker ids (i, j), i < j, that lie around the same corner: each corner's two
+#: stickers at the end of one segment and the two at the start of the next.
+_CORNER_STICKERS = ((14, 15, 0, 1), (2, 3, 4, 5), (6, 7, 8, 9), (10, 11, 12, 13))
+
+
+@dataclass(frozen=True)
+class NapkinRuler:
+    """What the located stickers say of the napkin's size and rigidity.
+
+    Attributes
+    ----------
+    scale : float
+        Median ratio of measured to flat distances between stickers of the same corner
+        (1 for a right depth scale and intrinsics).
+    spread : float
+        Median absolute deviation of those ratios from ``scale`` (0 for a rigid,
+        undistorted napkin; sensor noise gives about 0.01).
+    worst : float
+        Largest ratio's distance from 1 over the corners' median ratios.
+    pairs : int
+        Number of sticker pairs measured.
+    """
+
+    scale: float
+    spread: float
+    worst: float
+    pairs: int
+
+
+def _corner_pairs(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Ids (i, j) of every pair of stickers around the same corner (24 pairs)."""
+    del layout  # the pairing is the same for every napkin size (SPEC's sticker order)
+    i, j = [], []
+    for ids in _CORNER_STICKERS:
+        for a in range(4):
+            for b in range(a + 1, 4):
+                i.append(ids[a])
+                j.append(ids[b])
+    return np.array(i), np.array(j)
+
+
+def measure_napkin(
+    markers: Markers3D, layout: NapkinLayout, *, min_pairs: int = 3
+) -> NapkinRuler | None:
+    """Scale and rigidity of the napkin from its located stickers.
+
+    Parameters
+    ----------
+    markers : Markers3D
+        Located stickers (metres).
+    layout : NapkinLayout
+        The flat napkin's sticker positions (mm).
+    min_pairs : int, keyword-only
+        Fewest pairs of same-corner stickers to measure from (default 3).
+
+    Returns
+    -------
+    NapkinRuler or None
+        None with fewer than ``min_pairs`` pairs located.
+    """
+    i, j = _corner_pairs(layout)
+    found = markers.found
+    use = found[i] & found[j]
+    if use.sum() < min_pairs:
+        return None
+    i, j = i[use], j[use]
+    uv = layout.sticker_uv
+    flat_mm = np.linalg.norm(uv[i] - uv[j], axis=1)
+    d_mm = np.linalg.norm(markers.points[i] - markers.points[j], axis=1) * 1e3
+    ratio = d_mm / flat_mm
+    scale = float(np.median(ratio))
+    spread = float(np.median(np.abs(ratio - scale)))
+    corner_of = {s: k for k, ids in enumerate(_CORNER_STICKERS) for s in ids}
+    corners = np.array([corner_of[int(a)] for a in i])
+    medians = [float(np.median(ratio[corners == k])) for k in np.unique(corners)]
+    worst = float(max(abs(m - 1.0) for m in medians))
+    return NapkinRuler(scale, spread, worst, int(use.sum()))
