@@ -18,7 +18,12 @@ from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
 from .layout import NapkinLayout, default_layout, layout_of_size
-from .perception.detect import DetectorParams, StickerDetections, detect_stickers
+from .perception.detect import (
+    DetectorParams,
+    StickerDetections,
+    detect_stickers,
+    find_washed_out,
+)
 from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from .perception.flaps import flap_angles
 from .perception.footprint import Footprint, measure_footprint
@@ -151,6 +156,10 @@ def observe(
     detections = detect_stickers(
         frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin,
         colours=colours,
+    )
+    detections = find_washed_out(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, detections, params,
+        napkin=napkin, colours=colours,
     )
     lifted = lift_stickers(detections, frame.intrinsics)
     ruler = measure_napkin(lifted, layout)

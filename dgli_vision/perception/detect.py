@@ -23,9 +23,16 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..colour import srgb_lut
 from ..layout import NapkinLayout
-from .napkin import NapkinView, find_napkin
+from .napkin import NapkinView, balance_lut, find_napkin
 
-__all__ = ["DetectorParams", "Rejection", "StickerDetections", "detect_stickers", "hue_of"]
+__all__ = [
+    "DetectorParams",
+    "Rejection",
+    "StickerDetections",
+    "detect_stickers",
+    "find_washed_out",
+    "hue_of",
+]
 
 
 @dataclass(frozen=True)
@@ -116,6 +123,22 @@ class DetectorParams:
     min_foreshortening : float
         Below this cosine a sticker is seen too obliquely to be read (its dot shrinks
         to a line). Default 0.25 (75 degrees): the 12 mm dot keeps about 3 mm.
+    washed_saturation : int
+        ``min_saturation`` of the second search (:func:`find_washed_out`) for stickers a
+        broad sheen washed to pastel. Default 25 (0.1): a semi-gloss sticker under a
+        softbox keeps 0.1-0.3 and its hue, while the napkin once balanced stays below
+        about 0.05.
+    washed_surround : float
+        ``min_surround`` of that search. Default 0.35: a semi-gloss sticker in the lobe
+        of a large light reflects about twice what the matte cloth around it does.
+    washed_level : int
+        8-bit level the napkin's white is balanced to for that search. Default 150: a
+        sticker under a sheen is brighter than the napkin, and at the usual 225 it would
+        clip to white.
+    washed_chroma : int
+        ``min_chroma`` of that search. Default 20: a pastel sticker keeps the chroma of
+        its own colour under added white light (in linear light exactly; 8-bit levels
+        compress it), the napkin's noise stays below 10.
     """
 
     min_saturation: int = 115
@@ -140,6 +163,10 @@ class DetectorParams:
     tilt_agreement: float = 0.25
     flat_foreshortening: float = 0.85
     min_foreshortening: float = 0.25
+    washed_saturation: int = 25
+    washed_chroma: int = 20
+    washed_level: int = 150
+    washed_surround: float = 0.35
 
 
 @dataclass(frozen=True)
@@ -714,3 +741,74 @@ def detect_stickers(
             for r, why in ((r, r.reason) for r in rejected)
         ]
     return StickerDetections(centroids, areas, scores, depths, tuple(rejected), fores)
+
+
+def find_washed_out(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    found: StickerDetections,
+    params: DetectorParams | None = None,
+    *,
+    napkin: NapkinView,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> StickerDetections:
+    """Search again, for the stickers not found, as a broad sheen leaves them: pastel.
+
+    A semi-gloss sticker under a large light (a softbox, a window) reflects white light
+    over its whole disc: its saturation falls to 0.1-0.3 while its hue survives, and
+    nothing is blown out. The search runs :func:`detect_stickers` again with
+    ``washed_saturation`` and ``washed_chroma`` (every other check unchanged: size,
+    shape, disc and dot colours, white cloth around) and keeps what it finds of the
+    stickers ``found`` lacks, away from the stickers found (a disc's distance).
+
+    Parameters
+    ----------
+    color, depth_mm, intrinsics, layout, params, napkin, colours
+        As for :func:`detect_stickers`.
+    found : StickerDetections
+        The first search's result.
+
+    Returns
+    -------
+    StickerDetections
+        ``found`` with the washed-out stickers added (their scores halved, so that a
+        person reading them sees which they are); its rejections are the first search's.
+    """
+    from dataclasses import replace
+
+    params = params or DetectorParams()
+    missing = ~found.found
+    if not missing.any():
+        return found
+    pale = replace(
+        params,
+        min_saturation=params.washed_saturation,
+        min_chroma=params.washed_chroma,
+        min_surround=params.washed_surround,
+    )
+    lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
+    again = detect_stickers(
+        color, depth_mm, intrinsics, layout, pale, napkin=lower, colours=colours
+    )
+    new = missing & again.found
+    if not new.any():
+        return found
+    seen = found.centroids[found.found]
+    if len(seen):
+        d_px = np.linalg.norm(again.centroids[:, None] - seen[None], axis=2).min(axis=1)
+        radius = np.sqrt(np.where(again.found, again.areas, 0.0) / np.pi)
+        new &= ~(d_px < 2 * radius)
+    n = len(found.centroids)
+    keys = ("centroids", "areas", "scores", "depth_mm", "foreshortening")
+    out = {k: np.array(getattr(found, k) if getattr(found, k) is not None else np.ones(n))
+           for k in keys}
+    for k in keys:
+        if getattr(again, k) is not None:
+            out[k][new] = getattr(again, k)[new]
+    out["scores"][new] *= 0.5
+    return StickerDetections(
+        out["centroids"], out["areas"], out["scores"], out["depth_mm"], found.rejected,
+        out["foreshortening"],
+    )

@@ -131,13 +131,20 @@ def measure_footprint(
     if h < 4 or w < 4 or float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
         return None
     small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
-    lin = srgb_lut()[small] / np.maximum(napkin.white_rgb, 1e-4)  # (h, w, 3), napkin = 1
+    # The napkin's white; where the napkin is blown out the estimate falls on the next
+    # brightest surface (the table), so the level is at least that of the brightest
+    # few per cent of the cells, clipped ones included.
+    lin = srgb_lut()[small]  # (h, w, 3) linear RGB
+    white = np.maximum(napkin.white_rgb, 1e-4)
+    level = np.quantile(lin.mean(axis=2), 1.0 - q.bright_fraction)
+    white = white * max(1.0, level / float(white.mean()))
+    lin = lin / white  # the napkin at 1
     lum = lin.mean(axis=2)
     chroma = lin.max(axis=2) - lin.min(axis=2)
-    white = (lum >= q.min_napkin_brightness) & (chroma <= q.neutral_chroma * lum)
+    cloth = (lum >= q.min_napkin_brightness) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
-    white = cv2.morphologyEx(white.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
-    _, labels, _, _ = cv2.connectedComponentsWithStats(white, connectivity=8)
+    closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
+    _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
     px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
     px = px[np.isfinite(px).all(axis=1)]
     cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..colour import linear_to_srgb, srgb_lut
 
-__all__ = ["NapkinParams", "NapkinView", "find_napkin"]
+__all__ = ["NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 
 
 @dataclass(frozen=True)
@@ -152,6 +152,14 @@ class NapkinView:
             if np.all(np.isfinite(p)):
                 out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + self.stride).any())
         return out
+
+
+def balance_lut(white_rgb: NDArray[np.float64], level: int) -> NDArray[np.uint8]:
+    """Per-channel lookup (for ``cv2.LUT`` on RGB), shape (256, 1, 3), that maps the
+    napkin's white (linear RGB, shape (3,)) to a neutral 8-bit ``level``."""
+    gains = srgb_lut()[level] / np.maximum(np.asarray(white_rgb, dtype=np.float64), 1e-4)
+    table = linear_to_srgb(srgb_lut()[:, None] * gains[None, :]) * 255.0
+    return np.clip(np.rint(table), 0, 255).astype(np.uint8).reshape(256, 1, 3)
 
 
 def _height_above_table(
@@ -290,10 +298,7 @@ def find_napkin(
         keep[napkin] = lum_n >= np.median(lum_n)
         white = np.median(lin[keep], axis=0).astype(np.float64)
     white = np.maximum(white, 1e-4)
-    target = srgb_lut()[p.target_level]
-    gains = target / white
-    table = linear_to_srgb(srgb_lut()[:, None] * gains[None, :]) * 255.0
-    lut = np.clip(np.rint(table), 0, 255).astype(np.uint8).reshape(256, 1, 3)
+    lut = balance_lut(white, p.target_level)
 
     lum, chroma = balanced(white)
     lum, chroma = lum.reshape(shape), chroma.reshape(shape)
