@@ -3,10 +3,28 @@ command line can offer them without importing numpy (see :mod:`dgli_vision.condi
 
 from __future__ import annotations
 
-__all__ = ["CONDITION_HELP", "CONDITION_NAMES"]
+__all__ = ["COMBO_POOL", "CONDITION_HELP", "CONDITION_NAMES"]
 
 #: Every condition ``dgli render --conditions`` knows, in the order of the robustness table.
 CONDITION_NAMES: tuple[str, ...] = (
+    "jpeg",
+    "cast",
+    "dim",
+    "gloss",
+    "sheen",
+    "shadow",
+    "clutter",
+    "gripper",
+    "distortion",
+    "depth",
+    "vga",
+    "wood",
+    "combo",
+)
+
+#: The conditions ``combo`` draws three of: the first eleven, so that adding a condition
+#: does not change what a seed's combinations are.
+COMBO_POOL: tuple[str, ...] = (
     "jpeg",
     "cast",
     "dim",
@@ -18,7 +36,6 @@ CONDITION_NAMES: tuple[str, ...] = (
     "depth",
     "vga",
     "wood",
-    "combo",
 )
 
 #: What each condition is, for help texts and reports.
@@ -27,6 +44,8 @@ CONDITION_HELP: dict[str, str] = {
     "cast": "no white balance: tungsten (R x1.25-1.45, B x0.55-0.72) or blue cast",
     "dim": "exposure 0.35-0.55 of normal, sensor noise sigma 6-10 levels",
     "gloss": "glossy stickers: a lamp's mirror highlight on one sticker",
+    "sheen": "semi-gloss stickers under a large light: a corner's stickers washed to pastel "
+    "(saturation 0.1-0.3), nothing blown out",
     "shadow": "a robot arm's soft shadow across the napkin (35-60% of the light)",
     "clutter": "3-6 saturated objects on the table (cups, boxes, caps, tape, a post-it)",
     "gripper": "a dark gripper and arm 60-200 mm above the napkin",

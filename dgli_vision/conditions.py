@@ -21,19 +21,24 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .camera import Intrinsics
-from .condition_names import CONDITION_HELP, CONDITION_NAMES
+from .condition_names import COMBO_POOL, CONDITION_HELP, CONDITION_NAMES
 
 __all__ = [
     "CONDITION_HELP",
     "CONDITION_NAMES",
     "Conditions",
     "SceneObject",
+    "Sheen",
     "apply_lens_distortion",
+    "area_light_lobe",
     "draw_conditions",
     "jpeg_roundtrip",
+    "mirror_light_direction",
     "realistic_depth",
     "scene_objects",
+    "specular_for_saturation",
 ]
+
 
 @dataclass(frozen=True)
 class SceneObject:
@@ -60,6 +65,36 @@ class SceneObject:
 
 
 @dataclass(frozen=True)
+class Sheen:
+    """A large area light (a softbox, a window) mirrored in semi-gloss vinyl stickers.
+
+    The light is placed where the mirror direction of one sticker points, so the
+    Blinn-Phong lobe of the vinyl washes that sticker and its neighbours to pastel; the
+    napkin's fabric adds a broad, weak sheen of the same light.
+
+    Attributes
+    ----------
+    shininess : float
+        Blinn-Phong exponent of the stickers' vinyl (150-600).
+    light_radius_deg : float
+        Angular radius of the area light seen from the napkin, degrees.
+    saturation : float
+        HSV saturation the stickers reach where the lobe is full (0.1-0.3); the specular
+        strength is solved for it.
+    cloth_strength : float
+        Peak of the fabric's sheen, linear light (relative to a white of 1).
+    cloth_shininess : float
+        Blinn-Phong exponent of the fabric's broad sheen.
+    """
+
+    shininess: float
+    light_radius_deg: float
+    saturation: float
+    cloth_strength: float
+    cloth_shininess: float
+
+
+@dataclass(frozen=True)
 class Conditions:
     """Capture conditions of one render; the default is SPEC's clean scene.
 
@@ -79,6 +114,8 @@ class Conditions:
         Round-trip the colour image through JPEG at this quality.
     highlight : bool
         Glossy stickers with a lamp's mirror highlight on one of them.
+    sheen : Sheen or None
+        Semi-gloss stickers under a large light: a corner's stickers washed to pastel.
     shadow : float
         Fraction of the light a soft arm shadow across the napkin blocks (0 = none).
     clutter : int
@@ -104,6 +141,7 @@ class Conditions:
     colour_noise: float | None = None
     jpeg_quality: int | None = None
     highlight: bool = False
+    sheen: Sheen | None = None
     shadow: float = 0.0
     clutter: int = 0
     gripper_height_m: float | None = None
@@ -132,6 +170,15 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
         return replace(c, exposure=float(rng.uniform(0.35, 0.55)), colour_noise=rng.uniform(6, 10))
     if name == "gloss":
         return replace(c, highlight=True)
+    if name == "sheen":
+        sheen = Sheen(
+            shininess=float(rng.uniform(150, 600)),
+            light_radius_deg=float(rng.uniform(5, 9)),
+            saturation=float(rng.uniform(0.15, 0.27)),
+            cloth_strength=float(rng.uniform(0.1, 0.25)),
+            cloth_shininess=float(rng.uniform(30, 80)),
+        )
+        return replace(c, sheen=sheen)
     if name == "shadow":
         return replace(c, shadow=float(rng.uniform(0.35, 0.6)))
     if name == "clutter":
@@ -163,7 +210,8 @@ def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Condition
     Parameters
     ----------
     names : iterable of str
-        Names from :data:`CONDITION_NAMES`; ``"combo"`` draws three other conditions.
+        Names from :data:`CONDITION_NAMES`; ``"combo"`` draws three conditions of
+        :data:`~dgli_vision.condition_names.COMBO_POOL`.
     rng : Generator
 
     Returns
@@ -173,7 +221,7 @@ def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Condition
     chosen: list[str] = []
     for name in names:
         if name == "combo":
-            pool = [n for n in CONDITION_NAMES if n not in ("combo", *chosen)]
+            pool = [n for n in COMBO_POOL if n not in chosen]
             chosen += [str(n) for n in rng.choice(pool, 3, replace=False)]
         elif name not in chosen:
             chosen.append(name)
@@ -395,6 +443,86 @@ def highlight_spot(conditions: Conditions, sticker_uv: NDArray, visible: NDArray
     a = rng.uniform(0, 2 * np.pi)
     centre = sticker_uv[sid] + r * np.array([np.cos(a), np.sin(a)])
     return centre, float(rng.uniform(2.0, 5.0)), float(rng.uniform(1.5, 5.0)), sid
+
+
+def sheen_sticker(conditions: Conditions, visible: NDArray) -> int | None:
+    """Id of the sticker the large light is mirrored in (one the camera sees), or None."""
+    ids = np.flatnonzero(visible)
+    if conditions.sheen is None or ids.size == 0:
+        return None
+    return int(np.random.default_rng([conditions.seed, 29]).choice(ids))
+
+
+def mirror_light_direction(normal: NDArray, view: NDArray) -> NDArray[np.float64]:
+    """Unit direction (3,) towards a light whose mirror reflection at a surface of unit
+    ``normal`` reaches the viewer in unit direction ``view`` (both from the surface)."""
+    n = normal if normal @ view >= 0 else -normal
+    light = 2 * (n @ view) * n - view
+    return light / np.linalg.norm(light)
+
+
+def area_light_lobe(
+    normals: NDArray,
+    views: NDArray,
+    light: NDArray,
+    radius_rad: float,
+    shininess: float,
+) -> NDArray[np.float64]:
+    """Blinn-Phong specular lobe (n,) in [0, 1] of a disc-shaped area light.
+
+    The light is a disc of angular radius ``radius_rad`` around the unit direction
+    ``light``. Each surface point takes the point of the disc nearest its mirror
+    direction (the *representative point* of area lights): inside the disc's mirror
+    image the lobe is full (1), outside it falls off as ``(n . h) ** shininess`` with the
+    half-vector ``h`` between that point and the view.
+
+    Parameters
+    ----------
+    normals, views : ndarray, shape (n, 3)
+        Unit surface normals (either side) and unit directions from the surface to the
+        camera.
+    """
+    n = normals * np.where((normals * views).sum(axis=1) < 0, -1.0, 1.0)[:, None]
+    mirror = 2 * (n * views).sum(axis=1)[:, None] * n - views
+    cos_off = np.clip(mirror @ light, -1.0, 1.0)
+    across = mirror - cos_off[:, None] * light
+    norm = np.linalg.norm(across, axis=1)
+    across = across / np.maximum(norm, 1e-12)[:, None]
+    inside = np.arccos(cos_off) <= radius_rad
+    nearest = np.cos(radius_rad) * light + np.sin(radius_rad) * across
+    to_light = np.where(inside[:, None], mirror, nearest)
+    half = to_light + views
+    half /= np.maximum(np.linalg.norm(half, axis=1), 1e-12)[:, None]
+    return np.clip((n * half).sum(axis=1), 0.0, 1.0) ** shininess
+
+
+def specular_for_saturation(
+    diffuse: NDArray, saturation: float, *, tint: NDArray | None = None, peak: float = 0.8
+) -> float:
+    """Grey specular light (linear) that, added to a surface's ``diffuse`` linear RGB (3,),
+    leaves it with this HSV ``saturation`` in sRGB (bisection; 0 if already paler).
+
+    ``tint`` (3,) multiplies the added light, as a camera's channel gains do. The sum is
+    judged as exposed with its brightest channel at ``peak`` (linear): an exposure that
+    keeps it from clipping."""
+    from .colour import linear_to_srgb
+
+    grey = np.ones(3) if tint is None else np.asarray(tint, np.float64)
+
+    def sat(extra: float) -> float:
+        lin = np.asarray(diffuse, np.float64) + extra * grey
+        v = linear_to_srgb(lin * (peak / max(float(lin.max()), 1e-12)))
+        return float(1 - v.min() / max(v.max(), 1e-12))
+
+    if sat(0.0) <= saturation:
+        return 0.0
+    lo, hi = 0.0, 1.0
+    while sat(hi) > saturation:
+        hi *= 2
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if sat(mid) > saturation else (lo, mid)
+    return (lo + hi) / 2
 
 
 # --- image effects ---------------------------------------------------------------------

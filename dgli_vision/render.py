@@ -23,11 +23,15 @@ from .conditions import (
     Conditions,
     SceneObject,
     apply_lens_distortion,
+    area_light_lobe,
     highlight_spot,
     jpeg_roundtrip,
+    mirror_light_direction,
     realistic_depth,
     scene_objects,
     shadow_factor,
+    sheen_sticker,
+    specular_for_saturation,
     wood_albedo,
 )
 from .layout import NapkinLayout, default_layout
@@ -266,6 +270,103 @@ class _Scene:
         )
 
 
+#: Linear level the brightest pixel is exposed to under ``sheen`` (sRGB about 231): a
+#: camera's auto-exposure keeps the large light's reflection from blowing out.
+_SHEEN_EXPOSURE_PEAK = 0.8
+#: HSV saturations every printed colour keeps in the full lobe under ``sheen``: pastel,
+#: yet never so pale and bright that it reads as a highlight (chroma below a quarter of
+#: the brightness, the tool's definition).
+_SHEEN_SATURATION = (0.13, 0.3)
+
+
+@dataclass(frozen=True, eq=False)
+class _SheenLobes:
+    """A large area light's reflection on the cloth hits (see :func:`_sheen_lobes`)."""
+
+    vinyl: NDArray[np.float64]
+    fabric: NDArray[np.float64]
+    napkin: NDArray[np.float32]
+    sticker: int
+    diffuse: NDArray[np.float64]
+    printed: NDArray[np.float64]
+
+    def light(self, cond: Conditions, gain: NDArray) -> NDArray[np.float64]:
+        """Linear light (k, 3) the reflection adds as the camera sees it through ``gain``
+        (3,): the vinyl's strength makes the chosen sticker's disc reach the drawn
+        saturation in the image, within the strengths that keep every printed colour
+        (``printed``, as lit there) in :data:`_SHEEN_SATURATION`."""
+        sheen = cond.sheen
+        assert sheen is not None
+
+        def solve(diffuse: NDArray, saturation: float) -> float:
+            return specular_for_saturation(
+                diffuse * gain, saturation, tint=gain, peak=_SHEEN_EXPOSURE_PEAK
+            )
+
+        strength = solve(self.diffuse, sheen.saturation)
+        # every printed colour in the full lobe stays within the pastel range
+        lo = max(solve(c, _SHEEN_SATURATION[1]) for c in self.printed)
+        hi = min(solve(c, _SHEEN_SATURATION[0]) for c in self.printed)
+        strength = max(lo, min(strength, hi))
+        grey = strength * self.vinyl * (1 - self.napkin) + (
+            sheen.cloth_strength * self.fabric * self.napkin
+        )
+        return grey[:, None] * gain
+
+
+def _sheen_lobes(
+    cond: Conditions,
+    state: ClothState,
+    scene: _Scene,
+    pose: CameraPose,
+    lighting: Lighting,
+    layout: NapkinLayout,
+    hits: dict[str, NDArray],
+    dirs: NDArray,
+    tex: NDArray,
+) -> _SheenLobes | None:
+    """The lobes of a large area light on the cloth hits; None without ``sheen`` or when
+    no sticker is in view.
+
+    The light stands where the mirror direction of the chosen sticker's centre points,
+    so that sticker lies in the full lobe of the vinyl (stickers) and of the fabric.
+    """
+    sheen = cond.sheen
+    sid = sheen_sticker(cond, state.visible)
+    if sheen is None or sid is None:
+        return None
+    point = state.sticker_points[sid]
+    probe = scene.cast(pose.position[None], (point - pose.position)[None])
+    normal = probe["primitive_normals"][0].astype(np.float64)
+    view = pose.position - point
+    view /= np.linalg.norm(view)
+    light = mirror_light_direction(normal, view)
+    sun = np.asarray(lighting.light_direction, np.float64)
+    shade = lighting.ambient + (1 - lighting.ambient) * abs(normal @ sun / np.linalg.norm(sun))
+    printed = srgb_to_linear(np.array(list(layout.colours_srgb.values())) / 255.0) * shade
+    disc = srgb_to_linear(np.array(layout.colours_srgb[layout.sticker_disc[sid]]) / 255.0)
+    on_cloth = hits["geometry_ids"] == scene.cloth_id
+    normals = hits["primitive_normals"][on_cloth].astype(np.float64)
+    views = -dirs[on_cloth] / np.linalg.norm(dirs[on_cloth], axis=1)[:, None]
+    radius = np.radians(sheen.light_radius_deg)
+    return _SheenLobes(
+        vinyl=area_light_lobe(normals, views, light, radius, sheen.shininess),
+        fabric=area_light_lobe(normals, views, light, radius, sheen.cloth_shininess),
+        napkin=tex[:, 3],
+        sticker=sid,
+        diffuse=disc * shade,
+        printed=printed,
+    )
+
+
+def _info(cond: Conditions, sheen: _SheenLobes | None) -> dict:
+    """The render's ``info``: the conditions, and the sticker a large light washes out."""
+    info: dict = {"conditions": cond.label} if cond.names else {}
+    if sheen is not None:
+        info["sheen_sticker"] = sheen.sticker
+    return info
+
+
 def render(
     state: ClothState,
     pose: CameraPose,
@@ -350,17 +451,24 @@ def render(
     if hit_xy is not None and cond.shadow:
         shade = shade * shadow_factor(hit_xy, cond, state.mesh.xyz.mean(axis=0))
     linear = albedo * shade[:, None]
+    sheen = _sheen_lobes(cond, state, scene, pose, lighting, layout, hits, dirs, tex)
     spot = highlight_spot(cond, layout.sticker_uv, state.visible)
     if spot is not None:  # glossy vinyl: a mirror highlight on a sticker, not on the cloth
         centre, sigma, peak, _ = spot
         lobe = np.exp(-((cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
         linear[on_cloth] += (peak * lobe * (1 - tex[:, 3]))[:, None]
+    gain = cond.exposure * np.asarray(cond.colour_gains)  # the camera's, per channel
     if cond.exposure != 1.0 or cond.colour_gains != (1.0, 1.0, 1.0):
         linear = linear * cond.exposure * np.asarray(cond.colour_gains)
     if sensor.enabled:
         exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
         gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
         linear = linear * exposure * gains
+        gain = gain * exposure * gains
+    if sheen is not None:  # semi-gloss vinyl and fabric under a large light
+        linear[on_cloth] += sheen.light(cond, gain)
+        # auto-exposure: the brightest pixel stays below white
+        linear = linear * min(1.0, _SHEEN_EXPOSURE_PEAK / max(float(linear.max()), 1e-9))
     srgb = linear_to_srgb(linear).reshape(h, w, 3) * 255.0
     if sensor.enabled:
         import cv2
@@ -420,5 +528,5 @@ def render(
         visible_fraction=fraction,
         pose=pose,
         intrinsics=intrinsics,
-        info={"conditions": cond.label} if cond.names else {},
+        info=_info(cond, sheen),
     )

@@ -1,0 +1,87 @@
+"""The renderer's newer capture conditions: each makes what it says (the pipeline's answers
+under them are the subject of tests/test_robustness.py)."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from dgli_vision.camera import Intrinsics
+from dgli_vision.colour import srgb_to_linear
+from dgli_vision.dataset import render_sample
+from dgli_vision.layout import default_layout
+
+LAYOUT = default_layout()
+#: Half SPEC's camera in each direction: a quarter of the pixels, to keep the tests fast.
+SMALL = Intrinsics(640, 360, 302.5, 302.5, 319.5, 179.5)
+
+
+def render_small(class_id: str, k: int, seed: int, conditions: tuple[str, ...] = ()):
+    return render_sample(class_id, k, seed, conditions=conditions, intrinsics=SMALL)
+
+
+def disc_ring(result, sid: int, fraction: float = 0.75) -> tuple[NDArray, NDArray]:
+    """Pixel columns and rows of 24 points on a ring of a sticker's disc (outside its dot)."""
+    px = result.intrinsics.project(result.sticker_points_cam[sid : sid + 1])[0]
+    radius = (
+        LAYOUT.disc_diameter_mm / 2e3 * result.intrinsics.fx / result.sticker_points_cam[sid, 2]
+    )
+    ang = np.linspace(0, 2 * np.pi, 24, endpoint=False)
+    u = np.rint(px[0] + fraction * radius * np.cos(ang)).astype(int)
+    v = np.rint(px[1] + fraction * radius * np.sin(ang)).astype(int)
+    return u, v
+
+
+def hsv_of(rgb: NDArray) -> NDArray:
+    """HSV (n, 3) of 8-bit RGB (n, 3): hue in degrees, saturation and value in [0, 1]."""
+    hsv = cv2.cvtColor(rgb.reshape(-1, 1, 3).astype(np.uint8), cv2.COLOR_RGB2HSV_FULL)
+    return hsv.reshape(-1, 3).astype(float) * np.array([360 / 256, 1 / 255, 1 / 255])
+
+
+def hue_gap(a: float, b: float) -> float:
+    return abs((a - b + 180) % 360 - 180)
+
+
+# --- sheen: a large light washes a corner's stickers to pastel ---------------------------
+
+
+def test_sheen_washes_the_mirrored_sticker_to_pastel_keeping_its_hue_and_blows_nothing_out():
+    for class_id, k, seed in (("01", 0, 3), ("08", 2, 3)):
+        s = render_small(class_id, k, seed, ("sheen",))
+        plain = render_small(class_id, k, seed)  # the same scene under the usual light
+        r = s.result
+        sid = r.info["sheen_sticker"]
+        u, v = disc_ring(r, sid)
+        washed = hsv_of(r.color[v, u])
+        before = hsv_of(plain.result.color[v, u])
+        assert 0.1 <= np.median(washed[:, 1]) <= 0.3
+        assert np.median(before[:, 1]) > 0.6  # the same sticker, saturated without it
+        nominal = hsv_of(np.array(LAYOUT.colours_srgb[LAYOUT.sticker_disc[sid]]))[0, 0]
+        assert hue_gap(np.median(washed[:, 0]), nominal) < 20
+        assert r.color.max() < 250  # nothing blown out: no channel near clipping
+
+
+def test_sheen_washes_a_whole_corner_and_brightens_the_napkin_around_it():
+    s = render_small("01", 0, 3, ("sheen",))
+    plain = render_small("01", 0, 3)
+    r = s.result
+    sid = r.info["sheen_sticker"]
+    corner = [i for i in range(16) if (i + 2) % 16 // 4 == (sid + 2) % 16 // 4]
+    for i in corner:  # the corner's four stickers (its two segments)
+        u, v = disc_ring(r, i)
+        assert np.median(hsv_of(r.color[v, u])[:, 1]) < 0.45
+
+    def napkin_beside(result, sticker: int) -> float:
+        """Linear brightness of the bare napkin 45 mm inwards from a sticker."""
+        uv = LAYOUT.sticker_uv[sticker]
+        inward = np.array([LAYOUT.width_mm, LAYOUT.height_mm]) / 2 - uv
+        point = s.state.mesh.interpolate((uv + 45 * inward / np.linalg.norm(inward))[None])
+        cam = result.pose.world_to_camera(point)
+        u, v = np.rint(result.intrinsics.project(cam)[0]).astype(int)
+        patch = result.color[v - 2 : v + 3, u - 2 : u + 3].reshape(-1, 3)
+        return float(srgb_to_linear(np.median(patch, axis=0) / 255).mean())
+
+    far = (sid + 8) % 16  # the opposite corner's sticker
+    lit = napkin_beside(r, sid) / napkin_beside(r, far)
+    assert lit > 1.05 * napkin_beside(plain.result, sid) / napkin_beside(plain.result, far)
