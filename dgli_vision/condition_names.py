@@ -19,6 +19,9 @@ CONDITION_NAMES: tuple[str, ...] = (
     "depth",
     "vga",
     "wood",
+    "mirror",
+    "backface",
+    "depthscale",
     "combo",
 )
 
@@ -54,5 +57,10 @@ CONDITION_HELP: dict[str, str] = {
     "black mats without depth",
     "vga": "640 x 480, fx = fy = 500, camera 600-850 mm",
     "wood": "a light-wood table (saturation about 0.3, with grain)",
-    "combo": "three of the above at once",
+    "mirror": "the camera mirrors its image: colour and depth flipped left to right, "
+    "intrinsics unchanged",
+    "backface": "the napkin lies back face up (turned over about a horizontal axis; "
+    "stickers on both faces)",
+    "depthscale": "depth in the wrong units: x0.8 or x1.25, or x0.75-0.85 or x1.2-1.3",
+    "combo": "three of jpeg ... wood at once",
 }

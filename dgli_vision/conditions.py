@@ -21,7 +21,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .camera import Intrinsics
+from .cloth.states import ClothState, boundary_uv, sticker_visibility
 from .condition_names import COMBO_POOL, CONDITION_HELP, CONDITION_NAMES
+from .layout import NapkinLayout, default_layout
 
 __all__ = [
     "CONDITION_HELP",
@@ -37,6 +39,7 @@ __all__ = [
     "realistic_depth",
     "scene_objects",
     "specular_for_saturation",
+    "turn_over",
 ]
 
 
@@ -132,6 +135,14 @@ class Conditions:
         Offset (du, dv) of the depth image against colour, pixels.
     wood_table : bool
         A light-wood table instead of a matte grey one.
+    mirror : bool
+        The camera mirrors its image: colour and depth flipped left to right together,
+        intrinsics unchanged.
+    backface_axis_deg : float or None
+        The napkin lies back face up: the cloth turned over about a horizontal axis at
+        this azimuth (degrees) through its centre (:func:`turn_over`).
+    depth_scale : float
+        Depth in the wrong units: every reading multiplied by this factor.
     """
 
     names: tuple[str, ...] = ()
@@ -150,6 +161,9 @@ class Conditions:
     depth_noise_mm: float = 1.0
     registration_px: tuple[int, int] = (0, 0)
     wood_table: bool = False
+    mirror: bool = False
+    backface_axis_deg: float | None = None
+    depth_scale: float = 1.0
 
     @property
     def label(self) -> str:
@@ -201,6 +215,16 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
         return c  # the camera is chosen by the data set
     if name == "wood":
         return replace(c, wood_table=True)
+    if name == "mirror":
+        return replace(c, mirror=True)
+    if name == "backface":
+        return replace(c, backface_axis_deg=float(rng.uniform(0, 180)))
+    if name == "depthscale":
+        if rng.random() < 0.5:  # a round wrong unit factor
+            scale = float(rng.choice([0.8, 1.25]))
+        else:
+            scale = float(rng.uniform(0.75, 0.85) if rng.random() < 0.5 else rng.uniform(1.2, 1.3))
+        return replace(c, depth_scale=scale)
     raise ValueError(f"unknown condition {name!r}; expected one of {', '.join(CONDITION_NAMES)}")
 
 
@@ -229,6 +253,37 @@ def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Condition
     for name in chosen:
         c = _draw_one(name, c, rng)
     return c
+
+
+def turn_over(
+    state: ClothState, axis_deg: float, layout: NapkinLayout | None = None
+) -> ClothState:
+    """The cloth turned over, back face up: rotated 180 degrees about the horizontal axis
+    at azimuth ``axis_deg`` through its centre, and laid back on the table.
+
+    The order of the layers reverses (the bottom layer is now on top). The stickers are
+    printed on both faces at the same material points, so they stay where the cloth
+    carries them. Class and variant are kept: they are the front-up state's.
+    """
+    layout = layout or default_layout()
+    xyz = state.mesh.xyz
+    centre = xyz[:, :2].mean(axis=0)
+    a = np.radians(axis_deg)
+    axis = np.array([np.cos(a), np.sin(a)])
+    d = xyz[:, :2] - centre
+    out = np.empty_like(xyz)
+    out[:, :2] = centre + 2 * (d @ axis)[:, None] * axis - d  # 180 degrees about the axis
+    out[:, 2] = xyz[:, 2].max() + xyz[:, 2].min() - xyz[:, 2]  # lowest layer back on the table
+    mesh = state.mesh.with_xyz(out)
+    return replace(
+        state,
+        mesh=mesh,
+        sticker_points=mesh.interpolate(layout.sticker_uv),
+        visible_fraction=sticker_visibility(mesh, layout, thickness_m=layout.thickness_mm * 1e-3),
+        corner_points=mesh.interpolate(layout.corner_uv),
+        boundary=mesh.interpolate(boundary_uv(layout)),
+        params={**state.params, "turned_over_axis_deg": float(axis_deg)},
+    )
 
 
 # --- scene geometry --------------------------------------------------------------------

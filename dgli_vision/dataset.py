@@ -11,7 +11,7 @@ import numpy as np
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
-from .conditions import Conditions, draw_conditions
+from .conditions import Conditions, draw_conditions, turn_over
 from .layout import NapkinLayout, default_layout
 from .render import Lighting, RenderResult, SensorModel, render
 
@@ -186,6 +186,8 @@ def render_sample(
     cond = draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23]))
     intr, heights = _camera_for(cond, intrinsics, layout)
     state = sample_state(class_id, options[(k + seed) % len(options)], rng, layout=layout)
+    if cond.backface_axis_deg is not None:
+        state = turn_over(state, cond.backface_axis_deg, layout)
     pose, camera = random_camera(
         state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights
     )
@@ -256,9 +258,12 @@ def render_sequence(
         progress = sequence_progress(name, n_frames)
 
     def state_at(p: float) -> ClothState:
-        return sequence_state(
+        state = sequence_state(
             name, p, steps=steps, layout=layout, rng=np.random.default_rng(wrinkle_seed), **scene
         )
+        if cond.backface_axis_deg is not None:
+            state = turn_over(state, cond.backface_axis_deg, layout)
+        return state
 
     # the camera must see the napkin at every stage, flaps held up included
     probes = [state_at(p) for p in np.linspace(0, len(steps), 4 * len(steps) + 1)]

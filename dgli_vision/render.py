@@ -500,9 +500,11 @@ def render(
     depth = np.where(valid, depth, 0.0)
     if cond.realistic_depth:
         depth = realistic_depth(depth, cond, rng)
-    depth_mm = np.clip(np.rint(depth), 0, 65535).astype(np.uint16)
+    depth_mm = np.clip(np.rint(depth * cond.depth_scale), 0, 65535).astype(np.uint16)
     if cond.distortion_k1:
         color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion_k1)
+    if cond.mirror:  # the camera flips its image left to right, colour and depth alike
+        color, depth_mm = color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
     if cond.jpeg_quality is not None:
         color = jpeg_roundtrip(color, cond.jpeg_quality)
 
@@ -521,10 +523,15 @@ def render(
     inside = (pix[:, 0] >= 0) & (pix[:, 0] <= w - 1) & (pix[:, 1] >= 0) & (pix[:, 1] <= h - 1)
     seen &= inside
     fraction = seen.reshape(len(layout.sticker_uv), -1).mean(axis=1)
+    points_cam = pose.world_to_camera(state.sticker_points)
+    if cond.mirror:  # where the mirrored image shows them, through the same intrinsics
+        points_cam[:, 0] = (w - 1 - 2 * intrinsics.cx) * points_cam[:, 2] / intrinsics.fx - (
+            points_cam[:, 0]
+        )
     return RenderResult(
         color=color,
         depth_mm=depth_mm,
-        sticker_points_cam=pose.world_to_camera(state.sticker_points),
+        sticker_points_cam=points_cam,
         visible_fraction=fraction,
         pose=pose,
         intrinsics=intrinsics,

@@ -3,6 +3,8 @@ under them are the subject of tests/test_robustness.py)."""
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -17,7 +19,9 @@ LAYOUT = default_layout()
 SMALL = Intrinsics(640, 360, 302.5, 302.5, 319.5, 179.5)
 
 
+@lru_cache(maxsize=16)
 def render_small(class_id: str, k: int, seed: int, conditions: tuple[str, ...] = ()):
+    """Sample ``k`` of a class at a quarter of SPEC's pixels (cached: tests share them)."""
     return render_sample(class_id, k, seed, conditions=conditions, intrinsics=SMALL)
 
 
@@ -85,3 +89,62 @@ def test_sheen_washes_a_whole_corner_and_brightens_the_napkin_around_it():
     far = (sid + 8) % 16  # the opposite corner's sticker
     lit = napkin_beside(r, sid) / napkin_beside(r, far)
     assert lit > 1.05 * napkin_beside(plain.result, sid) / napkin_beside(plain.result, far)
+
+
+# --- mirror, backface, depthscale --------------------------------------------------------
+
+
+def test_mirror_flips_colour_and_depth_together_and_keeps_the_intrinsics():
+    plain = render_small("02", 0, 5)
+    s = render_small("02", 0, 5, ("mirror",))
+    np.testing.assert_array_equal(s.result.color, plain.result.color[:, ::-1])
+    np.testing.assert_array_equal(s.result.depth_mm, plain.result.depth_mm[:, ::-1])
+    assert s.result.intrinsics == plain.result.intrinsics == SMALL
+    assert s.state.class_id == "02"
+    # the truth's points project to where the mirrored image shows the stickers
+    px = SMALL.project(s.result.sticker_points_cam)
+    px0 = SMALL.project(plain.result.sticker_points_cam)
+    np.testing.assert_allclose(px[:, 0], SMALL.width - 1 - px0[:, 0], atol=1e-6)
+    np.testing.assert_allclose(px[:, 1], px0[:, 1], atol=1e-6)
+
+
+def test_backface_turns_the_napkin_over_and_draws_the_stickers_on_the_back_face():
+    flat = render_small("01", 0, 5, ("backface",))
+    r = flat.result
+    assert flat.state.params["turned_over_axis_deg"] == flat.conditions.backface_axis_deg
+    assert r.visible.all()
+    for sid in range(16):  # each sticker shows its printed disc colour on the back face
+        u, v = disc_ring(r, sid)
+        hue = np.median(hsv_of(r.color[v, u])[:, 0])
+        nominal = hsv_of(np.array(LAYOUT.colours_srgb[LAYOUT.sticker_disc[sid]]))[0, 0]
+        assert hue_gap(hue, nominal) < 20, sid
+    # seen from the back, the corners run the other way round: A -> B -> C is clockwise
+    # in the image when front up and counter-clockwise when turned over (or vice versa)
+    front = render_small("01", 0, 5).result
+
+    def turn(result) -> float:
+        a, b, c = result.intrinsics.project(result.sticker_points_cam[[0, 4, 8]])
+        (x0, y0), (x1, y1) = b - a, c - b
+        return float(x0 * y1 - y0 * x1)
+
+    assert np.sign(turn(r)) == -np.sign(turn(front))
+    # a corner folded over lies under the napkin once it is turned over: the layer
+    # order reverses, and the flap's stickers are hidden
+    fold = render_small("02", 0, 5)
+    over = render_small("02", 0, 5, ("backface",))
+    assert over.state.class_id == fold.state.class_id and fold.result.visible.all()
+    flap = {"A": [14, 15, 0, 1], "B": [2, 3, 4, 5], "C": [6, 7, 8, 9], "D": [10, 11, 12, 13]}
+    hidden = ~over.result.visible
+    assert hidden[flap[fold.state.variant]].all() and hidden.sum() == 4
+    assert over.state.mesh.xyz[:, 2].min() == fold.state.mesh.xyz[:, 2].min()
+
+
+def test_depthscale_scales_every_depth_reading_and_leaves_colour_alone():
+    plain = render_small("01", 0, 5)
+    s = render_small("01", 0, 5, ("depthscale",))
+    scale = s.conditions.depth_scale
+    assert 0.75 <= scale <= 0.85 or 1.2 <= scale <= 1.3
+    np.testing.assert_array_equal(s.result.color, plain.result.color)
+    d0, d = plain.result.depth_mm.astype(float), s.result.depth_mm.astype(float)
+    np.testing.assert_array_equal(d0 == 0, d == 0)
+    assert np.abs(d - d0 * scale)[d0 > 0].max() <= 1.0
