@@ -16,6 +16,7 @@ CONDITION_NAMES: tuple[str, ...] = (
     "clutter",
     "gripper",
     "distortion",
+    "distortion-known",
     "depth",
     "vga",
     "wood",
@@ -52,7 +53,10 @@ CONDITION_HELP: dict[str, str] = {
     "shadow": "a robot arm's soft shadow across the napkin (35-60% of the light)",
     "clutter": "3-6 saturated objects on the table (cups, boxes, caps, tape, a post-it)",
     "gripper": "a dark gripper and arm 60-200 mm above the napkin",
-    "distortion": "uncorrected radial lens distortion k1 0.06-0.12",
+    "distortion": "uncorrected lens distortion (k1 0.06-0.12, k2 -0.06-0, p1, p2 within "
+    "+-0.002), intrinsics unchanged",
+    "distortion-known": "one such lens for the whole set, its coefficients written with the "
+    "intrinsics",
     "depth": "flying pixels, parallax holes, 1-3 px registration offset, 2-4 mm noise, "
     "black mats without depth",
     "vga": "640 x 480, fx = fy = 500, camera 600-850 mm",

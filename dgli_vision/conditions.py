@@ -14,7 +14,7 @@ each condition, not tuned to any held-out set.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -34,6 +34,7 @@ __all__ = [
     "apply_lens_distortion",
     "area_light_lobe",
     "draw_conditions",
+    "draw_lens",
     "jpeg_roundtrip",
     "mirror_light_direction",
     "realistic_depth",
@@ -125,8 +126,12 @@ class Conditions:
         Number of saturated objects on the table around the napkin.
     gripper_height_m : float or None
         Height of a dark gripper's lowest point above the napkin's top, metres.
-    distortion_k1 : float
-        Radial distortion coefficient of the lens (intrinsics unchanged).
+    distortion : tuple of float
+        OpenCV's distortion coefficients ``(k1, k2, p1, p2, k3)`` of the lens; empty for
+        an ideal one.
+    distortion_known : bool
+        The lens is the set's own and its coefficients are written with the intrinsics
+        (``distortion-known``); otherwise the intrinsics say nothing of it.
     realistic_depth : bool
         Flying pixels, parallax holes, registration offset, more noise, black mats.
     depth_noise_mm : float
@@ -156,7 +161,8 @@ class Conditions:
     shadow: float = 0.0
     clutter: int = 0
     gripper_height_m: float | None = None
-    distortion_k1: float = 0.0
+    distortion: tuple[float, ...] = ()
+    distortion_known: bool = False
     realistic_depth: bool = False
     depth_noise_mm: float = 1.0
     registration_px: tuple[int, int] = (0, 0)
@@ -164,6 +170,11 @@ class Conditions:
     mirror: bool = False
     backface_axis_deg: float | None = None
     depth_scale: float = 1.0
+
+    @property
+    def distortion_k1(self) -> float:
+        """The lens's first radial coefficient (0 for an ideal lens)."""
+        return float(self.distortion[0]) if self.distortion else 0.0
 
     @property
     def label(self) -> str:
@@ -200,7 +211,9 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
     if name == "gripper":
         return replace(c, gripper_height_m=float(rng.uniform(0.06, 0.20)))
     if name == "distortion":
-        return replace(c, distortion_k1=float(rng.uniform(0.06, 0.12)))
+        return replace(c, distortion=draw_lens(rng))
+    if name == "distortion-known":
+        return replace(c, distortion=draw_lens(rng), distortion_known=True)
     if name == "depth":
         off = rng.integers(1, 4) * rng.choice([-1, 1], 2) * (rng.random(2) < 0.7)
         if not off.any():
@@ -226,6 +239,15 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
             scale = float(rng.uniform(0.75, 0.85) if rng.random() < 0.5 else rng.uniform(1.2, 1.3))
         return replace(c, depth_scale=scale)
     raise ValueError(f"unknown condition {name!r}; expected one of {', '.join(CONDITION_NAMES)}")
+
+
+def draw_lens(rng: np.random.Generator) -> tuple[float, float, float, float, float]:
+    """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)`` of a lens: radial k1
+    0.06-0.12 and k2 -0.06-0, tangential p1, p2 within +-0.002, k3 = 0."""
+    k1 = float(rng.uniform(0.06, 0.12))
+    k2 = float(rng.uniform(-0.06, 0.0))
+    p1, p2 = (float(p) for p in rng.uniform(-0.002, 0.002, 2))
+    return (k1, k2, p1, p2, 0.0)
 
 
 def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Conditions:
@@ -594,20 +616,39 @@ def jpeg_roundtrip(rgb: NDArray[np.uint8], quality: int) -> NDArray[np.uint8]:
 
 
 def apply_lens_distortion(
-    color: NDArray[np.uint8], depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, k1: float
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    coefficients: float | Sequence[float],
 ) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
-    """Images as seen through a lens with radial distortion ``k1`` (Brown model).
+    """Images as seen through a lens with distortion (OpenCV's model).
 
     Each output (distorted) pixel takes the value of the ideal pinhole image at its
-    undistorted position.
+    undistorted position (OpenCV's ``undistortPoints`` with ``P = K``), colour
+    bilinearly, depth from the nearest pixel.
+
+    Parameters
+    ----------
+    color, depth_mm : ndarray
+        The ideal pinhole images.
+    intrinsics : Intrinsics
+        Its camera matrix is used (its own ``distortion`` is not).
+    coefficients : float or sequence of float
+        ``k1`` alone (radial), or OpenCV's ``(k1, k2, p1, p2[, k3...])``.
     """
     import cv2
 
+    if np.ndim(coefficients) == 0:
+        coefficients = (float(coefficients),)
+    d = [float(c) for c in coefficients]
+    n = next((k for k in (4, 5, 8, 12, 14) if k >= len(d)), len(d))
+    dist = np.array(d + [0.0] * (n - len(d)), np.float64)
     h, w = depth_mm.shape
     vv, uu = np.mgrid[0:h, 0:w].astype(np.float32)
     pts = np.stack([uu.ravel(), vv.ravel()], 1)[:, None, :]
     k = intrinsics.matrix()
-    und = cv2.undistortPoints(pts, k, np.array([k1, 0, 0, 0], np.float64), P=k)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-6)
+    und = cv2.undistortPoints(pts, k, dist, P=k, criteria=criteria)
     mx = und[:, 0, 0].reshape(h, w).astype(np.float32)
     my = und[:, 0, 1].reshape(h, w).astype(np.float32)
     color = cv2.remap(color, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -11,7 +11,7 @@ import numpy as np
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
-from .conditions import Conditions, draw_conditions, turn_over
+from .conditions import Conditions, draw_conditions, draw_lens, turn_over
 from .layout import NapkinLayout, default_layout
 from .render import Lighting, RenderResult, SensorModel, render
 
@@ -155,14 +155,26 @@ def sample_name(class_id: str, k: int) -> str:
     return f"{class_id}_{k:03d}"
 
 
+def _set_lens(cond: Conditions, seed: int) -> Conditions:
+    """Under ``distortion-known``, the one lens of the whole set (drawn from its seed), so
+    that every pair of a folder shares the intrinsics that carry its coefficients."""
+    if not cond.distortion_known:
+        return cond
+    return replace(cond, distortion=draw_lens(np.random.default_rng([seed, 37])))
+
+
 def _camera_for(
     cond: Conditions, intrinsics: Intrinsics, layout: NapkinLayout
 ) -> tuple[Intrinsics, tuple[float, float]]:
     """The camera and its height range (m) under the drawn conditions (``vga`` swaps
     both); the range moves back in proportion for a napkin larger than the nominal one."""
-    intr, (lo, hi) = (VGA_INTRINSICS, VGA_HEIGHT_RANGE_M) if "vga" in cond.names else (
-        intrinsics,
-        (0.45, 0.70),
+    intr, (lo, hi) = (
+        (VGA_INTRINSICS, VGA_HEIGHT_RANGE_M)
+        if "vga" in cond.names
+        else (
+            intrinsics,
+            (0.45, 0.70),
+        )
     )
     grow = max(1.0, *layout.fold_scale)
     return intr, (lo * grow, hi * grow)
@@ -183,7 +195,9 @@ def render_sample(
     layout = layout or default_layout()
     options = VARIANTS[class_id]
     rng = np.random.default_rng([seed, int(class_id), k, 7])
-    cond = draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23]))
+    cond = _set_lens(
+        draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23])), seed
+    )
     intr, heights = _camera_for(cond, intrinsics, layout)
     state = sample_state(class_id, options[(k + seed) % len(options)], rng, layout=layout)
     if cond.backface_axis_deg is not None:
@@ -245,7 +259,9 @@ def render_sequence(
     index = list(SEQUENCES).index(name)
     layout = layout or default_layout()
     rng = np.random.default_rng([seed, 1000 + index])
-    cond = draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23]))
+    cond = _set_lens(
+        draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23])), seed
+    )
     intr, heights = _camera_for(cond, intrinsics, layout)
     steps = sequence_steps(name, layout, rng=rng)
     wrinkle_seed = [seed, 1000 + index, 5]

@@ -10,7 +10,7 @@ growing with distance, 1 mm quantisation, and dropouts at depth edges and at ran
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -398,6 +398,9 @@ def render(
         Drives the sensor noise.
     conditions : Conditions, keyword-only
         Capture conditions (:mod:`dgli_vision.conditions`); default: SPEC's clean scene.
+        A lens's distortion is the condition's: the images are rendered through the
+        pinhole of ``intrinsics`` and then distorted, and the result's intrinsics carry
+        the coefficients when the condition makes them known (``distortion-known``).
 
     Returns
     -------
@@ -408,6 +411,8 @@ def render(
     sensor = sensor or SensorModel()
     cond = conditions or Conditions()
     rng = normalize_rng(rng)
+    given = intrinsics
+    intrinsics = replace(intrinsics, distortion=())  # rays: the ideal pinhole camera
     h, w = intrinsics.height, intrinsics.width
     dirs_cam = intrinsics.ray_directions().reshape(-1, 3)
     dirs = dirs_cam @ pose.rotation.T  # world directions with camera-z component 1
@@ -501,8 +506,8 @@ def render(
     if cond.realistic_depth:
         depth = realistic_depth(depth, cond, rng)
     depth_mm = np.clip(np.rint(depth * cond.depth_scale), 0, 65535).astype(np.uint16)
-    if cond.distortion_k1:
-        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion_k1)
+    if any(cond.distortion):
+        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion)
     if cond.mirror:  # the camera flips its image left to right, colour and depth alike
         color, depth_mm = color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
     if cond.jpeg_quality is not None:
@@ -534,6 +539,8 @@ def render(
         sticker_points_cam=points_cam,
         visible_fraction=fraction,
         pose=pose,
-        intrinsics=intrinsics,
+        intrinsics=replace(intrinsics, distortion=cond.distortion)
+        if cond.distortion_known
+        else given,
         info=_info(cond, sheen),
     )

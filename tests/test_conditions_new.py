@@ -3,6 +3,7 @@ under them are the subject of tests/test_robustness.py)."""
 
 from __future__ import annotations
 
+import json
 from functools import lru_cache
 
 import cv2
@@ -148,3 +149,85 @@ def test_depthscale_scales_every_depth_reading_and_leaves_colour_alone():
     d0, d = plain.result.depth_mm.astype(float), s.result.depth_mm.astype(float)
     np.testing.assert_array_equal(d0 == 0, d == 0)
     assert np.abs(d - d0 * scale)[d0 > 0].max() <= 1.0
+
+
+# --- lens distortion: OpenCV's model, unknown or written with the intrinsics -------------
+
+
+def test_distortion_moves_border_stickers_as_opencvs_model_says():
+    plain = render_small("01", 1, 9)
+    s = render_small("01", 1, 9, ("distortion-known",))
+    coeffs = np.array(s.result.intrinsics.distortion)
+    k1, k2, p1, p2, k3 = coeffs
+    assert 0.06 <= k1 <= 0.12 and -0.06 <= k2 <= 0 and max(abs(p1), abs(p2)) <= 0.002
+    assert k3 == 0 and s.result.intrinsics.matrix().tolist() == SMALL.matrix().tolist()
+    pts = plain.result.sticker_points_cam
+    ideal = SMALL.project(pts)
+    seen, _ = cv2.projectPoints(pts / pts[:, 2:], np.zeros(3), np.zeros(3), SMALL.matrix(), coeffs)
+    seen = seen.reshape(-1, 2)
+    far = int(np.argmax(np.linalg.norm(seen - ideal, axis=1)))  # the most displaced sticker
+    radius = LAYOUT.disc_diameter_mm / 2e3 * SMALL.fx / pts[far, 2]
+
+    def centroid(image: NDArray, near: NDArray) -> NDArray:
+        """Centre of the saturated (sticker) pixels within 1.4 radii of ``near``."""
+        u0, v0 = np.rint(near).astype(int)
+        m = int(np.ceil(1.4 * radius))
+        window = image[v0 - m : v0 + m + 1, u0 - m : u0 + m + 1]
+        sat = hsv_of(window.reshape(-1, 3))[:, 1].reshape(window.shape[:2])
+        vv, uu = np.nonzero(sat > 0.45)  # the sticker's disc and dot
+        return np.array([uu.mean() + u0 - m, vv.mean() + v0 - m])
+
+    moved = centroid(s.result.color, seen[far]) - centroid(plain.result.color, ideal[far])
+    assert np.linalg.norm(seen[far] - ideal[far]) > 1.0
+    assert np.linalg.norm(moved - (seen[far] - ideal[far])) < 0.25
+
+
+def test_lens_distortion_moves_colour_and_depth_as_opencvs_full_model_says():
+    from dgli_vision.conditions import apply_lens_distortion
+
+    coeffs = (0.1, -0.05, 0.002, -0.002, 0.0)
+    color = np.zeros((SMALL.height, SMALL.width, 3), np.uint8)
+    depth = np.zeros((SMALL.height, SMALL.width), np.uint16)
+    spots = np.array([[60, 40], [580, 320], [320, 30], [320, 180]])  # corners, edge, centre
+    for u, v in spots:  # 7 x 7 squares centred on the spots
+        color[v - 3 : v + 4, u - 3 : u + 4] = 255
+        depth[v - 3 : v + 4, u - 3 : u + 4] = 600
+    norm = np.column_stack([(spots - [SMALL.cx, SMALL.cy]) / SMALL.fx, np.ones(len(spots))])
+    full, _ = cv2.projectPoints(norm, np.zeros(3), np.zeros(3), SMALL.matrix(), coeffs)
+    radial, _ = cv2.projectPoints(
+        norm, np.zeros(3), np.zeros(3), SMALL.matrix(), (coeffs[0], 0, 0, 0)
+    )
+    full, radial = full.reshape(-1, 2), radial.reshape(-1, 2)
+    c, d = apply_lens_distortion(color, depth, SMALL, coeffs)
+    for k, (u, v) in enumerate(np.rint(full).astype(int)):
+        win_c = c[v - 12 : v + 13, u - 12 : u + 13, 0].astype(float)
+        win_d = (d[v - 12 : v + 13, u - 12 : u + 13] > 0).astype(float)
+        yy, xx = np.mgrid[v - 12 : v + 13, u - 12 : u + 13]
+        for w in (win_c, win_d):  # colour and depth moved alike
+            centre = np.array([(w * xx).sum(), (w * yy).sum()]) / w.sum()
+            assert np.linalg.norm(centre - full[k]) < 0.3, (k, centre, full[k])
+    # the corners move far from where k1 alone would put them: k2 and p count
+    assert np.linalg.norm(full[:2] - radial[:2], axis=1).min() > 3
+
+
+def test_lens_distortion_takes_k1_alone_or_opencvs_coefficient_vector():
+    from dgli_vision.conditions import apply_lens_distortion
+
+    r = render_small("01", 1, 9).result
+    a = apply_lens_distortion(r.color, r.depth_mm, SMALL, 0.1)
+    b = apply_lens_distortion(r.color, r.depth_mm, SMALL, (0.1, 0.0, 0.0, 0.0))
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+
+
+def test_a_known_lens_is_one_for_the_whole_set_and_written_into_intrinsics_json(tmp_path):
+    from dgli_vision.labelled import write_labelled_folder
+
+    samples = [render_small(c, 0, 4, ("distortion-known",)) for c in ("01", "02")]
+    unknown = render_small("01", 0, 4, ("distortion",))
+    assert samples[0].result.intrinsics == samples[1].result.intrinsics
+    assert unknown.result.intrinsics == SMALL  # uncorrected and unannounced
+    write_labelled_folder(tmp_path / "set", samples, {"command": "test"})
+    data = json.loads((tmp_path / "set" / "intrinsics.json").read_text())
+    assert data["distortion"] == list(samples[0].result.intrinsics.distortion)
+    assert len(data["distortion"]) == 5 and data["distortion"][4] == 0.0
