@@ -544,6 +544,12 @@ def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) ->
     type=click.IntRange(2),
     help="Frames of --sequence, spread evenly over its folds.",
 )
+@click.option(
+    "--gripper",
+    is_flag=True,
+    help="A robot's gripper holds the corner being folded in every frame of --sequence "
+    "(without --sequence: the condition grasp).",
+)
 @size_option
 @overwrite_option
 @_handle_errors
@@ -556,6 +562,7 @@ def render_cmd(
     conditions: tuple[str, ...],
     sequence: str | None,
     frames: int,
+    gripper: bool,
     size_mm: tuple[float, float] | None,
     overwrite: bool,
 ) -> None:
@@ -564,6 +571,8 @@ def render_cmd(
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
     """
+    if gripper and "grasp" not in conditions:
+        conditions = (*conditions, "grasp")
     from .cloth.states import CLASS_IDS
     from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
     from .io import guard_outputs

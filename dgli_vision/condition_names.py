@@ -15,6 +15,7 @@ CONDITION_NAMES: tuple[str, ...] = (
     "shadow",
     "clutter",
     "gripper",
+    "grasp",
     "distortion",
     "distortion-known",
     "depth",
@@ -53,6 +54,9 @@ CONDITION_HELP: dict[str, str] = {
     "shadow": "a robot arm's soft shadow across the napkin (35-60% of the light)",
     "clutter": "3-6 saturated objects on the table (cups, boxes, caps, tape, a post-it)",
     "gripper": "a dark gripper and arm 60-200 mm above the napkin",
+    "grasp": "a gripper holds the corner it folds: a fold in progress past 90 degrees or "
+    "just laid flat (a corner rising below 90 degrees on a flat napkin), fingers on the "
+    "corner's tip, the arm going up and away",
     "distortion": "uncorrected lens distortion (k1 0.06-0.12, k2 -0.06-0, p1, p2 within "
     "+-0.002), intrinsics unchanged",
     "distortion-known": "one such lens for the whole set, its coefficients written with the "

@@ -29,12 +29,16 @@ __all__ = [
     "CONDITION_HELP",
     "CONDITION_NAMES",
     "Conditions",
+    "Grasp",
     "SceneObject",
     "Sheen",
     "apply_lens_distortion",
     "area_light_lobe",
     "draw_conditions",
     "draw_lens",
+    "grasp_frame",
+    "held_corner",
+    "held_gripper",
     "jpeg_roundtrip",
     "mirror_light_direction",
     "realistic_depth",
@@ -99,6 +103,29 @@ class Sheen:
 
 
 @dataclass(frozen=True)
+class Grasp:
+    """A robot's gripper holding the corner it folds (``grasp``).
+
+    Attributes
+    ----------
+    settle_deg : float
+        How far the held fold has turned from flat, degrees: 100-170 (a fold in progress,
+        past 90 so the state is already the folded class), or 180 (laid flat, finished,
+        still held).
+    rise_deg : float
+        For a flat napkin (class 01): the first fold of a corner lifted this far, degrees
+        (20-80, below 90 so the state is still flat by the 90-degree rule).
+    corner : int
+        Which corner that first fold takes (0-3 for A-D); its parity also picks which of a
+        side's two corners the gripper holds when a whole side is folded.
+    """
+
+    settle_deg: float
+    rise_deg: float
+    corner: int
+
+
+@dataclass(frozen=True)
 class Conditions:
     """Capture conditions of one render; the default is SPEC's clean scene.
 
@@ -148,6 +175,8 @@ class Conditions:
         this azimuth (degrees) through its centre (:func:`turn_over`).
     depth_scale : float
         Depth in the wrong units: every reading multiplied by this factor.
+    grasp : Grasp or None
+        A gripper holds the corner being folded (the state's ``params["held_corner"]``).
     """
 
     names: tuple[str, ...] = ()
@@ -170,6 +199,7 @@ class Conditions:
     mirror: bool = False
     backface_axis_deg: float | None = None
     depth_scale: float = 1.0
+    grasp: Grasp | None = None
 
     @property
     def distortion_k1(self) -> float:
@@ -232,6 +262,10 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
         return replace(c, mirror=True)
     if name == "backface":
         return replace(c, backface_axis_deg=float(rng.uniform(0, 180)))
+    if name == "grasp":
+        settle = 180.0 if rng.random() < 1 / 3 else float(rng.uniform(100, 170))
+        grasp = Grasp(settle, float(rng.uniform(20, 80)), int(rng.integers(4)))
+        return replace(c, grasp=grasp)
     if name == "depthscale":
         if rng.random() < 0.5:  # a round wrong unit factor
             scale = float(rng.choice([0.8, 1.25]))
@@ -306,6 +340,86 @@ def turn_over(
         boundary=mesh.interpolate(boundary_uv(layout)),
         params={**state.params, "turned_over_axis_deg": float(axis_deg)},
     )
+
+
+def held_corner(fold_word: str, grasp: Grasp) -> str:
+    """The corner a gripper holds while making a fold (a word of
+    :func:`dgli_vision.fold_graph.folds_of`: ``"B over"``, ``"AB strip over"``...): the
+    folded corner, or one of the folded side's two."""
+    where = fold_word.split()[0]
+    return where if len(where) == 1 else where[grasp.corner % 2]
+
+
+def grasp_frame(
+    state: ClothState, corner: str, layout: NapkinLayout | None = None
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Where a gripper takes a corner of the cloth: the corner's tip (3,), world metres;
+    the unit direction out of the cloth from the tip, in the cloth's plane there; and the
+    unit normal of the cloth at the tip."""
+    layout = layout or default_layout()
+    k = "ABCD".index(corner)
+    c = layout.corner_uv
+    here = c[k]
+    e_out = (c[(k + 1) % 4] - here) / np.linalg.norm(c[(k + 1) % 4] - here)
+    e_in = (c[(k - 1) % 4] - here) / np.linalg.norm(c[(k - 1) % 4] - here)
+    tip, p_out, p_in, inner = state.mesh.interpolate(
+        np.stack([here, here + 15 * e_out, here + 15 * e_in, here + 10 * (e_out + e_in)])
+    )
+    normal = np.cross(p_out - tip, p_in - tip)
+    normal /= np.linalg.norm(normal)
+    away = tip - inner
+    away -= (away @ normal) * normal
+    return tip, away / np.linalg.norm(away), normal
+
+
+def _box_in_frame(origin: NDArray, axes: NDArray, lo: tuple, hi: tuple):
+    """A box given in the frame ``axes`` (3 x 3, columns) at ``origin``, world vertices."""
+    v, t = _box(np.asarray(lo, np.float64), np.asarray(hi, np.float64))
+    return origin + v @ axes.T, t
+
+
+def held_gripper(
+    tip: NDArray,
+    away: NDArray,
+    normal: NDArray,
+    rng: np.random.Generator,
+    centre: NDArray | None = None,
+) -> SceneObject:
+    """A dark two-finger gripper whose fingers close on the cloth at a corner's tip, and
+    its arm going up and away.
+
+    The fingers (8 mm thick, 20 mm wide) lie on either side of the cloth, 12 mm over the
+    tip; the palm is beyond the tip; the arm rises gently (about 22 degrees) away from the
+    napkin's ``centre`` (world, optional), where the robot stands.
+    """
+    side = np.cross(normal, away)
+    axes = np.stack([away, side, normal], axis=1)
+    gap = 0.0015  # half the opening: a cloth thickness and a little
+    parts = [
+        _box_in_frame(tip, axes, (-0.012, -0.01, gap), (0.038, 0.01, gap + 0.008)),
+        _box_in_frame(tip, axes, (-0.012, -0.01, -gap - 0.008), (0.038, 0.01, -gap)),
+        _box_in_frame(tip, axes, (0.038, -0.035, -0.025), (0.075, 0.035, 0.025)),
+    ]
+    palm = tip + 0.056 * away
+    level = np.zeros(3)
+    if centre is not None and np.linalg.norm(tip[:2] - centre[:2]) > 0.05:
+        level[:2] = (tip[:2] - centre[:2]) / np.linalg.norm(tip[:2] - centre[:2])
+    elif np.linalg.norm(away[:2]) > 0.3:  # the tip is near the middle: along the fingers
+        level[:2] = away[:2]
+    else:  # and the fingers upright: sideways
+        level[:2] = side[:2]
+    rise = level / np.linalg.norm(level) + np.array([0.0, 0.0, 0.4])
+    rise /= np.linalg.norm(rise)
+    for k in range(6):
+        c = palm + rise * (0.07 + 0.07 * k)
+        parts.append(_box(c - 0.035, c + 0.035))
+    vs, ts, n = [], [], 0
+    for v, t in parts:
+        vs.append(v)
+        ts.append(t + n)
+        n += len(v)
+    dark = tuple(float(x) for x in rng.uniform(0.02, 0.06) * np.ones(3))
+    return SceneObject(np.concatenate(vs), np.concatenate(ts), dark, kind="gripper")
 
 
 # --- scene geometry --------------------------------------------------------------------
@@ -384,6 +498,7 @@ def scene_objects(
     conditions: Conditions,
     napkin_xyz: NDArray[np.float64],
     view_xy: tuple[NDArray, NDArray],
+    held: tuple[NDArray, NDArray, NDArray] | None = None,
 ) -> list[SceneObject]:
     """The solids a condition adds: objects on the table, black mats, a gripper and arm.
 
@@ -394,6 +509,8 @@ def scene_objects(
         The cloth's mesh vertices, world metres (objects keep off it, the gripper is over it).
     view_xy : tuple of ndarray
         Lower and upper world (x, y) of the table area the camera sees.
+    held : tuple of ndarray, optional
+        The corner a gripper holds (:func:`grasp_frame`), under ``grasp``.
 
     Returns
     -------
@@ -476,6 +593,8 @@ def scene_objects(
             n += len(v)
         v = _rotate_z(np.concatenate(vs), np.r_[p, 0.0], yaw)
         objects.append(SceneObject(v, np.concatenate(ts), dark, kind="gripper"))
+    if held is not None:
+        objects.append(held_gripper(*held, rng, centre=napkin_xyz.mean(axis=0)))
     return objects
 
 

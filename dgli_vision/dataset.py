@@ -9,9 +9,10 @@ from typing import Any
 import numpy as np
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
+from .classes import CORNERS
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
-from .conditions import Conditions, draw_conditions, draw_lens, turn_over
+from .conditions import Conditions, Grasp, draw_conditions, draw_lens, held_corner, turn_over
 from .layout import NapkinLayout, default_layout
 from .render import Lighting, RenderResult, SensorModel, render
 
@@ -155,6 +156,35 @@ def sample_name(class_id: str, k: int) -> str:
     return f"{class_id}_{k:03d}"
 
 
+def _grasped_state(
+    class_id: str,
+    variant: str | None,
+    rng: np.random.Generator,
+    layout: NapkinLayout,
+    grasp: Grasp,
+) -> ClothState:
+    """A state of the class with a gripper holding the corner of its last fold, that fold
+    turned ``grasp.settle_deg`` (past 90 degrees, or laid flat); a flat napkin has a first
+    corner rising (below 90 degrees). ``params["held_corner"]`` names the held corner."""
+    if class_id == "01":
+        first = CORNERS[grasp.corner]
+        state = sample_state("02", first, rng, layout=layout, last_fold_deg=grasp.rise_deg)
+    else:
+        deg = grasp.settle_deg if grasp.settle_deg < 180 else None
+        state = sample_state(class_id, variant, rng, layout=layout, last_fold_deg=deg)
+    corner = held_corner(state.params["folds"][-1], grasp)
+    return replace(state, params={**state.params, "held_corner": corner})
+
+
+def _sequence_held_corner(steps: list, state: ClothState, layout: NapkinLayout, grasp: Grasp):
+    """The corner the gripper holds in a frame of a sequence: that of the fold in
+    progress, or of the fold just made (the first fold's on the flat napkin)."""
+    fold = steps[max(len(state.params["angles_deg"]) - 1, 0)]
+    dist = np.linalg.norm(layout.corner_uv - np.asarray(fold.flap), axis=1)
+    nearest = [c for c, d in zip(CORNERS, dist) if d <= dist.min() + 1.0]  # 2 for a side
+    return nearest[grasp.corner % len(nearest)]
+
+
 def _set_lens(cond: Conditions, seed: int) -> Conditions:
     """Under ``distortion-known``, the one lens of the whole set (drawn from its seed), so
     that every pair of a folder shares the intrinsics that carry its coefficients."""
@@ -199,7 +229,11 @@ def render_sample(
         draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23])), seed
     )
     intr, heights = _camera_for(cond, intrinsics, layout)
-    state = sample_state(class_id, options[(k + seed) % len(options)], rng, layout=layout)
+    variant = options[(k + seed) % len(options)]
+    if cond.grasp is not None:
+        state = _grasped_state(class_id, variant, rng, layout, cond.grasp)
+    else:
+        state = sample_state(class_id, variant, rng, layout=layout)
     if cond.backface_axis_deg is not None:
         state = turn_over(state, cond.backface_axis_deg, layout)
     pose, camera = random_camera(
@@ -277,6 +311,9 @@ def render_sequence(
         state = sequence_state(
             name, p, steps=steps, layout=layout, rng=np.random.default_rng(wrinkle_seed), **scene
         )
+        if cond.grasp is not None:
+            corner = _sequence_held_corner(steps, state, layout, cond.grasp)
+            state = replace(state, params={**state.params, "held_corner": corner})
         if cond.backface_axis_deg is not None:
             state = turn_over(state, cond.backface_axis_deg, layout)
         return state

@@ -24,6 +24,7 @@ from .conditions import (
     SceneObject,
     apply_lens_distortion,
     area_light_lobe,
+    grasp_frame,
     highlight_spot,
     jpeg_roundtrip,
     mirror_light_direction,
@@ -418,11 +419,13 @@ def render(
     dirs = dirs_cam @ pose.rotation.T  # world directions with camera-z component 1
     origins = np.broadcast_to(pose.position, dirs.shape)
     objects = []
-    if cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth:
+    corner = state.params.get("held_corner") if cond.grasp is not None else None
+    if cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth or corner:
         corners = dirs.reshape(h, w, 3)[[0, 0, -1, -1], [0, -1, 0, -1]]
         table_xy = pose.position[:2] + corners[:, :2] * (-pose.position[2] / corners[:, 2:])
         view = (table_xy.min(axis=0) + 0.03, table_xy.max(axis=0) - 0.03)
-        objects = scene_objects(cond, state.mesh.xyz, view)
+        held = grasp_frame(state, corner, layout) if corner else None
+        objects = scene_objects(cond, state.mesh.xyz, view, held)
     scene = _Scene(state, objects)
     hits = scene.cast(origins, dirs)
     t_hit = hits["t_hit"].astype(np.float64)  # = z-depth, metres
