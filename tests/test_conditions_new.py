@@ -300,3 +300,62 @@ def test_render_gripper_option_puts_the_grasp_in_a_sequence(tmp_path, monkeypatc
     assert truth["provenance"]["conditions"] == ["grasp"]
     held = [im["state_params"]["held_corner"] for im in truth["images"].values()]
     assert len(held) == 2 and set(held) <= {"A", "B"}
+
+
+# --- the reliability table ----------------------------------------------------------------
+
+
+def fake_outcome(args):
+    """Outcome of pair ``class i``: best guess of confidence (i - 1) / 12, right for odd
+    class numbers, given at 0.25 and above; class 12 has no guess at all."""
+    condition, _, k, class_id = args
+    i = int(class_id)
+    truth = f"{class_id}/x"
+    if i == 12:
+        return f"{class_id}_{k:03d}", truth, None, None, (condition,), None
+    confidence = (i - 1) / 12
+    guess = class_id if i % 2 else "99"
+    given = guess if confidence >= 0.25 else None
+    return f"{class_id}_{k:03d}", truth, given, "x", (condition,), (guess, confidence)
+
+
+def test_the_reliability_table_counts_right_best_guesses_per_confidence_bin(monkeypatch):
+    from dgli_vision import robustness
+
+    monkeypatch.setattr(robustness, "_one", fake_outcome)
+    scores = robustness.score_condition("cast", None, per_class=1, seed=0)
+    scores += robustness.score_condition("combo", None, per_class=1, seed=0)
+    assert len(scores) == 4  # combo's two parts are not counted again
+    rows = robustness.reliability_rows(scores)
+    assert [r["confidence"] for r in rows] == [
+        "[0, 0.1)",
+        "[0.1, 0.25)",
+        "[0.25, 0.5)",
+        "[0.5, 0.75)",
+        "[0.75, 1]",
+    ]
+    # confidences 0, 1/12 | 2/12 | 3/12, 4/12, 5/12 | 6/12, 7/12, 8/12 | 9/12, 10/12
+    assert [r["answers"] for r in rows] == [4, 2, 6, 6, 4]
+    assert [r["right"] for r in rows] == [2, 2, 2, 4, 2]
+    header, table = robustness.reliability_table(scores)
+    assert header == ["confidence", "answers", "right", "right %"]
+    assert table[1] == ["[0.1, 0.25)", "2", "2", "100%"]
+
+
+def test_the_robustness_command_prints_and_writes_the_reliability_table(tmp_path, monkeypatch):
+    from click.testing import CliRunner
+
+    from dgli_vision import robustness
+    from dgli_vision.cli import main
+
+    monkeypatch.setattr(robustness, "_one", fake_outcome)
+    md = tmp_path / "table.md"
+    args = ["robustness", "--per-class", "1", "--conditions", "sheen,mirror", "-j", "1"]
+    res = CliRunner().invoke(main, [*args, "--json", "--markdown", str(md)])
+    assert res.exit_code == 0, res.output
+    data = json.loads(res.output)
+    assert [r["condition"] for r in data["rows"]] == ["sheen", "mirror"]
+    assert [r["answers"] for r in data["reliability"]] == [4, 2, 6, 6, 4]
+    assert "| [0.75, 1] | 4 | 2 | 50% |" in md.read_text()
+    res = CliRunner().invoke(main, args)
+    assert "| [0.5, 0.75) | 6 | 4 | 67% |" in res.output
