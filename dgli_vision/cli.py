@@ -544,6 +544,12 @@ def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) ->
     type=click.IntRange(2),
     help="Frames of --sequence, spread evenly over its folds.",
 )
+@click.option(
+    "--gripper",
+    is_flag=True,
+    help="A robot's gripper holds the corner being folded in every frame of --sequence "
+    "(without --sequence: the condition grasp).",
+)
 @size_option
 @overwrite_option
 @_handle_errors
@@ -556,6 +562,7 @@ def render_cmd(
     conditions: tuple[str, ...],
     sequence: str | None,
     frames: int,
+    gripper: bool,
     size_mm: tuple[float, float] | None,
     overwrite: bool,
 ) -> None:
@@ -564,6 +571,8 @@ def render_cmd(
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
     """
+    if gripper and "grasp" not in conditions:
+        conditions = (*conditions, "grasp")
     from .cloth.states import CLASS_IDS
     from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
     from .io import guard_outputs
@@ -1218,7 +1227,9 @@ def robustness(
 ) -> None:
     """Render fresh pairs under each capture condition and score the answers.
 
-    Right, "cannot tell" (exit 1) and wrong, per condition: the robustness table.
+    Right, "cannot tell" (exit 1) and wrong, per condition: the robustness table. Then
+    the reliability table: for bins of confidence, how many best guesses (those that
+    became "cannot tell" included) were right, over all conditions.
     """
     import os
     from pathlib import Path
@@ -1227,7 +1238,12 @@ def robustness(
     from .io import guard_outputs, write_outputs
     from .references import load_references
     from .report import markdown_table
-    from .robustness import robustness_table, score_condition
+    from .robustness import (
+        reliability_rows,
+        reliability_table,
+        robustness_table,
+        score_condition,
+    )
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
@@ -1245,6 +1261,9 @@ def robustness(
                 )
     header, rows = robustness_table(scores)
     table = markdown_table(header, rows)
+    reliability = "Reliability (best guesses over all conditions):\n\n" + markdown_table(
+        *reliability_table(scores)
+    )
     if as_json:
         click.echo(
             json.dumps(
@@ -1253,6 +1272,7 @@ def robustness(
                     "per_class": per_class,
                     "rows": [dict(zip(header, r)) for r in rows],
                     "wrong": {s.condition: list(s.wrong_cases) for s in scores},
+                    "reliability": reliability_rows(scores),
                 }
             )
         )
@@ -1261,10 +1281,11 @@ def robustness(
         for s in scores:
             for case in s.wrong_cases:
                 click.echo(f"wrong under {s.condition}: {case}")
+        click.echo("\n" + reliability, nl=False)
     if markdown:
         command = _command_line()
         write_outputs(
-            {Path(markdown): f"Robustness: `{command}`\n\n" + table},
+            {Path(markdown): f"Robustness: `{command}`\n\n" + table + "\n" + reliability},
             overwrite=overwrite,
             command=command,
         )

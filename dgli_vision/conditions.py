@@ -14,26 +14,39 @@ each condition, not tuned to any held-out set.
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .camera import Intrinsics
-from .condition_names import CONDITION_HELP, CONDITION_NAMES
+from .cloth.states import ClothState, boundary_uv, sticker_visibility
+from .condition_names import COMBO_POOL, CONDITION_HELP, CONDITION_NAMES
+from .layout import NapkinLayout, default_layout
 
 __all__ = [
     "CONDITION_HELP",
     "CONDITION_NAMES",
     "Conditions",
+    "Grasp",
     "SceneObject",
+    "Sheen",
     "apply_lens_distortion",
+    "area_light_lobe",
     "draw_conditions",
+    "draw_lens",
+    "grasp_frame",
+    "held_corner",
+    "held_gripper",
     "jpeg_roundtrip",
+    "mirror_light_direction",
     "realistic_depth",
     "scene_objects",
+    "specular_for_saturation",
+    "turn_over",
 ]
+
 
 @dataclass(frozen=True)
 class SceneObject:
@@ -60,6 +73,59 @@ class SceneObject:
 
 
 @dataclass(frozen=True)
+class Sheen:
+    """A large area light (a softbox, a window) mirrored in semi-gloss vinyl stickers.
+
+    The light is placed where the mirror direction of one sticker points, so the
+    Blinn-Phong lobe of the vinyl washes that sticker and its neighbours to pastel; the
+    napkin's fabric adds a broad, weak sheen of the same light.
+
+    Attributes
+    ----------
+    shininess : float
+        Blinn-Phong exponent of the stickers' vinyl (150-600).
+    light_radius_deg : float
+        Angular radius of the area light seen from the napkin, degrees.
+    saturation : float
+        HSV saturation the stickers reach where the lobe is full (0.1-0.3); the specular
+        strength is solved for it.
+    cloth_strength : float
+        Peak of the fabric's sheen, linear light (relative to a white of 1).
+    cloth_shininess : float
+        Blinn-Phong exponent of the fabric's broad sheen.
+    """
+
+    shininess: float
+    light_radius_deg: float
+    saturation: float
+    cloth_strength: float
+    cloth_shininess: float
+
+
+@dataclass(frozen=True)
+class Grasp:
+    """A robot's gripper holding the corner it folds (``grasp``).
+
+    Attributes
+    ----------
+    settle_deg : float
+        How far the held fold has turned from flat, degrees: 100-170 (a fold in progress,
+        past 90 so the state is already the folded class), or 180 (laid flat, finished,
+        still held).
+    rise_deg : float
+        For a flat napkin (class 01): the first fold of a corner lifted this far, degrees
+        (20-80, below 90 so the state is still flat by the 90-degree rule).
+    corner : int
+        Which corner that first fold takes (0-3 for A-D); its parity also picks which of a
+        side's two corners the gripper holds when a whole side is folded.
+    """
+
+    settle_deg: float
+    rise_deg: float
+    corner: int
+
+
+@dataclass(frozen=True)
 class Conditions:
     """Capture conditions of one render; the default is SPEC's clean scene.
 
@@ -79,14 +145,20 @@ class Conditions:
         Round-trip the colour image through JPEG at this quality.
     highlight : bool
         Glossy stickers with a lamp's mirror highlight on one of them.
+    sheen : Sheen or None
+        Semi-gloss stickers under a large light: a corner's stickers washed to pastel.
     shadow : float
         Fraction of the light a soft arm shadow across the napkin blocks (0 = none).
     clutter : int
         Number of saturated objects on the table around the napkin.
     gripper_height_m : float or None
         Height of a dark gripper's lowest point above the napkin's top, metres.
-    distortion_k1 : float
-        Radial distortion coefficient of the lens (intrinsics unchanged).
+    distortion : tuple of float
+        OpenCV's distortion coefficients ``(k1, k2, p1, p2, k3)`` of the lens; empty for
+        an ideal one.
+    distortion_known : bool
+        The lens is the set's own and its coefficients are written with the intrinsics
+        (``distortion-known``); otherwise the intrinsics say nothing of it.
     realistic_depth : bool
         Flying pixels, parallax holes, registration offset, more noise, black mats.
     depth_noise_mm : float
@@ -95,6 +167,16 @@ class Conditions:
         Offset (du, dv) of the depth image against colour, pixels.
     wood_table : bool
         A light-wood table instead of a matte grey one.
+    mirror : bool
+        The camera mirrors its image: colour and depth flipped left to right together,
+        intrinsics unchanged.
+    backface_axis_deg : float or None
+        The napkin lies back face up: the cloth turned over about a horizontal axis at
+        this azimuth (degrees) through its centre (:func:`turn_over`).
+    depth_scale : float
+        Depth in the wrong units: every reading multiplied by this factor.
+    grasp : Grasp or None
+        A gripper holds the corner being folded (the state's ``params["held_corner"]``).
     """
 
     names: tuple[str, ...] = ()
@@ -104,14 +186,25 @@ class Conditions:
     colour_noise: float | None = None
     jpeg_quality: int | None = None
     highlight: bool = False
+    sheen: Sheen | None = None
     shadow: float = 0.0
     clutter: int = 0
     gripper_height_m: float | None = None
-    distortion_k1: float = 0.0
+    distortion: tuple[float, ...] = ()
+    distortion_known: bool = False
     realistic_depth: bool = False
     depth_noise_mm: float = 1.0
     registration_px: tuple[int, int] = (0, 0)
     wood_table: bool = False
+    mirror: bool = False
+    backface_axis_deg: float | None = None
+    depth_scale: float = 1.0
+    grasp: Grasp | None = None
+
+    @property
+    def distortion_k1(self) -> float:
+        """The lens's first radial coefficient (0 for an ideal lens)."""
+        return float(self.distortion[0]) if self.distortion else 0.0
 
     @property
     def label(self) -> str:
@@ -132,6 +225,15 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
         return replace(c, exposure=float(rng.uniform(0.35, 0.55)), colour_noise=rng.uniform(6, 10))
     if name == "gloss":
         return replace(c, highlight=True)
+    if name == "sheen":
+        sheen = Sheen(
+            shininess=float(rng.uniform(150, 600)),
+            light_radius_deg=float(rng.uniform(5, 9)),
+            saturation=float(rng.uniform(0.15, 0.27)),
+            cloth_strength=float(rng.uniform(0.1, 0.25)),
+            cloth_shininess=float(rng.uniform(30, 80)),
+        )
+        return replace(c, sheen=sheen)
     if name == "shadow":
         return replace(c, shadow=float(rng.uniform(0.35, 0.6)))
     if name == "clutter":
@@ -139,7 +241,9 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
     if name == "gripper":
         return replace(c, gripper_height_m=float(rng.uniform(0.06, 0.20)))
     if name == "distortion":
-        return replace(c, distortion_k1=float(rng.uniform(0.06, 0.12)))
+        return replace(c, distortion=draw_lens(rng))
+    if name == "distortion-known":
+        return replace(c, distortion=draw_lens(rng), distortion_known=True)
     if name == "depth":
         off = rng.integers(1, 4) * rng.choice([-1, 1], 2) * (rng.random(2) < 0.7)
         if not off.any():
@@ -154,7 +258,30 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
         return c  # the camera is chosen by the data set
     if name == "wood":
         return replace(c, wood_table=True)
+    if name == "mirror":
+        return replace(c, mirror=True)
+    if name == "backface":
+        return replace(c, backface_axis_deg=float(rng.uniform(0, 180)))
+    if name == "grasp":
+        settle = 180.0 if rng.random() < 1 / 3 else float(rng.uniform(100, 170))
+        grasp = Grasp(settle, float(rng.uniform(20, 80)), int(rng.integers(4)))
+        return replace(c, grasp=grasp)
+    if name == "depthscale":
+        if rng.random() < 0.5:  # a round wrong unit factor
+            scale = float(rng.choice([0.8, 1.25]))
+        else:
+            scale = float(rng.uniform(0.75, 0.85) if rng.random() < 0.5 else rng.uniform(1.2, 1.3))
+        return replace(c, depth_scale=scale)
     raise ValueError(f"unknown condition {name!r}; expected one of {', '.join(CONDITION_NAMES)}")
+
+
+def draw_lens(rng: np.random.Generator) -> tuple[float, float, float, float, float]:
+    """OpenCV distortion coefficients ``(k1, k2, p1, p2, k3)`` of a lens: radial k1
+    0.06-0.12 and k2 -0.06-0, tangential p1, p2 within +-0.002, k3 = 0."""
+    k1 = float(rng.uniform(0.06, 0.12))
+    k2 = float(rng.uniform(-0.06, 0.0))
+    p1, p2 = (float(p) for p in rng.uniform(-0.002, 0.002, 2))
+    return (k1, k2, p1, p2, 0.0)
 
 
 def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Conditions:
@@ -163,7 +290,8 @@ def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Condition
     Parameters
     ----------
     names : iterable of str
-        Names from :data:`CONDITION_NAMES`; ``"combo"`` draws three other conditions.
+        Names from :data:`CONDITION_NAMES`; ``"combo"`` draws three conditions of
+        :data:`~dgli_vision.condition_names.COMBO_POOL`.
     rng : Generator
 
     Returns
@@ -173,7 +301,7 @@ def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Condition
     chosen: list[str] = []
     for name in names:
         if name == "combo":
-            pool = [n for n in CONDITION_NAMES if n not in ("combo", *chosen)]
+            pool = [n for n in COMBO_POOL if n not in chosen]
             chosen += [str(n) for n in rng.choice(pool, 3, replace=False)]
         elif name not in chosen:
             chosen.append(name)
@@ -181,6 +309,117 @@ def draw_conditions(names: Iterable[str], rng: np.random.Generator) -> Condition
     for name in chosen:
         c = _draw_one(name, c, rng)
     return c
+
+
+def turn_over(
+    state: ClothState, axis_deg: float, layout: NapkinLayout | None = None
+) -> ClothState:
+    """The cloth turned over, back face up: rotated 180 degrees about the horizontal axis
+    at azimuth ``axis_deg`` through its centre, and laid back on the table.
+
+    The order of the layers reverses (the bottom layer is now on top). The stickers are
+    printed on both faces at the same material points, so they stay where the cloth
+    carries them. Class and variant are kept: they are the front-up state's.
+    """
+    layout = layout or default_layout()
+    xyz = state.mesh.xyz
+    centre = xyz[:, :2].mean(axis=0)
+    a = np.radians(axis_deg)
+    axis = np.array([np.cos(a), np.sin(a)])
+    d = xyz[:, :2] - centre
+    out = np.empty_like(xyz)
+    out[:, :2] = centre + 2 * (d @ axis)[:, None] * axis - d  # 180 degrees about the axis
+    out[:, 2] = xyz[:, 2].max() + xyz[:, 2].min() - xyz[:, 2]  # lowest layer back on the table
+    mesh = state.mesh.with_xyz(out)
+    return replace(
+        state,
+        mesh=mesh,
+        sticker_points=mesh.interpolate(layout.sticker_uv),
+        visible_fraction=sticker_visibility(mesh, layout, thickness_m=layout.thickness_mm * 1e-3),
+        corner_points=mesh.interpolate(layout.corner_uv),
+        boundary=mesh.interpolate(boundary_uv(layout)),
+        params={**state.params, "turned_over_axis_deg": float(axis_deg)},
+    )
+
+
+def held_corner(fold_word: str, grasp: Grasp) -> str:
+    """The corner a gripper holds while making a fold (a word of
+    :func:`dgli_vision.fold_graph.folds_of`: ``"B over"``, ``"AB strip over"``...): the
+    folded corner, or one of the folded side's two."""
+    where = fold_word.split()[0]
+    return where if len(where) == 1 else where[grasp.corner % 2]
+
+
+def grasp_frame(
+    state: ClothState, corner: str, layout: NapkinLayout | None = None
+) -> tuple[NDArray, NDArray, NDArray]:
+    """Where a gripper takes a corner of the cloth: the corner's tip (3,), world metres;
+    the unit direction out of the cloth from the tip, in the cloth's plane there; and the
+    unit normal of the cloth at the tip."""
+    layout = layout or default_layout()
+    k = "ABCD".index(corner)
+    c = layout.corner_uv
+    here = c[k]
+    e_out = (c[(k + 1) % 4] - here) / np.linalg.norm(c[(k + 1) % 4] - here)
+    e_in = (c[(k - 1) % 4] - here) / np.linalg.norm(c[(k - 1) % 4] - here)
+    tip, p_out, p_in, inner = state.mesh.interpolate(
+        np.stack([here, here + 15 * e_out, here + 15 * e_in, here + 10 * (e_out + e_in)])
+    )
+    normal = np.cross(p_out - tip, p_in - tip)
+    normal /= np.linalg.norm(normal)
+    away = tip - inner
+    away -= (away @ normal) * normal
+    return tip, away / np.linalg.norm(away), normal
+
+
+def _box_in_frame(origin: NDArray, axes: NDArray, lo: tuple, hi: tuple):
+    """A box given in the frame ``axes`` (3 x 3, columns) at ``origin``, world vertices."""
+    v, t = _box(np.asarray(lo, np.float64), np.asarray(hi, np.float64))
+    return origin + v @ axes.T, t
+
+
+def held_gripper(
+    tip: NDArray,
+    away: NDArray,
+    normal: NDArray,
+    rng: np.random.Generator,
+    centre: NDArray | None = None,
+) -> SceneObject:
+    """A dark two-finger gripper whose fingers close on the cloth at a corner's tip, and
+    its arm going up and away.
+
+    The fingers (8 mm thick, 20 mm wide) lie on either side of the cloth, 12 mm over the
+    tip; the palm is beyond the tip; the arm rises gently (about 22 degrees) away from the
+    napkin's ``centre`` (world, optional), where the robot stands.
+    """
+    side = np.cross(normal, away)
+    axes = np.stack([away, side, normal], axis=1)
+    gap = 0.0015  # half the opening: a cloth thickness and a little
+    parts = [
+        _box_in_frame(tip, axes, (-0.012, -0.01, gap), (0.038, 0.01, gap + 0.008)),
+        _box_in_frame(tip, axes, (-0.012, -0.01, -gap - 0.008), (0.038, 0.01, -gap)),
+        _box_in_frame(tip, axes, (0.038, -0.035, -0.025), (0.075, 0.035, 0.025)),
+    ]
+    palm = tip + 0.056 * away
+    level = np.zeros(3)
+    if centre is not None and np.linalg.norm(tip[:2] - centre[:2]) > 0.05:
+        level[:2] = (tip[:2] - centre[:2]) / np.linalg.norm(tip[:2] - centre[:2])
+    elif np.linalg.norm(away[:2]) > 0.3:  # the tip is near the middle: along the fingers
+        level[:2] = away[:2]
+    else:  # and the fingers upright: sideways
+        level[:2] = side[:2]
+    rise = level / np.linalg.norm(level) + np.array([0.0, 0.0, 0.4])
+    rise /= np.linalg.norm(rise)
+    for k in range(6):
+        c = palm + rise * (0.07 + 0.07 * k)
+        parts.append(_box(c - 0.035, c + 0.035))
+    vs, ts, n = [], [], 0
+    for v, t in parts:
+        vs.append(v)
+        ts.append(t + n)
+        n += len(v)
+    dark = tuple(float(x) for x in rng.uniform(0.02, 0.06) * np.ones(3))
+    return SceneObject(np.concatenate(vs), np.concatenate(ts), dark, kind="gripper")
 
 
 # --- scene geometry --------------------------------------------------------------------
@@ -259,6 +498,7 @@ def scene_objects(
     conditions: Conditions,
     napkin_xyz: NDArray[np.float64],
     view_xy: tuple[NDArray, NDArray],
+    held: tuple[NDArray, NDArray, NDArray] | None = None,
 ) -> list[SceneObject]:
     """The solids a condition adds: objects on the table, black mats, a gripper and arm.
 
@@ -269,6 +509,8 @@ def scene_objects(
         The cloth's mesh vertices, world metres (objects keep off it, the gripper is over it).
     view_xy : tuple of ndarray
         Lower and upper world (x, y) of the table area the camera sees.
+    held : tuple of ndarray, optional
+        The corner a gripper holds (:func:`grasp_frame`), under ``grasp``.
 
     Returns
     -------
@@ -351,6 +593,8 @@ def scene_objects(
             n += len(v)
         v = _rotate_z(np.concatenate(vs), np.r_[p, 0.0], yaw)
         objects.append(SceneObject(v, np.concatenate(ts), dark, kind="gripper"))
+    if held is not None:
+        objects.append(held_gripper(*held, rng, centre=napkin_xyz.mean(axis=0)))
     return objects
 
 
@@ -397,6 +641,86 @@ def highlight_spot(conditions: Conditions, sticker_uv: NDArray, visible: NDArray
     return centre, float(rng.uniform(2.0, 5.0)), float(rng.uniform(1.5, 5.0)), sid
 
 
+def sheen_sticker(conditions: Conditions, visible: NDArray) -> int | None:
+    """Id of the sticker the large light is mirrored in (one the camera sees), or None."""
+    ids = np.flatnonzero(visible)
+    if conditions.sheen is None or ids.size == 0:
+        return None
+    return int(np.random.default_rng([conditions.seed, 29]).choice(ids))
+
+
+def mirror_light_direction(normal: NDArray, view: NDArray) -> NDArray[np.float64]:
+    """Unit direction (3,) towards a light whose mirror reflection at a surface of unit
+    ``normal`` reaches the viewer in unit direction ``view`` (both from the surface)."""
+    n = normal if normal @ view >= 0 else -normal
+    light = 2 * (n @ view) * n - view
+    return light / np.linalg.norm(light)
+
+
+def area_light_lobe(
+    normals: NDArray,
+    views: NDArray,
+    light: NDArray,
+    radius_rad: float,
+    shininess: float,
+) -> NDArray[np.float64]:
+    """Blinn-Phong specular lobe (n,) in [0, 1] of a disc-shaped area light.
+
+    The light is a disc of angular radius ``radius_rad`` around the unit direction
+    ``light``. Each surface point takes the point of the disc nearest its mirror
+    direction (the *representative point* of area lights): inside the disc's mirror
+    image the lobe is full (1), outside it falls off as ``(n . h) ** shininess`` with the
+    half-vector ``h`` between that point and the view.
+
+    Parameters
+    ----------
+    normals, views : ndarray, shape (n, 3)
+        Unit surface normals (either side) and unit directions from the surface to the
+        camera.
+    """
+    n = normals * np.where((normals * views).sum(axis=1) < 0, -1.0, 1.0)[:, None]
+    mirror = 2 * (n * views).sum(axis=1)[:, None] * n - views
+    cos_off = np.clip(mirror @ light, -1.0, 1.0)
+    across = mirror - cos_off[:, None] * light
+    norm = np.linalg.norm(across, axis=1)
+    across = across / np.maximum(norm, 1e-12)[:, None]
+    inside = np.arccos(cos_off) <= radius_rad
+    nearest = np.cos(radius_rad) * light + np.sin(radius_rad) * across
+    to_light = np.where(inside[:, None], mirror, nearest)
+    half = to_light + views
+    half /= np.maximum(np.linalg.norm(half, axis=1), 1e-12)[:, None]
+    return np.clip((n * half).sum(axis=1), 0.0, 1.0) ** shininess
+
+
+def specular_for_saturation(
+    diffuse: NDArray, saturation: float, *, tint: NDArray | None = None, peak: float = 0.8
+) -> float:
+    """Grey specular light (linear) that, added to a surface's ``diffuse`` linear RGB (3,),
+    leaves it with this HSV ``saturation`` in sRGB (bisection; 0 if already paler).
+
+    ``tint`` (3,) multiplies the added light, as a camera's channel gains do. The sum is
+    judged as exposed with its brightest channel at ``peak`` (linear): an exposure that
+    keeps it from clipping."""
+    from .colour import linear_to_srgb
+
+    grey = np.ones(3) if tint is None else np.asarray(tint, np.float64)
+
+    def sat(extra: float) -> float:
+        lin = np.asarray(diffuse, np.float64) + extra * grey
+        v = linear_to_srgb(lin * (peak / max(float(lin.max()), 1e-12)))
+        return float(1 - v.min() / max(v.max(), 1e-12))
+
+    if sat(0.0) <= saturation:
+        return 0.0
+    lo, hi = 0.0, 1.0
+    while sat(hi) > saturation:
+        hi *= 2
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if sat(mid) > saturation else (lo, mid)
+    return (lo + hi) / 2
+
+
 # --- image effects ---------------------------------------------------------------------
 
 
@@ -411,20 +735,39 @@ def jpeg_roundtrip(rgb: NDArray[np.uint8], quality: int) -> NDArray[np.uint8]:
 
 
 def apply_lens_distortion(
-    color: NDArray[np.uint8], depth_mm: NDArray[np.uint16], intrinsics: Intrinsics, k1: float
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    coefficients: float | Sequence[float],
 ) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
-    """Images as seen through a lens with radial distortion ``k1`` (Brown model).
+    """Images as seen through a lens with distortion (OpenCV's model).
 
     Each output (distorted) pixel takes the value of the ideal pinhole image at its
-    undistorted position.
+    undistorted position (OpenCV's ``undistortPoints`` with ``P = K``), colour
+    bilinearly, depth from the nearest pixel.
+
+    Parameters
+    ----------
+    color, depth_mm : ndarray
+        The ideal pinhole images.
+    intrinsics : Intrinsics
+        Its camera matrix is used (its own ``distortion`` is not).
+    coefficients : float or sequence of float
+        ``k1`` alone (radial), or OpenCV's ``(k1, k2, p1, p2[, k3...])``.
     """
     import cv2
 
+    if np.ndim(coefficients) == 0:
+        coefficients = (float(coefficients),)
+    d = [float(c) for c in coefficients]
+    n = next((k for k in (4, 5, 8, 12, 14) if k >= len(d)), len(d))
+    dist = np.array(d + [0.0] * (n - len(d)), np.float64)
     h, w = depth_mm.shape
     vv, uu = np.mgrid[0:h, 0:w].astype(np.float32)
     pts = np.stack([uu.ravel(), vv.ravel()], 1)[:, None, :]
     k = intrinsics.matrix()
-    und = cv2.undistortPoints(pts, k, np.array([k1, 0, 0, 0], np.float64), P=k)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-6)
+    und = cv2.undistortPoints(pts, k, dist, P=k, criteria=criteria)
     mx = und[:, 0, 0].reshape(h, w).astype(np.float32)
     my = und[:, 0, 1].reshape(h, w).astype(np.float32)
     color = cv2.remap(color, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
+from .classes import CORNERS
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
-from .conditions import Conditions, draw_conditions
+from .conditions import Conditions, Grasp, draw_conditions, draw_lens, held_corner, turn_over
 from .layout import NapkinLayout, default_layout
 from .render import Lighting, RenderResult, SensorModel, render
 
@@ -155,14 +156,55 @@ def sample_name(class_id: str, k: int) -> str:
     return f"{class_id}_{k:03d}"
 
 
+def _grasped_state(
+    class_id: str,
+    variant: str | None,
+    rng: np.random.Generator,
+    layout: NapkinLayout,
+    grasp: Grasp,
+) -> ClothState:
+    """A state of the class with a gripper holding the corner of its last fold, that fold
+    turned ``grasp.settle_deg`` (past 90 degrees, or laid flat); a flat napkin has a first
+    corner rising (below 90 degrees). ``params["held_corner"]`` names the held corner."""
+    if class_id == "01":
+        first = CORNERS[grasp.corner]
+        state = sample_state("02", first, rng, layout=layout, last_fold_deg=grasp.rise_deg)
+    else:
+        deg = grasp.settle_deg if grasp.settle_deg < 180 else None
+        state = sample_state(class_id, variant, rng, layout=layout, last_fold_deg=deg)
+    corner = held_corner(state.params["folds"][-1], grasp)
+    return replace(state, params={**state.params, "held_corner": corner})
+
+
+def _sequence_held_corner(steps: list, state: ClothState, layout: NapkinLayout, grasp: Grasp):
+    """The corner the gripper holds in a frame of a sequence: that of the fold in
+    progress, or of the fold just made (the first fold's on the flat napkin)."""
+    fold = steps[max(len(state.params["angles_deg"]) - 1, 0)]
+    dist = np.linalg.norm(layout.corner_uv - np.asarray(fold.flap), axis=1)
+    nearest = [c for c, d in zip(CORNERS, dist) if d <= dist.min() + 1.0]  # 2 for a side
+    return nearest[grasp.corner % len(nearest)]
+
+
+def _set_lens(cond: Conditions, seed: int) -> Conditions:
+    """Under ``distortion-known``, the one lens of the whole set (drawn from its seed), so
+    that every pair of a folder shares the intrinsics that carry its coefficients."""
+    if not cond.distortion_known:
+        return cond
+    return replace(cond, distortion=draw_lens(np.random.default_rng([seed, 37])))
+
+
 def _camera_for(
     cond: Conditions, intrinsics: Intrinsics, layout: NapkinLayout
 ) -> tuple[Intrinsics, tuple[float, float]]:
     """The camera and its height range (m) under the drawn conditions (``vga`` swaps
     both); the range moves back in proportion for a napkin larger than the nominal one."""
-    intr, (lo, hi) = (VGA_INTRINSICS, VGA_HEIGHT_RANGE_M) if "vga" in cond.names else (
-        intrinsics,
-        (0.45, 0.70),
+    intr, (lo, hi) = (
+        (VGA_INTRINSICS, VGA_HEIGHT_RANGE_M)
+        if "vga" in cond.names
+        else (
+            intrinsics,
+            (0.45, 0.70),
+        )
     )
     grow = max(1.0, *layout.fold_scale)
     return intr, (lo * grow, hi * grow)
@@ -183,9 +225,17 @@ def render_sample(
     layout = layout or default_layout()
     options = VARIANTS[class_id]
     rng = np.random.default_rng([seed, int(class_id), k, 7])
-    cond = draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23]))
+    cond = _set_lens(
+        draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23])), seed
+    )
     intr, heights = _camera_for(cond, intrinsics, layout)
-    state = sample_state(class_id, options[(k + seed) % len(options)], rng, layout=layout)
+    variant = options[(k + seed) % len(options)]
+    if cond.grasp is not None:
+        state = _grasped_state(class_id, variant, rng, layout, cond.grasp)
+    else:
+        state = sample_state(class_id, variant, rng, layout=layout)
+    if cond.backface_axis_deg is not None:
+        state = turn_over(state, cond.backface_axis_deg, layout)
     pose, camera = random_camera(
         state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights
     )
@@ -243,7 +293,9 @@ def render_sequence(
     index = list(SEQUENCES).index(name)
     layout = layout or default_layout()
     rng = np.random.default_rng([seed, 1000 + index])
-    cond = draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23]))
+    cond = _set_lens(
+        draw_conditions(conditions, np.random.default_rng([seed, 1000 + index, 23])), seed
+    )
     intr, heights = _camera_for(cond, intrinsics, layout)
     steps = sequence_steps(name, layout, rng=rng)
     wrinkle_seed = [seed, 1000 + index, 5]
@@ -256,9 +308,15 @@ def render_sequence(
         progress = sequence_progress(name, n_frames)
 
     def state_at(p: float) -> ClothState:
-        return sequence_state(
+        state = sequence_state(
             name, p, steps=steps, layout=layout, rng=np.random.default_rng(wrinkle_seed), **scene
         )
+        if cond.grasp is not None:
+            corner = _sequence_held_corner(steps, state, layout, cond.grasp)
+            state = replace(state, params={**state.params, "held_corner": corner})
+        if cond.backface_axis_deg is not None:
+            state = turn_over(state, cond.backface_axis_deg, layout)
+        return state
 
     # the camera must see the napkin at every stage, flaps held up included
     probes = [state_at(p) for p in np.linspace(0, len(steps), 4 * len(steps) + 1)]

@@ -10,7 +10,7 @@ growing with distance, 1 mm quantisation, and dropouts at depth edges and at ran
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import lru_cache
 
 import numpy as np
@@ -23,11 +23,16 @@ from .conditions import (
     Conditions,
     SceneObject,
     apply_lens_distortion,
+    area_light_lobe,
+    grasp_frame,
     highlight_spot,
     jpeg_roundtrip,
+    mirror_light_direction,
     realistic_depth,
     scene_objects,
     shadow_factor,
+    sheen_sticker,
+    specular_for_saturation,
     wood_albedo,
 )
 from .layout import NapkinLayout, default_layout
@@ -266,6 +271,103 @@ class _Scene:
         )
 
 
+#: Linear level the brightest pixel is exposed to under ``sheen`` (sRGB about 231): a
+#: camera's auto-exposure keeps the large light's reflection from blowing out.
+_SHEEN_EXPOSURE_PEAK = 0.8
+#: HSV saturations every printed colour keeps in the full lobe under ``sheen``: pastel,
+#: yet never so pale and bright that it reads as a highlight (chroma below a quarter of
+#: the brightness, the tool's definition).
+_SHEEN_SATURATION = (0.13, 0.3)
+
+
+@dataclass(frozen=True, eq=False)
+class _SheenLobes:
+    """A large area light's reflection on the cloth hits (see :func:`_sheen_lobes`)."""
+
+    vinyl: NDArray[np.float64]
+    fabric: NDArray[np.float64]
+    napkin: NDArray[np.float32]
+    sticker: int
+    diffuse: NDArray[np.float64]
+    printed: NDArray[np.float64]
+
+    def light(self, cond: Conditions, gain: NDArray) -> NDArray[np.float64]:
+        """Linear light (k, 3) the reflection adds as the camera sees it through ``gain``
+        (3,): the vinyl's strength makes the chosen sticker's disc reach the drawn
+        saturation in the image, within the strengths that keep every printed colour
+        (``printed``, as lit there) in :data:`_SHEEN_SATURATION`."""
+        sheen = cond.sheen
+        assert sheen is not None
+
+        def solve(diffuse: NDArray, saturation: float) -> float:
+            return specular_for_saturation(
+                diffuse * gain, saturation, tint=gain, peak=_SHEEN_EXPOSURE_PEAK
+            )
+
+        strength = solve(self.diffuse, sheen.saturation)
+        # every printed colour in the full lobe stays within the pastel range
+        lo = max(solve(c, _SHEEN_SATURATION[1]) for c in self.printed)
+        hi = min(solve(c, _SHEEN_SATURATION[0]) for c in self.printed)
+        strength = max(lo, min(strength, hi))
+        grey = strength * self.vinyl * (1 - self.napkin) + (
+            sheen.cloth_strength * self.fabric * self.napkin
+        )
+        return grey[:, None] * gain
+
+
+def _sheen_lobes(
+    cond: Conditions,
+    state: ClothState,
+    scene: _Scene,
+    pose: CameraPose,
+    lighting: Lighting,
+    layout: NapkinLayout,
+    hits: dict[str, NDArray],
+    dirs: NDArray,
+    tex: NDArray,
+) -> _SheenLobes | None:
+    """The lobes of a large area light on the cloth hits; None without ``sheen`` or when
+    no sticker is in view.
+
+    The light stands where the mirror direction of the chosen sticker's centre points,
+    so that sticker lies in the full lobe of the vinyl (stickers) and of the fabric.
+    """
+    sheen = cond.sheen
+    sid = sheen_sticker(cond, state.visible)
+    if sheen is None or sid is None:
+        return None
+    point = state.sticker_points[sid]
+    probe = scene.cast(pose.position[None], (point - pose.position)[None])
+    normal = probe["primitive_normals"][0].astype(np.float64)
+    view = pose.position - point
+    view /= np.linalg.norm(view)
+    light = mirror_light_direction(normal, view)
+    sun = np.asarray(lighting.light_direction, np.float64)
+    shade = lighting.ambient + (1 - lighting.ambient) * abs(normal @ sun / np.linalg.norm(sun))
+    printed = srgb_to_linear(np.array(list(layout.colours_srgb.values())) / 255.0) * shade
+    disc = srgb_to_linear(np.array(layout.colours_srgb[layout.sticker_disc[sid]]) / 255.0)
+    on_cloth = hits["geometry_ids"] == scene.cloth_id
+    normals = hits["primitive_normals"][on_cloth].astype(np.float64)
+    views = -dirs[on_cloth] / np.linalg.norm(dirs[on_cloth], axis=1)[:, None]
+    radius = np.radians(sheen.light_radius_deg)
+    return _SheenLobes(
+        vinyl=area_light_lobe(normals, views, light, radius, sheen.shininess),
+        fabric=area_light_lobe(normals, views, light, radius, sheen.cloth_shininess),
+        napkin=tex[:, 3],
+        sticker=sid,
+        diffuse=disc * shade,
+        printed=printed,
+    )
+
+
+def _info(cond: Conditions, sheen: _SheenLobes | None) -> dict:
+    """The render's ``info``: the conditions, and the sticker a large light washes out."""
+    info: dict = {"conditions": cond.label} if cond.names else {}
+    if sheen is not None:
+        info["sheen_sticker"] = sheen.sticker
+    return info
+
+
 def render(
     state: ClothState,
     pose: CameraPose,
@@ -297,6 +399,9 @@ def render(
         Drives the sensor noise.
     conditions : Conditions, keyword-only
         Capture conditions (:mod:`dgli_vision.conditions`); default: SPEC's clean scene.
+        A lens's distortion is the condition's: the images are rendered through the
+        pinhole of ``intrinsics`` and then distorted, and the result's intrinsics carry
+        the coefficients when the condition makes them known (``distortion-known``).
 
     Returns
     -------
@@ -307,16 +412,20 @@ def render(
     sensor = sensor or SensorModel()
     cond = conditions or Conditions()
     rng = normalize_rng(rng)
+    given = intrinsics
+    intrinsics = replace(intrinsics, distortion=())  # rays: the ideal pinhole camera
     h, w = intrinsics.height, intrinsics.width
     dirs_cam = intrinsics.ray_directions().reshape(-1, 3)
     dirs = dirs_cam @ pose.rotation.T  # world directions with camera-z component 1
     origins = np.broadcast_to(pose.position, dirs.shape)
     objects = []
-    if cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth:
+    corner = state.params.get("held_corner") if cond.grasp is not None else None
+    if cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth or corner:
         corners = dirs.reshape(h, w, 3)[[0, 0, -1, -1], [0, -1, 0, -1]]
         table_xy = pose.position[:2] + corners[:, :2] * (-pose.position[2] / corners[:, 2:])
         view = (table_xy.min(axis=0) + 0.03, table_xy.max(axis=0) - 0.03)
-        objects = scene_objects(cond, state.mesh.xyz, view)
+        held = grasp_frame(state, corner, layout) if corner else None
+        objects = scene_objects(cond, state.mesh.xyz, view, held)
     scene = _Scene(state, objects)
     hits = scene.cast(origins, dirs)
     t_hit = hits["t_hit"].astype(np.float64)  # = z-depth, metres
@@ -350,17 +459,24 @@ def render(
     if hit_xy is not None and cond.shadow:
         shade = shade * shadow_factor(hit_xy, cond, state.mesh.xyz.mean(axis=0))
     linear = albedo * shade[:, None]
+    sheen = _sheen_lobes(cond, state, scene, pose, lighting, layout, hits, dirs, tex)
     spot = highlight_spot(cond, layout.sticker_uv, state.visible)
     if spot is not None:  # glossy vinyl: a mirror highlight on a sticker, not on the cloth
         centre, sigma, peak, _ = spot
         lobe = np.exp(-((cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
         linear[on_cloth] += (peak * lobe * (1 - tex[:, 3]))[:, None]
+    gain = cond.exposure * np.asarray(cond.colour_gains)  # the camera's, per channel
     if cond.exposure != 1.0 or cond.colour_gains != (1.0, 1.0, 1.0):
         linear = linear * cond.exposure * np.asarray(cond.colour_gains)
     if sensor.enabled:
         exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
         gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
         linear = linear * exposure * gains
+        gain = gain * exposure * gains
+    if sheen is not None:  # semi-gloss vinyl and fabric under a large light
+        linear[on_cloth] += sheen.light(cond, gain)
+        # auto-exposure: the brightest pixel stays below white
+        linear = linear * min(1.0, _SHEEN_EXPOSURE_PEAK / max(float(linear.max()), 1e-9))
     srgb = linear_to_srgb(linear).reshape(h, w, 3) * 255.0
     if sensor.enabled:
         import cv2
@@ -392,9 +508,11 @@ def render(
     depth = np.where(valid, depth, 0.0)
     if cond.realistic_depth:
         depth = realistic_depth(depth, cond, rng)
-    depth_mm = np.clip(np.rint(depth), 0, 65535).astype(np.uint16)
-    if cond.distortion_k1:
-        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion_k1)
+    depth_mm = np.clip(np.rint(depth * cond.depth_scale), 0, 65535).astype(np.uint16)
+    if any(cond.distortion):
+        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion)
+    if cond.mirror:  # the camera flips its image left to right, colour and depth alike
+        color, depth_mm = color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
     if cond.jpeg_quality is not None:
         color = jpeg_roundtrip(color, cond.jpeg_quality)
 
@@ -413,12 +531,19 @@ def render(
     inside = (pix[:, 0] >= 0) & (pix[:, 0] <= w - 1) & (pix[:, 1] >= 0) & (pix[:, 1] <= h - 1)
     seen &= inside
     fraction = seen.reshape(len(layout.sticker_uv), -1).mean(axis=1)
+    points_cam = pose.world_to_camera(state.sticker_points)
+    if cond.mirror:  # where the mirrored image shows them, through the same intrinsics
+        points_cam[:, 0] = (w - 1 - 2 * intrinsics.cx) * points_cam[:, 2] / intrinsics.fx - (
+            points_cam[:, 0]
+        )
     return RenderResult(
         color=color,
         depth_mm=depth_mm,
-        sticker_points_cam=pose.world_to_camera(state.sticker_points),
+        sticker_points_cam=points_cam,
         visible_fraction=fraction,
         pose=pose,
-        intrinsics=intrinsics,
-        info={"conditions": cond.label} if cond.names else {},
+        intrinsics=replace(intrinsics, distortion=cond.distortion)
+        if cond.distortion_known
+        else given,
+        info=_info(cond, sheen),
     )

@@ -1,5 +1,6 @@
 """The robustness table: for each capture condition, how often the answer is right, an
-honest "cannot tell", or wrong.
+honest "cannot tell", or wrong; and the reliability table: how often the best guess is
+right at each level of confidence, over all conditions.
 
 Each condition renders its own fresh labelled pairs in memory
 (:func:`dgli_vision.dataset.render_samples` with that condition) and classifies them with
@@ -11,11 +12,23 @@ from __future__ import annotations
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
+from itertools import pairwise
 
 from .classes import CLASS_IDS
 from .references import ReferenceSet
 
-__all__ = ["ConditionScore", "robustness_table", "score_condition"]
+__all__ = [
+    "RELIABILITY_BINS",
+    "ConditionScore",
+    "reliability_rows",
+    "reliability_table",
+    "robustness_table",
+    "score_condition",
+]
+
+#: Lower edges of the confidence bins of the reliability table (the last bin ends at 1,
+#: inclusive); 0.25 is the threshold below which the answer is "cannot tell".
+RELIABILITY_BINS: tuple[float, ...] = (0.0, 0.1, 0.25, 0.5, 0.75)
 
 
 @dataclass(frozen=True)
@@ -33,6 +46,12 @@ class ConditionScore:
         Class and variant right.
     wrong_cases : tuple of str
         ``name: true -> predicted`` for each wrong answer.
+    guesses : tuple of (float, bool)
+        Confidence of each pair's best guess, given or not (below the threshold it
+        became "cannot tell"), and whether its class was right; pairs without any guess
+        (too few stickers) are left out.
+    subset : bool
+        The row is a part of another condition's pairs (``combo with gripper``).
     """
 
     condition: str
@@ -42,6 +61,8 @@ class ConditionScore:
     wrong: int
     variant_right: int
     wrong_cases: tuple[str, ...] = ()
+    guesses: tuple[tuple[float, bool], ...] = ()
+    subset: bool = False
 
     def to_row(self) -> list[str]:
         """Markdown row: condition, n, right, cannot tell, wrong, variant right."""
@@ -72,10 +93,10 @@ def _init(refs: ReferenceSet) -> None:
 
 def _one(
     args: tuple[str, int, int, str],
-) -> tuple[str, str, str | None, str | None, tuple[str, ...]]:
+) -> tuple[str, str, str | None, str | None, tuple[str, ...], tuple[str, float] | None]:
     """Render sample ``k`` of a class under a condition and classify it: name, truth
-    (``class/variant``), predicted class and variant (None: cannot tell), and the
-    conditions drawn."""
+    (``class/variant``), predicted class and variant (None: cannot tell), the conditions
+    drawn, and the best guess's class and confidence (None: no guess)."""
     from .dataset import render_sample
     from .frames import RGBDFrame
     from .pipeline import classify_frame
@@ -91,9 +112,11 @@ def _one(
     p = result.prediction
     truth = f"{sample.state.class_id}/{sample.state.variant}"
     drawn = sample.conditions.names
+    g = result.best_guess
+    guess = None if g is None else (g.class_id, float(g.confidence))
     if p is None:
-        return sample.name, truth, None, None, drawn
-    return sample.name, truth, p.class_id, p.variant, drawn
+        return sample.name, truth, None, None, drawn, guess
+    return sample.name, truth, p.class_id, p.variant, drawn, guess
 
 
 def score_condition(
@@ -146,18 +169,21 @@ def score_condition(
                 on_progress(1)
     scores = [_tally(condition, outcomes)]
     if condition == "combo":
-        scores.append(_tally("combo with gripper", [o for o in outcomes if "gripper" in o[4]]))
-        scores.append(
-            _tally("combo without gripper", [o for o in outcomes if "gripper" not in o[4]])
-        )
+        with_ = [o for o in outcomes if "gripper" in o[4]]
+        scores.append(_tally("combo with gripper", with_, subset=True))
+        without = [o for o in outcomes if "gripper" not in o[4]]
+        scores.append(_tally("combo without gripper", without, subset=True))
     return scores
 
 
-def _tally(label: str, outcomes: list) -> ConditionScore:
+def _tally(label: str, outcomes: list, *, subset: bool = False) -> ConditionScore:
     right = abstained = wrong = variant_right = 0
     cases = []
-    for name, truth, cls, variant, drawn in outcomes:
+    guesses = []
+    for name, truth, cls, variant, drawn, guess in outcomes:
         true_cls, true_var = truth.split("/", 1)
+        if guess is not None:
+            guesses.append((guess[1], guess[0] == true_cls))
         if cls is None:
             abstained += 1
         elif cls == true_cls:
@@ -167,7 +193,15 @@ def _tally(label: str, outcomes: list) -> ConditionScore:
             wrong += 1
             cases.append(f"{name} ({'+'.join(drawn) or 'clean'}): {truth} -> {cls}/{variant}")
     return ConditionScore(
-        label, len(outcomes), right, abstained, wrong, variant_right, tuple(cases)
+        label,
+        len(outcomes),
+        right,
+        abstained,
+        wrong,
+        variant_right,
+        tuple(cases),
+        tuple(guesses),
+        subset,
     )
 
 
@@ -175,3 +209,50 @@ def robustness_table(scores: list[ConditionScore]) -> tuple[list[str], list[list
     """Header and rows of the robustness table."""
     header = ["condition", "pairs", "right", "cannot tell", "wrong", "class + variant right"]
     return header, [s.to_row() for s in scores]
+
+
+def reliability_rows(
+    scores: list[ConditionScore], bins: tuple[float, ...] = RELIABILITY_BINS
+) -> list[dict[str, object]]:
+    """How often the best guess is right in each confidence bin, over all conditions.
+
+    Every pair's best guess counts, those below the threshold that became "cannot tell"
+    included; rows that are parts of another condition's pairs are not counted twice.
+
+    Returns
+    -------
+    list of dict
+        One per bin: ``"confidence"`` (``"[0.25, 0.5)"``; the last bin is closed),
+        ``"low"``, ``"high"``, ``"answers"``, ``"right"`` and ``"right_fraction"`` (None
+        for an empty bin).
+    """
+    guesses = [g for s in scores if not s.subset for g in s.guesses]
+    edges = [*bins, 1.0]
+    rows = []
+    for k, (lo, hi) in enumerate(pairwise(edges)):
+        last = k == len(bins) - 1
+        inside = [ok for c, ok in guesses if lo <= c < hi or (last and c == hi)]
+        rows.append(
+            {
+                "confidence": f"[{lo:g}, {hi:g}{']' if last else ')'}",
+                "low": lo,
+                "high": hi,
+                "answers": len(inside),
+                "right": sum(inside),
+                "right_fraction": sum(inside) / len(inside) if inside else None,
+            }
+        )
+    return rows
+
+
+def reliability_table(
+    scores: list[ConditionScore], bins: tuple[float, ...] = RELIABILITY_BINS
+) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of the reliability table (:func:`reliability_rows`)."""
+    header = ["confidence", "answers", "right", "right %"]
+    rows = []
+    for r in reliability_rows(scores, bins):
+        frac = r["right_fraction"]
+        pct = "-" if frac is None else f"{100 * float(frac):.0f}%"
+        rows.append([str(r["confidence"]), str(r["answers"]), str(r["right"]), pct])
+    return header, rows
