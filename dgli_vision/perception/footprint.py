@@ -40,6 +40,10 @@ class FootprintParams:
     close_cells : int
         Side of the closing that fills the stickers' holes in the cloth mask, cells.
         Default 7: a 30 mm sticker spans 4-5 cells at the nearest camera.
+    table_margin : float
+        Least brightness above the median cell (the table: the napkin covers at most
+        about a third of any view SPEC allows) of a cloth cell, relative to the napkin's
+        white. Default 0.15: averaged cells of a table vary by a few hundredths.
     max_fraction : float
         Largest footprint, relative to the napkin's area, taken as measured. Default
         1.06: a flat napkin measures within about 2% of its area; more means the table
@@ -48,6 +52,7 @@ class FootprintParams:
 
     cell_px: int = 8
     close_cells: int = 7
+    table_margin: float = 0.15
     max_fraction: float = 1.06
 
 
@@ -78,8 +83,12 @@ def _cell_areas_mm2(
     h, w = shape
     ys, xs = np.mgrid[0 : h + 1, 0 : w + 1] * cell - 0.5
     d = np.stack(
-        [(xs - intrinsics.cx) / intrinsics.fx, (ys - intrinsics.cy) / intrinsics.fy,
-         np.ones(xs.shape)], axis=-1,
+        [
+            (xs - intrinsics.cx) / intrinsics.fx,
+            (ys - intrinsics.cy) / intrinsics.fy,
+            np.ones(xs.shape),
+        ],
+        axis=-1,
     )  # (h + 1, w + 1, 3)
     x = offset_m * d / (d @ up)[..., None]
     ex = x[:-1, 1:] - x[:-1, :-1]
@@ -141,7 +150,9 @@ def measure_footprint(
     lin = lin / white  # the napkin at 1
     lum = lin.mean(axis=2)
     chroma = lin.max(axis=2) - lin.min(axis=2)
-    cloth = (lum >= q.min_napkin_brightness) & (chroma <= q.neutral_chroma * lum)
+    # Most of the view is table: a table nearly as bright as the napkin raises the bar.
+    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
+    cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
