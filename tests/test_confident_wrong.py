@@ -109,7 +109,7 @@ def test_the_simulated_footprint_is_the_table_area_the_cloth_covers(class_id, fr
 @pytest.mark.parametrize("class_id", ["01", "04", "11", "12"])
 def test_the_measured_footprint_matches_the_simulated_one(class_id):
     s = small(class_id)
-    detections, _, obs = observe(frame(s), LAYOUT)
+    _, _, obs = observe(frame(s), LAYOUT)
     assert obs.footprint is not None
     lo, hi = obs.footprint.fraction(AREA)
     truth = s.state.mesh.footprint_mm2() / AREA
@@ -135,7 +135,7 @@ def test_the_footprint_is_not_measured_when_the_cloth_cannot_be_told_from_the_ta
 @pytest.mark.parametrize(("class_id", "k"), [("01", 0), ("02", 1), ("08", 0), ("11", 1)])
 def test_stickers_a_broad_sheen_washed_to_pastel_are_found(class_id, k):
     s = small(class_id, k, 11, ("sheen",))
-    detections, markers, obs = observe(frame(s), LAYOUT)
+    _, _, obs = observe(frame(s), LAYOUT)
     truth = s.state.visible
     assert np.array_equal(obs.visible & truth, truth), (
         f"missed {np.flatnonzero(truth & ~obs.visible)}"
