@@ -31,6 +31,7 @@ from .errors import CalibrationError
 __all__ = [
     "MATRIX_KEYS",
     "SUPPORTED_DISTORTION_MODELS",
+    "intrinsics_text",
     "load_calibration_text",
     "make_intrinsics",
     "parse_calibration",
@@ -265,3 +266,24 @@ def read_calibration_file(path: Path, source: str) -> Intrinsics:
     if not text.strip():
         raise CalibrationError(f"intrinsics '{source}' is empty")
     return parse_calibration(load_calibration_text(text, source), source)
+
+
+def intrinsics_text(intrinsics: Intrinsics, path: str | Path) -> str:
+    """The file :func:`dgli_vision.frames.read_intrinsics` reads back, by the extension
+    of ``path``: an OpenCV calibration file for ``.yaml``, ``.yml`` and ``.xml``
+    (``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``),
+    else Open3D's intrinsics JSON with ``"distortion"`` (Open3D ignores that key)."""
+    import json
+
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".yaml", ".yml", ".xml"):
+        return json.dumps(intrinsics.to_open3d_dict(), indent=1) + "\n"
+    import cv2
+
+    storage = cv2.FileStorage(suffix, cv2.FILE_STORAGE_WRITE | cv2.FILE_STORAGE_MEMORY)
+    storage.write("image_width", intrinsics.width)
+    storage.write("image_height", intrinsics.height)
+    storage.write("camera_matrix", intrinsics.matrix())
+    d = np.array([intrinsics.distortion or (0.0, 0.0, 0.0, 0.0, 0.0)], dtype=np.float64)
+    storage.write("distortion_coefficients", d)
+    return storage.releaseAndGetString()

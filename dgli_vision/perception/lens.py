@@ -233,7 +233,7 @@ def fit_lens(
     if fit_focal and not np.isfinite(depth).any():
         raise ValueError("fitting the focal length needs the points' depths")
     pose = _initial_pose(intrinsics, plane, pix)
-    k1, k2 = (list(intrinsics.distortion) + [0.0, 0.0])[:2]
+    k1, k2 = (*intrinsics.distortion, 0.0, 0.0)[:2]
     problem = _Problem(intrinsics, plane, pix, depth, True, fit_focal)
     tail = [1.0] if fit_focal else []
     x, sd, rms = _solve(problem, np.array([*pose, k1, k2, *tail]))
@@ -278,8 +278,12 @@ def _reach(intrinsics: Intrinsics, pixels: NDArray[np.float64]) -> float:
     distance to the farthest image corner."""
     centre = np.array([intrinsics.cx, intrinsics.cy])
     corners = np.array(
-        [[0, 0], [intrinsics.width - 1, 0], [0, intrinsics.height - 1],
-         [intrinsics.width - 1, intrinsics.height - 1]],
+        [
+            [0, 0],
+            [intrinsics.width - 1, 0],
+            [0, intrinsics.height - 1],
+            [intrinsics.width - 1, intrinsics.height - 1],
+        ],
         dtype=np.float64,
     )
     corner = np.linalg.norm(corners - centre, axis=1).max()
