@@ -86,7 +86,7 @@ def _numbers(value: Any, what: str, source: str) -> NDArray[np.float64]:
 def parse_distortion(value: Any, source: str, what: str = "distortion") -> tuple[float, ...]:
     """OpenCV distortion coefficients ``(k1, k2, p1, p2[, k3...])`` from a list or an
     ``opencv-matrix``; at most 14 finite numbers (shorter vectors are padded with zeros
-    where used).
+    where used). All zero is no distortion: ``()``, so that equal lenses compare equal.
 
     Raises
     ------
@@ -99,7 +99,7 @@ def parse_distortion(value: Any, source: str, what: str = "distortion") -> tuple
             f"intrinsics '{source}': {what} has {d.size} coefficients; OpenCV's model has "
             f"at most {max(DISTORTION_LENGTHS)} (k1, k2, p1, p2, k3, ...)"
         )
-    return tuple(float(c) for c in d)
+    return tuple(float(c) for c in d) if d.any() else ()
 
 
 def make_intrinsics(

@@ -232,7 +232,7 @@ def _intrinsics(msg: Any) -> tuple[Intrinsics, str | None]:
         int(msg.width),
         int(msg.height),
         *(float(k[i]) for i in (0, 4, 2, 5)),
-        distortion=tuple(d) if usable else (),
+        distortion=tuple(d) if usable and any(d) else (),
     )
     note = None
     if any(abs(v) > 1e-12 for v in d):
