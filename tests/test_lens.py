@@ -244,3 +244,25 @@ def test_calibrate_refuses_a_lens_the_view_does_not_determine(tmp_path):
     assert "poorly constrained" in r.output
     assert not (tmp_path / "lens.json").exists()
     assert (tmp_path / "colours.json").exists()  # the colours are measured all the same
+
+
+@pytest.mark.parametrize(("aside_m", "determined"), [(0.0, False), (0.15, True)])
+def test_a_lens_with_k2_is_either_recovered_or_called_poorly_constrained(aside_m, determined):
+    """Sticker centres seen through k1 = 0.1, k2 = -0.05 (0.1 px noise). With the napkin
+    in the middle of the view, k1 and k2 look alike: no k1 is claimed. Off to one side,
+    the stickers reach towards the border and both are recovered."""
+    from dgli_vision.perception.lens import fit_lens
+
+    uv = default_layout().sticker_uv
+    obj = np.column_stack([uv * 1e-3, np.zeros(len(uv))])
+    rvec, tvec = np.array([np.pi, 0.03, -0.02]), np.array([aside_m - 0.2, 0.2, 0.40])
+    true = (0.1, -0.05, 0.0, 0.0)
+    px, _ = cv2.projectPoints(obj, rvec, tvec, K, np.array(true))
+    px = px.reshape(-1, 2) + np.random.default_rng(1).normal(0, 0.1, (len(uv), 2))
+    z = (obj @ cv2.Rodrigues(rvec)[0].T + tvec)[:, 2]
+    est = fit_lens(DEFAULT_INTRINSICS, uv, px, z)
+    assert est.constrained == determined, est.problem
+    if determined:
+        assert abs(est.k1 - 0.1) < 0.01 and abs(est.k2 + 0.05) < 0.01
+    else:
+        assert "k1 is known only to" in est.problem

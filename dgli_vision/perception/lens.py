@@ -8,9 +8,10 @@ least squares to the detected centres. The principal point stays as given.
 Two things differ from a chessboard. A cloth napkin is never perfectly flat: a wrinkle a
 few millimetres high moves an off-centre sticker by pixels, as much as the lens does.
 The depth image says how far each sticker is, so each model point is moved along the
-napkin's normal to its measured depth before it is projected. And 16 points from one
-view say little about the lens if they stay near the image centre, where distortion is
-small: the fit's own uncertainty (from its Jacobian and residuals) tells when the
+napkin's normal by how far its measured depth lies off the fitted plane before it is
+projected. And 16 points from one view say little about the lens if they stay near the
+image centre, where distortion is small and ``k1`` and ``k2`` look alike: the fit's own
+uncertainty (from its Jacobian and residuals, with a prior on ``k2``) tells when the
 estimate is poorly constrained, and then no number is given as if it were known.
 """
 
@@ -42,10 +43,12 @@ DEPTH_SIGMA_MM = 1.0
 #: 0.01 within which a lens is told apart, at two standard deviations).
 MAX_K1_SD = 0.005
 
-#: ``k2`` is fitted only when the view determines it this well (and ``k1`` with it);
-#: otherwise it is fixed at the given value (0 by default), and ``k1`` is the best radial
-#: term for the radii seen.
-MAX_K2_SD = 0.01
+#: ``k2`` is fitted with this prior: 0 +/- 0.03, the spread of the lenses of RGB-D colour
+#: cameras. A view whose stickers stay near the centre barely tells ``k2`` from ``k1``;
+#: the prior keeps ``k2`` near 0 there, and ``k1``'s standard deviation then counts what
+#: the view leaves open about ``k2`` (holding ``k2`` at 0 instead would give a ``k1``
+#: that fits the radii seen but claims far more precision than it has).
+K2_PRIOR_SD = 0.03
 
 #: The focal length (with ``fit_focal``) is taken as known to this fraction (sd).
 MAX_FOCAL_SD = 0.005
@@ -62,7 +65,8 @@ class LensEstimate:
     k1, k1_sd : float
         The radial coefficient and its standard deviation.
     k2, k2_sd : float
-        ``k2_sd`` is NaN when ``k2`` was held fixed (not determined by this view).
+        ``k2_sd`` is NaN when ``k2`` was held fixed. With a view that barely shows it,
+        ``k2`` stays near its prior (0) and its ``k2_sd`` near the prior's 0.03.
     focal, focal_sd : float
         ``fx`` (``fy`` keeps its ratio to it); ``focal_sd`` is NaN when held fixed.
     rms_px : float
@@ -151,13 +155,15 @@ class _Problem:
         lens = self.lens(x)
         norm = np.column_stack([pts[:, 0] / pts[:, 2], pts[:, 1] / pts[:, 2]])
         ideal = np.column_stack([lens.fx * norm[:, 0] + lens.cx, lens.fy * norm[:, 1] + lens.cy])
-        res = (lens.distort_pixels(ideal) - self.pixels).reshape(-1)
-        if not self.fit_focal:
-            return res
-        # the distance, and with it the focal length, from the depths
-        known = np.isfinite(self.depth_m)
-        dz = (pts[known, 2] - self.depth_m[known]) * 1e3 / DEPTH_SIGMA_MM * CENTRE_SIGMA_PX
-        return np.concatenate([res, dz])
+        parts = [(lens.distort_pixels(ideal) - self.pixels).reshape(-1)]
+        if self.fit_k2:  # the prior, in units of the pixel residuals
+            k2 = (*self.intrinsics.distortion, 0.0, 0.0)[1]
+            parts.append(np.array([(x[7] - k2) / K2_PRIOR_SD * CENTRE_SIGMA_PX]))
+        if self.fit_focal:  # the distance, and with it the focal length, from the depths
+            known = np.isfinite(self.depth_m)
+            dz = (pts[known, 2] - self.depth_m[known]) * 1e3 / DEPTH_SIGMA_MM
+            parts.append(dz * CENTRE_SIGMA_PX)
+        return np.concatenate(parts)
 
 
 def _initial_pose(
@@ -218,7 +224,8 @@ def fit_lens(
         ``fit_focal`` (one view of a plane seen square-on does not tell the focal length
         from the distance).
     fit_k2 : bool, keyword-only
-        Try to fit ``k2`` too; it is kept fixed when the view does not determine it.
+        Fit ``k2`` too (with the prior :data:`K2_PRIOR_SD`); otherwise it is held at the
+        given value.
     fit_focal : bool, keyword-only
         Fit the focal length (``fx``, ``fy`` in the same ratio) too.
 
@@ -234,14 +241,10 @@ def fit_lens(
         raise ValueError("fitting the focal length needs the points' depths")
     pose = _initial_pose(intrinsics, plane, pix)
     k1, k2 = (*intrinsics.distortion, 0.0, 0.0)[:2]
-    problem = _Problem(intrinsics, plane, pix, depth, True, fit_focal)
-    tail = [1.0] if fit_focal else []
-    x, sd, rms = _solve(problem, np.array([*pose, k1, k2, *tail]))
-    k2_sd = float(sd[7])
-    if not fit_k2 or not (k2_sd <= MAX_K2_SD and sd[6] <= MAX_K1_SD):
-        problem = replace(problem, fit_k2=False)
-        x, sd, rms = _solve(problem, np.array([*pose, k1, *tail]))
-        k2_sd = float("nan")
+    problem = _Problem(intrinsics, plane, pix, depth, fit_k2, fit_focal)
+    start = [*pose, k1, *([k2] if fit_k2 else []), *([1.0] if fit_focal else [])]
+    x, sd, rms = _solve(problem, np.array(start))
+    k2_sd = float(sd[7]) if fit_k2 else float("nan")
     lens = problem.lens(x)
     focal_sd = float(sd[-1] * intrinsics.fx) if fit_focal else float("nan")
     k1_sd = float(sd[6])
@@ -250,7 +253,8 @@ def fit_lens(
     if not (k1_sd <= MAX_K1_SD):
         problems.append(
             f"k1 is known only to +/- {k1_sd:.3f}: the stickers reach {reach:.0%} of the way "
-            "to the image corner; place the napkin so that it fills more of the view"
+            "to the image corner; place the napkin off to one side so that its stickers "
+            "reach towards a corner, or fill more of the view"
         )
     if fit_focal and not (focal_sd <= MAX_FOCAL_SD * intrinsics.fx):
         problems.append(
