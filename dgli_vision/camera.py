@@ -8,6 +8,12 @@ Conventions, stated once:
   that SPEC's ``cx = 639.5`` is the middle of a 1280-pixel row. Rendering and
   deprojection both use this convention (the round trip is tested).
 * Depth is z in the camera frame (not the distance along the ray).
+* Lens distortion follows OpenCV's model (``k1, k2, p1, p2[, k3...]``). Images are used
+  as recorded (distorted): :meth:`Intrinsics.project` gives the pixel where a point is
+  *seen*, distortion included; :meth:`Intrinsics.deproject` and
+  :meth:`Intrinsics.ray_directions` are the plain pinhole model of the pixels as they are.
+  :meth:`Intrinsics.undistort_pixels` gives the ideal pinhole pixel of a seen one, so that
+  ``deproject(undistort_pixels(px), z)`` is the true point.
 * Open3D's intrinsics JSON stores ``intrinsic_matrix`` column by column.
 """
 
@@ -18,7 +24,13 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ["DEFAULT_INTRINSICS", "CameraPose", "Intrinsics", "look_at_table"]
+__all__ = [
+    "DEFAULT_INTRINSICS",
+    "DISTORTION_LENGTHS",
+    "CameraPose",
+    "Intrinsics",
+    "look_at_table",
+]
 
 
 @dataclass(frozen=True)
@@ -80,11 +92,54 @@ class Intrinsics:
         return d
 
     def project(self, points_cam: ArrayLike) -> NDArray[np.float64]:
-        """Pixel coordinates (n, 2) of camera-frame points (n, 3)."""
+        """Pixel coordinates (n, 2) where camera-frame points (n, 3) are seen.
+
+        With lens distortion, the pinhole pixel is distorted (:meth:`distort_pixels`), so
+        that the pixel is where the point appears in the recorded image."""
         p = np.asarray(points_cam, dtype=np.float64)
-        return np.stack(
+        px = np.stack(
             [self.fx * p[:, 0] / p[:, 2] + self.cx, self.fy * p[:, 1] / p[:, 2] + self.cy], 1
         )
+        return self.distort_pixels(px) if self.distorted else px
+
+    def undistort_pixels(self, pixels: ArrayLike) -> NDArray[np.float64]:
+        """Ideal pinhole pixels (n, 2) of pixels (n, 2) of the distorted image.
+
+        OpenCV's ``undistortPoints`` with ``P = K``; iterated to a thousandth of a pixel.
+        The pixels are returned unchanged (as floats) for an ideal lens.
+        """
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if not self.distorted or not len(px):
+            return px.copy()
+        import cv2
+
+        k = self.matrix()
+        out = cv2.undistortPoints(
+            px[:, None, :], k, self._coefficients(), P=k, criteria=_UNDISTORT_CRITERIA
+        )
+        return out.reshape(-1, 2).astype(np.float64)
+
+    def distort_pixels(self, pixels: ArrayLike) -> NDArray[np.float64]:
+        """Pixels (n, 2) of the distorted image where ideal pinhole pixels (n, 2) are seen
+        (OpenCV's ``projectPoints``); the inverse of :meth:`undistort_pixels`."""
+        px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
+        if not self.distorted or not len(px):
+            return px.copy()
+        import cv2
+
+        norm = np.column_stack(
+            [(px[:, 0] - self.cx) / self.fx, (px[:, 1] - self.cy) / self.fy, np.ones(len(px))]
+        )
+        out, _ = cv2.projectPoints(
+            norm, np.zeros(3), np.zeros(3), self.matrix(), self._coefficients()
+        )
+        return out.reshape(-1, 2).astype(np.float64)
+
+    def _coefficients(self) -> NDArray[np.float64]:
+        """The distortion coefficients as OpenCV wants them (padded to 4 or 5 numbers)."""
+        d = list(self.distortion)
+        n = next((k for k in DISTORTION_LENGTHS if k >= len(d)), len(d))
+        return np.array(d + [0.0] * (n - len(d)), dtype=np.float64)
 
     def deproject(self, pixels: ArrayLike, depth_m: ArrayLike) -> NDArray[np.float64]:
         """Camera-frame points (n, 3) of pixels (n, 2) at z-depths (n,) in metres."""
@@ -93,6 +148,13 @@ class Intrinsics:
         return np.stack(
             [(px[:, 0] - self.cx) / self.fx * z, (px[:, 1] - self.cy) / self.fy * z, z], 1
         )
+
+
+#: Iterations of the inverse distortion: 40 or until it moves less than 1e-6 (normalised).
+_UNDISTORT_CRITERIA = (3, 40, 1e-6)  # cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS
+
+#: Lengths of OpenCV's distortion vectors.
+DISTORTION_LENGTHS = (4, 5, 8, 12, 14)
 
 
 #: SPEC section 4's default: a nominal Azure Kinect DK colour camera at 1280 x 720.

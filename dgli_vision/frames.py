@@ -128,13 +128,17 @@ def read_depth(path: str | Path) -> NDArray[np.uint16]:
 
 
 def parse_intrinsics(data: Any, source: str) -> Intrinsics:
-    """Validate Open3D ``PinholeCameraIntrinsic`` JSON (matrix column-major).
+    """Validate Open3D ``PinholeCameraIntrinsic`` JSON (matrix column-major), with an
+    optional ``"distortion": [k1, k2, p1, p2[, k3...]]`` (OpenCV's order; Open3D itself
+    ignores the key).
 
     Raises
     ------
     CalibrationError
         Naming ``source`` and what is wrong.
     """
+    from .intrinsics_files import make_intrinsics, parse_distortion
+
     if not isinstance(data, dict):
         raise CalibrationError(f"intrinsics '{source}' must be a JSON object")
     missing = [k for k in ("width", "height", "intrinsic_matrix") if k not in data]
@@ -151,33 +155,62 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
             f"intrinsics '{source}': intrinsic_matrix must be 9 finite numbers, got {m!r}"
         )
     fx, fy, cx, cy = k[0], k[4], k[6], k[7]
-    if width <= 0 or height <= 0:
-        raise CalibrationError(
-            f"intrinsics '{source}': image size {width}x{height} is not positive"
-        )
-    if fx <= 0 or fy <= 0:
-        raise CalibrationError(
-            f"intrinsics '{source}': focal lengths fx={fx}, fy={fy} must be positive"
-        )
+    if width <= 0 or height <= 0 or fx <= 0 or fy <= 0:
+        return make_intrinsics(width, height, fx, fy, cx, cy, (), source)  # raises
     if abs(k[8] - 1) > 1e-9 or any(abs(k[i]) > 1e-9 for i in (1, 2, 3, 5)):
         raise CalibrationError(
             f"intrinsics '{source}': intrinsic_matrix {k.tolist()} is not a pinhole matrix "
             "[fx, 0, 0, 0, fy, 0, cx, cy, 1] (column-major)"
         )
-    if not (0 <= cx <= width and 0 <= cy <= height):
-        raise CalibrationError(
-            f"intrinsics '{source}': principal point ({cx}, {cy}) lies outside the "
-            f"{width}x{height} image"
-        )
-    return Intrinsics(width, height, float(fx), float(fy), float(cx), float(cy))
+    distortion: tuple[float, ...] = ()
+    if data.get("distortion") is not None:
+        distortion = parse_distortion(data["distortion"], source)
+    return make_intrinsics(width, height, fx, fy, cx, cy, distortion, source)
+
+
+def _looks_like_json(p: Path) -> bool:
+    """Whether a file of no telling extension starts like JSON (``{`` or ``[``)."""
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(256).lstrip(b"\xef\xbb\xbf \t\r\n")
+    except OSError:
+        return True  # let the JSON reader say what is wrong
+    return head[:1] in (b"{", b"[")
 
 
 def read_intrinsics(path: str | Path) -> Intrinsics:
-    """Read an Open3D intrinsics JSON file."""
+    """Read camera intrinsics, with lens distortion when the file gives it.
+
+    Open3D's intrinsics JSON (optionally with ``"distortion"``), an OpenCV calibration
+    file (YAML, JSON or XML as ``cv2.FileStorage`` writes it: ``camera_matrix``,
+    ``distortion_coefficients``, ``image_width``, ``image_height``) or a ROS
+    ``camera_info`` YAML; told apart by extension and content (see
+    :mod:`dgli_vision.intrinsics_files`).
+
+    Raises
+    ------
+    UnreadableInputError
+        The file does not exist or is a directory.
+    CalibrationError
+        One line naming the file and what is wrong.
+    """
+    from .intrinsics_files import MATRIX_KEYS, parse_calibration, read_calibration_file
+
+    p = Path(path)
+    suffix = p.suffix.lower()
+    if p.is_file() and suffix != ".json":
+        if suffix in (".yaml", ".yml", ".xml") or not _looks_like_json(p):
+            return read_calibration_file(p, str(path))
     try:
         data = read_json(path, what="intrinsics")
     except InvalidInputError as exc:
         raise CalibrationError(str(exc)) from None
+    if (
+        isinstance(data, dict)
+        and "intrinsic_matrix" not in data
+        and any(key in data for key in MATRIX_KEYS)
+    ):
+        return parse_calibration(data, str(path))
     return parse_intrinsics(data, str(path))
 
 

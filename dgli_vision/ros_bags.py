@@ -219,14 +219,28 @@ def _info_field(msg: Any, name: str) -> Any:
 
 
 def _intrinsics(msg: Any) -> tuple[Intrinsics, str | None]:
+    """Intrinsics of a ``CameraInfo``, with its ``d`` when the model is OpenCV's
+    (``plumb_bob``, ``rational_polynomial``); a note says what was done with a lens
+    distortion that is not zero."""
+    from .intrinsics_files import SUPPORTED_DISTORTION_MODELS
+
     k, d = _info_field(msg, "k"), _info_field(msg, "d")
-    intr = Intrinsics(int(msg.width), int(msg.height), *(float(k[i]) for i in (0, 4, 2, 5)))
+    d = [float(v) for v in d] if d is not None else []
+    model = str(getattr(msg, "distortion_model", "") or "")
+    usable = model in ("", *SUPPORTED_DISTORTION_MODELS) and len(d) <= 14
+    intr = Intrinsics(
+        int(msg.width),
+        int(msg.height),
+        *(float(k[i]) for i in (0, 4, 2, 5)),
+        distortion=tuple(d) if usable and any(d) else (),
+    )
     note = None
-    if d is not None and len(d) and any(abs(float(v)) > 1e-12 for v in d):
-        coeffs = ", ".join(f"{float(v):.4g}" for v in d)
-        note = (
-            f"camera_info has non-zero {msg.distortion_model or 'lens'} distortion "
-            f"[{coeffs}]; images are used as recorded (not undistorted)"
+    if any(abs(v) > 1e-12 for v in d):
+        coeffs = ", ".join(f"{v:.4g}" for v in d)
+        note = f"camera_info has non-zero {model or 'lens'} distortion [{coeffs}]; " + (
+            "sticker centres are undistorted with it"
+            if usable
+            else "not a model dgli reads, so images are used as recorded (not undistorted)"
         )
     return intr, note
 

@@ -38,12 +38,18 @@ def lift_stickers(detections: StickerDetections, intrinsics: Intrinsics) -> Mark
     :func:`~dgli_vision.perception.detect.detect_stickers`), so a missing or noisy
     reading at the centroid pixel does not matter; a sticker without any valid depth
     inside stays missing.
+
+    With lens distortion (``intrinsics.distortion``) the centroid, found in the
+    distorted image, is undistorted before it is deprojected. The depth stays the one
+    read around the distorted centroid: depth registered to colour holds, at each colour
+    pixel, the z of the point seen there, and undistortion does not change z.
     """
     z = detections.depth_mm * 1e-3
     ok = detections.found & np.isfinite(z) & (z > 0)
     points = np.full((len(z), 3), np.nan)
     if ok.any():
-        points[ok] = intrinsics.deproject(detections.centroids[ok], z[ok])
+        centres = intrinsics.undistort_pixels(detections.centroids[ok])
+        points[ok] = intrinsics.deproject(centres, z[ok])
     return Markers3D(points)
 
 
@@ -106,6 +112,9 @@ def estimate_table_plane(
     than ``below_mm`` beyond it (the table is the lowest surface; objects stand on it).
     Otherwise its samples are set aside and the fit is tried again. Deterministic.
 
+    With lens distortion the sampled pixels are undistorted first, so that the plane is
+    the true table, in the frame of the lifted stickers (:func:`lift_stickers`).
+
     Raises
     ------
     ValueError
@@ -115,7 +124,7 @@ def estimate_table_plane(
     vv, uu = np.nonzero(sub > 0)
     if len(vv) < 50:
         raise ValueError(f"only {len(vv)} valid depth samples; cannot fit the table plane")
-    pix = np.stack([uu * stride, vv * stride], axis=1).astype(np.float64)
+    pix = intrinsics.undistort_pixels(np.stack([uu * stride, vv * stride], axis=1))
     # (3, n): coordinates in rows, so that every reduction runs along contiguous memory
     pts = np.ascontiguousarray(intrinsics.deproject(pix, sub[vv, uu]).T)
     active = np.ones(pts.shape[1], dtype=bool)
