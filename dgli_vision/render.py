@@ -3,9 +3,11 @@
 Open3D's ``RaycastingScene`` (CPU) casts one ray per pixel through its centre (see
 :mod:`dgli_vision.camera` for the conventions). The napkin carries the stickers of SPEC
 section 2 on both faces, drawn into a texture in material coordinates; colours are
-shaded with a Lambert model in linear light, then a switchable sensor model adds what a
-real RGB-D camera does: exposure and white-balance jitter, blur, colour noise, depth noise
-growing with distance, 1 mm quantisation, and dropouts at depth edges and at random.
+shaded with a Lambert model in linear light (plus, under ``sheen``, a large area light's
+Blinn-Phong reflection in the stickers' vinyl and the napkin's fabric), then a
+switchable sensor model adds what a real RGB-D camera does: exposure and white-balance
+jitter, blur, colour noise, depth noise growing with distance, 1 mm quantisation, and
+dropouts at depth edges and at random.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from .colour import linear_to_srgb, srgb_to_linear
 from .conditions import (
     Conditions,
     SceneObject,
+    Sheen,
     apply_lens_distortion,
     area_light_lobe,
     grasp_frame,
@@ -284,6 +287,7 @@ _SHEEN_SATURATION = (0.13, 0.3)
 class _SheenLobes:
     """A large area light's reflection on the cloth hits (see :func:`_sheen_lobes`)."""
 
+    sheen: Sheen
     vinyl: NDArray[np.float64]
     fabric: NDArray[np.float64]
     napkin: NDArray[np.float32]
@@ -291,13 +295,12 @@ class _SheenLobes:
     diffuse: NDArray[np.float64]
     printed: NDArray[np.float64]
 
-    def light(self, cond: Conditions, gain: NDArray) -> NDArray[np.float64]:
+    def light(self, gain: NDArray) -> NDArray[np.float64]:
         """Linear light (k, 3) the reflection adds as the camera sees it through ``gain``
         (3,): the vinyl's strength makes the chosen sticker's disc reach the drawn
         saturation in the image, within the strengths that keep every printed colour
         (``printed``, as lit there) in :data:`_SHEEN_SATURATION`."""
-        sheen = cond.sheen
-        assert sheen is not None
+        sheen = self.sheen
 
         def solve(diffuse: NDArray, saturation: float) -> float:
             return specular_for_saturation(
@@ -351,6 +354,7 @@ def _sheen_lobes(
     views = -dirs[on_cloth] / np.linalg.norm(dirs[on_cloth], axis=1)[:, None]
     radius = np.radians(sheen.light_radius_deg)
     return _SheenLobes(
+        sheen=sheen,
         vinyl=area_light_lobe(normals, views, light, radius, sheen.shininess),
         fabric=area_light_lobe(normals, views, light, radius, sheen.cloth_shininess),
         napkin=tex[:, 3],
@@ -474,7 +478,7 @@ def render(
         linear = linear * exposure * gains
         gain = gain * exposure * gains
     if sheen is not None:  # semi-gloss vinyl and fabric under a large light
-        linear[on_cloth] += sheen.light(cond, gain)
+        linear[on_cloth] += sheen.light(gain)
         # auto-exposure: the brightest pixel stays below white
         linear = linear * min(1.0, _SHEEN_EXPOSURE_PEAK / max(float(linear.max()), 1e-9))
     srgb = linear_to_srgb(linear).reshape(h, w, 3) * 255.0
