@@ -222,15 +222,14 @@ def _pair_key(pair: Any) -> tuple[str, str]:
     return str(Path(pair.color).resolve()), str(Path(pair.depth).resolve())
 
 
-def _earlier_outcomes(path: Any, pairs: list | None) -> dict[tuple[str, str], Any]:
-    """Outcomes of ``pairs`` (None: any) already in a results.jsonl (malformed lines
-    left out)."""
+def _outcomes_of(items: list, pairs: list | None) -> dict[tuple[str, str], Any]:
+    """Outcomes of ``pairs`` (None: any) among the objects of a results.jsonl (others
+    left out), by pair."""
     from .evaluate import outcome_from_dict
-    from .io import read_jsonl
 
     wanted = None if pairs is None else {_pair_key(p) for p in pairs}
     done = {}
-    for item in read_jsonl(path):
+    for item in items:
         try:
             outcome = outcome_from_dict(item)
         except (KeyError, TypeError, ValueError):
@@ -338,7 +337,8 @@ def simulate(
     "--resume",
     is_flag=True,
     help="Go on with an interrupted run: keep the pairs already in the report folder's "
-    "results.jsonl and classify the rest.",
+    "results.jsonl and classify the rest (refused when the run differs: references, "
+    "labels, colours, intrinsics, options).",
 )
 @overwrite_option
 @_handle_errors
@@ -361,18 +361,16 @@ def evaluate(
     Labels are checked first: an unknown class or variant, or a pair listed twice,
     stops the run (exit 2) unless --lenient; pairs that cannot be read are listed with
     their error and the run goes on. With --report, each pair's result is appended to
-    results.jsonl as it is done; Ctrl-C writes the report of what is done and exits 130,
-    and --resume goes on from there, giving the same report as an uninterrupted run.
+    results.jsonl as it is done; Ctrl-C or SIGTERM writes the report of what is done and
+    exits 130 (143), and --resume goes on from there, giving the same report as an
+    uninterrupted run. Exit 1 when no pair could be classified, 2 when none could be read.
     """
-    import os
-    import time
     from pathlib import Path
 
     from .colours_file import read_colours
-    from .errors import InvalidInputError, OverwriteError
-    from .evaluate import evaluate_pairs, outcome_to_dict, summarise
-    from .frames import read_color
-    from .io import JsonLinesWriter, file_sha256, guard_outputs, record_outputs, write_outputs
+    from .errors import InvalidInputError
+    from .evaluation_report import REPORT_FILES
+    from .io import guard_outputs
     from .labelled import find_labelled_pairs
     from .recording import is_recording_file
     from .references import default_references_path, load_references
@@ -393,62 +391,272 @@ def evaluate(
             click.echo(f"skipped: {problem.message}", err=True)
     if resume and not report_dir:
         raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
-    if report_dir:  # fail before the work, not after it
-        guard_outputs(
-            [Path(report_dir) / n for n in ("report.md", "summary.json")], overwrite=overwrite
-        )
-        earlier = Path(report_dir) / "results.jsonl"
-        if earlier.exists() and not (resume or overwrite):
-            raise OverwriteError(
-                f"'{earlier}' holds the results of an earlier run; use --resume to go on "
-                "with it, or --overwrite to start again"
-            )
     refs_path = Path(references_path) if references_path else default_references_path()
     refs = load_references(refs_path)
-    colours = read_colours(colours_path) if colours_path else None
-    jobs = jobs or os.cpu_count() or 1
-    results_path = Path(report_dir) / "results.jsonl" if report_dir else None
-    wanted = None if recording else pairs
-    done = _earlier_outcomes(results_path, wanted) if resume and results_path else {}
-    unlabelled: list[str] = []
+    if colours_path:
+        read_colours(colours_path)  # a bad file stops the run before any work
+    run = _EvaluationRun(
+        folder,
+        report_dir,
+        pairs,
+        problems,
+        recording,
+        refs,
+        refs_path,
+        colours_path,
+        jobs,
+        as_json,
+    )
+    if not report_dir:
+        run.go(None, overwrite=overwrite)
+        return
+    out = Path(report_dir)  # fail before the work, not after it
+    guard_outputs([out / name for name in REPORT_FILES], overwrite=overwrite)
+    with _run_lock(out):
+        header = run.header(lenient, recording_opts)
+        journal = _open_journal(out / "results.jsonl", header, resume, overwrite)
+        run.go(journal, overwrite=overwrite)
 
-    def todo() -> Iterator[Any]:  # a recording's frames are read as they are classified
-        for pair in recording.frames if recording else pairs:
-            if recording and not pair.label:
-                unlabelled.append(pair.color)
-                continue
-            if recording:
-                pairs.append(pair.light())
-            if _pair_key(pair) not in done:
-                yield pair
 
-    writer = JsonLinesWriter(results_path, append=resume) if results_path else None
-    interrupted = False
-    t0 = time.perf_counter()
-    count = recording.count if recording else sum(_pair_key(p) not in done for p in pairs)
-    try:
-        with _progress_bar(count, "classifying", quiet=as_json) as bar:
-            if count:
-                for outcome in evaluate_pairs(
-                    todo(), refs, jobs=jobs, on_progress=bar.update, colours=colours
-                ):
-                    if writer:  # flushed at once: an interrupted run keeps its work
-                        writer.write(outcome_to_dict(outcome))
-                    done[_pair_key(outcome.pair)] = outcome
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        if writer:
-            writer.close()
-    outcomes = [done[_pair_key(p)] for p in pairs if _pair_key(p) in done]
-    result = summarise(outcomes, time.perf_counter() - t0)
-    skipped = [p.message for p in problems if p.kind != "missing file"]
-    if recording:
-        _recording_notes(recording, quiet=as_json)
-        skipped += [f"{name}: no label" for name in unlabelled]
-    if as_json:
-        click.echo(json.dumps({**result.to_dict(), "skipped": skipped}))
-    else:
+#: How each stop signal ends a command: 128 + its number, as a shell reports it.
+STOP_EXIT_CODES = {2: 130, 15: 143}  # SIGINT, SIGTERM
+
+
+class _Stop:
+    """Whether a stop signal came, and which (Ctrl-C unless SIGTERM came)."""
+
+    stopped = False
+    signum = 2
+
+    @property
+    def exit_code(self) -> int:
+        return STOP_EXIT_CODES.get(self.signum, 128 + self.signum)
+
+
+def _stop_signals():
+    """A context in which SIGTERM stops the work as Ctrl-C does (a KeyboardInterrupt),
+    yielding a :class:`_Stop` that says which of the two came."""
+    import signal
+    import threading
+    from contextlib import contextmanager
+
+    @contextmanager
+    def context():
+        stop = _Stop()
+
+        def on_term(signum: int, frame: Any) -> None:
+            stop.signum, stop.stopped = signum, True
+            raise KeyboardInterrupt
+
+        if threading.current_thread() is not threading.main_thread():
+            yield stop
+            return
+        before = signal.signal(signal.SIGTERM, on_term)
+        try:
+            yield stop
+        finally:
+            signal.signal(signal.SIGTERM, before)
+
+    return context()
+
+
+def _run_lock(folder: Any):
+    """The lock of an output folder (:class:`~dgli_vision.run_lock.RunLock`), held for
+    the ``with`` block; a stale lock left by a killed run is taken over with a note."""
+    from contextlib import contextmanager
+
+    from .run_lock import RunLock
+
+    @contextmanager
+    def context():
+        lock = RunLock(folder, _command_line())
+        lock.acquire()
+        try:
+            if lock.took_over:
+                click.echo(
+                    f"note: took over the lock of a run that ended without releasing it "
+                    f"(pid {lock.took_over.get('pid')})",
+                    err=True,
+                )
+            yield lock
+        finally:
+            lock.release()
+
+    return context()
+
+
+def _open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bool):
+    """The writer of a run's results.jsonl and the objects already in it: with
+    ``resume``, those of the same run (refused, naming the difference, when its header
+    differs from ``header``); otherwise a new file starting with ``header`` (refused when
+    an earlier run's results are there, unless ``overwrite``)."""
+    from .errors import OverwriteError
+    from .io import JsonLinesWriter, read_jsonl
+    from .run_lock import check_resume, repair_journal
+
+    earlier = read_jsonl(path) if resume else []
+    if earlier:
+        check_resume(path, earlier[0], header)
+        repair_journal(path)
+        return JsonLinesWriter(path, append=True), earlier[1:]
+    if path.exists() and not (resume or overwrite):
+        raise OverwriteError(
+            f"'{path}' holds the results of an earlier run; use --resume to go on "
+            "with it, or --overwrite to start again"
+        )
+    writer = JsonLinesWriter(path, append=False)
+    writer.write(header)
+    return writer, []
+
+
+class _EvaluationRun:
+    """``dgli evaluate`` once its inputs are known: classify, print, report."""
+
+    def __init__(
+        self,
+        folder: str,
+        report_dir: str | None,
+        pairs: list,
+        problems: list,
+        recording: Any,
+        refs: Any,
+        refs_path: Any,
+        colours_path: str | None,
+        jobs: int | None,
+        as_json: bool,
+    ) -> None:
+        import os
+
+        self.folder, self.report_dir = folder, report_dir
+        self.pairs, self.problems, self.recording = pairs, problems, recording
+        self.refs, self.refs_path, self.colours_path = refs, refs_path, colours_path
+        self.jobs = jobs or os.cpu_count() or 1
+        self.as_json = as_json
+
+    def header(self, lenient: bool, recording_opts: dict[str, Any]) -> dict[str, Any]:
+        """What defines this run, for its results.jsonl (see :mod:`dgli_vision.run_lock`)."""
+        import os
+        from pathlib import Path
+
+        from .run_lock import file_digest, intrinsics_digest, listing_digest, run_header
+
+        root = Path(self.folder).resolve()
+        options: dict[str, Any] = {"lenient": lenient}
+        if self.recording:
+            stat = root.stat()  # a recording is known by its size and time, not read twice
+            source = listing_digest([(str(root), stat.st_size, stat.st_mtime_ns)])
+            labels = file_digest(recording_opts["labels_path"])
+            options.update({k: v for k, v in recording_opts.items() if k != "labels_path"})
+            intrinsics = None
+        else:
+            source = str(root)
+            labels = file_digest(root / "labels.csv") or listing_digest(
+                (
+                    os.path.relpath(p.color, root),
+                    os.path.relpath(p.depth, root),
+                    p.label,
+                    p.variant,
+                )
+                for p in self.pairs
+            )
+            intrinsics = intrinsics_digest(p.color for p in self.pairs)
+        fields = {
+            "input": source,
+            "labels": labels,
+            "references": file_digest(self.refs_path),
+            "colours": file_digest(self.colours_path),
+            "intrinsics": intrinsics,
+            "options": options,
+        }
+        return run_header("evaluate", fields)
+
+    def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
+        """Classify what is not done yet (``journal``: the results.jsonl writer and the
+        objects already in it), print, write the report, exit as the outcome says."""
+        import time
+
+        from .evaluate import summarise
+
+        writer, earlier = journal if journal else (None, [])
+        done = _outcomes_of(earlier, None if self.recording else self.pairs)
+        t0 = time.perf_counter()
+        with _stop_signals() as stop:
+            try:
+                self._classify(done, writer, stop)
+            finally:
+                if writer:
+                    writer.close()
+        outcomes = [done[_pair_key(p)] for p in self.pairs if _pair_key(p) in done]
+        result = summarise(outcomes, time.perf_counter() - t0)
+        skipped = [p.message for p in self.problems if p.kind != "missing file"]
+        if self.recording:
+            _recording_notes(self.recording, quiet=self.as_json)
+            skipped += [f"{name}: no label" for name in self.unlabelled]
+        self._print(result, skipped)
+        if self.report_dir:
+            self._report(result, skipped, overwrite)
+        if stop.stopped:
+            click.echo(
+                f"interrupted: {len(outcomes)} of {len(self.pairs)} pairs done"
+                + ("; go on with the same command and --resume" if self.report_dir else ""),
+                err=True,
+            )
+            sys.exit(stop.exit_code)
+        if result.n and not result.classified:
+            if all(o.error for o in outcomes):
+                click.echo(f"error: none of the {result.n} pairs could be read", err=True)
+                sys.exit(2)
+            click.echo(f"error: none of the {result.n} pairs could be classified", err=True)
+            sys.exit(1)
+
+    def _classify(self, done: dict, writer: Any, stop: _Stop) -> None:
+        """Classify the pairs not in ``done`` into it (and ``writer``), until all are or
+        a stop signal comes (:func:`_stop_signals`)."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        from .colours_file import read_colours
+        from .evaluate import evaluate_pairs, outcome_to_dict
+
+        recording, pairs = self.recording, self.pairs
+        colours = read_colours(self.colours_path) if self.colours_path else None
+        self.unlabelled: list[str] = []
+
+        def todo() -> Iterator[Any]:  # a recording's frames are read as they are classified
+            for pair in recording.frames if recording else pairs:
+                if recording and not pair.label:
+                    self.unlabelled.append(pair.color)
+                    continue
+                if recording:
+                    pairs.append(pair.light())
+                if _pair_key(pair) not in done:
+                    yield pair
+
+        count = recording.count if recording else sum(_pair_key(p) not in done for p in pairs)
+        try:
+            with _progress_bar(count, "classifying", quiet=self.as_json) as bar:
+                if count:
+                    for outcome in evaluate_pairs(
+                        todo(),
+                        self.refs,
+                        jobs=self.jobs,
+                        on_progress=bar.update,
+                        colours=colours,
+                    ):
+                        if writer:  # flushed at once: an interrupted run keeps its work
+                            writer.write(outcome_to_dict(outcome))
+                        done[_pair_key(outcome.pair)] = outcome
+        except KeyboardInterrupt:
+            stop.stopped = True
+        except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+            if not stop.stopped:
+                raise
+
+    def _print(self, result: Any, skipped: list[str]) -> None:
+        from .evaluate import json_ready
+
+        if self.as_json:
+            click.echo(json.dumps(json_ready({**result.to_dict(), "skipped": skipped})))
+            return
         from .report import markdown_table
 
         click.echo(
@@ -458,7 +666,7 @@ def evaluate(
         click.echo(
             f"class accuracy {result.accuracy:.2%}, "
             f"variant accuracy {result.variant_accuracy_text()}, "
-            f"{result.seconds:.1f} s with {jobs} worker(s)"
+            f"{result.seconds:.1f} s with {self.jobs} worker(s)"
         )
         click.echo(
             markdown_table(
@@ -469,34 +677,33 @@ def evaluate(
         )
         for f in result.failures:
             click.echo(f"failed: {f['color']}: {f['error']}")
-    if report_dir:
+
+    def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
+        from pathlib import Path
+
+        from .evaluate import json_ready
         from .evaluation_report import build_report
+        from .frames import read_color
+        from .io import file_sha256, record_outputs, write_outputs
 
         meta = {
             "command": _command_line(),
-            "folder": folder,
-            "references": str(refs_path),
-            "references_sha256": file_sha256(refs_path),
+            "folder": self.folder,
+            "references": str(self.refs_path),
+            "references_sha256": file_sha256(self.refs_path),
             "package_version": _package_version(),
-            "jobs": jobs,
+            "jobs": self.jobs,
             "skipped": skipped,
         }
-        out = Path(report_dir)
+        out = Path(self.report_dir)
         files = build_report(result, meta, read_color)
         write_outputs(
-            {out / name: content for name, content in files.items()},
-            overwrite=overwrite or resume,
+            {out / name: json_ready(c) if isinstance(c, dict) else c for name, c in files.items()},
+            overwrite=overwrite,
             command=meta["command"],
         )
         record_outputs([out / "results.jsonl"], meta["command"])
         click.echo(f"report written to {out / 'report.md'}", err=True)
-    if interrupted:
-        click.echo(
-            f"interrupted: {len(outcomes)} of {len(pairs)} pairs done"
-            + ("; go on with the same command and --resume" if report_dir else ""),
-            err=True,
-        )
-        sys.exit(130)
 
 
 def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:

@@ -15,7 +15,10 @@ from pathlib import Path
 import pytest
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
-DGLI = str(Path(sys.executable).parent / "dgli")
+ROOT = Path(__file__).resolve().parent.parent
+# the package of this checkout (an installed `dgli` may run another copy)
+DGLI = [sys.executable, "-m", "dgli_vision"]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
 COPIES = 4  # 48 pairs: long enough to interrupt on one core
 
 
@@ -37,13 +40,15 @@ def batch(tmp_path_factory) -> Path:
 
 
 def lines(path: Path) -> int:
-    return len(path.read_text().splitlines()) if path.exists() else 0
+    """Pairs in a results.jsonl (its first line records the run)."""
+    return sum('"pair"' in line for line in path.read_text().splitlines()) if path.exists() else 0
 
 
 def interrupt(args: list[str], results: Path, sig: int) -> subprocess.CompletedProcess:
     """Run dgli, and send ``sig`` once a few results are on disk."""
     proc = subprocess.Popen(
-        [DGLI, *args],
+        [*DGLI, *args],
+        env=ENV,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -75,7 +80,8 @@ def comparable(report: Path) -> dict:
 def uninterrupted(batch, tmp_path_factory) -> dict:
     report = tmp_path_factory.mktemp("whole") / "report"
     res = subprocess.run(
-        [DGLI, "evaluate", str(batch), "--report", str(report), "-j", "1"],
+        [*DGLI, "evaluate", str(batch), "--report", str(report), "-j", "1"],
+        env=ENV,
         capture_output=True,
         text=True,
     )
@@ -99,9 +105,9 @@ def test_an_interrupted_batch_resumes_to_the_same_report(batch, uninterrupted, t
         assert partial["n"] == done  # the report of what is done
     else:
         assert res.returncode == -signal.SIGKILL
-    again = subprocess.run([DGLI, *args], capture_output=True, text=True)
+    again = subprocess.run([*DGLI, *args], capture_output=True, text=True, env=ENV)
     assert again.returncode == 2 and "--resume" in again.stderr  # never silently redone
-    resumed = subprocess.run([DGLI, *args, "--resume"], capture_output=True, text=True)
+    resumed = subprocess.run([*DGLI, *args, "--resume"], capture_output=True, text=True, env=ENV)
     assert resumed.returncode == 0, resumed.stderr
     assert lines(results) == 12 * COPIES
     assert comparable(report) == uninterrupted
