@@ -413,9 +413,64 @@ def evaluate(
     out = Path(report_dir)  # fail before the work, not after it
     guard_outputs([out / name for name in REPORT_FILES], overwrite=overwrite)
     with _run_lock(out):
-        header = run.header(lenient, recording_opts)
+        header = _run_header(
+            "evaluate",
+            folder,
+            None if recording else pairs,
+            labels_path=recording_opts["labels_path"],
+            refs_path=refs_path,
+            colours_path=colours_path,
+            options={"lenient": lenient, **recording_opts},
+        )
         journal = _open_journal(out / "results.jsonl", header, resume, overwrite)
         run.go(journal, overwrite=overwrite)
+
+
+def _run_header(
+    kind: str,
+    folder: str,
+    pairs: Any,
+    *,
+    labels_path: str | None,
+    refs_path: Any,
+    colours_path: str | None,
+    options: dict[str, Any],
+) -> dict[str, Any]:
+    """What defines a run of ``kind`` on ``folder``, for its results.jsonl (see
+    :mod:`dgli_vision.run_lock`): the input (a folder by path, its pairs by their list,
+    labels and intrinsics files by checksum; a recording file by path, size and time),
+    the references and colours by checksum, and the options that change results.
+
+    ``pairs`` are the folder's pairs, None for a recording file."""
+    import os
+    from pathlib import Path
+
+    from .run_lock import file_digest, intrinsics_digest, listing_digest, run_header
+
+    root = Path(folder).resolve()
+    if pairs is None:
+        stat = root.stat()  # a recording is known by its size and time, not read twice
+        source = listing_digest([(str(root), stat.st_size, stat.st_mtime_ns)])
+        listing, intrinsics = None, None
+    else:
+        source = str(root)
+        listing = listing_digest(
+            (os.path.relpath(p.color, root), os.path.relpath(p.depth, root)) for p in pairs
+        )
+        intrinsics = intrinsics_digest(p.color for p in pairs)
+    labels = file_digest(labels_path) if labels_path else file_digest(root / "labels.csv")
+    if labels is None and pairs is not None:  # class folders
+        labels = listing_digest((p.label, p.variant) for p in pairs)
+    fields = {
+        "input": source,
+        "pairs": listing,
+        "labels": labels,
+        "references": file_digest(refs_path),
+        "colours": file_digest(colours_path),
+        "intrinsics": intrinsics,
+        "options": {k: v for k, v in sorted(options.items()) if k != "labels_path"},
+    }
+    return run_header(kind, fields)
 
 
 #: How each stop signal ends a command: 128 + its number, as a shell reports it.
@@ -532,43 +587,6 @@ class _EvaluationRun:
         self.refs, self.refs_path, self.colours_path = refs, refs_path, colours_path
         self.jobs = jobs or os.cpu_count() or 1
         self.as_json = as_json
-
-    def header(self, lenient: bool, recording_opts: dict[str, Any]) -> dict[str, Any]:
-        """What defines this run, for its results.jsonl (see :mod:`dgli_vision.run_lock`)."""
-        import os
-        from pathlib import Path
-
-        from .run_lock import file_digest, intrinsics_digest, listing_digest, run_header
-
-        root = Path(self.folder).resolve()
-        options: dict[str, Any] = {"lenient": lenient}
-        if self.recording:
-            stat = root.stat()  # a recording is known by its size and time, not read twice
-            source = listing_digest([(str(root), stat.st_size, stat.st_mtime_ns)])
-            labels = file_digest(recording_opts["labels_path"])
-            options.update({k: v for k, v in recording_opts.items() if k != "labels_path"})
-            intrinsics = None
-        else:
-            source = str(root)
-            labels = file_digest(root / "labels.csv") or listing_digest(
-                (
-                    os.path.relpath(p.color, root),
-                    os.path.relpath(p.depth, root),
-                    p.label,
-                    p.variant,
-                )
-                for p in self.pairs
-            )
-            intrinsics = intrinsics_digest(p.color for p in self.pairs)
-        fields = {
-            "input": source,
-            "labels": labels,
-            "references": file_digest(self.refs_path),
-            "colours": file_digest(self.colours_path),
-            "intrinsics": intrinsics,
-            "options": options,
-        }
-        return run_header("evaluate", fields)
 
     def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
         """Classify what is not done yet (``journal``: the results.jsonl writer and the
@@ -1032,12 +1050,21 @@ def sequence(
 
 @main.command()
 @click.argument("folder", metavar="RECORDING", type=click.Path())
-@report_option("Write the timeline (CSV, JSON, picture) and the frame distance heatmap here.")
+@report_option(
+    "Write the timeline (CSV, JSON, picture), the frame distance heatmap and each "
+    "frame's result (results.jsonl, as it is done) here."
+)
 @json_option("Print the timeline as JSON.")
 @jobs_option
 @references_option
 @colours_option
 @recording_options
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted run: keep the frames already in the report folder's "
+    "results.jsonl and classify the rest (refused when the run differs).",
+)
 @overwrite_option
 @_handle_errors
 def track(
@@ -1047,6 +1074,7 @@ def track(
     jobs: int | None,
     references_path: str | None,
     colours_path: str | None,
+    resume: bool,
     overwrite: bool,
     **recording_opts: Any,
 ) -> None:
@@ -1058,57 +1086,151 @@ def track(
     Each frame is classified, then the states are smoothed over time (a hidden Markov
     model whose moves are single folds and unfolds). A frame that cannot be read is a
     gap, listed; the run goes on. With labels (a folder's labels.csv, a bag's --labels),
-    the timeline is scored. Exit 1 when no frame could be classified at all.
+    the timeline is scored. Exit 1 when no frame could be classified at all. With
+    --report, each frame's result is kept as it is done: Ctrl-C or SIGTERM gives the
+    timeline of the frames done and exits 130 (143), and --resume goes on from there.
     """
-    import os
     from pathlib import Path
 
-    from .classes import CLASS_IDS, CLASS_NAMES
     from .colours_file import read_colours
-    from .evaluate import coordinate_matrix, evaluate_pairs
-    from .evaluation_report import sample_distance_matrix
-    from .io import guard_outputs, write_outputs
-    from .references import load_references
-    from .report import csv_table, heatmap_image, timeline_image
-    from .track import TIMELINE_COLUMNS, timeline_rows, timeline_to_dict, track_outcomes
+    from .errors import InvalidInputError
+    from .io import guard_outputs
+    from .references import default_references_path, load_references
 
     recording = _open_recording(folder, recording_opts)
-    if report_dir:  # fail before the work, not after it
-        guard_outputs([Path(report_dir) / "timeline.json"], overwrite=overwrite)
-    refs = load_references(references_path)
+    if resume and not report_dir:
+        raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
+    refs_path = Path(references_path) if references_path else default_references_path()
+    refs = load_references(refs_path)
     colours = read_colours(colours_path) if colours_path else None
-    jobs = jobs or os.cpu_count() or 1
-    with _progress_bar(recording.count, "tracking", quiet=as_json) as bar:
-        outcomes = list(
-            evaluate_pairs(
-                recording.frames,
-                refs,
-                jobs=jobs,
-                on_progress=bar.update,
-                colours=colours,
-                distances=True,
-            )
+    run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
+    if not report_dir:
+        run.go(None, overwrite=overwrite)
+        return
+    out = Path(report_dir)  # fail before the work, not after it
+    guard_outputs([out / name for name in TRACK_FILES], overwrite=overwrite)
+    with _run_lock(out):
+        header = _run_header(
+            "track",
+            folder,
+            recording.frames if recording.kind == "folder" else None,
+            labels_path=recording_opts["labels_path"],
+            refs_path=refs_path,
+            colours_path=colours_path,
+            options=recording_opts,
         )
-    _recording_notes(recording, quiet=as_json)
-    labelled = recording.labelled and all(o.pair.label for o in outcomes)
-    times = [o.pair.time for o in outcomes]
-    timeline = track_outcomes(outcomes, refs, times=times, labelled=labelled)
-    data = {
-        "folder": folder,
-        "recording": {"kind": recording.kind, "notes": list(recording.notes)},
-        "n_frames": len(outcomes),
-        **timeline_to_dict(timeline),
-    }
-    if as_json:
-        click.echo(json.dumps(data))
-    else:
+        journal = _open_journal(out / "results.jsonl", header, resume, overwrite)
+        run.go(journal, overwrite=overwrite)
+
+
+#: The files of a ``dgli track`` report (besides its results.jsonl).
+TRACK_FILES = ("timeline.json", "timeline.csv", "timeline.png", "distances.png")
+
+
+class _TrackRun:
+    """``dgli track`` once its inputs are known: classify, smooth, print, report."""
+
+    def __init__(
+        self,
+        folder: str,
+        report_dir: str | None,
+        recording: Any,
+        refs: Any,
+        colours: dict | None,
+        jobs: int | None,
+        as_json: bool,
+    ) -> None:
+        import os
+
+        self.folder, self.report_dir, self.recording = folder, report_dir, recording
+        self.refs, self.colours = refs, colours
+        self.jobs = jobs or os.cpu_count() or 1
+        self.as_json = as_json
+
+    def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
+        """Classify the frames not done yet (``journal``: the results.jsonl writer and
+        the objects already in it), smooth, print, report, exit as the outcome says."""
+        from .track import track_outcomes
+
+        writer, earlier = journal if journal else (None, [])
+        done = _outcomes_of(earlier, None)
+        seen: list[Any] = []  # the frames in order, as far as they were read
+        with _stop_signals() as stop:
+            try:
+                self._classify(done, writer, seen, stop)
+            finally:
+                if writer:
+                    writer.close()
+        outcomes = [done[k] for k in (_pair_key(p) for p in seen) if k in done]
+        _recording_notes(self.recording, quiet=self.as_json)
+        labelled = self.recording.labelled and all(o.pair.label for o in outcomes)
+        timeline = track_outcomes(
+            outcomes, self.refs, times=[o.pair.time for o in outcomes], labelled=labelled
+        )
+        data = {
+            "folder": self.folder,
+            "recording": {"kind": self.recording.kind, "notes": list(self.recording.notes)},
+            "n_frames": len(outcomes),
+            **_timeline_json(timeline),
+        }
+        if stop.stopped:
+            data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
+        self._print(data, timeline, len(outcomes))
+        if self.report_dir:
+            self._report(data, timeline, outcomes, labelled, overwrite)
+        if stop.stopped:
+            click.echo(
+                f"interrupted: {len(outcomes)} of {self.recording.count} frames done"
+                + ("; go on with the same command and --resume" if self.report_dir else ""),
+                err=True,
+            )
+            sys.exit(stop.exit_code)
+        if all(f.gap for f in timeline.frames):
+            sys.exit(1)
+
+    def _classify(self, done: dict, writer: Any, seen: list, stop: _Stop) -> None:
+        from concurrent.futures.process import BrokenProcessPool
+
+        from .evaluate import evaluate_pairs, outcome_to_dict
+
+        def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
+            for pair in self.recording.frames:
+                seen.append(pair.light())
+                if _pair_key(pair) not in done:
+                    yield pair
+
+        try:
+            with _progress_bar(self.recording.count, "tracking", quiet=self.as_json) as bar:
+                for outcome in evaluate_pairs(
+                    todo(),
+                    self.refs,
+                    jobs=self.jobs,
+                    on_progress=bar.update,
+                    colours=self.colours,
+                    distances=True,
+                ):
+                    if writer:  # flushed at once: an interrupted run keeps its work
+                        writer.write(outcome_to_dict(outcome))
+                    done[_pair_key(outcome.pair)] = outcome
+        except KeyboardInterrupt:
+            stop.stopped = True
+        except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+            if not stop.stopped:
+                raise
+
+    def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
+        from .classes import CLASS_NAMES
+
+        if self.as_json:
+            click.echo(json.dumps(data))
+            return
 
         def state(key: tuple[str, str | None]) -> str:
             return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
 
         first = next((f for f in timeline.frames if not f.gap), None)
         click.echo(
-            f"{len(outcomes)} frames; "
+            f"{n} frames; "
             + (
                 f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
                 if first
@@ -1128,34 +1250,65 @@ def track(
                 f"{list(sc.found_changes)} (precision {sc.precision:.2f}, recall "
                 f"{sc.recall:.2f}, within 2 frames)"
             )
-    if report_dir:
-        out = Path(report_dir)
+
+    def _report(
+        self,
+        data: dict[str, Any],
+        timeline: Any,
+        outcomes: list,
+        labelled: bool,
+        overwrite: bool,
+    ) -> None:
+        from pathlib import Path
+
+        from .classes import CLASS_IDS, CLASS_NAMES
+        from .evaluate import coordinate_matrix
+        from .evaluation_report import heatmap_sample, sample_distance_matrix
+        from .io import record_outputs, write_outputs
+        from .report import csv_table, heatmap_image, timeline_image
+        from .track import TIMELINE_COLUMNS, timeline_rows
+
+        out = Path(self.report_dir)
         picture = timeline_image(
             CLASS_IDS,
             [f.smoothed_class for f in timeline.frames],
             [f.raw_class for f in timeline.frames],
             truth=[f.label or "" for f in timeline.frames] if labelled else None,
             names=CLASS_NAMES,
-            title=f"timeline of {folder}",
+            title=f"timeline of {self.folder}",
         )
-        heat = heatmap_image(
-            sample_distance_matrix(coordinate_matrix(outcomes)),
-            title="frames: Spearman distance of dGLI",
-            value_label="1 - rho",
-        )
-        write_outputs(
-            {
-                out / "timeline.json": {"command": _command_line(), **data},
-                out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
-                out / "timeline.png": picture,
-                out / "distances.png": heat,
-            },
-            overwrite=overwrite,
-            command=_command_line(),
-        )
+        shown = heatmap_sample(["frames"] * len(outcomes))  # evenly spread in time
+        files: dict[Any, Any] = {
+            out / "timeline.json": {"command": _command_line(), **data},
+            out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
+            out / "timeline.png": picture,
+        }
+        if shown:
+            files[out / "distances.png"] = heatmap_image(
+                sample_distance_matrix(coordinate_matrix([outcomes[k] for k in shown])),
+                title="frames: Spearman distance of dGLI"
+                + (
+                    ""
+                    if len(shown) == len(outcomes)
+                    else f" ({len(shown)} of {len(outcomes)} frames, evenly spread)"
+                ),
+                value_label="1 - rho",
+            )
+            files[out / "timeline.json"]["distances_png"] = {
+                "frames_shown": len(shown),
+                "frames": len(outcomes),
+            }
+        write_outputs(files, overwrite=overwrite, command=_command_line())
+        record_outputs([out / "results.jsonl"], _command_line())
         click.echo(f"report written to {out}", err=True)
-    if all(f.gap for f in timeline.frames):
-        sys.exit(1)
+
+
+def _timeline_json(timeline: Any) -> dict[str, Any]:
+    """A timeline's JSON object with NaN written as null."""
+    from .evaluate import json_ready
+    from .track import timeline_to_dict
+
+    return json_ready(timeline_to_dict(timeline))
 
 
 @main.command()

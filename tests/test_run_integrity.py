@@ -1,0 +1,230 @@
+"""Run integrity: a resume continues the same run or nothing, one run per report folder,
+reports linear in the pairs, JSON that other readers accept, honest exit codes, and
+conflicts found before the work."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dgli_vision import evaluate as evaluate_module
+from dgli_vision.cli import main
+from dgli_vision.evaluate import PairOutcome, summarise
+from dgli_vision.labelled import LabelledPair
+from dgli_vision.references import default_references_path
+from dgli_vision.run_lock import LOCK_NAME, RunLock
+
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
+
+
+def run(*args: str):
+    result = CliRunner().invoke(main, list(args))
+    assert "Traceback" not in result.output, result.output
+    return result
+
+
+def strict_json(line: str):
+    """JSON as any reader other than Python's takes it: NaN and Infinity are errors."""
+
+    def refuse(name: str):
+        raise ValueError(f"{name} is not JSON")
+
+    return json.loads(line, parse_constant=refuse)
+
+
+@pytest.fixture
+def folder(tmp_path) -> Path:
+    """Two labelled pairs (one with a sticker hidden by a fold)."""
+    out = tmp_path / "pairs"
+    out.mkdir()
+    rows = ["color,depth,label,variant"]
+    for name, label, variant in [("01_000", "01", ""), ("05_000", "05", "AB/B")]:
+        for kind in ("color", "depth"):
+            shutil.copy(SAMPLES / f"{name}_{kind}.png", out / f"{name}_{kind}.png")
+        rows.append(f"{name}_color.png,{name}_depth.png,{label},{variant}")
+    (out / "labels.csv").write_text("\n".join(rows) + "\n")
+    shutil.copy(SAMPLES / "intrinsics.json", out / "intrinsics.json")
+    return out
+
+
+@pytest.fixture
+def done_run(folder, tmp_path) -> Path:
+    report = tmp_path / "report"
+    r = run("evaluate", str(folder), "--report", str(report), "-j", "1")
+    assert r.exit_code == 0, r.output
+    return report
+
+
+def no_classifying(monkeypatch):
+    def refuse(*args, **kwargs):
+        raise AssertionError("classified before checking its outputs")
+
+    monkeypatch.setattr(evaluate_module, "evaluate_pairs", refuse)
+
+
+# --- a resume is the same run or nothing ---------------------------------------------
+
+
+def test_resume_after_references_changed_is_refused(folder, done_run, tmp_path):
+    other = tmp_path / "other.json"
+    data = json.loads(default_references_path().read_text())
+    data["provenance"] = {**data.get("provenance", {}), "note": "rebuilt"}
+    other.write_text(json.dumps(data))
+    before = (done_run / "results.jsonl").read_bytes()
+    r = run(
+        "evaluate", str(folder), "--report", str(done_run), "--resume", "--references", str(other)
+    )
+    assert r.exit_code == 2
+    assert len(r.output.strip().splitlines()) == 1
+    assert "reference set changed" in r.output and "results.jsonl" in r.output
+    assert (done_run / "results.jsonl").read_bytes() == before
+
+
+def test_resume_after_labels_edited_is_refused(folder, done_run):
+    labels = folder / "labels.csv"
+    labels.write_text(labels.read_text().replace(",05,AB/B", ",02,A"))
+    r = run("evaluate", str(folder), "--report", str(done_run), "--resume")
+    assert r.exit_code == 2 and "labels changed" in r.output
+    summary = json.loads((done_run / "summary.json").read_text())
+    assert summary["labels"] == ["01", "05"]  # the report still tells of the run it had
+
+
+def test_resume_of_results_that_record_no_run_is_refused(folder, tmp_path):
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "results.jsonl").write_text('{"anything": 1}\n')
+    r = run("evaluate", str(folder), "--report", str(report), "--resume")
+    assert r.exit_code == 2 and "does not record which run wrote it" in r.output
+
+
+def test_resume_into_a_folder_with_a_users_per_class_csv_keeps_it(
+    folder, done_run, monkeypatch
+):
+    mine = "class,my own notes\n"
+    (done_run / "per_class.csv").write_text(mine)
+    no_classifying(monkeypatch)
+    r = run("evaluate", str(folder), "--report", str(done_run), "--resume")
+    assert r.exit_code == 2 and "per_class.csv" in r.output and "refusing" in r.output
+    assert (done_run / "per_class.csv").read_text() == mine
+
+
+def test_resume_of_the_same_run_after_a_half_written_line_goes_on(folder, done_run):
+    results = done_run / "results.jsonl"
+    lines = results.read_text().splitlines(keepends=True)
+    results.write_text(lines[0] + lines[1] + lines[2][:40])  # killed while writing
+    r = run("evaluate", str(folder), "--report", str(done_run), "--resume", "-j", "1")
+    assert r.exit_code == 0, r.output
+    kept = [strict_json(line) for line in results.read_text().splitlines()]
+    assert len(kept) == 3 and kept[0]["format"] == "dgli-run"
+    assert json.loads((done_run / "summary.json").read_text())["n"] == 2
+
+
+# --- one run per report folder --------------------------------------------------------
+
+
+def test_a_second_run_into_a_busy_report_folder_is_refused_naming_the_first(
+    folder, tmp_path, monkeypatch
+):
+    report = tmp_path / "report"
+    no_classifying(monkeypatch)
+    with RunLock(report, "dgli evaluate (the first run)"):
+        r = run("evaluate", str(folder), "--report", str(report), "--resume")
+        t = run("track", str(folder), "--report", str(report))
+    assert r.exit_code == 2 and f"pid {os.getpid()}" in r.output
+    assert "in use by another dgli run" in r.output
+    assert len(r.output.strip().splitlines()) == 1
+    assert t.exit_code == 2 and f"pid {os.getpid()}" in t.output
+    assert not (report / "results.jsonl").exists()
+
+
+def test_a_stale_lock_of_a_killed_run_is_taken_over_and_released(folder, tmp_path):
+    report = tmp_path / "report"
+    report.mkdir()
+    gone = subprocess.Popen([sys.executable, "-c", "pass"])
+    gone.wait()
+    (report / LOCK_NAME).write_text(json.dumps({"pid": gone.pid, "command": "dgli evaluate"}))
+    r = run("evaluate", str(folder), "--report", str(report), "-j", "1")
+    assert r.exit_code == 0, r.output
+    assert f"took over the lock of a run that ended without releasing it (pid {gone.pid})" in (
+        r.output
+    )
+    assert not (report / LOCK_NAME).exists()
+
+
+# --- results other readers accept, honest exit codes ----------------------------------
+
+
+def test_results_jsonl_holds_no_bare_nan(folder, done_run):
+    items = [strict_json(line) for line in (done_run / "results.jsonl").read_text().splitlines()]
+    coordinates = [c for item in items[1:] for c in item["coordinates"]]
+    assert None in coordinates  # a coordinate of a hidden sticker's segment: null
+    strict_json((done_run / "summary.json").read_text())
+
+
+def test_evaluate_exits_non_zero_when_every_pair_failed(tmp_path):
+    (tmp_path / "labels.csv").write_text(
+        "color,depth,label,variant\na_color.png,a_depth.png,01,\nb_color.png,b_depth.png,02,A\n"
+    )
+    report = tmp_path / "report"
+    r = run("evaluate", str(tmp_path), "--report", str(report), "-j", "1")
+    assert r.exit_code == 2
+    assert "error: none of the 2 pairs could be read" in r.output
+    assert json.loads((report / "summary.json").read_text())["n"] == 2  # still reported
+
+
+def test_evaluate_report_conflict_is_found_before_any_classifying(folder, tmp_path, monkeypatch):
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "confusion.csv").write_text("my own table\n")
+    no_classifying(monkeypatch)
+    r = run("evaluate", str(folder), "--report", str(report))
+    assert r.exit_code == 2 and "confusion.csv" in r.output
+
+
+@pytest.mark.parametrize("name", ["timeline.csv", "timeline.png", "distances.png"])
+def test_track_report_conflict_is_found_before_any_classifying(
+    folder, tmp_path, monkeypatch, name
+):
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / name).write_text("mine\n")
+    no_classifying(monkeypatch)
+    r = run("track", str(folder), "--report", str(report))
+    assert r.exit_code == 2 and name in r.output
+
+
+# --- reports linear in the pairs -------------------------------------------------------
+
+
+def test_report_of_many_pairs_draws_a_sample_not_all_pairs(monkeypatch):
+    from dgli_vision import evaluation_report
+
+    sizes = []
+    real = evaluation_report.sample_distance_matrix
+
+    def spy(coords):
+        sizes.append(len(coords))
+        return real(coords)
+
+    monkeypatch.setattr(evaluation_report, "sample_distance_matrix", spy)
+    rng = np.random.default_rng(5)
+    outcomes = [
+        PairOutcome(
+            LabelledPair(f"{k:05d}_color.png", f"{k:05d}_depth.png", label),
+            label,
+            coordinates=tuple(rng.normal(size=28)),
+        )
+        for k, label in enumerate(["01"] * 1500 + ["02"] * 20 + ["05"] * 480)
+    ]
+    files = evaluation_report.build_report(summarise(outcomes, 1.0), {}, None)
+    assert sizes == [evaluation_report.HEATMAP_MAX]
+    assert "300 of 2,000 samples" in files["report.md"]
+    assert "distances.png" in files
