@@ -119,3 +119,50 @@ def test_ctrl_c_with_workers_stops_cleanly(batch, tmp_path):
     res = interrupt(args, report / "results.jsonl", signal.SIGINT)
     assert res.returncode == 130 and "Traceback" not in res.stderr
     assert (report / "report.md").is_file()
+
+
+def test_sigterm_on_evaluate_writes_the_report_of_what_is_done(batch, tmp_path):
+    report = tmp_path / "report"
+    args = ["evaluate", str(batch), "--report", str(report), "-j", "1"]
+    res = interrupt(args, report / "results.jsonl", signal.SIGTERM)
+    assert res.returncode == 143 and "Traceback" not in res.stderr
+    done = lines(report / "results.jsonl")
+    assert f"interrupted: {done} of {12 * COPIES} pairs done" in res.stderr
+    assert json.loads((report / "summary.json").read_text())["n"] == done
+
+
+@pytest.fixture(scope="module")
+def recording(batch, tmp_path_factory) -> Path:
+    """The first 24 pairs of the batch as the frames of a recording (a folder)."""
+    folder = tmp_path_factory.mktemp("recording")
+    rows = (batch / "labels.csv").read_text().splitlines()[: 1 + FRAMES]
+    for row in rows[1:]:
+        for name in row.split(",")[:2]:
+            os.link(batch / name, folder / name)
+    (folder / "labels.csv").write_text("\n".join(rows) + "\n")
+    os.link(batch / "intrinsics.json", folder / "intrinsics.json")
+    return folder
+
+
+FRAMES = 24
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupted_track_keeps_its_frames_and_resumes(recording, tmp_path, sig, code):
+    report = tmp_path / "report"
+    results = report / "results.jsonl"
+    args = ["track", str(recording), "--report", str(report), "-j", "1"]
+    res = interrupt(args, results, sig)
+    assert res.returncode == code, res.stderr
+    assert "Traceback" not in res.stderr and "Aborted" not in res.stderr
+    done = lines(results)
+    assert f"interrupted: {done} of {FRAMES} frames done" in res.stderr
+    partial = json.loads((report / "timeline.json").read_text())
+    assert partial["n_frames"] == done and partial["interrupted"]["frames_done"] == done
+    if sig == signal.SIGINT:
+        return
+    resumed = subprocess.run([*DGLI, *args, "--resume"], capture_output=True, text=True, env=ENV)
+    assert resumed.returncode == 0, resumed.stderr
+    assert lines(results) == FRAMES  # the frames done before were not classified again
+    whole = json.loads((report / "timeline.json").read_text())
+    assert whole["n_frames"] == FRAMES and "interrupted" not in whole
