@@ -105,9 +105,7 @@ def test_resume_of_results_that_record_no_run_is_refused(folder, tmp_path):
     assert r.exit_code == 2 and "does not record which run wrote it" in r.output
 
 
-def test_resume_into_a_folder_with_a_users_per_class_csv_keeps_it(
-    folder, done_run, monkeypatch
-):
+def test_resume_into_a_folder_with_a_users_per_class_csv_keeps_it(folder, done_run, monkeypatch):
     mine = "class,my own notes\n"
     (done_run / "per_class.csv").write_text(mine)
     no_classifying(monkeypatch)
