@@ -769,6 +769,12 @@ def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) ->
     type=click.IntRange(2),
     help="Frames of --sequence, spread evenly over its folds.",
 )
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted render of the same set into OUT: keep its complete "
+    "pairs and render the rest (refused when the set differs).",
+)
 @size_option
 @overwrite_option
 @_handle_errors
@@ -781,6 +787,7 @@ def render_cmd(
     conditions: tuple[str, ...],
     sequence: str | None,
     frames: int,
+    resume: bool,
     size_mm: tuple[float, float] | None,
     overwrite: bool,
 ) -> None:
@@ -788,49 +795,24 @@ def render_cmd(
     format of docs/napkin.md).
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
+    Ctrl-C or SIGTERM writes the pairs rendered so far with their labels.csv and exits
+    130 (143); --resume renders the rest.
     """
     from .cloth.states import CLASS_IDS
-    from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
+    from .dataset import sample_name
     from .io import guard_outputs
-    from .labelled import labelled_folder_files, write_labelled_folder
+    from .labelled import labelled_folder_files
     from .layout import layout_of_size
 
+    cases = [] if sequence else [(c, k) for c in CLASS_IDS for k in range(per_class)]
     if sequence:
         names = [f"{sequence}_{k:03d}" for k in range(frames)]
     else:
-        names = [sample_name(c, k) for c in CLASS_IDS for k in range(per_class)]
+        names = [sample_name(c, k) for c, k in cases]
     planned = labelled_folder_files(out, names, frames=bool(sequence))
     guard_outputs(planned, overwrite=overwrite)  # before the work
 
     layout = layout_of_size(size_mm)
-    samples = []
-    if sequence:
-        with _progress(list(range(frames)), "rendering") as bar:
-            stream = render_sequence(
-                sequence,
-                frames,
-                seed,
-                nominal=nominal,
-                clean=clean,
-                conditions=conditions,
-                layout=layout,
-            )
-            for sample, _ in zip(stream, bar):
-                samples.append(sample)
-    else:
-        with _progress(list(CLASS_IDS), "rendering") as classes:
-            for class_id in classes:
-                samples += list(
-                    render_samples(
-                        per_class,
-                        seed,
-                        classes=(class_id,),
-                        nominal=nominal,
-                        clean=clean,
-                        conditions=conditions,
-                        layout=layout,
-                    )
-                )
     provenance = {
         "command": _command_line(),
         "seed": seed,
@@ -841,9 +823,72 @@ def render_cmd(
         **_napkin_provenance(layout),
         "package_version": _package_version(),
     }
-    times = [k * SEQUENCE_FRAME_SECONDS for k in range(frames)] if sequence else None
-    labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
-    click.echo(f"wrote {len(samples)} pairs to {out} (labels: {labels})")
+    options = {"nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout}
+    with _run_lock(out):
+        _render_set(out, names, cases, provenance, options, resume=resume, overwrite=overwrite)
+
+
+def _render_set(
+    out: str,
+    names: list[str],
+    cases: list[tuple[str, int]],
+    provenance: dict[str, Any],
+    options: dict[str, Any],
+    *,
+    resume: bool,
+    overwrite: bool,
+) -> None:
+    """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
+    kept from an interrupted run (``resume``), write them (all, or those done when a stop
+    signal came), and exit 130/143 if stopped."""
+    from .dataset import (
+        SEQUENCE_FRAME_SECONDS,
+        kept_pairs,
+        merge_kept_pairs,
+        render_sample,
+        render_sequence,
+    )
+    from .labelled import write_labelled_folder
+
+    sequence, seed = provenance.get("sequence"), provenance["seed"]
+    kept = kept_pairs(out, provenance, names) if resume else {}
+    todo = [k for k, n in enumerate(names) if n not in kept]
+    if kept:
+        click.echo(f"resuming: {len(kept)} of {len(names)} pairs kept", err=True)
+    if sequence:
+        stream = render_sequence(
+            sequence,
+            len(names),
+            seed,
+            skip={k for k, n in enumerate(names) if n in kept},
+            **options,
+        )
+    else:
+        stream = (render_sample(*cases[k], seed, **options) for k in todo)
+    samples = []
+    with _stop_signals() as stop:
+        try:
+            with _progress(todo, "rendering") as bar:
+                for sample, _ in zip(stream, bar):
+                    samples.append(sample)
+        except KeyboardInterrupt:
+            stop.stopped = True
+    index = {n: k for k, n in enumerate(names)}
+    times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
+    labels = f"{out}/labels.csv"
+    if samples:
+        labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
+    if kept:
+        merge_kept_pairs(out, kept, names, frames=bool(sequence), command=provenance["command"])
+    done = len(samples) + len(kept)
+    if stop.stopped:
+        click.echo(
+            f"interrupted: {done} of {len(names)} pairs written to {out}"
+            + (f" (labels: {labels}); go on with the same command and --resume" if done else ""),
+            err=True,
+        )
+        sys.exit(stop.exit_code)
+    click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
 
 
 @main.group()

@@ -226,3 +226,59 @@ def test_report_of_many_pairs_draws_a_sample_not_all_pairs(monkeypatch):
     assert sizes == [evaluation_report.HEATMAP_MAX]
     assert "300 of 2,000 samples" in files["report.md"]
     assert "distances.png" in files
+
+
+# --- an interrupted render keeps its pairs and resumes ----------------------------------
+
+
+def stopping_after(monkeypatch, n: int, how):
+    """Make the next render stop (``how()``) when ``n`` frames are done."""
+    from dgli_vision import dataset
+
+    real = dataset.render_sequence
+
+    def stopped(*args, **kwargs):
+        for k, sample in enumerate(real(*args, **kwargs)):
+            yield sample
+            if k + 1 == n:  # asked for the next one
+                how()
+
+    monkeypatch.setattr(dataset, "render_sequence", stopped)
+
+
+def sigterm():
+    import signal
+
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+def folder_content(folder: Path) -> dict[str, bytes]:
+    return {
+        p.name: p.read_bytes()
+        for p in sorted(folder.iterdir())
+        if p.name not in (".dgli-outputs.json", "truth.json")
+    }
+
+
+def test_interrupted_render_keeps_complete_pairs_and_resumes(tmp_path, monkeypatch):
+    args = ["--sequence", "III", "--frames", "3", "--seed", "2"]
+    whole, out = tmp_path / "whole", tmp_path / "out"
+    assert run("render", str(whole), *args).exit_code == 0
+    with monkeypatch.context() as m:
+        stopping_after(m, 2, sigterm)
+        r = run("render", str(out), *args)
+    assert r.exit_code == 143
+    assert "interrupted: 2 of 3 pairs written" in r.output and "--resume" in r.output
+    labels = (out / "labels.csv").read_text().splitlines()
+    assert labels[1:] == [f"III_00{k}_color.png,III_00{k}_depth.png,01," for k in range(2)]
+    assert sorted(p.name for p in out.glob("*.png")) == sorted(
+        f"III_00{k}_{kind}.png" for k in range(2) for kind in ("color", "depth")
+    )
+    other = run("render", str(out), *args[:-1], "3", "--resume")
+    assert other.exit_code == 2 and "option seed changed" in other.output
+    r = run("render", str(out), *args, "--resume")
+    assert r.exit_code == 0, r.output
+    assert "resuming: 2 of 3 pairs kept" in r.output
+    assert folder_content(out) == folder_content(whole)
+    truth = json.loads((out / "truth.json").read_text())
+    assert list(truth["images"]) == [f"III_00{k}" for k in range(3)]
