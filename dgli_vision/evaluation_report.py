@@ -14,7 +14,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .classes import CLASS_NAMES
-from .distance import spearman_distance
+from .distance import average_ranks
 from .evaluate import EvaluationResult, coordinate_matrix
 from .report import confusion_image, csv_table, heatmap_image, markdown_table, overlay_image
 
@@ -87,16 +87,46 @@ def heatmap_sample(groups: Sequence[str], limit: int = HEATMAP_MAX) -> list[int]
     return sorted(chosen)
 
 
-def sample_distance_matrix(coords: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Spearman distances (n, n) between samples, ignoring missing coordinates pairwise."""
-    n = len(coords)
+def _unit_ranks(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Average ranks of each row, centred and scaled to unit norm (a row of equal values
+    becomes zeros: it correlates with nothing)."""
+    r = average_ranks(x)
+    r -= r.mean(axis=1, keepdims=True)
+    norm = np.linalg.norm(r, axis=1, keepdims=True)
+    return np.divide(r, norm, out=np.zeros_like(r), where=norm > 0)
+
+
+def sample_distance_matrix(coords: NDArray[np.float64], *, min_common: int = 3) -> NDArray:
+    """Spearman distances (n, n) between samples, ignoring missing coordinates pairwise
+    (:func:`~dgli_vision.distance.spearman_distance` with ``omit_nan``), NaN where two
+    samples share fewer than ``min_common`` coordinates.
+
+    Samples are grouped by which coordinates they have: for each two groups, every
+    sample is ranked once over the coordinates both groups have, and the block of
+    distances is one matrix product (samples usually fall into a few groups).
+    """
+    x = np.asarray(coords, dtype=np.float64)
+    n = len(x)
     out = np.full((n, n), np.nan)
-    for a in range(n):
-        out[a, a] = 0.0 if np.isfinite(coords[a]).sum() >= 3 else np.nan
-        if a + 1 < n:
-            out[a, a + 1 :] = out[a + 1 :, a] = spearman_distance(
-                coords[a + 1 :], coords[a], omit_nan=True
-            )
+    if n == 0:
+        return out
+    present = ~np.isnan(x)
+    patterns, inverse = np.unique(present, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    members = [np.flatnonzero(inverse == p) for p in range(len(patterns))]
+    for p, rows_p in enumerate(members):
+        for q in range(p, len(patterns)):
+            common = patterns[p] & patterns[q]
+            if common.sum() < min_common:
+                continue
+            rows_q = members[q]
+            rp = _unit_ranks(x[np.ix_(rows_p, common)])
+            rq = rp if q == p else _unit_ranks(x[np.ix_(rows_q, common)])
+            block = np.clip(1.0 - rp @ rq.T, 0.0, 2.0)
+            out[np.ix_(rows_p, rows_q)] = block
+            out[np.ix_(rows_q, rows_p)] = block.T
+    diagonal = np.where(present.sum(axis=1) >= min_common, 0.0, np.nan)
+    out[np.arange(n), np.arange(n)] = diagonal
     return out
 
 

@@ -282,3 +282,21 @@ def test_interrupted_render_keeps_complete_pairs_and_resumes(tmp_path, monkeypat
     assert folder_content(out) == folder_content(whole)
     truth = json.loads((out / "truth.json").read_text())
     assert list(truth["images"]) == [f"III_00{k}" for k in range(3)]
+
+
+def test_the_heatmap_distances_are_the_pairwise_spearman_distances():
+    from dgli_vision.distance import spearman_distance
+    from dgli_vision.evaluation_report import sample_distance_matrix
+
+    rng = np.random.default_rng(3)
+    x = np.round(rng.normal(size=(40, 28)), 1)  # ties too
+    hidden = [rng.random(28) < 0.2 for _ in range(4)] + [np.zeros(28, bool)]
+    for k in range(40):
+        x[k, hidden[k % 5]] = np.nan
+    x[3, :26] = np.nan  # too little in common with anything
+    x[4] = 1.0  # all equal: correlates with nothing
+    d = sample_distance_matrix(x)
+    for a in range(40):
+        for b in range(40):
+            want = 0.0 if a == b and a != 3 else spearman_distance(x[a], x[b], omit_nan=True)
+            assert d[a, b] == pytest.approx(want, abs=1e-12, nan_ok=True), (a, b)
