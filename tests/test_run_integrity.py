@@ -20,7 +20,7 @@ from dgli_vision.cli import main
 from dgli_vision.evaluate import PairOutcome, summarise
 from dgli_vision.labelled import LabelledPair
 from dgli_vision.references import default_references_path
-from dgli_vision.run_lock import LOCK_NAME, RunLock
+from dgli_vision.run_lock import LOCK_NAME
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 
@@ -132,15 +132,34 @@ def test_a_second_run_into_a_busy_report_folder_is_refused_naming_the_first(
     folder, tmp_path, monkeypatch
 ):
     report = tmp_path / "report"
-    no_classifying(monkeypatch)
-    with RunLock(report, "dgli evaluate (the first run)"):
+    holder = subprocess.Popen(  # another process at work in the folder
+        [
+            sys.executable,
+            "-c",
+            "import sys, time; from dgli_vision.run_lock import RunLock\n"
+            f"with RunLock({str(report)!r}, 'dgli evaluate (the first run)'):\n"
+            "    print('held', flush=True); time.sleep(60)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(SAMPLES.parent)},
+    )
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        no_classifying(monkeypatch)
         r = run("evaluate", str(folder), "--report", str(report), "--resume")
         t = run("track", str(folder), "--report", str(report))
-    assert r.exit_code == 2 and f"pid {os.getpid()}" in r.output
-    assert "in use by another dgli run" in r.output
+    finally:
+        holder.kill()
+        holder.wait()
+        holder.stdout.close()
+    assert r.exit_code == 2 and f"pid {holder.pid}" in r.output
+    assert "in use by another dgli run" in r.output and "the first run" in r.output
     assert len(r.output.strip().splitlines()) == 1
-    assert t.exit_code == 2 and f"pid {os.getpid()}" in t.output
+    assert t.exit_code == 2 and f"pid {holder.pid}" in t.output
     assert not (report / "results.jsonl").exists()
+    again = run("evaluate", str(folder), "--report", str(report))  # its lock died with it
+    assert "in use" not in again.output
 
 
 def test_a_stale_lock_of_a_killed_run_is_taken_over_and_released(folder, tmp_path):
@@ -261,7 +280,8 @@ def folder_content(folder: Path) -> dict[str, bytes]:
 
 
 def test_interrupted_render_keeps_complete_pairs_and_resumes(tmp_path, monkeypatch):
-    args = ["--sequence", "III", "--frames", "3", "--seed", "2"]
+    # VGA frames: a quarter of the pixels to render
+    args = ["--sequence", "III", "--frames", "3", "--conditions", "vga", "--seed", "2"]
     whole, out = tmp_path / "whole", tmp_path / "out"
     assert run("render", str(whole), *args).exit_code == 0
     with monkeypatch.context() as m:
