@@ -112,12 +112,12 @@ class RunLock:
         """Take the lock, or raise :class:`RunBusyError` naming the holder."""
         import fcntl
 
-        try:
-            self.folder.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise RunBusyError(f"cannot write into '{self.folder}': {exc.strerror}") from None
         for _ in range(20):  # the holder may remove the file between our open and flock
-            fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                self.folder.mkdir(parents=True, exist_ok=True)
+                fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
+            except OSError as exc:
+                raise RunBusyError(f"cannot write into '{self.folder}': {exc.strerror}") from None
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except OSError:
