@@ -224,15 +224,14 @@ def _pair_key(pair: Any) -> tuple[str, str]:
     return str(Path(pair.color).resolve()), str(Path(pair.depth).resolve())
 
 
-def _earlier_outcomes(path: Any, pairs: list | None) -> dict[tuple[str, str], Any]:
-    """Outcomes of ``pairs`` (None: any) already in a results.jsonl (malformed lines
-    left out)."""
+def _outcomes_of(items: list, pairs: list | None) -> dict[tuple[str, str], Any]:
+    """Outcomes of ``pairs`` (None: any) among the objects of a results.jsonl (others
+    left out), by pair."""
     from .evaluate import outcome_from_dict
-    from .io import read_jsonl
 
     wanted = None if pairs is None else {_pair_key(p) for p in pairs}
     done = {}
-    for item in read_jsonl(path):
+    for item in items:
         try:
             outcome = outcome_from_dict(item)
         except (KeyError, TypeError, ValueError):
@@ -340,7 +339,8 @@ def simulate(
     "--resume",
     is_flag=True,
     help="Go on with an interrupted run: keep the pairs already in the report folder's "
-    "results.jsonl and classify the rest.",
+    "results.jsonl and classify the rest (refused when the run differs: references, "
+    "labels, colours, intrinsics, options).",
 )
 @overwrite_option
 @_handle_errors
@@ -363,18 +363,16 @@ def evaluate(
     Labels are checked first: an unknown class or variant, or a pair listed twice,
     stops the run (exit 2) unless --lenient; pairs that cannot be read are listed with
     their error and the run goes on. With --report, each pair's result is appended to
-    results.jsonl as it is done; Ctrl-C writes the report of what is done and exits 130,
-    and --resume goes on from there, giving the same report as an uninterrupted run.
+    results.jsonl as it is done; Ctrl-C or SIGTERM writes the report of what is done and
+    exits 130 (143), and --resume goes on from there, giving the same report as an
+    uninterrupted run. Exit 1 when no pair could be classified, 2 when none could be read.
     """
-    import os
-    import time
     from pathlib import Path
 
     from .colours_file import read_colours
-    from .errors import InvalidInputError, OverwriteError
-    from .evaluate import evaluate_pairs, outcome_to_dict, summarise
-    from .frames import read_color
-    from .io import JsonLinesWriter, file_sha256, guard_outputs, record_outputs, write_outputs
+    from .errors import InvalidInputError
+    from .evaluation_report import REPORT_FILES
+    from .io import guard_outputs
     from .labelled import find_labelled_pairs
     from .recording import is_recording_file
     from .references import default_references_path, load_references
@@ -395,62 +393,290 @@ def evaluate(
             click.echo(f"skipped: {problem.message}", err=True)
     if resume and not report_dir:
         raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
-    if report_dir:  # fail before the work, not after it
-        guard_outputs(
-            [Path(report_dir) / n for n in ("report.md", "summary.json")], overwrite=overwrite
-        )
-        earlier = Path(report_dir) / "results.jsonl"
-        if earlier.exists() and not (resume or overwrite):
-            raise OverwriteError(
-                f"'{earlier}' holds the results of an earlier run; use --resume to go on "
-                "with it, or --overwrite to start again"
-            )
     refs_path = Path(references_path) if references_path else default_references_path()
     refs = load_references(refs_path)
-    colours = read_colours(colours_path) if colours_path else None
-    jobs = jobs or os.cpu_count() or 1
-    results_path = Path(report_dir) / "results.jsonl" if report_dir else None
-    wanted = None if recording else pairs
-    done = _earlier_outcomes(results_path, wanted) if resume and results_path else {}
-    unlabelled: list[str] = []
+    if colours_path:
+        read_colours(colours_path)  # a bad file stops the run before any work
+    run = _EvaluationRun(
+        folder,
+        report_dir,
+        pairs,
+        problems,
+        recording,
+        refs,
+        refs_path,
+        colours_path,
+        jobs,
+        as_json,
+    )
+    if not report_dir:
+        run.go(None, overwrite=overwrite)
+        return
+    out = Path(report_dir)  # fail before the work, not after it
+    guard_outputs([out / name for name in REPORT_FILES], overwrite=overwrite)
+    with _run_lock(out):
+        header = _run_header(
+            "evaluate",
+            folder,
+            None if recording else pairs,
+            labels_path=recording_opts["labels_path"],
+            refs_path=refs_path,
+            colours_path=colours_path,
+            options={"lenient": lenient, **recording_opts},
+        )
+        journal = _open_journal(out / "results.jsonl", header, resume, overwrite)
+        run.go(journal, overwrite=overwrite)
 
-    def todo() -> Iterator[Any]:  # a recording's frames are read as they are classified
-        for pair in recording.frames if recording else pairs:
-            if recording and not pair.label:
-                unlabelled.append(pair.color)
-                continue
-            if recording:
-                pairs.append(pair.light())
-            if _pair_key(pair) not in done:
-                yield pair
 
-    writer = JsonLinesWriter(results_path, append=resume) if results_path else None
-    interrupted = False
-    t0 = time.perf_counter()
-    count = recording.count if recording else sum(_pair_key(p) not in done for p in pairs)
-    try:
-        with _progress_bar(count, "classifying", quiet=as_json) as bar:
-            if count:
-                for outcome in evaluate_pairs(
-                    todo(), refs, jobs=jobs, on_progress=bar.update, colours=colours
-                ):
-                    if writer:  # flushed at once: an interrupted run keeps its work
-                        writer.write(outcome_to_dict(outcome))
-                    done[_pair_key(outcome.pair)] = outcome
-    except KeyboardInterrupt:
-        interrupted = True
-    finally:
-        if writer:
-            writer.close()
-    outcomes = [done[_pair_key(p)] for p in pairs if _pair_key(p) in done]
-    result = summarise(outcomes, time.perf_counter() - t0)
-    skipped = [p.message for p in problems if p.kind != "missing file"]
-    if recording:
-        _recording_notes(recording, quiet=as_json)
-        skipped += [f"{name}: no label" for name in unlabelled]
-    if as_json:
-        click.echo(json.dumps({**result.to_dict(), "skipped": skipped}))
+def _run_header(
+    kind: str,
+    folder: str,
+    pairs: Any,
+    *,
+    labels_path: str | None,
+    refs_path: Any,
+    colours_path: str | None,
+    options: dict[str, Any],
+) -> dict[str, Any]:
+    """What defines a run of ``kind`` on ``folder``, for its results.jsonl (see
+    :mod:`dgli_vision.run_lock`): the input (a folder by path, its pairs by their list,
+    labels and intrinsics files by checksum; a recording file by path, size and time),
+    the references and colours by checksum, and the options that change results.
+
+    ``pairs`` are the folder's pairs, None for a recording file."""
+    import os
+    from pathlib import Path
+
+    from .run_lock import file_digest, intrinsics_digest, listing_digest, run_header
+
+    root = Path(folder).resolve()
+    if pairs is None:
+        stat = root.stat()  # a recording is known by its size and time, not read twice
+        source = listing_digest([(str(root), stat.st_size, stat.st_mtime_ns)])
+        listing, intrinsics = None, None
     else:
+        source = str(root)
+        listing = listing_digest(
+            (os.path.relpath(p.color, root), os.path.relpath(p.depth, root)) for p in pairs
+        )
+        intrinsics = intrinsics_digest(p.color for p in pairs)
+    labels = file_digest(labels_path) if labels_path else file_digest(root / "labels.csv")
+    if labels is None and pairs is not None:  # class folders
+        labels = listing_digest((p.label, p.variant) for p in pairs)
+    fields = {
+        "input": source,
+        "pairs": listing,
+        "labels": labels,
+        "references": file_digest(refs_path),
+        "colours": file_digest(colours_path),
+        "intrinsics": intrinsics,
+        "options": {k: v for k, v in sorted(options.items()) if k != "labels_path"},
+    }
+    return run_header(kind, fields)
+
+
+#: How each stop signal ends a command: 128 + its number, as a shell reports it.
+STOP_EXIT_CODES = {2: 130, 15: 143}  # SIGINT, SIGTERM
+
+
+class _Stop:
+    """Whether a stop signal came, and which (Ctrl-C unless SIGTERM came)."""
+
+    stopped = False
+    signum = 2
+
+    @property
+    def exit_code(self) -> int:
+        return STOP_EXIT_CODES.get(self.signum, 128 + self.signum)
+
+
+def _stop_signals():
+    """A context in which SIGTERM stops the work as Ctrl-C does (a KeyboardInterrupt),
+    yielding a :class:`_Stop` that says which of the two came."""
+    import signal
+    import threading
+    from contextlib import contextmanager
+
+    @contextmanager
+    def context():
+        stop = _Stop()
+
+        def on_term(signum: int, frame: Any) -> None:
+            stop.signum, stop.stopped = signum, True
+            raise KeyboardInterrupt
+
+        if threading.current_thread() is not threading.main_thread():
+            yield stop
+            return
+        before = signal.signal(signal.SIGTERM, on_term)
+        try:
+            yield stop
+        finally:
+            signal.signal(signal.SIGTERM, before)
+
+    return context()
+
+
+def _run_lock(folder: Any):
+    """The lock of an output folder (:class:`~dgli_vision.run_lock.RunLock`), held for
+    the ``with`` block; a stale lock left by a killed run is taken over with a note."""
+    from contextlib import contextmanager
+
+    from .run_lock import RunLock
+
+    @contextmanager
+    def context():
+        lock = RunLock(folder, _command_line())
+        lock.acquire()
+        try:
+            if lock.took_over:
+                click.echo(
+                    f"note: took over the lock of a run that ended without releasing it "
+                    f"(pid {lock.took_over.get('pid')})",
+                    err=True,
+                )
+            yield lock
+        finally:
+            lock.release()
+
+    return context()
+
+
+def _open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bool):
+    """The writer of a run's results.jsonl and the objects already in it: with
+    ``resume``, those of the same run (refused, naming the difference, when its header
+    differs from ``header``); otherwise a new file starting with ``header`` (refused when
+    an earlier run's results are there, unless ``overwrite``)."""
+    from .errors import OverwriteError
+    from .io import JsonLinesWriter, read_jsonl
+    from .run_lock import check_resume, repair_journal
+
+    earlier = read_jsonl(path) if resume else []
+    if earlier:
+        check_resume(path, earlier[0], header)
+        repair_journal(path)
+        return JsonLinesWriter(path, append=True), earlier[1:]
+    if path.exists() and not (resume or overwrite):
+        raise OverwriteError(
+            f"'{path}' holds the results of an earlier run; use --resume to go on "
+            "with it, or --overwrite to start again"
+        )
+    writer = JsonLinesWriter(path, append=False)
+    writer.write(header)
+    return writer, []
+
+
+class _EvaluationRun:
+    """``dgli evaluate`` once its inputs are known: classify, print, report."""
+
+    def __init__(
+        self,
+        folder: str,
+        report_dir: str | None,
+        pairs: list,
+        problems: list,
+        recording: Any,
+        refs: Any,
+        refs_path: Any,
+        colours_path: str | None,
+        jobs: int | None,
+        as_json: bool,
+    ) -> None:
+        import os
+
+        self.folder, self.report_dir = folder, report_dir
+        self.pairs, self.problems, self.recording = pairs, problems, recording
+        self.refs, self.refs_path, self.colours_path = refs, refs_path, colours_path
+        self.jobs = jobs or os.cpu_count() or 1
+        self.as_json = as_json
+
+    def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
+        """Classify what is not done yet (``journal``: the results.jsonl writer and the
+        objects already in it), print, write the report, exit as the outcome says."""
+        import time
+
+        from .evaluate import summarise
+
+        writer, earlier = journal if journal else (None, [])
+        done = _outcomes_of(earlier, None if self.recording else self.pairs)
+        t0 = time.perf_counter()
+        with _stop_signals() as stop:
+            try:
+                self._classify(done, writer, stop)
+            finally:
+                if writer:
+                    writer.close()
+        outcomes = [done[_pair_key(p)] for p in self.pairs if _pair_key(p) in done]
+        result = summarise(outcomes, time.perf_counter() - t0)
+        skipped = [p.message for p in self.problems if p.kind != "missing file"]
+        if self.recording:
+            _recording_notes(self.recording, quiet=self.as_json)
+            skipped += [f"{name}: no label" for name in self.unlabelled]
+        self._print(result, skipped)
+        if self.report_dir:
+            self._report(result, skipped, overwrite)
+        if stop.stopped:
+            click.echo(
+                f"interrupted: {len(outcomes)} of {len(self.pairs)} pairs done"
+                + ("; go on with the same command and --resume" if self.report_dir else ""),
+                err=True,
+            )
+            sys.exit(stop.exit_code)
+        if result.n and not result.classified:
+            if all(o.error for o in outcomes):
+                click.echo(f"error: none of the {result.n} pairs could be read", err=True)
+                sys.exit(2)
+            click.echo(f"error: none of the {result.n} pairs could be classified", err=True)
+            sys.exit(1)
+
+    def _classify(self, done: dict, writer: Any, stop: _Stop) -> None:
+        """Classify the pairs not in ``done`` into it (and ``writer``), until all are or
+        a stop signal comes (:func:`_stop_signals`)."""
+        from concurrent.futures.process import BrokenProcessPool
+
+        from .colours_file import read_colours
+        from .evaluate import evaluate_pairs, outcome_to_dict
+
+        recording, pairs = self.recording, self.pairs
+        colours = read_colours(self.colours_path) if self.colours_path else None
+        self.unlabelled: list[str] = []
+
+        def todo() -> Iterator[Any]:  # a recording's frames are read as they are classified
+            for pair in recording.frames if recording else pairs:
+                if recording and not pair.label:
+                    self.unlabelled.append(pair.color)
+                    continue
+                if recording:
+                    pairs.append(pair.light())
+                if _pair_key(pair) not in done:
+                    yield pair
+
+        count = recording.count if recording else sum(_pair_key(p) not in done for p in pairs)
+        try:
+            with _progress_bar(count, "classifying", quiet=self.as_json) as bar:
+                if count:
+                    for outcome in evaluate_pairs(
+                        todo(),
+                        self.refs,
+                        jobs=self.jobs,
+                        on_progress=bar.update,
+                        colours=colours,
+                    ):
+                        if writer:  # flushed at once: an interrupted run keeps its work
+                            writer.write(outcome_to_dict(outcome))
+                        done[_pair_key(outcome.pair)] = outcome
+        except KeyboardInterrupt:
+            stop.stopped = True
+        except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+            if not stop.stopped:
+                raise
+
+    def _print(self, result: Any, skipped: list[str]) -> None:
+        from .evaluate import json_ready
+
+        if self.as_json:
+            click.echo(json.dumps(json_ready({**result.to_dict(), "skipped": skipped})))
+            return
         from .report import markdown_table
 
         click.echo(
@@ -460,7 +686,7 @@ def evaluate(
         click.echo(
             f"class accuracy {result.accuracy:.2%}, "
             f"variant accuracy {result.variant_accuracy_text()}, "
-            f"{result.seconds:.1f} s with {jobs} worker(s)"
+            f"{result.seconds:.1f} s with {self.jobs} worker(s)"
         )
         click.echo(
             markdown_table(
@@ -471,34 +697,33 @@ def evaluate(
         )
         for f in result.failures:
             click.echo(f"failed: {f['color']}: {f['error']}")
-    if report_dir:
+
+    def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
+        from pathlib import Path
+
+        from .evaluate import json_ready
         from .evaluation_report import build_report
+        from .frames import read_color
+        from .io import file_sha256, record_outputs, write_outputs
 
         meta = {
             "command": _command_line(),
-            "folder": folder,
-            "references": str(refs_path),
-            "references_sha256": file_sha256(refs_path),
+            "folder": self.folder,
+            "references": str(self.refs_path),
+            "references_sha256": file_sha256(self.refs_path),
             "package_version": _package_version(),
-            "jobs": jobs,
+            "jobs": self.jobs,
             "skipped": skipped,
         }
-        out = Path(report_dir)
+        out = Path(self.report_dir)
         files = build_report(result, meta, read_color)
         write_outputs(
-            {out / name: content for name, content in files.items()},
-            overwrite=overwrite or resume,
+            {out / name: json_ready(c) if isinstance(c, dict) else c for name, c in files.items()},
+            overwrite=overwrite,
             command=meta["command"],
         )
         record_outputs([out / "results.jsonl"], meta["command"])
         click.echo(f"report written to {out / 'report.md'}", err=True)
-    if interrupted:
-        click.echo(
-            f"interrupted: {len(outcomes)} of {len(pairs)} pairs done"
-            + ("; go on with the same command and --resume" if report_dir else ""),
-            err=True,
-        )
-        sys.exit(130)
 
 
 def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
@@ -552,6 +777,12 @@ def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) ->
     help="A robot's gripper holds the corner being folded in every frame of --sequence "
     "(without --sequence: the condition grasp).",
 )
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted render of the same set into OUT: keep its complete "
+    "pairs and render the rest (refused when the set differs).",
+)
 @size_option
 @overwrite_option
 @_handle_errors
@@ -565,6 +796,7 @@ def render_cmd(
     sequence: str | None,
     frames: int,
     gripper: bool,
+    resume: bool,
     size_mm: tuple[float, float] | None,
     overwrite: bool,
 ) -> None:
@@ -572,51 +804,26 @@ def render_cmd(
     format of docs/napkin.md).
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
+    Ctrl-C or SIGTERM writes the pairs rendered so far with their labels.csv and exits
+    130 (143); --resume renders the rest.
     """
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
     from .cloth.states import CLASS_IDS
-    from .dataset import SEQUENCE_FRAME_SECONDS, render_samples, render_sequence, sample_name
+    from .dataset import sample_name
     from .io import guard_outputs
-    from .labelled import labelled_folder_files, write_labelled_folder
+    from .labelled import labelled_folder_files
     from .layout import layout_of_size
 
+    cases = [] if sequence else [(c, k) for c in CLASS_IDS for k in range(per_class)]
     if sequence:
         names = [f"{sequence}_{k:03d}" for k in range(frames)]
     else:
-        names = [sample_name(c, k) for c in CLASS_IDS for k in range(per_class)]
+        names = [sample_name(c, k) for c, k in cases]
     planned = labelled_folder_files(out, names, frames=bool(sequence))
     guard_outputs(planned, overwrite=overwrite)  # before the work
 
     layout = layout_of_size(size_mm)
-    samples = []
-    if sequence:
-        with _progress(list(range(frames)), "rendering") as bar:
-            stream = render_sequence(
-                sequence,
-                frames,
-                seed,
-                nominal=nominal,
-                clean=clean,
-                conditions=conditions,
-                layout=layout,
-            )
-            for sample, _ in zip(stream, bar):
-                samples.append(sample)
-    else:
-        with _progress(list(CLASS_IDS), "rendering") as classes:
-            for class_id in classes:
-                samples += list(
-                    render_samples(
-                        per_class,
-                        seed,
-                        classes=(class_id,),
-                        nominal=nominal,
-                        clean=clean,
-                        conditions=conditions,
-                        layout=layout,
-                    )
-                )
     provenance = {
         "command": _command_line(),
         "seed": seed,
@@ -627,9 +834,72 @@ def render_cmd(
         **_napkin_provenance(layout),
         "package_version": _package_version(),
     }
-    times = [k * SEQUENCE_FRAME_SECONDS for k in range(frames)] if sequence else None
-    labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
-    click.echo(f"wrote {len(samples)} pairs to {out} (labels: {labels})")
+    options = {"nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout}
+    with _run_lock(out):
+        _render_set(out, names, cases, provenance, options, resume=resume, overwrite=overwrite)
+
+
+def _render_set(
+    out: str,
+    names: list[str],
+    cases: list[tuple[str, int]],
+    provenance: dict[str, Any],
+    options: dict[str, Any],
+    *,
+    resume: bool,
+    overwrite: bool,
+) -> None:
+    """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
+    kept from an interrupted run (``resume``), write them (all, or those done when a stop
+    signal came), and exit 130/143 if stopped."""
+    from .dataset import (
+        SEQUENCE_FRAME_SECONDS,
+        kept_pairs,
+        merge_kept_pairs,
+        render_sample,
+        render_sequence,
+    )
+    from .labelled import write_labelled_folder
+
+    sequence, seed = provenance.get("sequence"), provenance["seed"]
+    kept = kept_pairs(out, provenance, names) if resume else {}
+    todo = [k for k, n in enumerate(names) if n not in kept]
+    if kept:
+        click.echo(f"resuming: {len(kept)} of {len(names)} pairs kept", err=True)
+    if sequence:
+        stream = render_sequence(
+            sequence,
+            len(names),
+            seed,
+            skip={k for k, n in enumerate(names) if n in kept},
+            **options,
+        )
+    else:
+        stream = (render_sample(*cases[k], seed, **options) for k in todo)
+    samples = []
+    with _stop_signals() as stop:
+        try:
+            with _progress(todo, "rendering") as bar:
+                for sample, _ in zip(stream, bar):
+                    samples.append(sample)
+        except KeyboardInterrupt:
+            stop.stopped = True
+    index = {n: k for k, n in enumerate(names)}
+    times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
+    labels = f"{out}/labels.csv"
+    if samples:
+        labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
+    if kept:
+        merge_kept_pairs(out, kept, names, frames=bool(sequence), command=provenance["command"])
+    done = len(samples) + len(kept)
+    if stop.stopped:
+        click.echo(
+            f"interrupted: {done} of {len(names)} pairs written to {out}"
+            + (f" (labels: {labels}); go on with the same command and --resume" if done else ""),
+            err=True,
+        )
+        sys.exit(stop.exit_code)
+    click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
 
 
 @main.group()
@@ -836,12 +1106,21 @@ def sequence(
 
 @main.command()
 @click.argument("folder", metavar="RECORDING", type=click.Path())
-@report_option("Write the timeline (CSV, JSON, picture) and the frame distance heatmap here.")
+@report_option(
+    "Write the timeline (CSV, JSON, picture), the frame distance heatmap and each "
+    "frame's result (results.jsonl, as it is done) here."
+)
 @json_option("Print the timeline as JSON.")
 @jobs_option
 @references_option
 @colours_option
 @recording_options
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted run: keep the frames already in the report folder's "
+    "results.jsonl and classify the rest (refused when the run differs).",
+)
 @overwrite_option
 @_handle_errors
 def track(
@@ -851,6 +1130,7 @@ def track(
     jobs: int | None,
     references_path: str | None,
     colours_path: str | None,
+    resume: bool,
     overwrite: bool,
     **recording_opts: Any,
 ) -> None:
@@ -862,57 +1142,151 @@ def track(
     Each frame is classified, then the states are smoothed over time (a hidden Markov
     model whose moves are single folds and unfolds). A frame that cannot be read is a
     gap, listed; the run goes on. With labels (a folder's labels.csv, a bag's --labels),
-    the timeline is scored. Exit 1 when no frame could be classified at all.
+    the timeline is scored. Exit 1 when no frame could be classified at all. With
+    --report, each frame's result is kept as it is done: Ctrl-C or SIGTERM gives the
+    timeline of the frames done and exits 130 (143), and --resume goes on from there.
     """
-    import os
     from pathlib import Path
 
-    from .classes import CLASS_IDS, CLASS_NAMES
     from .colours_file import read_colours
-    from .evaluate import coordinate_matrix, evaluate_pairs
-    from .evaluation_report import sample_distance_matrix
-    from .io import guard_outputs, write_outputs
-    from .references import load_references
-    from .report import csv_table, heatmap_image, timeline_image
-    from .track import TIMELINE_COLUMNS, timeline_rows, timeline_to_dict, track_outcomes
+    from .errors import InvalidInputError
+    from .io import guard_outputs
+    from .references import default_references_path, load_references
 
     recording = _open_recording(folder, recording_opts)
-    if report_dir:  # fail before the work, not after it
-        guard_outputs([Path(report_dir) / "timeline.json"], overwrite=overwrite)
-    refs = load_references(references_path)
+    if resume and not report_dir:
+        raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
+    refs_path = Path(references_path) if references_path else default_references_path()
+    refs = load_references(refs_path)
     colours = read_colours(colours_path) if colours_path else None
-    jobs = jobs or os.cpu_count() or 1
-    with _progress_bar(recording.count, "tracking", quiet=as_json) as bar:
-        outcomes = list(
-            evaluate_pairs(
-                recording.frames,
-                refs,
-                jobs=jobs,
-                on_progress=bar.update,
-                colours=colours,
-                distances=True,
-            )
+    run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
+    if not report_dir:
+        run.go(None, overwrite=overwrite)
+        return
+    out = Path(report_dir)  # fail before the work, not after it
+    guard_outputs([out / name for name in TRACK_FILES], overwrite=overwrite)
+    with _run_lock(out):
+        header = _run_header(
+            "track",
+            folder,
+            recording.frames if recording.kind == "folder" else None,
+            labels_path=recording_opts["labels_path"],
+            refs_path=refs_path,
+            colours_path=colours_path,
+            options=recording_opts,
         )
-    _recording_notes(recording, quiet=as_json)
-    labelled = recording.labelled and all(o.pair.label for o in outcomes)
-    times = [o.pair.time for o in outcomes]
-    timeline = track_outcomes(outcomes, refs, times=times, labelled=labelled)
-    data = {
-        "folder": folder,
-        "recording": {"kind": recording.kind, "notes": list(recording.notes)},
-        "n_frames": len(outcomes),
-        **timeline_to_dict(timeline),
-    }
-    if as_json:
-        click.echo(json.dumps(data))
-    else:
+        journal = _open_journal(out / "results.jsonl", header, resume, overwrite)
+        run.go(journal, overwrite=overwrite)
+
+
+#: The files of a ``dgli track`` report (besides its results.jsonl).
+TRACK_FILES = ("timeline.json", "timeline.csv", "timeline.png", "distances.png")
+
+
+class _TrackRun:
+    """``dgli track`` once its inputs are known: classify, smooth, print, report."""
+
+    def __init__(
+        self,
+        folder: str,
+        report_dir: str | None,
+        recording: Any,
+        refs: Any,
+        colours: dict | None,
+        jobs: int | None,
+        as_json: bool,
+    ) -> None:
+        import os
+
+        self.folder, self.report_dir, self.recording = folder, report_dir, recording
+        self.refs, self.colours = refs, colours
+        self.jobs = jobs or os.cpu_count() or 1
+        self.as_json = as_json
+
+    def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
+        """Classify the frames not done yet (``journal``: the results.jsonl writer and
+        the objects already in it), smooth, print, report, exit as the outcome says."""
+        from .track import track_outcomes
+
+        writer, earlier = journal if journal else (None, [])
+        done = _outcomes_of(earlier, None)
+        seen: list[Any] = []  # the frames in order, as far as they were read
+        with _stop_signals() as stop:
+            try:
+                self._classify(done, writer, seen, stop)
+            finally:
+                if writer:
+                    writer.close()
+        outcomes = [done[k] for k in (_pair_key(p) for p in seen) if k in done]
+        _recording_notes(self.recording, quiet=self.as_json)
+        labelled = self.recording.labelled and all(o.pair.label for o in outcomes)
+        timeline = track_outcomes(
+            outcomes, self.refs, times=[o.pair.time for o in outcomes], labelled=labelled
+        )
+        data = {
+            "folder": self.folder,
+            "recording": {"kind": self.recording.kind, "notes": list(self.recording.notes)},
+            "n_frames": len(outcomes),
+            **_timeline_json(timeline),
+        }
+        if stop.stopped:
+            data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
+        self._print(data, timeline, len(outcomes))
+        if self.report_dir:
+            self._report(data, timeline, outcomes, labelled, overwrite)
+        if stop.stopped:
+            click.echo(
+                f"interrupted: {len(outcomes)} of {self.recording.count} frames done"
+                + ("; go on with the same command and --resume" if self.report_dir else ""),
+                err=True,
+            )
+            sys.exit(stop.exit_code)
+        if all(f.gap for f in timeline.frames):
+            sys.exit(1)
+
+    def _classify(self, done: dict, writer: Any, seen: list, stop: _Stop) -> None:
+        from concurrent.futures.process import BrokenProcessPool
+
+        from .evaluate import evaluate_pairs, outcome_to_dict
+
+        def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
+            for pair in self.recording.frames:
+                seen.append(pair.light())
+                if _pair_key(pair) not in done:
+                    yield pair
+
+        try:
+            with _progress_bar(self.recording.count, "tracking", quiet=self.as_json) as bar:
+                for outcome in evaluate_pairs(
+                    todo(),
+                    self.refs,
+                    jobs=self.jobs,
+                    on_progress=bar.update,
+                    colours=self.colours,
+                    distances=True,
+                ):
+                    if writer:  # flushed at once: an interrupted run keeps its work
+                        writer.write(outcome_to_dict(outcome))
+                    done[_pair_key(outcome.pair)] = outcome
+        except KeyboardInterrupt:
+            stop.stopped = True
+        except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+            if not stop.stopped:
+                raise
+
+    def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
+        from .classes import CLASS_NAMES
+
+        if self.as_json:
+            click.echo(json.dumps(data))
+            return
 
         def state(key: tuple[str, str | None]) -> str:
             return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
 
         first = next((f for f in timeline.frames if not f.gap), None)
         click.echo(
-            f"{len(outcomes)} frames; "
+            f"{n} frames; "
             + (
                 f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
                 if first
@@ -932,34 +1306,65 @@ def track(
                 f"{list(sc.found_changes)} (precision {sc.precision:.2f}, recall "
                 f"{sc.recall:.2f}, within 2 frames)"
             )
-    if report_dir:
-        out = Path(report_dir)
+
+    def _report(
+        self,
+        data: dict[str, Any],
+        timeline: Any,
+        outcomes: list,
+        labelled: bool,
+        overwrite: bool,
+    ) -> None:
+        from pathlib import Path
+
+        from .classes import CLASS_IDS, CLASS_NAMES
+        from .evaluate import coordinate_matrix
+        from .evaluation_report import heatmap_sample, sample_distance_matrix
+        from .io import record_outputs, write_outputs
+        from .report import csv_table, heatmap_image, timeline_image
+        from .track import TIMELINE_COLUMNS, timeline_rows
+
+        out = Path(self.report_dir)
         picture = timeline_image(
             CLASS_IDS,
             [f.smoothed_class for f in timeline.frames],
             [f.raw_class for f in timeline.frames],
             truth=[f.label or "" for f in timeline.frames] if labelled else None,
             names=CLASS_NAMES,
-            title=f"timeline of {folder}",
+            title=f"timeline of {self.folder}",
         )
-        heat = heatmap_image(
-            sample_distance_matrix(coordinate_matrix(outcomes)),
-            title="frames: Spearman distance of dGLI",
-            value_label="1 - rho",
-        )
-        write_outputs(
-            {
-                out / "timeline.json": {"command": _command_line(), **data},
-                out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
-                out / "timeline.png": picture,
-                out / "distances.png": heat,
-            },
-            overwrite=overwrite,
-            command=_command_line(),
-        )
+        shown = heatmap_sample(["frames"] * len(outcomes))  # evenly spread in time
+        files: dict[Any, Any] = {
+            out / "timeline.json": {"command": _command_line(), **data},
+            out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
+            out / "timeline.png": picture,
+        }
+        if shown:
+            files[out / "distances.png"] = heatmap_image(
+                sample_distance_matrix(coordinate_matrix([outcomes[k] for k in shown])),
+                title="frames: Spearman distance of dGLI"
+                + (
+                    ""
+                    if len(shown) == len(outcomes)
+                    else f" ({len(shown)} of {len(outcomes)} frames, evenly spread)"
+                ),
+                value_label="1 - rho",
+            )
+            files[out / "timeline.json"]["distances_png"] = {
+                "frames_shown": len(shown),
+                "frames": len(outcomes),
+            }
+        write_outputs(files, overwrite=overwrite, command=_command_line())
+        record_outputs([out / "results.jsonl"], _command_line())
         click.echo(f"report written to {out}", err=True)
-    if all(f.gap for f in timeline.frames):
-        sys.exit(1)
+
+
+def _timeline_json(timeline: Any) -> dict[str, Any]:
+    """A timeline's JSON object with NaN written as null."""
+    from .evaluate import json_ready
+    from .track import timeline_to_dict
+
+    return json_ready(timeline_to_dict(timeline))
 
 
 @main.command()

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Container, Iterator, Sequence
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -18,7 +19,10 @@ from .render import Lighting, RenderResult, SensorModel, render
 
 __all__ = [
     "SEQUENCE_FRAME_SECONDS",
+    "KeptPair",
     "RenderedSample",
+    "kept_pairs",
+    "merge_kept_pairs",
     "random_camera",
     "render_sample",
     "render_samples",
@@ -265,6 +269,7 @@ def render_sequence(
     conditions: tuple[str, ...] = (),
     layout: NapkinLayout | None = None,
     progress: list[float] | None = None,
+    skip: Container[int] = (),
 ) -> Iterator[RenderedSample]:
     """Render folding sequence ``name`` as ``n_frames`` frames of one recording.
 
@@ -281,6 +286,8 @@ def render_sequence(
         Render the frames at these points of the sequence instead (``k + f``: the first
         ``k`` folds laid flat and fold ``k + 1`` turned ``180 f`` degrees); the scene is
         the same as for the evenly spread frames.
+    skip : container of int, keyword-only, optional
+        Frames not to render (kept from an interrupted run); the others are the same.
 
     Yields
     ------
@@ -331,6 +338,8 @@ def render_sequence(
     lighting = Lighting() if nominal else Lighting.random(rng)
     sensor = SensorModel(enabled=not clean)
     for k, p in enumerate(progress):
+        if k in skip:
+            continue
         state = state_at(p)
         result = render(
             state,
@@ -343,3 +352,131 @@ def render_sequence(
             layout=layout,
         )
         yield RenderedSample(f"{name}_{k:03d}", state, result, camera, lighting, cond)
+
+
+# --- going on with an interrupted render -------------------------------------------------
+
+
+@dataclass(frozen=True)
+class KeptPair:
+    """A pair an earlier render of the same set left complete: its rows of ``labels.csv``
+    and ``frames.csv`` (None without one) and its ``truth.json`` entry."""
+
+    name: str
+    label_row: tuple[str, ...]
+    frame_row: tuple[str, ...] | None
+    truth: dict[str, Any]
+
+
+def _csv_rows(path: Path) -> tuple[list[str], list[tuple[str, ...]]]:
+    import csv
+
+    from .errors import UnreadableInputError
+
+    if not path.is_file():
+        return [], []
+    try:
+        with path.open(newline="", encoding="utf-8") as fh:
+            rows = [tuple(r) for r in csv.reader(fh)]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UnreadableInputError(f"cannot read '{path}': {exc}") from None
+    return (list(rows[0]), rows[1:]) if rows else ([], [])
+
+
+def kept_pairs(
+    out: str | Path, provenance: dict[str, Any], names: Sequence[str]
+) -> dict[str, KeptPair]:
+    """The pairs of ``names`` that an earlier, interrupted ``dgli render`` of the same set
+    left complete in ``out`` (listed in its ``labels.csv`` and ``truth.json``, both files
+    there), for ``--resume``.
+
+    Raises
+    ------
+    ResumeMismatchError
+        The earlier render was of another set: its provenance (seed, classes, frames,
+        conditions, size, ...) differs from ``provenance`` (the command and the package
+        version aside), or there is none.
+    """
+    from .io import read_json
+    from .run_lock import check_resume, run_header
+
+    root = Path(out)
+    truth_path = root / "truth.json"
+    if not truth_path.is_file():
+        return {}
+    truth = read_json(truth_path, what="truth file")
+    volatile = ("command", "package_version")
+
+    def fields(prov: Any) -> dict[str, Any]:
+        return {"options": {k: v for k, v in prov.items() if k not in volatile}}
+
+    earlier = truth.get("provenance") if isinstance(truth, dict) else None
+    first = run_header("render", fields(earlier)) if isinstance(earlier, dict) else None
+    check_resume(truth_path, first, run_header("render", fields(provenance)))
+    _, labels = _csv_rows(root / "labels.csv")
+    _, frames = _csv_rows(root / "frames.csv")
+    label_of = {r[0]: r for r in labels if r}
+    frame_of = {r[0]: r for r in frames if r}
+    images = truth.get("images") or {}
+    kept = {}
+    for name in names:
+        entry = images.get(name)
+        color, depth = f"{name}_color.png", f"{name}_depth.png"
+        if (
+            isinstance(entry, dict)
+            and color in label_of
+            and (root / color).is_file()
+            and (root / depth).is_file()
+        ):
+            kept[name] = KeptPair(name, label_of[color], frame_of.get(color), entry)
+    return kept
+
+
+def merge_kept_pairs(
+    out: str | Path,
+    kept: dict[str, KeptPair],
+    names: Sequence[str],
+    *,
+    frames: bool,
+    command: str,
+) -> None:
+    """List the ``kept`` pairs of an earlier render in the ``labels.csv``, ``truth.json``
+    (and ``frames.csv``) that :func:`~dgli_vision.labelled.write_labelled_folder` wrote
+    for this run's pairs, all in the order of ``names``, and record the files."""
+    from .io import read_json, record_outputs, write_json, write_text
+    from .report import csv_table
+
+    root = Path(out)
+    truth_path = root / "truth.json"
+    truth = read_json(truth_path, what="truth file") if truth_path.is_file() else {}
+    header, labels = _csv_rows(root / "labels.csv")
+    frame_header, frame_rows = _csv_rows(root / "frames.csv")
+    label_of = {r[0]: r for r in labels if r}
+    frame_of = {r[0]: r for r in frame_rows if r}
+    images = dict(truth.get("images") or {})
+    for pair in kept.values():
+        color = f"{pair.name}_color.png"
+        label_of.setdefault(color, pair.label_row)
+        if pair.frame_row is not None:
+            frame_of.setdefault(color, pair.frame_row)
+        images.setdefault(pair.name, pair.truth)
+    order = [n for n in names if n in images]
+    write_text(
+        root / "labels.csv",
+        csv_table(
+            header or ["color", "depth", "label", "variant"],
+            [label_of[f"{n}_color.png"] for n in order],
+        ),
+    )
+    written = [root / "labels.csv", truth_path]
+    if frames:
+        write_text(
+            root / "frames.csv",
+            csv_table(
+                frame_header or ["color", "depth", "time"],
+                [frame_of[f"{n}_color.png"] for n in order],
+            ),
+        )
+        written.append(root / "frames.csv")
+    write_json(truth_path, {**truth, "images": {n: images[n] for n in order}})
+    record_outputs(written, command)

@@ -27,6 +27,7 @@ __all__ = [
     "PairOutcome",
     "coordinate_matrix",
     "evaluate_pairs",
+    "json_ready",
     "outcome_from_dict",
     "outcome_to_dict",
     "summarise",
@@ -340,11 +341,29 @@ class EvaluationResult:
 NO_CLASS = "none"
 
 
+def json_ready(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None (JSON's null), through
+    dicts, lists and tuples: ``json.dumps`` would write them as bare ``NaN``, which JSON
+    readers other than Python's refuse."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    return value
+
+
 def outcome_to_dict(outcome: PairOutcome) -> dict[str, Any]:
-    """JSON-ready form of an outcome (one line of ``results.jsonl``)."""
+    """JSON-ready form of an outcome (one line of ``results.jsonl``); a coordinate that
+    was not measured (NaN) is null."""
     from dataclasses import asdict
 
-    return asdict(outcome)
+    return json_ready(asdict(outcome))
+
+
+def _float(v: Any) -> float:
+    return float("nan") if v is None else float(v)
 
 
 def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
@@ -363,12 +382,12 @@ def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
         data.get("distance"),
         data.get("runner_up"),
         data.get("runner_up_distance"),
-        tuple(float(v) for v in data.get("coordinates") or ()),
-        tuple((float(u), float(v)) for u, v in data.get("centroids") or ()),
+        tuple(_float(v) for v in data.get("coordinates") or ()),
+        tuple((_float(u), _float(v)) for u, v in data.get("centroids") or ()),
         data.get("reason"),
         data.get("error"),
         data.get("confidence"),
-        tuple(float(v) for v in data.get("distances") or ()),
+        tuple(_float(v) for v in data.get("distances") or ()),
     )
 
 

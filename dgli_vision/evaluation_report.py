@@ -6,6 +6,7 @@ CLI hands them to :mod:`dgli_vision.io` to write. Nothing here touches the disk.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
@@ -13,23 +14,119 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .classes import CLASS_NAMES
-from .distance import spearman_distance
+from .distance import average_ranks
 from .evaluate import EvaluationResult, coordinate_matrix
 from .report import confusion_image, csv_table, heatmap_image, markdown_table, overlay_image
 
-__all__ = ["build_report", "sample_distance_matrix"]
+__all__ = [
+    "HEATMAP_MAX",
+    "REPORT_FILES",
+    "build_report",
+    "heatmap_sample",
+    "sample_distance_matrix",
+]
+
+#: The files of every report (besides ``results.jsonl`` and the overlays of
+#: misclassified pairs, named after them).
+REPORT_FILES = (
+    "report.md",
+    "summary.json",
+    "confusion.csv",
+    "per_class.csv",
+    "confusion.png",
+    "distances.png",
+)
+
+#: Most samples a distance heatmap shows. All pairs of n samples cost n^2 in time and
+#: memory (20,000 pairs: 3 GB and minutes), and a 600-pixel picture cannot show more
+#: than a few hundred rows anyway: beyond this, a sample per class is drawn.
+HEATMAP_MAX = 300
 
 
-def sample_distance_matrix(coords: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Spearman distances (n, n) between samples, ignoring missing coordinates pairwise."""
-    n = len(coords)
+def heatmap_sample(groups: Sequence[str], limit: int = HEATMAP_MAX) -> list[int]:
+    """Indices of at most ``limit`` items, the same number from every group where the
+    groups allow (a group smaller than its share gives all it has, the rest is shared by
+    the others), evenly spread within each group, in input order.
+
+    Parameters
+    ----------
+    groups : sequence of str
+        Each item's group (e.g. its true class); items of a group need not be consecutive.
+    limit : int
+        At least 1.
+
+    Returns
+    -------
+    list of int
+        All indices when there are at most ``limit`` items.
+    """
+    if limit < 1:
+        raise ValueError(f"limit must be at least 1, got {limit}")
+    n = len(groups)
+    if n <= limit:
+        return list(range(n))
+    members: dict[str, list[int]] = {}
+    for k, g in enumerate(groups):
+        members.setdefault(g, []).append(k)
+    sizes = sorted(len(m) for m in members.values())
+    per_group, left, others = 0, limit, len(sizes)
+    for size in sizes:  # water-filling: the largest share every remaining group can take
+        share = left // others
+        if size > share:
+            per_group = share
+            break
+        left -= size
+        others -= 1
+    else:
+        per_group = sizes[-1]
+    chosen = []
+    for m in members.values():
+        take = min(len(m), max(per_group, 1))
+        picks = np.unique(np.linspace(0, len(m) - 1, take).round().astype(int))
+        chosen += [m[p] for p in picks]
+    return sorted(chosen)
+
+
+def _unit_ranks(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Average ranks of each row, centred and scaled to unit norm (a row of equal values
+    becomes zeros: it correlates with nothing)."""
+    r = average_ranks(x)
+    r -= r.mean(axis=1, keepdims=True)
+    norm = np.linalg.norm(r, axis=1, keepdims=True)
+    return np.divide(r, norm, out=np.zeros_like(r), where=norm > 0)
+
+
+def sample_distance_matrix(coords: NDArray[np.float64], *, min_common: int = 3) -> NDArray:
+    """Spearman distances (n, n) between samples, ignoring missing coordinates pairwise
+    (:func:`~dgli_vision.distance.spearman_distance` with ``omit_nan``), NaN where two
+    samples share fewer than ``min_common`` coordinates.
+
+    Samples are grouped by which coordinates they have: for each two groups, every
+    sample is ranked once over the coordinates both groups have, and the block of
+    distances is one matrix product (samples usually fall into a few groups).
+    """
+    x = np.asarray(coords, dtype=np.float64)
+    n = len(x)
     out = np.full((n, n), np.nan)
-    for a in range(n):
-        out[a, a] = 0.0 if np.isfinite(coords[a]).sum() >= 3 else np.nan
-        if a + 1 < n:
-            out[a, a + 1 :] = out[a + 1 :, a] = spearman_distance(
-                coords[a + 1 :], coords[a], omit_nan=True
-            )
+    if n == 0:
+        return out
+    present = ~np.isnan(x)
+    patterns, inverse = np.unique(present, axis=0, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    members = [np.flatnonzero(inverse == p) for p in range(len(patterns))]
+    for p, rows_p in enumerate(members):
+        for q in range(p, len(patterns)):
+            common = patterns[p] & patterns[q]
+            if common.sum() < min_common:
+                continue
+            rows_q = members[q]
+            rp = _unit_ranks(x[np.ix_(rows_p, common)])
+            rq = rp if q == p else _unit_ranks(x[np.ix_(rows_q, common)])
+            block = np.clip(1.0 - rp @ rq.T, 0.0, 2.0)
+            out[np.ix_(rows_p, rows_q)] = block
+            out[np.ix_(rows_q, rows_p)] = block.T
+    diagonal = np.where(present.sum(axis=1) >= min_common, 0.0, np.nan)
+    out[np.arange(n), np.arange(n)] = diagonal
     return out
 
 
@@ -72,12 +169,19 @@ def build_report(
     )
     outs = result.outcomes
     order = sorted(range(len(outs)), key=lambda k: (outs[k].pair.label, outs[k].pair.color))
-    coords = coordinate_matrix([outs[k] for k in order])
-    if len(order) >= 2:
+    shown = [order[k] for k in heatmap_sample([outs[k].pair.label for k in order])]
+    heatmap_note = (
+        f"all {len(outs):,} samples"
+        if len(shown) == len(outs)
+        else f"{len(shown):,} of {len(outs):,} samples, the same number from each true class "
+        "(all of a smaller class), evenly spread in each"
+    )
+    if len(shown) >= 2:
         files["distances.png"] = heatmap_image(
-            sample_distance_matrix(coords),
-            title="Spearman distance of dGLI, samples by true class",
-            groups=[outs[k].pair.label for k in order],
+            sample_distance_matrix(coordinate_matrix([outs[k] for k in shown])),
+            title="Spearman distance of dGLI, samples by true class"
+            + ("" if len(shown) == len(outs) else f" ({len(shown)} of {len(outs)})"),
+            groups=[outs[k].pair.label for k in shown],
             value_label="1 - rho",
         )
     wrong = [o for o in outs if o.predicted is not None and not o.correct]
@@ -161,7 +265,10 @@ def build_report(
         md.append("")
     if "distances.png" in files:
         md += [
-            "## Distances between all evaluated samples",
+            "## Distances between evaluated samples",
+            "",
+            f"Spearman distance of the dGLI coordinates between {heatmap_note}, "
+            "ordered by true class.",
             "",
             "![distance matrix](distances.png)",
             "",

@@ -343,7 +343,10 @@ def track_outcomes(
     Returns
     -------
     Timeline
+        Without frames when there are no outcomes (a run stopped before its first frame).
     """
+    if not len(outcomes):
+        return Timeline((), ())
     keys = state_keys()
     k_refs = len(references)
     d = np.full((len(outcomes), k_refs), np.nan)

@@ -15,7 +15,10 @@ from pathlib import Path
 import pytest
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
-DGLI = str(Path(sys.executable).parent / "dgli")
+ROOT = Path(__file__).resolve().parent.parent
+# the package of this checkout (an installed `dgli` may run another copy)
+DGLI = [sys.executable, "-m", "dgli_vision"]
+ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
 COPIES = 4  # 48 pairs: long enough to interrupt on one core
 
 
@@ -37,13 +40,15 @@ def batch(tmp_path_factory) -> Path:
 
 
 def lines(path: Path) -> int:
-    return len(path.read_text().splitlines()) if path.exists() else 0
+    """Pairs in a results.jsonl (its first line records the run)."""
+    return sum('"pair"' in line for line in path.read_text().splitlines()) if path.exists() else 0
 
 
 def interrupt(args: list[str], results: Path, sig: int) -> subprocess.CompletedProcess:
     """Run dgli, and send ``sig`` once a few results are on disk."""
     proc = subprocess.Popen(
-        [DGLI, *args],
+        [*DGLI, *args],
+        env=ENV,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -75,7 +80,8 @@ def comparable(report: Path) -> dict:
 def uninterrupted(batch, tmp_path_factory) -> dict:
     report = tmp_path_factory.mktemp("whole") / "report"
     res = subprocess.run(
-        [DGLI, "evaluate", str(batch), "--report", str(report), "-j", "1"],
+        [*DGLI, "evaluate", str(batch), "--report", str(report), "-j", "1"],
+        env=ENV,
         capture_output=True,
         text=True,
     )
@@ -99,9 +105,9 @@ def test_an_interrupted_batch_resumes_to_the_same_report(batch, uninterrupted, t
         assert partial["n"] == done  # the report of what is done
     else:
         assert res.returncode == -signal.SIGKILL
-    again = subprocess.run([DGLI, *args], capture_output=True, text=True)
+    again = subprocess.run([*DGLI, *args], capture_output=True, text=True, env=ENV)
     assert again.returncode == 2 and "--resume" in again.stderr  # never silently redone
-    resumed = subprocess.run([DGLI, *args, "--resume"], capture_output=True, text=True)
+    resumed = subprocess.run([*DGLI, *args, "--resume"], capture_output=True, text=True, env=ENV)
     assert resumed.returncode == 0, resumed.stderr
     assert lines(results) == 12 * COPIES
     assert comparable(report) == uninterrupted
@@ -113,3 +119,50 @@ def test_ctrl_c_with_workers_stops_cleanly(batch, tmp_path):
     res = interrupt(args, report / "results.jsonl", signal.SIGINT)
     assert res.returncode == 130 and "Traceback" not in res.stderr
     assert (report / "report.md").is_file()
+
+
+def test_sigterm_on_evaluate_writes_the_report_of_what_is_done(batch, tmp_path):
+    report = tmp_path / "report"
+    args = ["evaluate", str(batch), "--report", str(report), "-j", "1"]
+    res = interrupt(args, report / "results.jsonl", signal.SIGTERM)
+    assert res.returncode == 143 and "Traceback" not in res.stderr
+    done = lines(report / "results.jsonl")
+    assert f"interrupted: {done} of {12 * COPIES} pairs done" in res.stderr
+    assert json.loads((report / "summary.json").read_text())["n"] == done
+
+
+@pytest.fixture(scope="module")
+def recording(batch, tmp_path_factory) -> Path:
+    """The first 24 pairs of the batch as the frames of a recording (a folder)."""
+    folder = tmp_path_factory.mktemp("recording")
+    rows = (batch / "labels.csv").read_text().splitlines()[: 1 + FRAMES]
+    for row in rows[1:]:
+        for name in row.split(",")[:2]:
+            os.link(batch / name, folder / name)
+    (folder / "labels.csv").write_text("\n".join(rows) + "\n")
+    os.link(batch / "intrinsics.json", folder / "intrinsics.json")
+    return folder
+
+
+FRAMES = 24
+
+
+@pytest.mark.parametrize("sig, code", [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_interrupted_track_keeps_its_frames_and_resumes(recording, tmp_path, sig, code):
+    report = tmp_path / "report"
+    results = report / "results.jsonl"
+    args = ["track", str(recording), "--report", str(report), "-j", "1"]
+    res = interrupt(args, results, sig)
+    assert res.returncode == code, res.stderr
+    assert "Traceback" not in res.stderr and "Aborted" not in res.stderr
+    done = lines(results)
+    assert f"interrupted: {done} of {FRAMES} frames done" in res.stderr
+    partial = json.loads((report / "timeline.json").read_text())
+    assert partial["n_frames"] == done and partial["interrupted"]["frames_done"] == done
+    if sig == signal.SIGINT:
+        return
+    resumed = subprocess.run([*DGLI, *args, "--resume"], capture_output=True, text=True, env=ENV)
+    assert resumed.returncode == 0, resumed.stderr
+    assert lines(results) == FRAMES  # the frames done before were not classified again
+    whole = json.loads((report / "timeline.json").read_text())
+    assert whole["n_frames"] == FRAMES and "interrupted" not in whole
