@@ -1599,9 +1599,10 @@ def calibrate(
 
     All 16 stickers must be in view. Use the colours with --colours on classify and
     evaluate when stickers print far from the nominal colours. With --lens-out, the
-    radial lens distortion is fitted to the 16 sticker centres as to a chessboard; it is
-    determined only if the stickers reach well towards the image border (fill the view,
-    or place the napkin off-centre): otherwise nothing is written and the exit code is 1.
+    radial lens distortion is fitted to the 16 sticker centres as to a chessboard. It is
+    determined only if the stickers reach well towards the image border (place the napkin
+    off to one side, towards a corner); otherwise nothing is written and the exit code
+    is 1.
     """
     from pathlib import Path
 

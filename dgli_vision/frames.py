@@ -137,7 +137,7 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
     CalibrationError
         Naming ``source`` and what is wrong.
     """
-    from .intrinsics_files import make_intrinsics, parse_distortion
+    from .intrinsics_files import check_size_and_focal, make_intrinsics, parse_distortion
 
     if not isinstance(data, dict):
         raise CalibrationError(f"intrinsics '{source}' must be a JSON object")
@@ -155,8 +155,7 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
             f"intrinsics '{source}': intrinsic_matrix must be 9 finite numbers, got {m!r}"
         )
     fx, fy, cx, cy = k[0], k[4], k[6], k[7]
-    if width <= 0 or height <= 0 or fx <= 0 or fy <= 0:
-        return make_intrinsics(width, height, fx, fy, cx, cy, (), source)  # raises
+    check_size_and_focal(width, height, fx, fy, source)
     if abs(k[8] - 1) > 1e-9 or any(abs(k[i]) > 1e-9 for i in (1, 2, 3, 5)):
         raise CalibrationError(
             f"intrinsics '{source}': intrinsic_matrix {k.tolist()} is not a pinhole matrix "

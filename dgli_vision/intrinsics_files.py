@@ -31,6 +31,7 @@ from .errors import CalibrationError
 __all__ = [
     "MATRIX_KEYS",
     "SUPPORTED_DISTORTION_MODELS",
+    "check_size_and_focal",
     "intrinsics_text",
     "load_calibration_text",
     "make_intrinsics",
@@ -102,6 +103,19 @@ def parse_distortion(value: Any, source: str, what: str = "distortion") -> tuple
     return tuple(float(c) for c in d) if d.any() else ()
 
 
+def check_size_and_focal(width: int, height: int, fx: float, fy: float, source: str) -> None:
+    """Raise :class:`CalibrationError` unless the image size and focal lengths are
+    positive."""
+    if width <= 0 or height <= 0:
+        raise CalibrationError(
+            f"intrinsics '{source}': image size {width}x{height} is not positive"
+        )
+    if fx <= 0 or fy <= 0:
+        raise CalibrationError(
+            f"intrinsics '{source}': focal lengths fx={fx}, fy={fy} must be positive"
+        )
+
+
 def make_intrinsics(
     width: int,
     height: int,
@@ -120,14 +134,7 @@ def make_intrinsics(
         A size or focal length that is not positive, or a principal point outside the
         image.
     """
-    if width <= 0 or height <= 0:
-        raise CalibrationError(
-            f"intrinsics '{source}': image size {width}x{height} is not positive"
-        )
-    if fx <= 0 or fy <= 0:
-        raise CalibrationError(
-            f"intrinsics '{source}': focal lengths fx={fx}, fy={fy} must be positive"
-        )
+    check_size_and_focal(width, height, fx, fy, source)
     if not (0 <= cx <= width and 0 <= cy <= height):
         raise CalibrationError(
             f"intrinsics '{source}': principal point ({cx}, {cy}) lies outside the "

@@ -266,3 +266,17 @@ def test_a_lens_with_k2_is_either_recovered_or_called_poorly_constrained(aside_m
         assert abs(est.k1 - 0.1) < 0.01 and abs(est.k2 + 0.05) < 0.01
     else:
         assert "k1 is known only to" in est.problem
+
+
+def test_calibrate_with_focal_corrects_a_wrong_focal_length(flat_k1, tmp_path):
+    folder = flat_k1[0]
+    wrong = dataclasses.replace(DEFAULT_INTRINSICS, fx=580.0, fy=580.0)
+    (tmp_path / "wrong.json").write_text(json.dumps(wrong.to_open3d_dict()))
+    out = tmp_path / "lens.yaml"
+    args = [str(folder / "color.png"), str(folder / "depth.png"), "--lens-out", str(out)]
+    r = CliRunner().invoke(
+        main, ["calibrate", *args, "--intrinsics", str(tmp_path / "wrong.json"), "--focal"]
+    )
+    assert r.exit_code == 0, r.output
+    intr = read_intrinsics(out)  # an OpenCV YAML file, by its extension
+    assert abs(intr.fx - 605.0) < 3.0 and abs(intr.distortion[0] - 0.1) < 0.01
