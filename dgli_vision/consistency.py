@@ -33,6 +33,7 @@ from .perception.scale import NapkinRuler
 from .references import ReferenceSet
 
 __all__ = [
+    "CLEAR_MARGIN",
     "FOOTPRINT_SCALE",
     "FOOTPRINT_SLACK",
     "MIRROR_MARGIN",
@@ -46,10 +47,12 @@ __all__ = [
 #: Sensor noise and sticker placement give under 1%; an uncorrected lens a few per cent
 #: near the border; a wrong depth-units setting 20% and more.
 SCALE_TOLERANCE = 0.08
-#: How much better (distance units) the front-up reading must fit than the mirrored one.
-#: The closest true pairs (four corners folded against a flat napkin seen mirrored) are
-#: 0.06 apart before the footprint is counted.
+#: How much better (distance units) one reading must fit once the footprint is counted.
 MIRROR_MARGIN = 0.05
+#: How much better (distance units) one reading must fit for the stickers alone to
+#: decide: a half fold seen front up fits a strip folded under seen mirrored 0.06 better
+#: than its own references (and the other way round); the footprint tells those apart.
+CLEAR_MARGIN = 0.1
 #: Footprint (fraction of the napkin's area) outside a reference's range that is still
 #: agreement: the measurement's error (2% on clean images, 5% in shadow or dim light).
 FOOTPRINT_SLACK = 0.05
@@ -129,12 +132,20 @@ def mirror_problem(
     str or None
         Starts with what was seen; the caller prefixes ``"cannot tell: "``.
     """
-    pen = footprint_penalty(footprint, references, napkin_area_mm2)
-    front = reference_distances(coords, references, **evidence) + pen
-    mirrored = reference_distances(-np.asarray(coords), references, **evidence) + pen
+    front = reference_distances(coords, references, **evidence)
+    mirrored = reference_distances(-np.asarray(coords), references, **evidence)
     i, j = int(np.argmin(front)), int(np.argmin(mirrored))
-    if front[i] + MIRROR_MARGIN <= mirrored[j]:
-        return None
+    if front[i] + CLEAR_MARGIN <= mirrored[j]:
+        return None  # the stickers alone say front up
+    if mirrored[j] + CLEAR_MARGIN > front[i]:
+        # The stickers alone leave it open: the footprint has its say. It only ever
+        # settles a doubt; measured wrong (a shadow cut off part of the napkin) it must
+        # not overrule stickers that are clear.
+        pen = footprint_penalty(footprint, references, napkin_area_mm2)
+        front, mirrored = front + pen, mirrored + pen
+        i, j = int(np.argmin(front)), int(np.argmin(mirrored))
+        if front[i] + MIRROR_MARGIN <= mirrored[j]:
+            return None
     fix = "turn the napkin front face up, or switch off the camera's mirroring"
     if mirrored[j] + MIRROR_MARGIN <= front[i]:
         return (

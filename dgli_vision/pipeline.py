@@ -6,7 +6,7 @@ intermediate result, which is what a person debugging a real image needs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -243,8 +243,10 @@ def classify_frame(
         coords, references, evidence, obs.footprint, layout.width_mm * layout.height_mm
     )
     if mirror is not None:
+        # the nearest reference stays for reports, with no confidence in it
+        doubted = replace(guess, confidence=0.0)
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {mirror}", guess
+            detections, markers, obs, coords, None, f"cannot tell: {mirror}", doubted
         )
     if guess.confidence >= min_confidence:
         return FrameResult(detections, markers, obs, coords, guess, None, guess)
