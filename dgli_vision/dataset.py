@@ -160,6 +160,10 @@ def sample_name(class_id: str, k: int) -> str:
     return f"{class_id}_{k:03d}"
 
 
+#: Classes whose last fold tucks the cloth under the napkin.
+UNDER_CLASSES = ("03", "10")
+
+
 def _grasped_state(
     class_id: str,
     variant: str | None,
@@ -175,6 +179,11 @@ def _grasped_state(
         state = sample_state("02", first, rng, layout=layout, last_fold_deg=grasp.rise_deg)
     else:
         deg = grasp.settle_deg if grasp.settle_deg < 180 else None
+        if class_id in UNDER_CLASSES:
+            # a corner or side tucked under is held at the fold once it lies there: the
+            # simulator's half-way tuck lifts the whole napkin onto the flap beneath it,
+            # which no robot does
+            deg = None
         state = sample_state(class_id, variant, rng, layout=layout, last_fold_deg=deg)
     corner = held_corner(state.params["folds"][-1], grasp)
     return replace(state, params={**state.params, "held_corner": corner})
