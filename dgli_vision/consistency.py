@@ -37,9 +37,11 @@ __all__ = [
     "FOOTPRINT_SCALE",
     "FOOTPRINT_SLACK",
     "MIRROR_MARGIN",
+    "RIGIDITY_TOLERANCE",
     "SCALE_TOLERANCE",
     "footprint_penalty",
     "mirror_problem",
+    "rigidity_problem",
     "scale_problem",
 ]
 
@@ -47,6 +49,11 @@ __all__ = [
 #: Sensor noise and sticker placement give under 1%; an uncorrected lens a few per cent
 #: near the border; a wrong depth-units setting 20% and more.
 SCALE_TOLERANCE = 0.08
+#: Largest relative difference between one corner's sticker distances and the napkin's
+#: overall scale that still gives a verdict. Renders give under 2% (wrinkles, a sticker
+#: on the crease of a diagonal fold); an uncorrected lens stretches a corner near the
+#: image border by 5% and more.
+RIGIDITY_TOLERANCE = 0.05
 #: How much better (distance units) one reading must fit once the footprint is counted.
 MIRROR_MARGIN = 0.05
 #: How much better (distance units) one reading must fit for the stickers alone to
@@ -82,6 +89,35 @@ def scale_problem(ruler: NapkinRuler | None, layout: NapkinLayout) -> str | None
         f"the napkin measures {measured}, expected {expected} (its stickers are "
         f"{ruler.scale:.2f} times as far apart as printed: depth units? intrinsics? "
         "another napkin size?)"
+    )
+
+
+def rigidity_problem(ruler: NapkinRuler | None, *, lens_known: bool) -> str | None:
+    """The reason the stickers of some corner do not keep their printed distances (a
+    corner stretched or shrunk beyond :data:`RIGIDITY_TOLERANCE` against the napkin's
+    overall scale), or None.
+
+    Cloth does not stretch, so a corner whose stickers lie farther apart or closer
+    together than printed is seen through something that bends the image: most often an
+    uncorrected lens near the image border. Missing and displaced stickers there would
+    otherwise turn into folds.
+
+    Parameters
+    ----------
+    ruler : NapkinRuler or None
+    lens_known : bool, keyword-only
+        Whether the intrinsics carry the lens's distortion (then the hint differs).
+    """
+    if ruler is None or ruler.worst_against_scale <= RIGIDITY_TOLERANCE:
+        return None
+    hint = (
+        "are the intrinsics and their distortion coefficients those of this camera?"
+        if lens_known
+        else "is the lens distortion corrected? give it with --intrinsics"
+    )
+    return (
+        f"the stickers do not fit the napkin's geometry (a corner's stickers lie "
+        f"{100 * ruler.worst_against_scale:.0f}% off their printed distances): {hint}"
     )
 
 

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from .classes import LIFTED_MM, PAST_BAND_DEG
 from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
-from .consistency import mirror_problem, scale_problem
+from .consistency import mirror_problem, rigidity_problem, scale_problem
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
@@ -225,9 +225,11 @@ def classify_frame(
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
     unknown = obs.evidence.summary() if obs.evidence is not None else ""
-    scale = scale_problem(obs.ruler, layout)
-    if scale is not None:
-        return FrameResult(detections, markers, obs, coords, None, f"cannot tell: {scale}")
+    problem = scale_problem(obs.ruler, layout) or rigidity_problem(
+        obs.ruler, lens_known=frame.intrinsics.distorted
+    )
+    if problem is not None:
+        return FrameResult(detections, markers, obs, coords, None, f"cannot tell: {problem}")
     evidence = {
         "visible": obs.visible, "unknown": obs.unknown, "lifted": obs.lifted,
         "heights_mm": obs.matched_heights_mm, "past": obs.past_vertical,

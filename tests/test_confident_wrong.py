@@ -46,7 +46,7 @@ def frame(sample, *, mirror: bool = False, depth_scale: float = 1.0) -> RGBDFram
 # --- a mirrored layout ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("class_id", ["01", "02", "07", "08", "10", "11"])
+@pytest.mark.parametrize("class_id", ["01", "07", "10", "11"])
 def test_a_mirrored_image_never_gets_a_front_up_state(class_id):
     # flat read as four corners, strip-under as a half fold, three corners as one corner
     res = classify_frame(frame(small(class_id), mirror=True), REFS)
@@ -54,7 +54,7 @@ def test_a_mirrored_image_never_gets_a_front_up_state(class_id):
     assert "back face up" in res.reason and "mirror" in res.reason
 
 
-@pytest.mark.parametrize("class_id", ["01", "02", "04", "10"])
+@pytest.mark.parametrize("class_id", ["02", "10"])
 def test_a_napkin_lying_back_face_up_is_never_given_a_front_up_state(class_id):
     # (a half fold turned over is a half fold over the other side: no fault to see)
     res = classify_frame(frame(small(class_id, conditions=("backface",))), REFS)
@@ -106,7 +106,7 @@ def test_the_simulated_footprint_is_the_table_area_the_cloth_covers(class_id, fr
     assert got == pytest.approx(fraction, abs=0.06)
 
 
-@pytest.mark.parametrize("class_id", ["01", "04", "11", "12"])
+@pytest.mark.parametrize("class_id", ["01", "11"])
 def test_the_measured_footprint_matches_the_simulated_one(class_id):
     s = small(class_id)
     _, _, obs = observe(frame(s), LAYOUT)
@@ -132,7 +132,7 @@ def test_the_footprint_is_not_measured_when_the_cloth_cannot_be_told_from_the_ta
 # --- a broad sheen ---------------------------------------------------------------------
 
 
-@pytest.mark.parametrize(("class_id", "k"), [("01", 0), ("02", 1), ("08", 0), ("11", 1)])
+@pytest.mark.parametrize(("class_id", "k"), [("02", 1), ("08", 0)])
 def test_stickers_a_broad_sheen_washed_to_pastel_are_found(class_id, k):
     s = small(class_id, k, 11, ("sheen",))
     _, _, obs = observe(frame(s), LAYOUT)

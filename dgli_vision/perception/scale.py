@@ -42,7 +42,10 @@ class NapkinRuler:
         Median absolute deviation of those ratios from ``scale`` (0 for a rigid,
         undistorted napkin; sensor noise gives about 0.01).
     worst : float
-        Largest ratio's distance from 1 over the corners' median ratios.
+        Largest distance from 1 of a corner's median ratio.
+    worst_against_scale : float
+        Largest relative distance of a corner's median ratio from ``scale``: how much
+        one corner is stretched or shrunk against the rest (0 for a rigid napkin).
     pairs : int
         Number of sticker pairs measured.
     """
@@ -51,6 +54,7 @@ class NapkinRuler:
     spread: float
     worst: float
     pairs: int
+    worst_against_scale: float = 0.0
 
 
 def _corner_pairs(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
@@ -100,4 +104,5 @@ def measure_napkin(
     corners = np.array([corner_of[int(a)] for a in i])
     medians = [float(np.median(ratio[corners == k])) for k in np.unique(corners)]
     worst = float(max(abs(m - 1.0) for m in medians))
-    return NapkinRuler(scale, spread, worst, int(use.sum()))
+    against = float(max(abs(m / scale - 1.0) for m in medians)) if scale > 0 else np.inf
+    return NapkinRuler(scale, spread, worst, int(use.sum()), against)
