@@ -39,6 +39,12 @@ references_option = click.option(
 )
 
 
+#: The largest napkin side ``--size`` takes, mm. The simulated cloth is a 5 mm grid, so
+#: memory and time grow with the area: a 1000 mm napkin's database (``dgli simulate
+#: --per-class 1``) takes about a minute and 1.7 GB.
+MAX_NAPKIN_MM = 1000.0
+
+
 def _parse_size(
     ctx: click.Context, param: click.Parameter, value: str | None
 ) -> tuple[float, float] | None:
@@ -47,9 +53,15 @@ def _parse_size(
     if value is None:
         return None
     try:
-        return parse_size(value)
+        size = parse_size(value)
     except ValueError as exc:
         raise click.BadParameter(str(exc)) from None
+    if max(size) > MAX_NAPKIN_MM:
+        raise click.BadParameter(
+            f"napkin size {value!r}: each side is at most {MAX_NAPKIN_MM:g} mm (the stickers "
+            "and the simulated cloth are made for napkins, not tablecloths)"
+        )
+    return size
 
 
 #: ``--size W[xH]``: the napkin's size in mm (the stickers keep their distances from the
@@ -69,6 +81,19 @@ def _napkin_provenance(layout: Any) -> dict[str, Any]:
     """``{"napkin_mm": [W, H]}`` for a napkin of other than the nominal size, else ``{}``
     (so that files of the nominal napkin stay as they were)."""
     return {} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}
+
+
+def per_class_option(default: int, maximum: int, help_text: str) -> Callable[[F], F]:
+    """``--per-class N``: how many of each class, 1 to ``maximum``: bounded, so that a
+    slip of the keyboard (100000) stops at once with a clear message instead of running
+    for hours and out of memory."""
+    return click.option(
+        "--per-class",
+        default=default,
+        show_default=True,
+        type=click.IntRange(1, maximum),
+        help=f"{help_text} (at most {maximum}).",
+    )
 
 
 #: ``-j/--jobs N``: worker processes, all cores by default.
@@ -162,16 +187,82 @@ def _recording_notes(recording: Any, quiet: bool = False) -> None:
             click.echo(f"{recording.kind}: {note}", err=True)
 
 
+def _short_path(name: object, limit: int = 160) -> str:
+    """A file name for a one-line message: a very long one keeps its start and end."""
+    text = str(name)
+    return text if len(text) <= limit else f"{text[:80]}...{text[-60:]}"
+
+
+def _os_error_message(exc: OSError) -> str:
+    """One line for an operating-system error that no library function named: the file
+    (or standard output) and the reason."""
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    if exc.filename is not None:
+        return f"'{_short_path(exc.filename)}': {reason}"
+    if _stdout_failed():
+        return f"cannot write to standard output: {reason}"
+    return reason
+
+
+def _stdout_failed() -> bool:
+    """Whether standard output cannot take what is waiting in its buffer."""
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except (OSError, ValueError):
+        return True
+    return False
+
+
+def _fail(message: str, code: int) -> None:
+    """Print ``error: message`` on stderr (if stderr can take it) and exit with ``code``;
+    output that standard output could not take is dropped, so that Python does not
+    report it again at exit."""
+    if _stdout_failed():
+        import os
+
+        try:  # point the descriptor at /dev/null: the interpreter's last flush succeeds
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+    try:
+        click.echo(f"error: {message}", err=True)
+    except (OSError, ValueError):
+        pass  # stderr is closed or full too: the exit code is all that is left
+    sys.exit(code)
+
+
 def _handle_errors(fn: F) -> F:
-    """Turn a DgliError into one line on stderr and its exit code (never a traceback)."""
+    """Turn every error into one line on stderr and its exit code (never a traceback).
+
+    A :class:`~dgli_vision.errors.DgliError` gives its own message and code; an
+    operating-system error that got through (a full disk, a closed or full standard
+    output, a name too long) exits 2 naming the file; running out of memory exits 2.
+    Standard output is flushed before the command counts as done, so that a full
+    ``/dev/full`` or a closed pipe is reported rather than lost. A closed standard output
+    (``>&-``) stops the command before any work: it is where the answer goes.
+    """
 
     @wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            return fn(*args, **kwargs)
+            if sys.stdout is None:
+                from .errors import OutputError
+
+                raise OutputError("standard output is closed; dgli prints its answer there")
+            try:
+                result = fn(*args, **kwargs)
+            except SystemExit:
+                sys.stdout.flush()
+                raise
+            sys.stdout.flush()
+            return result
         except DgliError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(exc.exit_code)
+            _fail(str(exc), exc.exit_code)
+        except OSError as exc:
+            _fail(_os_error_message(exc), 2)
+        except MemoryError:
+            _fail("out of memory", 2)
 
     return wrapper  # type: ignore[return-value]
 
@@ -262,19 +353,40 @@ def _progress(items: list, label: str):
     return nullcontext(items)
 
 
+#: The most cloth ``dgli simulate`` holds, counted in states of the nominal 400 mm napkin
+#: (a state of a larger napkin counts by its area): about 3 GB.
+MAX_SIMULATED_CLOTH = 10_000
+
+
+def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> None:
+    """Refuse, before the work, a database that would not fit in memory."""
+    from .classes import CLASS_IDS
+    from .database import FOLD_BINS_DEG
+    from .fold_graph import fold_edges
+
+    folds = sum("under" not in fold for *_, fold in fold_edges())
+    n_states = per_class * len(CLASS_IDS) + in_progress * folds * len(FOLD_BINS_DEG)
+    area = layout.width_mm * layout.height_mm / 400.0**2
+    if n_states * area > MAX_SIMULATED_CLOTH:
+        raise click.BadParameter(
+            f"{n_states} states of a {layout.width_mm:g} x {layout.height_mm:g} mm napkin "
+            f"hold as much cloth as {n_states * area:.0f} of the 400 mm one; at most "
+            f"{MAX_SIMULATED_CLOTH} fit in memory: lower --per-class or --in-progress",
+            param_hint="'--per-class'",
+        )
+
+
 @main.command()
 @click.argument("out", type=click.Path(file_okay=False))
-@click.option(
-    "--per-class", default=20, show_default=True, type=click.IntRange(1), help="States per class."
-)
+@per_class_option(20, 200, "States per class")
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the database.")
 @click.option("--no-wrinkles", is_flag=True, help="Fold cleanly, without wrinkles.")
 @click.option(
     "--in-progress",
     default=3,
     show_default=True,
-    type=click.IntRange(0),
-    help="States with a fold in progress, per fold and angle bin (0: none).",
+    type=click.IntRange(0, 20),
+    help="States with a fold in progress, per fold and angle bin (0: none; at most 20).",
 )
 @size_option
 @overwrite_option
@@ -300,6 +412,7 @@ def simulate(
     from .layout import layout_of_size
 
     layout = layout_of_size(size_mm)
+    _check_simulation_size(per_class, in_progress, layout)
     kw = {"wrinkles": not no_wrinkles, "layout": layout}
     states = []
     with _progress(list(CLASS_IDS), "simulating") as classes:
@@ -511,9 +624,7 @@ def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) ->
 
 @main.command("render")
 @click.argument("out", type=click.Path(file_okay=False))
-@click.option(
-    "--per-class", default=1, show_default=True, type=click.IntRange(1), help="Pairs per class."
-)
+@per_class_option(1, 50, "Pairs per class")
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the whole set.")
 @click.option(
     "--clean", is_flag=True, help="Switch the sensor model off (no noise, blur, dropouts)."
@@ -1185,9 +1296,7 @@ def calibrate(
 
 
 @main.command()
-@click.option(
-    "--per-class", default=4, show_default=True, type=click.IntRange(1), help="Pairs per class."
-)
+@per_class_option(4, 50, "Pairs per class")
 @click.option("--seed", default=1000, show_default=True, type=int, help="Seed of the renders.")
 @click.option(
     "--conditions",
