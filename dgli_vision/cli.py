@@ -187,21 +187,42 @@ def _recording_notes(recording: Any, quiet: bool = False) -> None:
             click.echo(f"{recording.kind}: {note}", err=True)
 
 
-def _short_path(name: object, limit: int = 160) -> str:
-    """A file name for a one-line message: a very long one keeps its start and end."""
-    text = str(name)
-    return text if len(text) <= limit else f"{text[:80]}...{text[-60:]}"
-
-
 def _os_error_message(exc: OSError) -> str:
     """One line for an operating-system error that no library function named: the file
     (or standard output) and the reason."""
+    from .io import display_path
+
     reason = exc.strerror or str(exc) or type(exc).__name__
     if exc.filename is not None:
-        return f"'{_short_path(exc.filename)}': {reason}"
-    if _stdout_failed():
+        return f"'{display_path(exc.filename)}': {reason}"
+    if _raised_writing_stdout(exc):
         return f"cannot write to standard output: {reason}"
     return reason
+
+
+def _raised_writing_stdout(exc: BaseException) -> bool:
+    """Whether ``exc`` came from ``click.echo`` writing to standard output."""
+    tb = exc.__traceback__
+    while tb is not None:
+        frame = tb.tb_frame
+        if frame.f_code.co_name == "echo" and "click" in frame.f_code.co_filename:
+            try:
+                return frame.f_locals["file"].fileno() == 1
+            except (KeyError, AttributeError, OSError, ValueError):
+                return False
+        tb = tb.tb_next
+    return False
+
+
+def _flush_stdout() -> None:
+    """Flush standard output, so that a full disk or closed pipe there is reported."""
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except OSError as exc:
+        from .errors import OutputError
+
+        raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
 
 
 def _stdout_failed() -> bool:
@@ -253,9 +274,9 @@ def _handle_errors(fn: F) -> F:
             try:
                 result = fn(*args, **kwargs)
             except SystemExit:
-                sys.stdout.flush()
+                _flush_stdout()
                 raise
-            sys.stdout.flush()
+            _flush_stdout()
             return result
         except DgliError as exc:
             _fail(str(exc), exc.exit_code)
@@ -308,9 +329,10 @@ def _package_version() -> str:
 
 
 def _pair_key(pair: Any) -> tuple[str, str]:
-    from pathlib import Path
+    import os
 
-    return str(Path(pair.color).resolve()), str(Path(pair.depth).resolve())
+    # realpath, not Path.resolve: a symbolic link loop is the pair's read error, not a crash
+    return os.path.realpath(pair.color), os.path.realpath(pair.depth)
 
 
 def _earlier_outcomes(path: Any, pairs: list | None) -> dict[tuple[str, str], Any]:
@@ -1062,6 +1084,17 @@ def track(
         sys.exit(1)
 
 
+def _finite_seconds(
+    ctx: click.Context, param: click.Parameter, value: float | None
+) -> float | None:
+    """A time in seconds from the start of a recording: a number, not NaN or infinite."""
+    import math
+
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"{value} is not a time in seconds; expected a number")
+    return value
+
+
 @main.command()
 @click.argument("recording_path", metavar="RECORDING", type=click.Path())
 @click.argument("out", type=click.Path(file_okay=False))
@@ -1072,10 +1105,15 @@ def track(
     "--start",
     type=float,
     default=None,
+    callback=_finite_seconds,
     help="First second to keep, from the start of the recording.",
 )
 @click.option(
-    "--end", type=float, default=None, help="Last second to keep, from the start of the recording."
+    "--end",
+    type=float,
+    default=None,
+    callback=_finite_seconds,
+    help="Last second to keep, from the start of the recording.",
 )
 @recording_options
 @overwrite_option
@@ -1189,6 +1227,15 @@ def verdict_line(result: Any) -> str:
     return text
 
 
+def _image_output(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """An image file to write: its extension must name a format OpenCV writes."""
+    from pathlib import Path
+
+    if value is not None and Path(value).suffix.lower() not in (".png", ".jpg", ".jpeg"):
+        raise click.BadParameter(f"'{value}': name the image *.png or *.jpg")
+    return value
+
+
 @click.command("classify")
 @click.argument("color", type=click.Path())
 @click.argument("depth", type=click.Path())
@@ -1198,8 +1245,9 @@ def verdict_line(result: Any) -> str:
 @json_option("Print one JSON object.")
 @click.option(
     "--overlay",
-    type=click.Path(),
-    help="Write the image with stickers, segments and verdict.",
+    type=click.Path(dir_okay=False),
+    callback=_image_output,
+    help="Write the image with stickers, segments and verdict (PNG or JPEG).",
 )
 @overwrite_option
 @_handle_errors

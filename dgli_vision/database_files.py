@@ -88,6 +88,48 @@ def write_database(
     return index
 
 
+def _check_truth(
+    truth: Any, truth_path: Path
+) -> tuple[str, str, str | None, tuple[np.ndarray, ...]]:
+    """A state's id, class, variant and arrays (sticker points, visibility, visible
+    fractions, corners, boundary), each checked: known class and variant, the right
+    shapes, finite numbers.
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the truth file and what is wrong.
+    """
+    from .classes import CLASS_NAMES, VARIANTS
+
+    bad = f"state truth '{truth_path}'"
+    try:
+        sid, class_id = str(truth["id"]), str(truth["class"])
+        variant = truth.get("variant")
+        pts = np.asarray(truth["sticker_points_m"], dtype=np.float64).reshape(16, 3)
+        v = np.asarray(truth["visible"], dtype=bool).reshape(16)
+        f = np.asarray(truth["visible_fraction"], dtype=np.float64).reshape(16)
+        cp = np.asarray(truth["corner_points_m"], dtype=np.float64).reshape(4, 3)
+        bd = np.asarray(truth["boundary_m"], dtype=np.float64).reshape(-1, 3)
+    except KeyError as exc:
+        raise InvalidInputError(f"{bad} lacks {exc}") from None
+    except (AttributeError, ValueError, TypeError) as exc:
+        raise InvalidInputError(f"{bad} is malformed ({exc})") from None
+    if class_id not in CLASS_NAMES:
+        raise InvalidInputError(f"{bad} has unknown class {class_id!r}")
+    if variant not in VARIANTS[class_id]:
+        raise InvalidInputError(f"{bad}: {variant!r} is not a variant of class {class_id}")
+    for name, values in (
+        ("sticker_points_m", pts),
+        ("visible_fraction", f),
+        ("corner_points_m", cp),
+        ("boundary_m", bd),
+    ):
+        if not np.isfinite(values).all():
+            raise InvalidInputError(f"{bad}: {name} holds values that are not finite numbers")
+    return sid, class_id, variant, (pts, v, f, cp, bd)
+
+
 def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
     """Read a database folder (or its ``index.json``) into records and provenance.
 
@@ -106,22 +148,23 @@ def read_database(path: str | Path) -> tuple[StateRecords, dict[str, Any]]:
         raise InvalidInputError(f"'{index_path}' is not a dgli simulated database index")
     root = index_path.parent
     ids, classes, variants, points, vis, frac, corners, boundary, stages = ([] for _ in range(9))
-    for entry in index.get("states", []):
+    states = index.get("states")
+    if not isinstance(states, list):
+        raise InvalidInputError(f"database index '{index_path}' has no list of states")
+    for k, entry in enumerate(states):
+        if not isinstance(entry, dict) or not isinstance(entry.get("truth"), str):
+            raise InvalidInputError(
+                f"database index '{index_path}': state {k} does not name its truth file"
+            )
         truth_path = root / entry["truth"]
         truth = read_json(truth_path, what="state truth")
-        try:
-            pts = np.asarray(truth["sticker_points_m"], dtype=np.float64).reshape(16, 3)
-            v = np.asarray(truth["visible"], dtype=bool).reshape(16)
-            f = np.asarray(truth["visible_fraction"], dtype=np.float64).reshape(16)
-            cp = np.asarray(truth["corner_points_m"], dtype=np.float64).reshape(4, 3)
-            bd = np.asarray(truth["boundary_m"], dtype=np.float64).reshape(-1, 3)
-        except (KeyError, ValueError, TypeError) as exc:
-            raise InvalidInputError(f"state truth '{truth_path}' is malformed ({exc})") from None
-        ids.append(str(truth["id"]))
-        classes.append(str(truth["class"]))
-        variants.append(truth.get("variant"))
+        sid, class_id, variant, arrays = _check_truth(truth, truth_path)
+        ids.append(sid)
+        classes.append(class_id)
+        variants.append(variant)
         params = truth.get("params")
         stages.append(str(params.get("stage", "")) if isinstance(params, dict) else "")
+        pts, v, f, cp, bd = arrays
         points.append(pts)
         vis.append(v)
         frac.append(f)

@@ -30,6 +30,7 @@ from .errors import (
 __all__ = [
     "JsonLinesWriter",
     "check_input_file",
+    "display_path",
     "file_sha256",
     "guard_outputs",
     "read_json",
@@ -45,8 +46,14 @@ __all__ = [
 ]
 
 
+def display_path(path: str | Path, limit: int = 160) -> str:
+    """A path for a one-line message: a very long one keeps its start and its end."""
+    text = str(path)
+    return text if len(text) <= limit else f"{text[:80]}...{text[-60:]}"
+
+
 def _unwritable(p: Path, reason: str) -> OutputError:
-    return OutputError(f"cannot write '{p}': {reason}")
+    return OutputError(f"cannot write '{display_path(p)}': {reason}")
 
 
 def _remove_partial(p: Path) -> None:
@@ -106,10 +113,10 @@ def check_input_file(path: str | Path, what: str) -> os.stat_result:
     try:
         st = p.stat()
     except FileNotFoundError:
-        raise UnreadableInputError(f"{what} '{p}' does not exist") from None
+        raise UnreadableInputError(f"{what} '{display_path(p)}' does not exist") from None
     except OSError as exc:
         raise UnreadableInputError(
-            f"{what} '{p}' cannot be read: {exc.strerror or exc}"
+            f"{what} '{display_path(p)}' cannot be read: {exc.strerror or exc}"
         ) from None
     if stat.S_ISDIR(st.st_mode):
         raise UnreadableInputError(f"{what} '{p}' is a directory; expected a file")
@@ -372,10 +379,12 @@ class JsonLinesWriter:
             self._fh.flush()
         except OSError as exc:
             self._failed = True
-            kept = "1 line" if self.lines == 1 else f"{self.lines} lines"
-            raise _unwritable(
-                self.path, f"{exc.strerror or exc}; the {kept} written before it are kept"
-            ) from None
+            if self.lines == 0:
+                kept = "no line was written before it"
+            else:
+                lines = "1 line" if self.lines == 1 else f"{self.lines} lines"
+                kept = f"the {lines} written before it are kept"
+            raise _unwritable(self.path, f"{exc.strerror or exc}; {kept}") from None
         self.lines += 1
 
     def close(self) -> None:
