@@ -81,8 +81,7 @@ def extract_recording(
     """
     root = Path(out)
     listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
-    guard_outputs(listing, overwrite=overwrite)
-    _make_folder(root)  # an impossible OUT fails before the recording is read
+    guard_outputs(listing, overwrite=overwrite)  # and makes OUT: an impossible OUT fails here
     result = ExtractResult()
     rows: list[tuple[str, str, str, str, str]] = []
     written: list[Path] = []
@@ -135,15 +134,6 @@ def extract_recording(
     result.written = len(rows)
     result.frames_csv = root / "frames.csv"
     return result
-
-
-def _make_folder(root: Path) -> None:
-    try:
-        root.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputError(
-            f"cannot write to '{root}': cannot make the folder ({exc.strerror or exc})"
-        ) from None
 
 
 def _finish(job: tuple[Future, Path], written: list[Path]) -> None:

@@ -226,7 +226,9 @@ def _manifest(folder: Path) -> dict[str, Any]:
 
 
 def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> None:
-    """Refuse to replace an existing file that dgli did not write.
+    """Refuse to replace an existing file that dgli did not write, and make the folders
+    the files go to: a command calls this before its work, so that an output it could
+    never write stops it at once rather than after the work.
 
     A file may be replaced when it does not exist, when ``overwrite`` is set, or when the
     record of its folder (:data:`MANIFEST_NAME`, kept by :func:`record_outputs`) lists it
@@ -236,13 +238,22 @@ def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> No
     ------
     OverwriteError
         Naming the first file that would be replaced.
+    OutputError
+        A folder that cannot be made or written into, or a path the system cannot look
+        up (too long...).
     """
     manifests: dict[Path, dict[str, Any]] = {}
+    folders: dict[Path, Path] = {}
     for path in paths:
         p = Path(path)
-        if p.is_dir():
+        try:
+            is_dir, exists = p.is_dir(), p.exists()
+        except OSError as exc:
+            raise _unwritable(p, exc.strerror or str(exc)) from None
+        if is_dir:
             raise OverwriteError(f"'{p}' is a directory; expected a file to write")
-        if overwrite or not p.exists():
+        folders.setdefault(p.parent, p)
+        if overwrite or not exists:
             continue
         folder = p.parent
         if folder not in manifests:
@@ -254,6 +265,18 @@ def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> No
             f"refusing to replace '{p}': dgli did not write it (or it was changed since); "
             "use --overwrite to replace it"
         )
+    for folder, first in folders.items():
+        _make_writable_folder(folder, first)
+
+
+def _make_writable_folder(folder: Path, first: Path) -> None:
+    """Make ``folder`` (and its parents); ``first`` is a file to go there, for messages."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(first, f"cannot make its folder ({exc.strerror or exc})") from None
+    if not os.access(folder, os.W_OK):
+        raise _unwritable(first, f"its folder '{display_path(folder)}' is not writable")
 
 
 def record_outputs(paths: Iterable[str | Path], command: str) -> None:
