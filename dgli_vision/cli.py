@@ -288,7 +288,23 @@ def _handle_errors(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def _guarded(run: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """Run click's ``main`` with an operating-system error outside any command (help or
+    a usage error written to a full or closed stream) as one line, exit 2."""
+    try:
+        return run(*args, **kwargs)
+    except OSError as exc:
+        _fail(_os_error_message(exc), 2)
+
+
+class _Group(click.Group):
+    """The ``dgli`` group: :func:`_guarded` around click's own output too."""
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        return _guarded(super().main, *args, **kwargs)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="dgli_vision")
 def main() -> None:
     """dgli_vision: classify the state of a marked napkin with dGLI cloth coordinates."""
@@ -1303,7 +1319,7 @@ main.add_command(classify_cmd)
 
 def classify_main() -> None:
     """Entry point of ``dgli-classify`` (the same command as ``dgli classify``)."""
-    classify_cmd(prog_name="dgli-classify")
+    _guarded(classify_cmd.main, prog_name="dgli-classify")
 
 
 @main.command()

@@ -127,6 +127,13 @@ def test_stdout_to_dev_full_is_one_line_and_exit_2():
     assert "cannot write to standard output: No space left on device" in line
 
 
+def test_help_to_dev_full_is_one_line_and_exit_2():
+    with open("/dev/full", "w") as full:
+        proc = run_process(["--help"], stdout=full)
+    line = assert_one_stderr_line(proc)
+    assert "cannot write to standard output: No space left on device" in line
+
+
 def test_closed_stdout_is_one_line_and_exit_2():
     cmd = f"exec {sys.executable} -m dgli_vision coords >&-"
     proc = subprocess.run(
