@@ -7,8 +7,15 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from .errors import InvalidInputError
-from .io import guard_outputs, read_json, record_outputs, write_json, write_mesh_ply
+from .errors import InvalidInputError, OutputError
+from .io import (
+    failed_part_way,
+    guard_outputs,
+    read_json,
+    record_outputs,
+    write_json,
+    write_mesh_ply,
+)
 
 if TYPE_CHECKING:
     from .cloth.states import ClothState
@@ -43,6 +50,9 @@ def write_database(
     Raises
     ------
     OverwriteError
+    OutputError
+        A file that cannot be written (a full disk...): the states written before it
+        are kept, recorded and named.
     """
     root = Path(out)
     planned = [
@@ -53,24 +63,19 @@ def write_database(
     guard_outputs(planned, overwrite=overwrite)
     entries = []
     triangles = None
+    written: list[Path] = []
+    command = str(provenance.get("command", ""))
     for sid, state in states:
         if triangles is None:
             triangles = state.mesh.triangles()
-        write_mesh_ply(root / "meshes" / f"{sid}.ply", state.mesh.xyz, triangles)
-        truth = {
-            "id": sid,
-            "class": state.class_id,
-            "name": state.name,
-            "variant": state.variant,
-            "sticker_points_m": np.round(state.sticker_points, 7).tolist(),
-            "visible": state.visible.tolist(),
-            "visible_fraction": np.round(state.visible_fraction, 4).tolist(),
-            "coordinates": np.round(state.coordinates(), 10).tolist(),
-            "corner_points_m": np.round(state.corner_points, 7).tolist(),
-            "boundary_m": np.round(state.boundary, 7).tolist(),
-            "params": state.params,
-        }
-        write_json(root / "truth" / f"{sid}.json", truth)
+        mesh, truth = root / "meshes" / f"{sid}.ply", root / "truth" / f"{sid}.json"
+        try:
+            write_mesh_ply(mesh, state.mesh.xyz, triangles)
+            written.append(mesh)
+            write_json(truth, _truth_of(sid, state))
+            written.append(truth)
+        except OutputError as exc:
+            raise failed_part_way(exc, written, command) from None
         entries.append(
             {
                 "id": sid,
@@ -81,11 +86,32 @@ def write_database(
             }
         )
     index = root / "index.json"
-    write_json(
-        index, {"format": DB_FORMAT, "version": 1, "provenance": provenance, "states": entries}
-    )
-    record_outputs(planned, str(provenance.get("command", "")))
+    try:
+        write_json(
+            index,
+            {"format": DB_FORMAT, "version": 1, "provenance": provenance, "states": entries},
+        )
+    except OutputError as exc:
+        raise failed_part_way(exc, written, command) from None
+    record_outputs(planned, command)
     return index
+
+
+def _truth_of(sid: str, state: ClothState) -> dict[str, Any]:
+    """The truth file of one state."""
+    return {
+        "id": sid,
+        "class": state.class_id,
+        "name": state.name,
+        "variant": state.variant,
+        "sticker_points_m": np.round(state.sticker_points, 7).tolist(),
+        "visible": state.visible.tolist(),
+        "visible_fraction": np.round(state.visible_fraction, 4).tolist(),
+        "coordinates": np.round(state.coordinates(), 10).tolist(),
+        "corner_points_m": np.round(state.corner_points, 7).tolist(),
+        "boundary_m": np.round(state.boundary, 7).tolist(),
+        "params": state.params,
+    }
 
 
 def _check_truth(

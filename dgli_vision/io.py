@@ -31,6 +31,7 @@ __all__ = [
     "JsonLinesWriter",
     "check_input_file",
     "display_path",
+    "failed_part_way",
     "file_sha256",
     "guard_outputs",
     "read_json",
@@ -332,13 +333,20 @@ def write_files(
                 write_png(p, content)
             written.append(p)
     except OutputError as exc:
-        try:
-            record_outputs(written, command)
-        except DgliError:
-            pass  # the disk that is full cannot take the record either
-        raise OutputError(f"{exc}; {_kept(written)}") from None
+        raise failed_part_way(exc, written, command) from None
     record_outputs(written, command)
     return written
+
+
+def failed_part_way(exc: OutputError, written: list[Path], command: str) -> OutputError:
+    """The error of a set of files that failed part-way: ``exc`` naming the files written
+    before it, which are kept and recorded as dgli's own (so that running the command
+    again replaces them without ``--overwrite``)."""
+    try:
+        record_outputs(written, command)
+    except DgliError:
+        pass  # the disk that is full cannot take the record either
+    return OutputError(f"{exc}; {_kept(written)}")
 
 
 def write_outputs(

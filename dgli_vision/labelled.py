@@ -11,9 +11,16 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InvalidInputError, UnreadableInputError
+from .errors import InvalidInputError, OutputError, UnreadableInputError
 from .frames import RGBDFrame, read_frame, write_color, write_depth
-from .io import check_input_file, guard_outputs, record_outputs, write_json, write_text
+from .io import (
+    check_input_file,
+    failed_part_way,
+    guard_outputs,
+    record_outputs,
+    write_json,
+    write_text,
+)
 
 __all__ = [
     "LabelProblem",
@@ -57,6 +64,9 @@ def write_labelled_folder(
     Raises
     ------
     OverwriteError
+    OutputError
+        An image that cannot be written (a full disk...): the pairs written before it
+        are kept, recorded and named.
     """
     root = Path(out)
     planned = labelled_folder_files(root, [s.name for s in samples], frames=times is not None)
@@ -66,14 +76,20 @@ def write_labelled_folder(
     rows = []
     truth = {}
     intr = None
+    written: list[Path] = []
     for s in samples:
         if intr is None:
             intr = s.result.intrinsics
         elif s.result.intrinsics != intr:
             raise ValueError("all samples of a folder must share their intrinsics")
         color, depth = f"{s.name}_color.png", f"{s.name}_depth.png"
-        write_color(root / color, s.result.color)
-        write_depth(root / depth, s.result.depth_mm)
+        try:
+            write_color(root / color, s.result.color)
+            written.append(root / color)
+            write_depth(root / depth, s.result.depth_mm)
+            written.append(root / depth)
+        except OutputError as exc:
+            raise failed_part_way(exc, written, str(provenance.get("command", ""))) from None
         rows.append((color, depth, s.state.class_id, s.state.variant or ""))
         truth[s.name] = {
             "color": color,

@@ -182,6 +182,23 @@ def test_full_disk_while_writing_a_report_keeps_and_names_the_files_written(tmp_
     assert set(manifest["files"]) == {"a.txt", "b.txt"}  # a rerun replaces them
 
 
+def test_full_disk_during_simulate_keeps_and_names_the_states_written(tmp_path, monkeypatch):
+    real = dio._write_bytes
+
+    def fill_up(p: Path, data: bytes) -> None:
+        if p.name == "03_000.json":
+            raise dio._unwritable(p, os.strerror(errno.ENOSPC))
+        real(p, data)
+
+    monkeypatch.setattr(dio, "_write_bytes", fill_up)
+    db = tmp_path / "db"
+    line = one_error_line(run(["simulate", db, "--per-class", "1", "--in-progress", "0"]))
+    assert "03_000.json': No space left on device" in line
+    assert "the 5 files written before it are kept" in line and "01_000.ply" in line
+    recorded = json.loads((db / "meshes" / dio.MANIFEST_NAME).read_text())["files"]
+    assert set(recorded) == {"01_000.ply", "02_000.ply", "03_000.ply"}
+
+
 def test_references_build_on_a_truth_file_with_nan_names_it(tmp_path):
     db = tmp_path / "db"
     (db / "truth").mkdir(parents=True)
