@@ -334,7 +334,13 @@ def write_files(
             written.append(p)
     except OutputError as exc:
         raise failed_part_way(exc, written, command) from None
-    record_outputs(written, command)
+    try:
+        record_outputs(written, command)
+    except OutputError as exc:
+        raise OutputError(
+            f"{exc}; the {len(written)} files are written and kept, but a later run needs "
+            "--overwrite to replace them"
+        ) from None
     return written
 
 
