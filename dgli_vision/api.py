@@ -12,7 +12,14 @@ from numpy.typing import NDArray
 from .camera import DEFAULT_INTRINSICS, Intrinsics
 from .classify import MIN_CONFIDENCE, Prediction
 from .errors import CalibrationError, DetectionError, InvalidInputError
-from .frames import RGBDFrame, read_color, read_depth, read_intrinsics
+from .frames import (
+    RGBDFrame,
+    check_intrinsics,
+    read_color,
+    read_depth,
+    read_frame,
+    read_intrinsics,
+)
 from .references import ReferenceSet, load_references
 
 __all__ = ["classify_pair"]
@@ -21,6 +28,14 @@ __all__ = ["classify_pair"]
 @lru_cache(maxsize=4)
 def _references(path: str | None) -> ReferenceSet:
     return load_references(path)
+
+
+def _check_source(value: object, what: str) -> None:
+    """A path or an array; anything else is a mistake in the caller's code."""
+    if not isinstance(value, (str, Path, np.ndarray)) and not hasattr(value, "__array__"):
+        raise InvalidInputError(
+            f"{what} must be a file path or a numpy array; got {type(value).__name__}"
+        )
 
 
 def _color_array(color: NDArray) -> NDArray[np.uint8]:
@@ -86,6 +101,28 @@ def classify_pair(
     """
     from .pipeline import classify_frame
 
+    _check_source(color, "color")
+    _check_source(depth, "depth")
+    if intrinsics is not None and not isinstance(intrinsics, (str, Path)):
+        intrinsics = check_intrinsics(intrinsics)
+    if isinstance(color, (str, Path)) and isinstance(depth, (str, Path)):
+        frame = read_frame(color, depth, intrinsics)
+    else:
+        frame = _frame_of(color, depth, intrinsics)
+    refs = _reference_set(references)
+    colours = _check_colours(colours)
+    result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+    if result.best_guess is None:
+        raise DetectionError(f"{frame.color_path}: {result.reason}")
+    return result.best_guess
+
+
+def _frame_of(
+    color: str | Path | NDArray,
+    depth: str | Path | NDArray,
+    intrinsics: Intrinsics | str | Path | None,
+) -> RGBDFrame:
+    """A frame of which at least one image is an array."""
     color_path = str(color) if isinstance(color, (str, Path)) else "<array>"
     depth_path = str(depth) if isinstance(depth, (str, Path)) else "<array>"
     rgb = read_color(color) if isinstance(color, (str, Path)) else _color_array(color)
@@ -110,12 +147,36 @@ def classify_pair(
             f"intrinsics ({source}) are for {intr.width}x{intr.height} images but the pair "
             f"is {mm.shape[1]}x{mm.shape[0]}"
         )
+    return RGBDFrame(rgb, mm, intr, color_path, depth_path, source)
+
+
+def _reference_set(references: object) -> ReferenceSet:
     if isinstance(references, ReferenceSet):
-        refs = references
-    else:
-        refs = _references(str(references) if references is not None else None)
-    frame = RGBDFrame(rgb, mm, intr, color_path, depth_path, source)
-    result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
-    if result.best_guess is None:
-        raise DetectionError(f"{color_path}: {result.reason}")
-    return result.best_guess
+        return references
+    if references is not None and not isinstance(references, (str, Path)):
+        raise InvalidInputError(
+            f"references must be a ReferenceSet or a file path; got {type(references).__name__}"
+        )
+    return _references(str(references) if references is not None else None)
+
+
+def _check_colours(colours: object) -> dict[str, tuple[int, int, int]] | None:
+    """Calibrated colours as :func:`~dgli_vision.colours_file.read_colours` gives them."""
+    from .layout import default_layout
+
+    if colours is None:
+        return None
+    names = set(default_layout().colours_srgb)
+    if not isinstance(colours, dict) or set(colours) != names:
+        raise InvalidInputError(
+            f"colours must be a dict of exactly the colours {', '.join(sorted(names))}"
+        )
+    out = {}
+    for name, rgb in colours.items():
+        values = tuple(rgb) if isinstance(rgb, (tuple, list, np.ndarray)) else ()
+        if len(values) != 3 or not all(
+            isinstance(v, (int, np.integer)) and 0 <= v <= 255 for v in values
+        ):
+            raise InvalidInputError(f"colours: {name!r} must be three integers 0-255")
+        out[name] = (int(values[0]), int(values[1]), int(values[2]))
+    return out

@@ -41,6 +41,12 @@ references_option = click.option(
 )
 
 
+#: The largest napkin side ``--size`` takes, mm. The simulated cloth is a 5 mm grid, so
+#: memory and time grow with the area: a 1000 mm napkin's database (``dgli simulate
+#: --per-class 1``) takes about a minute and 1.7 GB.
+MAX_NAPKIN_MM = 1000.0
+
+
 def _parse_size(
     ctx: click.Context, param: click.Parameter, value: str | None
 ) -> tuple[float, float] | None:
@@ -49,9 +55,15 @@ def _parse_size(
     if value is None:
         return None
     try:
-        return parse_size(value)
+        size = parse_size(value)
     except ValueError as exc:
         raise click.BadParameter(str(exc)) from None
+    if max(size) > MAX_NAPKIN_MM:
+        raise click.BadParameter(
+            f"napkin size {value!r}: each side is at most {MAX_NAPKIN_MM:g} mm (the stickers "
+            "and the simulated cloth are made for napkins, not tablecloths)"
+        )
+    return size
 
 
 #: ``--size W[xH]``: the napkin's size in mm (the stickers keep their distances from the
@@ -71,6 +83,19 @@ def _napkin_provenance(layout: Any) -> dict[str, Any]:
     """``{"napkin_mm": [W, H]}`` for a napkin of other than the nominal size, else ``{}``
     (so that files of the nominal napkin stay as they were)."""
     return {} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}
+
+
+def per_class_option(default: int, maximum: int, help_text: str) -> Callable[[F], F]:
+    """``--per-class N``: how many of each class, 1 to ``maximum``: bounded, so that a
+    slip of the keyboard (100000) stops at once with a clear message instead of running
+    for hours and out of memory."""
+    return click.option(
+        "--per-class",
+        default=default,
+        show_default=True,
+        type=click.IntRange(1, maximum),
+        help=f"{help_text} (at most {maximum}).",
+    )
 
 
 #: ``-j/--jobs N``: worker processes, all cores by default.
@@ -164,21 +189,124 @@ def _recording_notes(recording: Any, quiet: bool = False) -> None:
             click.echo(f"{recording.kind}: {note}", err=True)
 
 
+def _os_error_message(exc: OSError) -> str:
+    """One line for an operating-system error that no library function named: the file
+    (or standard output) and the reason."""
+    from .io import display_path
+
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    if exc.filename is not None:
+        return f"'{display_path(exc.filename)}': {reason}"
+    if _raised_writing_stdout(exc):
+        return f"cannot write to standard output: {reason}"
+    return reason
+
+
+def _raised_writing_stdout(exc: BaseException) -> bool:
+    """Whether ``exc`` came from ``click.echo`` writing to standard output."""
+    tb = exc.__traceback__
+    while tb is not None:
+        frame = tb.tb_frame
+        if frame.f_code.co_name == "echo" and "click" in frame.f_code.co_filename:
+            try:
+                return frame.f_locals["file"].fileno() == 1
+            except (KeyError, AttributeError, OSError, ValueError):
+                return False
+        tb = tb.tb_next
+    return False
+
+
+def _flush_stdout() -> None:
+    """Flush standard output, so that a full disk or closed pipe there is reported."""
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except OSError as exc:
+        from .errors import OutputError
+
+        raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
+
+
+def _stdout_failed() -> bool:
+    """Whether standard output cannot take what is waiting in its buffer."""
+    try:
+        if sys.stdout is not None:
+            sys.stdout.flush()
+    except (OSError, ValueError):
+        return True
+    return False
+
+
+def _fail(message: str, code: int) -> None:
+    """Print ``error: message`` on stderr (if stderr can take it) and exit with ``code``;
+    output that standard output could not take is dropped, so that Python does not
+    report it again at exit."""
+    if _stdout_failed():
+        import os
+
+        try:  # point the descriptor at /dev/null: the interpreter's last flush succeeds
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+    try:
+        click.echo(f"error: {message}", err=True)
+    except (OSError, ValueError):
+        pass  # stderr is closed or full too: the exit code is all that is left
+    sys.exit(code)
+
+
 def _handle_errors(fn: F) -> F:
-    """Turn a DgliError into one line on stderr and its exit code (never a traceback)."""
+    """Turn every error into one line on stderr and its exit code (never a traceback).
+
+    A :class:`~dgli_vision.errors.DgliError` gives its own message and code; an
+    operating-system error that got through (a full disk, a closed or full standard
+    output, a name too long) exits 2 naming the file; running out of memory exits 2.
+    Standard output is flushed before the command counts as done, so that a full
+    ``/dev/full`` or a closed pipe is reported rather than lost. A closed standard output
+    (``>&-``) stops the command before any work: it is where the answer goes.
+    """
 
     @wraps(fn)
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
-            return fn(*args, **kwargs)
+            if sys.stdout is None:
+                from .errors import OutputError
+
+                raise OutputError("standard output is closed; dgli prints its answer there")
+            try:
+                result = fn(*args, **kwargs)
+            except SystemExit:
+                _flush_stdout()
+                raise
+            _flush_stdout()
+            return result
         except DgliError as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(exc.exit_code)
+            _fail(str(exc), exc.exit_code)
+        except OSError as exc:
+            _fail(_os_error_message(exc), 2)
+        except MemoryError:
+            _fail("out of memory", 2)
 
     return wrapper  # type: ignore[return-value]
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+def _guarded(run: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+    """Run click's ``main`` with an operating-system error outside any command (help or
+    a usage error written to a full or closed stream) as one line, exit 2."""
+    try:
+        return run(*args, **kwargs)
+    except OSError as exc:
+        _fail(_os_error_message(exc), 2)
+
+
+class _Group(click.Group):
+    """The ``dgli`` group: :func:`_guarded` around click's own output too."""
+
+    def main(self, *args: Any, **kwargs: Any) -> Any:
+        return _guarded(super().main, *args, **kwargs)
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="dgli_vision")
 def main() -> None:
     """dgli_vision: classify the state of a marked napkin with dGLI cloth coordinates."""
@@ -219,9 +347,10 @@ def _package_version() -> str:
 
 
 def _pair_key(pair: Any) -> tuple[str, str]:
-    from pathlib import Path
+    import os
 
-    return str(Path(pair.color).resolve()), str(Path(pair.depth).resolve())
+    # realpath, not Path.resolve: a symbolic link loop is the pair's read error, not a crash
+    return os.path.realpath(pair.color), os.path.realpath(pair.depth)
 
 
 def _outcomes_of(items: list, pairs: list | None) -> dict[tuple[str, str], Any]:
@@ -263,19 +392,40 @@ def _progress(items: list, label: str):
     return nullcontext(items)
 
 
+#: The most cloth ``dgli simulate`` holds, counted in states of the nominal 400 mm napkin
+#: (a state of a larger napkin counts by its area): about 3 GB.
+MAX_SIMULATED_CLOTH = 10_000
+
+
+def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> None:
+    """Refuse, before the work, a database that would not fit in memory."""
+    from .classes import CLASS_IDS
+    from .database import FOLD_BINS_DEG
+    from .fold_graph import fold_edges
+
+    folds = sum("under" not in fold for *_, fold in fold_edges())
+    n_states = per_class * len(CLASS_IDS) + in_progress * folds * len(FOLD_BINS_DEG)
+    area = layout.width_mm * layout.height_mm / 400.0**2
+    if n_states * area > MAX_SIMULATED_CLOTH:
+        raise click.BadParameter(
+            f"{n_states} states of a {layout.width_mm:g} x {layout.height_mm:g} mm napkin "
+            f"hold as much cloth as {n_states * area:.0f} of the 400 mm one; at most "
+            f"{MAX_SIMULATED_CLOTH} fit in memory: lower --per-class or --in-progress",
+            param_hint="'--per-class'",
+        )
+
+
 @main.command()
 @click.argument("out", type=click.Path(file_okay=False))
-@click.option(
-    "--per-class", default=20, show_default=True, type=click.IntRange(1), help="States per class."
-)
+@per_class_option(20, 200, "States per class")
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the database.")
 @click.option("--no-wrinkles", is_flag=True, help="Fold cleanly, without wrinkles.")
 @click.option(
     "--in-progress",
     default=3,
     show_default=True,
-    type=click.IntRange(0),
-    help="States with a fold in progress, per fold and angle bin (0: none).",
+    type=click.IntRange(0, 20),
+    help="States with a fold in progress, per fold and angle bin (0: none; at most 20).",
 )
 @size_option
 @overwrite_option
@@ -301,6 +451,7 @@ def simulate(
     from .layout import layout_of_size
 
     layout = layout_of_size(size_mm)
+    _check_simulation_size(per_class, in_progress, layout)
     kw = {"wrinkles": not no_wrinkles, "layout": layout}
     states = []
     with _progress(list(CLASS_IDS), "simulating") as classes:
@@ -738,9 +889,7 @@ def _parse_conditions(ctx: click.Context, param: click.Parameter, value: str) ->
 
 @main.command("render")
 @click.argument("out", type=click.Path(file_okay=False))
-@click.option(
-    "--per-class", default=1, show_default=True, type=click.IntRange(1), help="Pairs per class."
-)
+@per_class_option(1, 50, "Pairs per class")
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the whole set.")
 @click.option(
     "--clean", is_flag=True, help="Switch the sensor model off (no noise, blur, dropouts)."
@@ -1367,6 +1516,17 @@ def _timeline_json(timeline: Any) -> dict[str, Any]:
     return json_ready(timeline_to_dict(timeline))
 
 
+def _finite_seconds(
+    ctx: click.Context, param: click.Parameter, value: float | None
+) -> float | None:
+    """A time in seconds from the start of a recording: a number, not NaN or infinite."""
+    import math
+
+    if value is not None and not math.isfinite(value):
+        raise click.BadParameter(f"{value} is not a time in seconds; expected a number")
+    return value
+
+
 @main.command()
 @click.argument("recording_path", metavar="RECORDING", type=click.Path())
 @click.argument("out", type=click.Path(file_okay=False))
@@ -1377,10 +1537,15 @@ def _timeline_json(timeline: Any) -> dict[str, Any]:
     "--start",
     type=float,
     default=None,
+    callback=_finite_seconds,
     help="First second to keep, from the start of the recording.",
 )
 @click.option(
-    "--end", type=float, default=None, help="Last second to keep, from the start of the recording."
+    "--end",
+    type=float,
+    default=None,
+    callback=_finite_seconds,
+    help="Last second to keep, from the start of the recording.",
 )
 @recording_options
 @overwrite_option
@@ -1494,6 +1659,15 @@ def verdict_line(result: Any) -> str:
     return text
 
 
+def _image_output(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """An image file to write: its extension must name a format OpenCV writes."""
+    from pathlib import Path
+
+    if value is not None and Path(value).suffix.lower() not in (".png", ".jpg", ".jpeg"):
+        raise click.BadParameter(f"'{value}': name the image *.png or *.jpg")
+    return value
+
+
 @click.command("classify")
 @click.argument("color", type=click.Path())
 @click.argument("depth", type=click.Path())
@@ -1503,8 +1677,9 @@ def verdict_line(result: Any) -> str:
 @json_option("Print one JSON object.")
 @click.option(
     "--overlay",
-    type=click.Path(),
-    help="Write the image with stickers, segments and verdict.",
+    type=click.Path(dir_okay=False),
+    callback=_image_output,
+    help="Write the image with stickers, segments and verdict (PNG or JPEG).",
 )
 @overwrite_option
 @_handle_errors
@@ -1560,7 +1735,7 @@ main.add_command(classify_cmd)
 
 def classify_main() -> None:
     """Entry point of ``dgli-classify`` (the same command as ``dgli classify``)."""
-    classify_cmd(prog_name="dgli-classify")
+    _guarded(classify_cmd.main, prog_name="dgli-classify")
 
 
 @main.command()
@@ -1686,9 +1861,7 @@ def _lens_lines(est: Any) -> list[str]:
 
 
 @main.command()
-@click.option(
-    "--per-class", default=4, show_default=True, type=click.IntRange(1), help="Pairs per class."
-)
+@per_class_option(4, 50, "Pairs per class")
 @click.option("--seed", default=1000, show_default=True, type=int, help="Seed of the renders.")
 @click.option(
     "--conditions",

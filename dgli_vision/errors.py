@@ -11,6 +11,7 @@ __all__ = [
     "DetectionError",
     "DgliError",
     "InvalidInputError",
+    "OutputError",
     "OverwriteError",
     "ReferenceError_",
     "UnreadableInputError",
@@ -48,3 +49,9 @@ class ReferenceError_(DgliError):
 
 class OverwriteError(DgliError):
     """A command would replace a file it did not write (exit code 2; ``--overwrite``)."""
+
+
+class OutputError(DgliError):
+    """A file (or standard output) cannot be written: a full disk, no permission, a name
+    too long, a folder that cannot be made, an image format without a writer. The
+    message names the file, the reason, and what was written before it and is kept."""

@@ -12,7 +12,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import DgliError, InvalidInputError
+from .errors import DgliError, InvalidInputError, OutputError
 from .frames import write_color, write_depth
 from .io import guard_outputs, record_outputs, write_json, write_text
 from .recording import Recording, select_frames
@@ -73,44 +73,54 @@ def extract_recording(
     Raises
     ------
     OverwriteError, InvalidInputError
-        A file in the way; frames of different sizes or intrinsics in one recording.
+        A file in the way; frames of different sizes or intrinsics in one recording; no
+        frame to write (none in the time window, or none that decodes).
+    OutputError
+        A file that cannot be written (a full disk...): the frames written before it are
+        kept, recorded and named in the message.
     """
     root = Path(out)
     listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
-    guard_outputs(listing, overwrite=overwrite)
+    guard_outputs(listing, overwrite=overwrite)  # and makes OUT: an impossible OUT fails here
     result = ExtractResult()
     rows: list[tuple[str, str, str, str, str]] = []
     written: list[Path] = []
     intr = None
-    jobs: list[Future] = []
+    seen = 0
+    jobs: list[tuple[Future, Path]] = []
     with ThreadPoolExecutor(2) as pool:
-        for index, pair in select_frames(recording.frames, every=every, start=start, end=end):
-            if on_progress:
-                on_progress(1)
-            try:
-                frame = pair.load()
-            except DgliError as exc:
-                result.skipped.append(str(exc))
-                continue
-            if intr is None:
-                intr = frame.intrinsics
-            elif frame.intrinsics != intr:
-                raise InvalidInputError(
-                    f"{pair.color}: the camera intrinsics change within the recording; a "
-                    "folder holds one intrinsics.json: extract each part with --start/--end"
-                )
-            name = f"frame_{index:06d}"
-            color, depth = root / f"{name}_color.png", root / f"{name}_depth.png"
-            guard_outputs([color, depth], overwrite=overwrite)
-            while len(jobs) >= 4:  # a few frames in flight, never the whole episode
-                jobs.pop(0).result()
-            jobs.append(pool.submit(write_color, color, frame.color))
-            jobs.append(pool.submit(write_depth, depth, frame.depth_mm))
-            written += [color, depth]
-            t = "" if pair.time is None else f"{pair.time:.6f}"
-            rows.append((color.name, depth.name, t, pair.label, pair.variant or ""))
-        for job in jobs:
-            job.result()
+        try:
+            for index, pair in select_frames(recording.frames, every=every, start=start, end=end):
+                seen += 1
+                if on_progress:
+                    on_progress(1)
+                try:
+                    frame = pair.load()
+                except DgliError as exc:
+                    result.skipped.append(str(exc))
+                    continue
+                if intr is None:
+                    intr = frame.intrinsics
+                elif frame.intrinsics != intr:
+                    raise InvalidInputError(
+                        f"{pair.color}: the camera intrinsics change within the recording; a "
+                        "folder holds one intrinsics.json: extract each part with --start/--end"
+                    )
+                name = f"frame_{index:06d}"
+                color, depth = root / f"{name}_color.png", root / f"{name}_depth.png"
+                guard_outputs([color, depth], overwrite=overwrite)
+                while len(jobs) >= 4:  # a few frames in flight, never the whole episode
+                    _finish(jobs.pop(0), written)
+                jobs.append((pool.submit(write_color, color, frame.color), color))
+                jobs.append((pool.submit(write_depth, depth, frame.depth_mm), depth))
+                t = "" if pair.time is None else f"{pair.time:.6f}"
+                rows.append((color.name, depth.name, t, pair.label, pair.variant or ""))
+            while jobs:
+                _finish(jobs.pop(0), written)
+        except OutputError as exc:
+            raise _kept_frames(exc, jobs, written, root, command) from None
+    if not rows:
+        raise InvalidInputError(_nothing_to_extract(recording, seen, start, end, result))
     if intr is not None:
         write_json(root / "intrinsics.json", intr.to_open3d_dict())
         written.append(root / "intrinsics.json")
@@ -125,3 +135,64 @@ def extract_recording(
     result.frames_csv = root / "frames.csv"
     return result
 
+
+def _finish(job: tuple[Future, Path], written: list[Path]) -> None:
+    """Wait for one image write; the file is then written (or its OutputError raised)."""
+    job[0].result()
+    written.append(job[1])
+
+
+def _kept_frames(
+    exc: OutputError,
+    jobs: list[tuple[Future, Path]],
+    written: list[Path],
+    root: Path,
+    command: str,
+) -> OutputError:
+    """The error of a write that failed midway, naming the frames written before it;
+    they are recorded as dgli's own (a rerun replaces them without --overwrite)."""
+    for future, path in jobs:  # the writes still in flight end one way or the other
+        try:
+            future.result()
+            written.append(path)
+        except DgliError:
+            pass
+    names = {p.name for p in written}
+    frames = sorted(
+        p.name[: -len("_color.png")]
+        for p in written
+        if p.name.endswith("_color.png") and p.name.replace("_color", "_depth") in names
+    )
+    try:
+        record_outputs(written, command)
+    except DgliError:
+        pass  # the disk that is full cannot take the record either
+    if not frames:
+        return OutputError(f"{exc}; no frame was written before it")
+    return OutputError(
+        f"{exc}; the {len(frames)} frame(s) written before it are kept in '{root}' "
+        f"({frames[0]} to {frames[-1]}), without frames.csv"
+    )
+
+
+def _nothing_to_extract(
+    recording: Recording,
+    seen: int,
+    start: float | None,
+    end: float | None,
+    result: ExtractResult,
+) -> str:
+    """Why no frame was written (nothing is written then, not even an empty frames.csv)."""
+    if seen == 0:
+        window = [
+            f"from {start:g} s" if start is not None else "",
+            f"to {end:g} s" if end is not None else "",
+        ]
+        span = " ".join(w for w in window if w)
+        window_text = f" {span}" if span else ""
+        return f"recording '{recording.source}' holds no frame{window_text}: nothing written"
+    first = f" (the first: {result.skipped[0]})" if result.skipped else ""
+    return (
+        f"none of the {seen} frames of recording '{recording.source}' could be written"
+        f"{first}: nothing written"
+    )

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import stat
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -17,16 +19,26 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .errors import InvalidInputError, OverwriteError, UnreadableInputError
+from .errors import (
+    DgliError,
+    InvalidInputError,
+    OutputError,
+    OverwriteError,
+    UnreadableInputError,
+)
 
 __all__ = [
     "JsonLinesWriter",
+    "check_input_file",
+    "display_path",
+    "failed_part_way",
     "file_sha256",
     "guard_outputs",
     "read_json",
     "read_jsonl",
     "read_mesh_ply",
     "record_outputs",
+    "write_files",
     "write_json",
     "write_mesh_ply",
     "write_outputs",
@@ -35,20 +47,84 @@ __all__ = [
 ]
 
 
+def display_path(path: str | Path, limit: int = 160) -> str:
+    """A path for a one-line message: a very long one keeps its start and its end."""
+    text = str(path)
+    return text if len(text) <= limit else f"{text[:80]}...{text[-60:]}"
+
+
+def _unwritable(p: Path, reason: str) -> OutputError:
+    return OutputError(f"cannot write '{display_path(p)}': {reason}")
+
+
+def _remove_partial(p: Path) -> None:
+    """Remove what a failed write left of a regular file (never a device such as
+    /dev/full, nor what a symbolic link points to)."""
+    try:
+        if p.is_file() and not p.is_symlink():
+            p.unlink()
+    except OSError:
+        pass
+
+
+def _write_bytes(p: Path, data: bytes) -> None:
+    """Write ``data`` to ``p``, creating parent folders; a failed write leaves no
+    truncated file behind.
+
+    Raises
+    ------
+    OutputError
+        Naming the file and the operating system's reason (no space left on device,
+        permission denied, file name too long...).
+    """
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(p, f"cannot make its folder ({exc.strerror or exc})") from None
+    try:
+        with p.open("wb") as fh:
+            fh.write(data)
+    except OSError as exc:
+        _remove_partial(p)
+        raise _unwritable(p, exc.strerror or str(exc)) from None
+
+
 def write_text(path: str | Path, text: str) -> None:
     """Write ``text`` to ``path`` (UTF-8), creating parent folders.
 
     Raises
     ------
+    OutputError
+        If the file cannot be written (a truncated file is not left behind).
+    """
+    _write_bytes(Path(path), text.encode("utf-8"))
+
+
+def check_input_file(path: str | Path, what: str) -> os.stat_result:
+    """The status of an input file that must exist and be a regular file.
+
+    Raises
+    ------
     UnreadableInputError
-        If the file cannot be written.
+        Missing; a directory; a FIFO, device or socket (reading it would block or never
+        end); or a path the system cannot look up (too long, a symbolic link loop, no
+        permission), each said so.
     """
     p = Path(path)
     try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-        p.write_text(text, encoding="utf-8")
+        st = p.stat()
+    except FileNotFoundError:
+        raise UnreadableInputError(f"{what} '{display_path(p)}' does not exist") from None
     except OSError as exc:
-        raise UnreadableInputError(f"cannot write '{p}': {exc.strerror}") from None
+        raise UnreadableInputError(
+            f"{what} '{display_path(p)}' cannot be read: {exc.strerror or exc}"
+        ) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UnreadableInputError(f"{what} '{p}' is a directory; expected a file")
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
+        raise UnreadableInputError(f"{what} '{p}' is {kind}, not a regular file")
+    return st
 
 
 def read_json(path: str | Path, *, what: str = "JSON file") -> Any:
@@ -62,13 +138,12 @@ def read_json(path: str | Path, *, what: str = "JSON file") -> Any:
         Not valid JSON (with the line and column).
     """
     p = Path(path)
-    if not p.exists():
-        raise UnreadableInputError(f"{what} '{p}' does not exist")
-    if p.is_dir():
-        raise UnreadableInputError(f"{what} '{p}' is a directory; expected a file")
+    check_input_file(p, what)
     try:
         text = p.read_text(encoding="utf-8")
-    except (OSError, UnicodeDecodeError) as exc:
+    except OSError as exc:
+        raise UnreadableInputError(f"cannot read {what} '{p}': {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
         raise UnreadableInputError(f"cannot read {what} '{p}': {exc}") from None
     try:
         return json.loads(text)
@@ -92,9 +167,25 @@ def write_mesh_ply(path: str | Path, xyz: NDArray, triangles: NDArray) -> None:
         o3d.utility.Vector3iVector(np.asarray(triangles, dtype=np.int32)),
     )
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(p, f"cannot make its folder ({exc.strerror or exc})") from None
     if not o3d.io.write_triangle_mesh(str(p), mesh, write_ascii=False, compressed=False):
-        raise UnreadableInputError(f"cannot write mesh '{p}'")
+        _remove_partial(p)
+        raise _unwritable(p, _why_unwritable(p))
+
+
+def _why_unwritable(p: Path) -> str:
+    """The likely reason a writer that reports no error number (OpenCV, Open3D) failed."""
+    try:
+        if os.statvfs(p.parent).f_bavail == 0:
+            return "No space left on device"
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    if not os.access(p.parent, os.W_OK):
+        return "Permission denied"
+    return "the writer failed"
 
 
 def read_mesh_ply(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
@@ -136,7 +227,9 @@ def _manifest(folder: Path) -> dict[str, Any]:
 
 
 def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> None:
-    """Refuse to replace an existing file that dgli did not write.
+    """Refuse to replace an existing file that dgli did not write, and make the folders
+    the files go to: a command calls this before its work, so that an output it could
+    never write stops it at once rather than after the work.
 
     A file may be replaced when it does not exist, when ``overwrite`` is set, or when the
     record of its folder (:data:`MANIFEST_NAME`, kept by :func:`record_outputs`) lists it
@@ -146,13 +239,22 @@ def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> No
     ------
     OverwriteError
         Naming the first file that would be replaced.
+    OutputError
+        A folder that cannot be made or written into, or a path the system cannot look
+        up (too long...).
     """
     manifests: dict[Path, dict[str, Any]] = {}
+    folders: dict[Path, Path] = {}
     for path in paths:
         p = Path(path)
-        if p.is_dir():
+        try:
+            is_dir, exists = p.is_dir(), p.exists()
+        except OSError as exc:
+            raise _unwritable(p, exc.strerror or str(exc)) from None
+        if is_dir:
             raise OverwriteError(f"'{p}' is a directory; expected a file to write")
-        if overwrite or not p.exists():
+        folders.setdefault(p.parent, p)
+        if overwrite or not exists:
             continue
         folder = p.parent
         if folder not in manifests:
@@ -164,6 +266,18 @@ def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> No
             f"refusing to replace '{p}': dgli did not write it (or it was changed since); "
             "use --overwrite to replace it"
         )
+    for folder, first in folders.items():
+        _make_writable_folder(folder, first)
+
+
+def _make_writable_folder(folder: Path, first: Path) -> None:
+    """Make ``folder`` (and its parents); ``first`` is a file to go there, for messages."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(first, f"cannot make its folder ({exc.strerror or exc})") from None
+    if not os.access(folder, os.W_OK):
+        raise _unwritable(first, f"its folder '{display_path(folder)}' is not writable")
 
 
 def record_outputs(paths: Iterable[str | Path], command: str) -> None:
@@ -183,20 +297,77 @@ def record_outputs(paths: Iterable[str | Path], command: str) -> None:
         )
 
 
+def _kept(written: list[Path]) -> str:
+    """``the 3 files written before it are kept: a, b, c`` (a few named, the rest counted)."""
+    if not written:
+        return "nothing was written before it"
+    names = ", ".join(f"'{p}'" for p in written[:3])
+    more = f" and {len(written) - 3} more" if len(written) > 3 else ""
+    if len(written) == 1:
+        return f"the file written before it is kept: {names}"
+    return f"the {len(written)} files written before it are kept: {names}{more}"
+
+
+def write_files(
+    files: Iterable[tuple[Path, str | dict | NDArray[np.uint8]]], *, command: str
+) -> list[Path]:
+    """Write files (text, JSON or a BGR image each) in order and record them
+    (:func:`record_outputs`); the caller has checked them with :func:`guard_outputs`.
+
+    Raises
+    ------
+    OutputError
+        On the first file that cannot be written, naming it, the reason and the files
+        written before it, which are kept and recorded as dgli's own (so that running
+        the command again replaces them without ``--overwrite``).
+    """
+    written: list[Path] = []
+    try:
+        for path, content in files:
+            p = Path(path)
+            if isinstance(content, str):
+                write_text(p, content)
+            elif isinstance(content, dict):
+                write_json(p, content)
+            else:
+                write_png(p, content)
+            written.append(p)
+    except OutputError as exc:
+        raise failed_part_way(exc, written, command) from None
+    try:
+        record_outputs(written, command)
+    except OutputError as exc:
+        raise OutputError(
+            f"{exc}; the {len(written)} files are written and kept, but a later run needs "
+            "--overwrite to replace them"
+        ) from None
+    return written
+
+
+def failed_part_way(exc: OutputError, written: list[Path], command: str) -> OutputError:
+    """The error of a set of files that failed part-way: ``exc`` naming the files written
+    before it, which are kept and recorded as dgli's own (so that running the command
+    again replaces them without ``--overwrite``)."""
+    try:
+        record_outputs(written, command)
+    except DgliError:
+        pass  # the disk that is full cannot take the record either
+    return OutputError(f"{exc}; {_kept(written)}")
+
+
 def write_outputs(
     files: dict[Path, str | dict | NDArray[np.uint8]], *, overwrite: bool, command: str
 ) -> None:
     """Write a set of report files (text, JSON or a BGR image each), after checking with
-    :func:`guard_outputs` that none replaces a user's file, and record them."""
+    :func:`guard_outputs` that none replaces a user's file, and record them.
+
+    Raises
+    ------
+    OverwriteError, OutputError
+        See :func:`write_files`.
+    """
     guard_outputs(files, overwrite=overwrite)
-    for path, content in files.items():
-        if isinstance(content, str):
-            write_text(path, content)
-        elif isinstance(content, dict):
-            write_json(path, content)
-        else:
-            write_png(path, content)
-    record_outputs(files, command)
+    write_files(files.items(), command=command)
 
 
 def read_jsonl(path: str | Path) -> list[Any]:
@@ -227,27 +398,63 @@ class JsonLinesWriter:
             p.parent.mkdir(parents=True, exist_ok=True)
             self._fh = p.open("a" if append else "w", encoding="utf-8")
         except OSError as exc:
-            raise UnreadableInputError(f"cannot write '{p}': {exc.strerror}") from None
+            raise _unwritable(p, exc.strerror or str(exc)) from None
         self.path = p
+        self.lines = 0
+        self._failed = False
 
     def write(self, obj: Any) -> None:
-        """Append ``obj`` as one line and flush it to the operating system."""
+        """Append ``obj`` as one line and flush it to the operating system.
+
+        Raises
+        ------
+        OutputError
+            Naming the file, the reason and how many lines before it are kept.
+        """
         try:
             self._fh.write(json.dumps(obj) + "\n")
             self._fh.flush()
         except OSError as exc:
-            raise UnreadableInputError(f"cannot write '{self.path}': {exc.strerror}") from None
+            self._failed = True
+            if self.lines == 0:
+                kept = "no line was written before it"
+            else:
+                lines = "1 line" if self.lines == 1 else f"{self.lines} lines"
+                kept = f"the {lines} written before it are kept"
+            raise _unwritable(self.path, f"{exc.strerror or exc}; {kept}") from None
+        self.lines += 1
 
     def close(self) -> None:
-        """Close the file."""
-        self._fh.close()
+        """Close the file (after a failed write, quietly: that failure was reported)."""
+        try:
+            self._fh.close()
+        except OSError as exc:
+            if not self._failed:
+                raise _unwritable(self.path, exc.strerror or str(exc)) from None
 
 
 def write_png(path: str | Path, image_bgr: NDArray[np.uint8]) -> None:
-    """Write a BGR uint8 image as PNG, creating parent folders."""
+    """Write a BGR (or single-channel) image, PNG or JPEG by the file's extension,
+    creating parent folders.
+
+    Raises
+    ------
+    OutputError
+        An extension OpenCV has no writer for, an image it cannot encode, or a file that
+        cannot be written (with the operating system's reason).
+    """
     import cv2
 
     p = Path(path)
-    p.parent.mkdir(parents=True, exist_ok=True)
-    if not cv2.imwrite(str(p), image_bgr):
-        raise UnreadableInputError(f"cannot write image '{p}'")
+    ext = p.suffix.lower()
+    if not ext or not cv2.haveImageWriter(f"x{ext}"):
+        raise _unwritable(
+            p, f"no image writer for '{ext or p.name}' files; name it *.png or *.jpg"
+        )
+    try:
+        ok, encoded = cv2.imencode(ext, image_bgr)
+    except cv2.error as exc:
+        raise _unwritable(p, f"OpenCV cannot encode the image ({exc.err})") from None
+    if not ok:
+        raise _unwritable(p, "OpenCV cannot encode the image")
+    _write_bytes(p, encoded.tobytes())

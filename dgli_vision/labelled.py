@@ -3,22 +3,31 @@ finding the pairs and their labels."""
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .errors import InvalidInputError, UnreadableInputError
+from .errors import InvalidInputError, OutputError, UnreadableInputError
 from .frames import RGBDFrame, read_frame, write_color, write_depth
-from .io import guard_outputs, record_outputs, write_json, write_text
+from .io import (
+    check_input_file,
+    failed_part_way,
+    guard_outputs,
+    record_outputs,
+    write_json,
+    write_text,
+)
 
 __all__ = [
     "LabelProblem",
     "LabelledPair",
     "find_labelled_pairs",
     "find_pairs",
+    "folder_intrinsics",
     "labelled_folder_files",
     "write_labelled_folder",
 ]
@@ -55,6 +64,9 @@ def write_labelled_folder(
     Raises
     ------
     OverwriteError
+    OutputError
+        An image that cannot be written (a full disk...): the pairs written before it
+        are kept, recorded and named.
     """
     root = Path(out)
     planned = labelled_folder_files(root, [s.name for s in samples], frames=times is not None)
@@ -64,14 +76,20 @@ def write_labelled_folder(
     rows = []
     truth = {}
     intr = None
+    written: list[Path] = []
     for s in samples:
         if intr is None:
             intr = s.result.intrinsics
         elif s.result.intrinsics != intr:
             raise ValueError("all samples of a folder must share their intrinsics")
         color, depth = f"{s.name}_color.png", f"{s.name}_depth.png"
-        write_color(root / color, s.result.color)
-        write_depth(root / depth, s.result.depth_mm)
+        try:
+            write_color(root / color, s.result.color)
+            written.append(root / color)
+            write_depth(root / depth, s.result.depth_mm)
+            written.append(root / depth)
+        except OutputError as exc:
+            raise failed_part_way(exc, written, str(provenance.get("command", ""))) from None
         rows.append((color, depth, s.state.class_id, s.state.variant or ""))
         truth[s.name] = {
             "color": color,
@@ -110,7 +128,9 @@ class LabelledPair:
     """One colour + depth pair of a labelled folder, with its true class and variant.
 
     ``line`` is the pair's line in ``labels.csv`` (None for class folders); ``time`` is
-    the frame's time in seconds in a recording (None when not known).
+    the frame's time in seconds in a recording (None when not known); ``intrinsics_file`` is
+    the labelled folder's ``intrinsics.json`` for a pair in a class folder that has none
+    of its own (:func:`folder_intrinsics`; None: the usual lookup).
     """
 
     color: str
@@ -119,6 +139,7 @@ class LabelledPair:
     variant: str | None = None
     line: int | None = None
     time: float | None = None
+    intrinsics_file: str | None = field(default=None, kw_only=True)
 
     def load(self) -> RGBDFrame:
         """The validated frame (:func:`~dgli_vision.frames.read_frame`, one thread).
@@ -127,7 +148,7 @@ class LabelledPair:
         ------
         UnreadableInputError, InvalidInputError, CalibrationError
         """
-        return read_frame(self.color, self.depth, threads=False)
+        return read_frame(self.color, self.depth, self.intrinsics_file, threads=False)
 
     def light(self) -> LabelledPair:
         """This pair as names only (what an outcome keeps)."""
@@ -151,6 +172,34 @@ class LabelProblem:
     where: str
     kind: str
     message: str
+
+
+def folder_intrinsics(root: str | Path, color: str | Path) -> str | None:
+    """The intrinsics a pair below ``root`` falls back on: ``root/intrinsics.json`` when
+    the colour image lies in a subfolder (a class folder) without an ``intrinsics.json``
+    of its own; None when the usual lookup (the colour image's folder) applies."""
+    beside = Path(color).parent / "intrinsics.json"
+    shared = Path(root) / "intrinsics.json"
+    if Path(color).parent == Path(root) or beside.is_file() or not shared.is_file():
+        return None
+    return str(shared)
+
+
+def _real_path(path: str) -> str:
+    """The path with symbolic links resolved as far as they go (a link loop does not
+    raise: reading the file reports it)."""
+    return os.path.realpath(path)
+
+
+def _unreadable(kind: str, path: str) -> str | None:
+    """Why a pair's file cannot be read (missing, a link loop, a FIFO...), or None."""
+    from .errors import DgliError
+
+    try:
+        check_input_file(path, kind)
+    except DgliError as exc:
+        return str(exc)
+    return None
 
 
 def find_pairs(folder: str | Path) -> list[LabelledPair]:
@@ -194,16 +243,15 @@ def _check_labels(
                 )
             )
             continue
-        key = (str(Path(pair.color).resolve()), str(Path(pair.depth).resolve()))
+        key = (_real_path(pair.color), _real_path(pair.depth))
         if key in seen:
             problems.append(LabelProblem(at, "duplicate", f"{at}: the same pair as {seen[key]}"))
             continue
         seen[key] = at
         for kind, path in (("colour image", pair.color), ("depth image", pair.depth)):
-            if not Path(path).is_file():
-                problems.append(
-                    LabelProblem(at, "missing file", f"{at}: {kind} '{path}' does not exist")
-                )
+            why = _unreadable(kind, path)
+            if why is not None:
+                problems.append(LabelProblem(at, "missing file", f"{at}: {why}"))
                 break
         keep.append(pair)
     return keep, problems
@@ -216,9 +264,11 @@ def find_labelled_pairs(
     problems found in its labels.
 
     Labels come from ``labels.csv`` (``color,depth,label[,variant]``, paths relative to
-    the folder) or, without it, from the first directory level below the folder, whose
-    name starts with the class id (``02_corner-over/...``); pairs are
-    ``<name>_color.png`` + ``<name>_depth.png``.
+    the folder; UTF-8, with or without a byte-order mark) or, without it, from the first
+    directory level below the folder, whose name starts with the class id
+    (``02_corner-over/...``); pairs are ``<name>_color.png`` + ``<name>_depth.png``. A
+    pair in a subfolder (a class folder) without an ``intrinsics.json`` of its own uses
+    the labelled folder's (:func:`folder_intrinsics`).
 
     Every row is checked: an unknown class id, a variant the class does not have, or a
     pair listed twice is an error unless ``lenient``, which skips the row and lists it;
@@ -247,7 +297,7 @@ def find_labelled_pairs(
     where = []
     if labels.is_file():
         try:
-            with labels.open(newline="", encoding="utf-8") as fh:
+            with labels.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
                 reader = csv.DictReader(fh)
                 missing = {"color", "depth", "label"} - set(reader.fieldnames or [])
                 if missing:
@@ -260,13 +310,15 @@ def find_labelled_pairs(
                     if not row.get("color") or not row.get("depth") or not label:
                         raise InvalidInputError(f"labels file '{labels}' line {k} is incomplete")
                     variant = (row.get("variant") or "").strip() or None
+                    color = root / row["color"]
                     pairs.append(
                         LabelledPair(
-                            str(root / row["color"]),
+                            str(color),
                             str(root / row["depth"]),
                             label.zfill(2),
                             variant,
                             k,
+                            intrinsics_file=folder_intrinsics(root, color),
                         )
                     )
                     where.append(f"'{labels}' line {k}")
@@ -282,7 +334,8 @@ def find_labelled_pairs(
             if not label.isdigit():
                 continue
             depth = color.with_name(color.name[: -len("_color.png")] + "_depth.png")
-            pairs.append(LabelledPair(str(color), str(depth), label))
+            intrinsics = folder_intrinsics(root, color)
+            pairs.append(LabelledPair(str(color), str(depth), label, intrinsics_file=intrinsics))
             where.append(f"'{color}'")
     if not pairs:
         raise InvalidInputError(

@@ -11,6 +11,7 @@ classified (:func:`open_recording`); a labels file for it names frames by index 
 from __future__ import annotations
 
 import csv
+import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -18,7 +19,7 @@ from pathlib import Path
 from .camera import DEFAULT_INTRINSICS, Intrinsics
 from .errors import CalibrationError, InvalidInputError, UnreadableInputError
 from .frames import RGBDFrame
-from .labelled import LabelledPair, find_labelled_pairs
+from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
 from .ros_images import ImagePayload, decode_color, decode_depth
 
 __all__ = [
@@ -66,7 +67,7 @@ def _frames_csv(path: Path, root: Path) -> tuple[list[LabelledPair], list[float 
     pairs: list[LabelledPair] = []
     times: list[float | None] = []
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
             reader = csv.DictReader(fh)
             missing = {"color", "depth"} - set(reader.fieldnames or [])
             if missing:
@@ -117,14 +118,17 @@ def read_recording(folder: str | Path) -> Recording:
     labelled = False
     if (root / "labels.csv").is_file():
         known, _ = find_labelled_pairs(root, lenient=True)
-        by_color = {str(Path(p.color).resolve()): p for p in known}
-        found = [by_color.get(str(Path(p.color).resolve())) for p in pairs]
+        by_color = {os.path.realpath(p.color): p for p in known}
+        found = [by_color.get(os.path.realpath(p.color)) for p in pairs]
         labelled = all(f is not None for f in found)
         pairs = [
             LabelledPair(p.color, p.depth, f.label, f.variant, f.line) if f else p
             for p, f in zip(pairs, found)
         ]
-    pairs = [replace(p, time=t) for p, t in zip(pairs, times)]
+    pairs = [
+        replace(p, time=t, intrinsics_file=folder_intrinsics(root, p.color))
+        for p, t in zip(pairs, times)
+    ]
     return Recording(tuple(pairs), len(pairs), labelled, str(root))
 
 
@@ -189,7 +193,7 @@ def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], li
     by_frame: dict[int, tuple[str, str | None, int]] = {}
     by_time: list[tuple[float, str, str | None, int]] = []
     try:
-        with path.open(newline="", encoding="utf-8") as fh:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
             reader = csv.DictReader(fh)
             cols = set(reader.fieldnames or [])
             if "label" not in cols or not cols & {"frame", "time"}:

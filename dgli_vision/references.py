@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .classes import CLASS_NAMES
+from .classes import CLASS_NAMES, VARIANTS
 from .distance import pairwise_spearman
 from .errors import ReferenceError_, UnreadableInputError
 from .io import guard_outputs, read_json, record_outputs, write_json
@@ -294,6 +294,13 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             raise ReferenceError_(f"'{source}': reference {k} is malformed ({exc})") from None
         if class_id not in CLASS_NAMES:
             raise ReferenceError_(f"'{source}': reference {k} has unknown class {class_id!r}")
+        variant = item.get("variant")
+        if variant not in VARIANTS[class_id]:
+            allowed = ", ".join(v or "null" for v in VARIANTS[class_id])
+            raise ReferenceError_(
+                f"'{source}': reference {k} of class {class_id} has variant {variant!r}, "
+                f"which is not one of class {class_id}'s ({allowed})"
+            )
         if coords.shape != (28,) or not np.isfinite(coords).all():
             raise ReferenceError_(f"'{source}': reference {k} needs 28 finite coordinates")
         if rate.shape != (16,):
@@ -310,15 +317,26 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             item, "footprint_range", (2,), np.nan, source, k,
             "footprint fractions [smallest, largest]",
         )
+        for name, rates in (("visible", rate), ("lifted", lifted), ("past-vertical", past)):
+            if not ((rates >= 0) & (rates <= 1)).all():  # NaN fails too
+                raise ReferenceError_(
+                    f"'{source}': reference {k} has {name} rates outside 0-1 (or not numbers)"
+                )
+        n_samples = item.get("n_samples", 1)
+        if not isinstance(n_samples, int) or isinstance(n_samples, bool) or n_samples < 1:
+            raise ReferenceError_(
+                f"'{source}': reference {k} has n_samples {n_samples!r}; expected a positive "
+                "integer"
+            )
         refs.append(
             Reference(
                 class_id,
                 CLASS_NAMES[class_id],
-                item.get("variant"),
+                variant,
                 coords,
                 rate,
                 str(item.get("source", "")),
-                int(item.get("n_samples", 1)),
+                n_samples,
                 str(item.get("stage") or ""),
                 lifted,
                 heights,
