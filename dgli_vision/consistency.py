@@ -23,11 +23,14 @@ napkin looks the same under both): it says what it saw and how to fix it.
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from numpy.typing import NDArray
 
 from .classify import reference_distances
 from .layout import NapkinLayout
+from .perception.detect import StickerDetections
 from .perception.footprint import Footprint
 from .perception.scale import NapkinRuler
 from .references import ReferenceSet
@@ -36,9 +39,11 @@ __all__ = [
     "CLEAR_MARGIN",
     "FOOTPRINT_SCALE",
     "FOOTPRINT_SLACK",
+    "GOOD_FIT",
     "MIRROR_MARGIN",
     "RIGIDITY_TOLERANCE",
     "SCALE_TOLERANCE",
+    "depth_scale_hint",
     "footprint_penalty",
     "mirror_problem",
     "rigidity_problem",
@@ -54,6 +59,9 @@ SCALE_TOLERANCE = 0.08
 #: on the crease of a diagonal fold); an uncorrected lens stretches a corner near the
 #: image border by 5% and more.
 RIGIDITY_TOLERANCE = 0.05
+#: Largest distance of a front-up reading that the footprint may pick over a mirrored
+#: reading the stickers prefer (a half fold's own references fit it 0.06-0.12 away).
+GOOD_FIT = 0.2
 #: How much better (distance units) one reading must fit once the footprint is counted.
 MIRROR_MARGIN = 0.05
 #: How much better (distance units) one reading must fit for the stickers alone to
@@ -90,6 +98,42 @@ def scale_problem(ruler: NapkinRuler | None, layout: NapkinLayout) -> str | None
         f"{ruler.scale:.2f} times as far apart as printed: depth units? intrinsics? "
         "another napkin size?)"
     )
+
+
+def depth_scale_hint(detections: StickerDetections, depth_mm: NDArray[np.uint16]) -> str:
+    """What the depth image may have wrong when too few stickers were located: blobs of
+    the stickers' colours whose size disagrees with their depth by one common factor
+    (depth in other units), or a depth image stuck at its largest value. ``""`` when
+    neither is seen.
+
+    Parameters
+    ----------
+    detections : StickerDetections
+        The detector's result, with its rejected blobs.
+    depth_mm : ndarray of uint16, shape (H, W)
+    """
+    hints = []
+    valid = depth_mm > 0
+    if valid.any():
+        stuck = float((depth_mm[valid] == np.iinfo(np.uint16).max).mean())
+        if stuck > 0.5:
+            hints.append(f"the depth image reads 65535 at {100 * stuck:.0f}% of its pixels")
+    ratios = [
+        float(m.group(1))
+        for r in detections.rejected
+        if (m := re.search(r"\(([\d.]+) (?:discs|of a disc)", r.reason))
+        and r.reason.startswith(("too large", "too small"))
+    ]
+    if len(ratios) >= 4:
+        factor = float(np.median(ratios))
+        size = f"{factor:.0f} times" if factor >= 1 else f"1/{1 / max(factor, 1e-6):.0f} of"
+        hints.append(
+            f"{len(ratios)} blobs of the stickers' colours are {size} the area of a sticker "
+            "at the depth read there"
+        )
+    if not hints:
+        return ""
+    return "; ".join(hints) + " (depth units? a depth scale setting?)"
 
 
 def rigidity_problem(ruler: NapkinRuler | None, *, lens_known: bool) -> str | None:
@@ -170,19 +214,31 @@ def mirror_problem(
     """
     front = reference_distances(coords, references, **evidence)
     mirrored = reference_distances(-np.asarray(coords), references, **evidence)
+    pen = footprint_penalty(footprint, references, napkin_area_mm2)
     i, j = int(np.argmin(front)), int(np.argmin(mirrored))
+    # The footprint speaks for a reading when it fits that reading's best reference and
+    # clearly not the other's; it only ever overrules the stickers in its favour when
+    # that reading fits well (measured wrong, a shadow's footprint must not).
+    for_front = pen[i] == 0.0 and pen[j] >= 0.5 and front[i] <= GOOD_FIT
+    for_mirror = pen[j] == 0.0 and pen[i] >= 0.5
+    fix = "turn the napkin front face up, or switch off the camera's mirroring"
     if front[i] + CLEAR_MARGIN <= mirrored[j]:
-        return None  # the stickers alone say front up
-    if mirrored[j] + CLEAR_MARGIN > front[i]:
-        # The stickers alone leave it open: the footprint has its say. It only ever
-        # settles a doubt; measured wrong (a shadow cut off part of the napkin) it must
-        # not overrule stickers that are clear.
-        pen = footprint_penalty(footprint, references, napkin_area_mm2)
+        if not for_mirror:
+            return None  # the stickers say front up
+        lo = footprint.fraction(napkin_area_mm2)[0] if footprint else np.nan
+        return (
+            f"the stickers fit {_describe(references, i)} front up, but the napkin covers "
+            f"{100 * lo:.0f}% of its area, as {_describe(references, j)} seen mirrored "
+            f"does: the napkin may lie back face up, or the image be mirrored; {fix}"
+        )
+    elif mirrored[j] + CLEAR_MARGIN <= front[i]:
+        if for_front:
+            return None  # states whose stickers mirror each other: the footprint knows
+    else:  # the stickers leave it open: the footprint settles it, or nothing does
         front, mirrored = front + pen, mirrored + pen
         i, j = int(np.argmin(front)), int(np.argmin(mirrored))
         if front[i] + MIRROR_MARGIN <= mirrored[j]:
             return None
-    fix = "turn the napkin front face up, or switch off the camera's mirroring"
     if mirrored[j] + MIRROR_MARGIN <= front[i]:
         return (
             f"the stickers run clockwise seen from above: the napkin lies back face up "

@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from .classes import LIFTED_MM, PAST_BAND_DEG
 from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
-from .consistency import mirror_problem, rigidity_problem, scale_problem
+from .consistency import depth_scale_hint, mirror_problem, rigidity_problem, scale_problem
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
@@ -240,6 +240,9 @@ def classify_frame(
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         if unknown:
             reason += f" ({unknown})"
+        depth_hint = depth_scale_hint(detections, frame.depth_mm)
+        if depth_hint:
+            reason += f"; {depth_hint}"
         return FrameResult(detections, markers, obs, coords, None, reason)
     mirror = mirror_problem(
         coords, references, evidence, obs.footprint, layout.width_mm * layout.height_mm

@@ -142,3 +142,26 @@ def test_stickers_a_broad_sheen_washed_to_pastel_are_found(class_id, k):
     )
     res = classify_frame(frame(s), REFS)
     assert res.prediction is None or res.prediction.class_id == class_id
+
+
+def test_a_corner_stretched_off_the_printed_distances_asks_for_the_lens():
+    # an uncorrected lens near the image border stretches one corner, not the napkin
+    from dgli_vision.consistency import rigidity_problem
+
+    _, markers, _ = observe(frame(small("01")), LAYOUT)
+    assert rigidity_problem(measure_napkin(markers, LAYOUT), lens_known=False) is None
+    pts = markers.points.copy()
+    corner_a = [14, 15, 0, 1]
+    centre = pts[corner_a].mean(axis=0)
+    pts[corner_a] = centre + 1.08 * (pts[corner_a] - centre)
+    why = rigidity_problem(measure_napkin(Markers3D(pts), LAYOUT), lens_known=False)
+    assert why is not None and "lens distortion corrected" in why
+
+
+def test_depth_ten_times_too_far_or_stuck_at_its_maximum_blames_the_depth_not_the_colours():
+    res = classify_frame(frame(small("01"), depth_scale=10), REFS)
+    assert res.prediction is None and "depth units?" in res.reason
+    stuck = frame(small("01"))
+    stuck.depth_mm[:] = 65535
+    res = classify_frame(stuck, REFS)
+    assert res.prediction is None and "reads 65535 at 100% of its pixels" in res.reason
