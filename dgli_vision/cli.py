@@ -713,7 +713,11 @@ def _open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bo
             "with it, or --overwrite to start again"
         )
     writer = JsonLinesWriter(path, append=False)
-    writer.write(header)
+    try:
+        writer.write(header)
+    except DgliError:
+        writer.close()  # quietly: the failed write names the file
+        raise
     return writer, []
 
 
