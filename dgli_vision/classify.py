@@ -267,6 +267,8 @@ def classify_coordinates(
     lifted: ArrayLike | None = None,
     heights_mm: ArrayLike | None = None,
     past: ArrayLike | None = None,
+    *,
+    distances: ArrayLike | None = None,
 ) -> Prediction:
     """Nearest reference of an observation (see :func:`reference_distances`).
 
@@ -288,12 +290,19 @@ def classify_coordinates(
         Whether the flap a sticker held up is on has turned past 90 degrees (see
         :func:`reference_distances`). A sticker whose flap's lean was measured counts as
         known for the confidence: it is on that flap, standing.
+    distances : array_like, shape (k,), keyword-only, optional
+        :func:`reference_distances` of these arguments, when already computed.
 
     Returns
     -------
     Prediction
     """
-    dist = reference_distances(coords, references, visible, unknown, lifted, heights_mm, past)
+    if distances is None:
+        dist = reference_distances(
+            coords, references, visible, unknown, lifted, heights_mm, past
+        )
+    else:
+        dist = np.asarray(distances, dtype=np.float64)
     order = np.argsort(dist, kind="stable")
     best = references.references[order[0]]
     runner = None

@@ -191,6 +191,8 @@ def mirror_problem(
     evidence: dict[str, NDArray | None],
     footprint: Footprint | None,
     napkin_area_mm2: float,
+    *,
+    front: NDArray[np.float64] | None = None,
 ) -> str | None:
     """The reason the observation may be a mirrored napkin, or None when it is not.
 
@@ -206,13 +208,16 @@ def mirror_problem(
     footprint : Footprint or None
         The cloth's measured footprint.
     napkin_area_mm2 : float
+    front : ndarray, shape (k,), keyword-only, optional
+        The front-up reading's distances to the references, when already computed.
 
     Returns
     -------
     str or None
         Starts with what was seen; the caller prefixes ``"cannot tell: "``.
     """
-    front = reference_distances(coords, references, **evidence)
+    if front is None:
+        front = reference_distances(coords, references, **evidence)
     mirrored = reference_distances(-np.asarray(coords), references, **evidence)
     pen = footprint_penalty(footprint, references, napkin_area_mm2)
     i, j = int(np.argmin(front)), int(np.argmin(mirrored))

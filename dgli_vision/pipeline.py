@@ -12,7 +12,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .classes import LIFTED_MM, PAST_BAND_DEG
-from .classify import MIN_CONFIDENCE, Prediction, classify_coordinates
+from .classify import (
+    MIN_CONFIDENCE,
+    Prediction,
+    classify_coordinates,
+    reference_distances,
+)
 from .consistency import depth_scale_hint, mirror_problem, rigidity_problem, scale_problem
 from .dgli import cloth_coordinates
 from .errors import DetectionError
@@ -235,7 +240,7 @@ def classify_frame(
         "heights_mm": obs.matched_heights_mm, "past": obs.past_vertical,
     }
     try:
-        guess = classify_coordinates(coords, references, **evidence)
+        front = reference_distances(coords, references, **evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         if unknown:
@@ -244,8 +249,10 @@ def classify_frame(
         if depth_hint:
             reason += f"; {depth_hint}"
         return FrameResult(detections, markers, obs, coords, None, reason)
+    guess = classify_coordinates(coords, references, **evidence, distances=front)
     mirror = mirror_problem(
-        coords, references, evidence, obs.footprint, layout.width_mm * layout.height_mm
+        coords, references, evidence, obs.footprint, layout.width_mm * layout.height_mm,
+        front=front,
     )
     if mirror is not None:
         # the nearest reference stays for reports, with no confidence in it

@@ -789,6 +789,8 @@ def find_washed_out(
         min_surround=params.washed_surround,
     )
     lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
+    if not _pale_colour_left(color, found, layout, params, lower, colours):
+        return found
     again = detect_stickers(
         color, depth_mm, intrinsics, layout, pale, napkin=lower, colours=colours
     )
@@ -812,3 +814,42 @@ def find_washed_out(
         out["centroids"], out["areas"], out["scores"], out["depth_mm"], found.rejected,
         out["foreshortening"],
     )
+
+
+def _pale_colour_left(
+    color: NDArray[np.uint8],
+    found: StickerDetections,
+    layout: NapkinLayout,
+    params: DetectorParams,
+    lower: NapkinView,
+    colours: dict[str, tuple[int, int, int]] | None,
+) -> bool:
+    """Whether any pastel pixel of a sticker hue lies away from the stickers found, on
+    the napkin's sampling grid (``lower.stride``): a cheap test before the second search.
+
+    Pastel: HSV saturation from ``washed_saturation`` to below ``min_saturation`` in the
+    image balanced by ``lower.lut``. The rims of the stickers found are pastel too (their
+    pixels mix with the cloth), so samples within two disc radii of them do not count.
+    """
+    import cv2
+
+    if not found.found.any():
+        return True
+    s = lower.stride
+    sub = np.ascontiguousarray(color[::s, ::s])
+    hsv = cv2.cvtColor(cv2.LUT(sub, lower.lut), cv2.COLOR_RGB2HSV)
+    pale = cv2.inRange(
+        hsv,
+        (0, params.washed_saturation, params.min_value),
+        (180, max(params.min_saturation - 1, 0), 255),
+    ).astype(bool)
+    hue_lut, _ = _hue_lut(layout, params, colours)
+    pale &= hue_lut[np.minimum(hsv[..., 0], 179)] > 0
+    if not pale.any():
+        return False
+    radius = float(np.sqrt(np.nanmedian(found.areas[found.found]) / np.pi))
+    ys, xs = np.nonzero(pale)
+    pts = np.column_stack([xs, ys]).astype(np.float64) * s
+    seen = found.centroids[found.found]
+    near = np.linalg.norm(pts[:, None] - seen[None], axis=2).min(axis=1) < 2 * radius
+    return int((~near).sum()) >= 2
