@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 from click.testing import CliRunner
 
 from dgli_vision.cli import main
@@ -39,10 +40,20 @@ def test_coords_plain_lists_pairs():
 
 def test_bench_reports_figures_and_writes_markdown(tmp_path):
     out = tmp_path / "RESULTS.md"
-    result = run(["bench", "--states", "300", "--repeats", "1", "--markdown", str(out)])
+    result = run(
+        ["bench", "--states", "300", "--repeats", "1", "--only", "dgli", "--markdown", str(out)]
+    )
     assert result.exit_code == 0, result.output
     assert "pairs/s" in result.output and "numpy per-pair loop" in result.output
     assert out.read_text().startswith("| benchmark |")
+
+
+@pytest.mark.slow
+def test_every_bench_group_runs(tmp_path):
+    # a minute and more: run with -m slow; `dgli bench` itself runs these for RESULTS.md
+    result = run(["bench", "--states", "300", "--repeats", "1"])
+    assert result.exit_code == 0, result.output
+    assert "frames/s" in result.output and "evaluate speed-up" in result.output
 
 
 def test_unknown_command_is_usage_error():
