@@ -177,6 +177,7 @@ def observe(
         dropped=dropped,
         foreshortening=detections.foreshortening,
         up=up,
+        pale_colours=detections.pale_colours,
     )
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()

@@ -165,3 +165,26 @@ def test_depth_ten_times_too_far_or_stuck_at_its_maximum_blames_the_depth_not_th
     stuck.depth_mm[:] = 65535
     res = classify_frame(stuck, REFS)
     assert res.prediction is None and "reads 65535 at 100% of its pixels" in res.reason
+
+
+def test_a_sticker_left_pastel_by_a_sheen_is_unknown_never_hidden(monkeypatch):
+    # should the second search fail, the pastel colour left on the napkin still says
+    # that stickers of that colour are there, unread
+    from dgli_vision.perception import detect
+
+    real = detect.detect_stickers
+
+    def first_search_only(color, depth, intr, layout, params=None, **kw):
+        if params is not None and params.min_saturation == params.washed_saturation:
+            n = layout.n_stickers
+            nan = np.full(n, np.nan)
+            return detect.StickerDetections(np.full((n, 2), np.nan), nan, np.zeros(n), nan)
+        return real(color, depth, intr, layout, params, **kw)
+
+    monkeypatch.setattr(detect, "detect_stickers", first_search_only)
+    s = small("08", 0, 11, ("sheen",))
+    _, _, obs = observe(frame(s), LAYOUT)
+    washed = [r for r in obs.evidence.reasons if r and "washed out" in r]
+    assert washed and not (obs.evidence.status == 0).any()  # none taken as hidden
+    res = classify_frame(frame(s), REFS)
+    assert res.prediction is None or res.prediction.class_id == "08"

@@ -197,6 +197,12 @@ class StickerDetections:
     foreshortening : ndarray, shape (16,), optional
         Minor / major axis of each sticker's image (1 face-on; lower on a tilted
         flap); NaN where not found.
+    pale_px : ndarray, shape (k, 2), optional
+        Pixels (x, y) of pastel sticker colour left away from every sticker found: a
+        broad sheen's washed-out stickers that no search could read (see
+        :func:`find_washed_out`).
+    pale_colours : tuple of str
+        The sticker colours (names) of two or more of those samples.
     """
 
     centroids: NDArray[np.float64]
@@ -205,6 +211,8 @@ class StickerDetections:
     depth_mm: NDArray[np.float64]
     rejected: tuple[Rejection, ...] = field(default_factory=tuple)
     foreshortening: NDArray[np.float64] | None = None
+    pale_px: NDArray[np.float64] | None = None
+    pale_colours: tuple[str, ...] = ()
 
     @property
     def found(self) -> NDArray[np.bool_]:
@@ -789,14 +797,15 @@ def find_washed_out(
         min_surround=params.washed_surround,
     )
     lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
-    if not _pale_colour_left(color, found, layout, params, lower, colours):
-        return found
+    left = _pale_samples(color, found, layout, params, lower, colours)
+    if len(left[0]) < 2:
+        return _washed(found, left)
     again = detect_stickers(
         color, depth_mm, intrinsics, layout, pale, napkin=lower, colours=colours
     )
     new = missing & again.found
     if not new.any():
-        return found
+        return _washed(found, left)
     seen = found.centroids[found.found]
     if len(seen):
         d_px = np.linalg.norm(again.centroids[:, None] - seen[None], axis=2).min(axis=1)
@@ -810,31 +819,33 @@ def find_washed_out(
         if getattr(again, k) is not None:
             out[k][new] = getattr(again, k)[new]
     out["scores"][new] *= 0.5
-    return StickerDetections(
+    merged = StickerDetections(
         out["centroids"], out["areas"], out["scores"], out["depth_mm"], found.rejected,
         out["foreshortening"],
     )
+    return _washed(merged, _pale_samples(color, merged, layout, params, lower, colours))
 
 
-def _pale_colour_left(
+def _pale_samples(
     color: NDArray[np.uint8],
     found: StickerDetections,
     layout: NapkinLayout,
     params: DetectorParams,
     lower: NapkinView,
     colours: dict[str, tuple[int, int, int]] | None,
-) -> bool:
-    """Whether any pastel pixel of a sticker hue lies away from the stickers found, on
-    the napkin's sampling grid (``lower.stride``): a cheap test before the second search.
+) -> tuple[NDArray[np.float64], tuple[str, ...]]:
+    """Pixels (x, y), shape (k, 2), and colour names of pastel samples of a sticker hue
+    away from the
+    stickers found, on the napkin's sampling grid (``lower.stride``): a cheap look before
+    the second search, and what it leaves unread.
 
     Pastel: HSV saturation from ``washed_saturation`` to below ``min_saturation`` in the
-    image balanced by ``lower.lut``. The rims of the stickers found are pastel too (their
-    pixels mix with the cloth), so samples within two disc radii of them do not count.
+    image balanced by ``lower.lut``, on the napkin (its white cloth with the holes of its
+    stickers filled). The rims of the stickers found are pastel too (their pixels mix
+    with the cloth), so samples within two disc radii of them do not count.
     """
     import cv2
 
-    if not found.found.any():
-        return True
     s = lower.stride
     sub = np.ascontiguousarray(color[::s, ::s])
     hsv = cv2.cvtColor(cv2.LUT(sub, lower.lut), cv2.COLOR_RGB2HSV)
@@ -845,11 +856,29 @@ def _pale_colour_left(
     ).astype(bool)
     hue_lut, _ = _hue_lut(layout, params, colours)
     pale &= hue_lut[np.minimum(hsv[..., 0], 179)] > 0
-    if not pale.any():
-        return False
-    radius = float(np.sqrt(np.nanmedian(found.areas[found.found]) / np.pi))
+    if lower.cloth is not None and lower.cloth.shape == pale.shape:
+        # on the napkin: inside the white cloth once its stickers' holes are filled (a
+        # tinted table or a wood one is pale too)
+        holes = np.ones((7, 7), np.uint8)
+        on_cloth = cv2.morphologyEx(lower.cloth.astype(np.uint8), cv2.MORPH_CLOSE, holes)
+        pale &= on_cloth.astype(bool)
     ys, xs = np.nonzero(pale)
     pts = np.column_stack([xs, ys]).astype(np.float64) * s
+    names = [_hue_lut(layout, params, colours)[1][k - 1] for k in hue_lut[hsv[ys, xs, 0]]]
+    if not len(pts) or not found.found.any():
+        return pts, tuple(names)
+    radius = float(np.sqrt(np.nanmedian(found.areas[found.found]) / np.pi))
     seen = found.centroids[found.found]
-    near = np.linalg.norm(pts[:, None] - seen[None], axis=2).min(axis=1) < 2 * radius
-    return int((~near).sum()) >= 2
+    far = np.linalg.norm(pts[:, None] - seen[None], axis=2).min(axis=1) >= 2 * radius
+    return pts[far], tuple(n for n, f in zip(names, far) if f)
+
+
+def _washed(found: StickerDetections, left: tuple[NDArray, tuple[str, ...]]):
+    """``found`` with the pastel samples left unread and the colours with two or more."""
+    from dataclasses import replace
+
+    pts, names = left
+    counts = {n: names.count(n) for n in set(names)}
+    return replace(
+        found, pale_px=pts, pale_colours=tuple(sorted(n for n, c in counts.items() if c >= 2))
+    )

@@ -29,6 +29,7 @@ __all__ = [
     "HIDDEN",
     "SEEN",
     "UNKNOWN",
+    "WASHED_OUT",
     "EvidenceParams",
     "StickerEvidence",
     "assess_stickers",
@@ -38,6 +39,8 @@ __all__ = [
 SEEN, HIDDEN, UNKNOWN = 1, 0, -1
 #: Why a sticker is unknown when it may be on a flap held up steeply.
 HELD_UP = "possibly on cloth held up (seen edge-on)"
+#: Why a sticker is unknown when pastel sticker colour lies where it should be.
+WASHED_OUT = "possibly washed out by a sheen"
 
 
 @dataclass(frozen=True)
@@ -374,6 +377,7 @@ def assess_stickers(
     params: EvidenceParams | None = None,
     foreshortening: NDArray[np.float64] | None = None,
     up: NDArray[np.float64] | None = None,
+    pale_colours: tuple[str, ...] = (),
 ) -> StickerEvidence:
     """Decide, for each sticker, seen, hidden by cloth, or unknown.
 
@@ -394,6 +398,11 @@ def assess_stickers(
     up : ndarray, shape (3,), keyword-only, optional
         Table normal towards the camera: a layer over a missing sticker's flat place is
         then looked for straight above it (see :func:`_held_up`).
+    pale_colours : tuple of str, keyword-only
+        Sticker colours seen pastel on the napkin where no sticker could be read (the
+        detector's ``pale_colours``): a missing sticker with such a disc colour may be
+        washed out by a sheen, so it is unknown, not hidden, wherever the rigid
+        prediction puts it (a flap moves its stickers).
 
     Returns
     -------
@@ -463,6 +472,8 @@ def assess_stickers(
             why = "in a highlight"
         elif held_up[k]:
             why = HELD_UP
+        elif layout.sticker_disc[sid] in pale_colours:
+            why = WASHED_OUT
         elif dropped is not None and dropped[sid] and np.isnan(u):
             why = "found where the napkin cannot be"
         if why:
