@@ -37,6 +37,7 @@ from .references import ReferenceSet
 
 __all__ = [
     "CLEAR_MARGIN",
+    "FOOTPRINT_EXCESS",
     "FOOTPRINT_SCALE",
     "FOOTPRINT_SLACK",
     "GOOD_FIT",
@@ -45,6 +46,7 @@ __all__ = [
     "SCALE_TOLERANCE",
     "depth_scale_hint",
     "footprint_penalty",
+    "footprint_problem",
     "mirror_problem",
     "rigidity_problem",
     "scale_problem",
@@ -71,6 +73,8 @@ CLEAR_MARGIN = 0.1
 #: Footprint (fraction of the napkin's area) outside a reference's range that is still
 #: agreement: the measurement's error (2% on clean images, 5% in shadow or dim light).
 FOOTPRINT_SLACK = 0.05
+#: Footprint (fraction of the napkin's area) beyond a verdict's largest that rules it out.
+FOOTPRINT_EXCESS = 0.1
 #: Footprint disagreement beyond the slack that counts in full (one distance unit).
 FOOTPRINT_SCALE = 0.1
 
@@ -165,6 +169,43 @@ def rigidity_problem(ruler: NapkinRuler | None, *, lens_known: bool) -> str | No
     )
 
 
+def footprint_problem(
+    footprint: Footprint | None,
+    references: ReferenceSet,
+    front: NDArray[np.float64],
+    napkin_area_mm2: float,
+) -> str | None:
+    """The reason the cloth covers too much table for the verdict, or None.
+
+    A shadow or an object can hide cloth from the footprint, but nothing adds cloth to
+    it: a napkin that covers more of the table than every reference nearly as near as
+    the best allows (by more than :data:`FOOTPRINT_EXCESS`) is not in that state. (A
+    napkin lying back face up with two corners tucked under shows the stickers of a
+    half fold, on three quarters of its area.)
+
+    Parameters
+    ----------
+    footprint : Footprint or None
+    references : ReferenceSet
+    front : ndarray, shape (k,)
+        Distances of the observation to the references.
+    napkin_area_mm2 : float
+    """
+    if footprint is None:
+        return None
+    ranges = references.footprint_ranges()
+    near = np.flatnonzero(front <= front.min() + MIRROR_MARGIN)
+    lo = footprint.fraction(napkin_area_mm2)[0]
+    excess = lo - ranges[near, 1]
+    if not np.isfinite(excess).all() or excess.min() <= FOOTPRINT_EXCESS:
+        return None
+    k = int(near[np.argmin(front[near])])
+    return (
+        f"the napkin covers {100 * lo:.0f}% of its area, more than "
+        f"{_describe(references, k)} can ({100 * ranges[k, 1]:.0f}% at most)"
+    )
+
+
 def footprint_penalty(
     footprint: Footprint | None, references: ReferenceSet, napkin_area_mm2: float
 ) -> NDArray[np.float64]:
@@ -224,32 +265,30 @@ def mirror_problem(
     # The footprint speaks for a reading when it fits that reading's best reference and
     # clearly not the other's; it only ever overrules the stickers in its favour when
     # that reading fits well (measured wrong, a shadow's footprint must not).
-    for_front = pen[i] == 0.0 and pen[j] >= 0.5 and front[i] <= GOOD_FIT
-    for_mirror = pen[j] == 0.0 and pen[i] >= 0.5
+    # (judged on the references nearly as near as the best: a tie picks either)
+    pen_front = float(pen[front <= front[i] + MIRROR_MARGIN].min())
+    pen_mirror = float(pen[mirrored <= mirrored[j] + MIRROR_MARGIN].min())
+    for_front = pen_front == 0.0 and pen_mirror >= 0.5 and front[i] <= GOOD_FIT
+    for_mirror = pen_mirror == 0.0 and pen_front >= 0.5
     fix = "turn the napkin front face up, or switch off the camera's mirroring"
-    if front[i] + CLEAR_MARGIN <= mirrored[j]:
-        if not for_mirror:
-            return None  # the stickers say front up
+    better = mirrored[j] - front[i]  # > 0: the front-up reading fits better
+    if CLEAR_MARGIN <= better < 2 * CLEAR_MARGIN and for_mirror:
         lo = footprint.fraction(napkin_area_mm2)[0] if footprint else np.nan
         return (
             f"the stickers fit {_describe(references, i)} front up, but the napkin covers "
             f"{100 * lo:.0f}% of its area, as {_describe(references, j)} seen mirrored "
             f"does: the napkin may lie back face up, or the image be mirrored; {fix}"
         )
-    elif mirrored[j] + CLEAR_MARGIN <= front[i]:
-        if for_front:
-            return None  # states whose stickers mirror each other: the footprint knows
-    else:  # the stickers leave it open: the footprint settles it, or nothing does
-        front, mirrored = front + pen, mirrored + pen
-        i, j = int(np.argmin(front)), int(np.argmin(mirrored))
-        if front[i] + MIRROR_MARGIN <= mirrored[j]:
-            return None
-    if mirrored[j] + MIRROR_MARGIN <= front[i]:
+    if better >= CLEAR_MARGIN or for_front:
+        return None
+    if for_mirror or better <= -MIRROR_MARGIN:
         return (
             f"the stickers run clockwise seen from above: the napkin lies back face up "
             f"or the image is mirrored (mirrored, it reads as {_describe(references, j)} "
             f"at {mirrored[j]:.3f}); {fix}"
         )
+    if better >= MIRROR_MARGIN:
+        return None
     return (
         f"the stickers fit the napkin front face up ({_describe(references, i)}, "
         f"{front[i]:.3f}) and mirrored ({_describe(references, j)}, {mirrored[j]:.3f}) "

@@ -18,7 +18,13 @@ from .classify import (
     classify_coordinates,
     reference_distances,
 )
-from .consistency import depth_scale_hint, mirror_problem, rigidity_problem, scale_problem
+from .consistency import (
+    depth_scale_hint,
+    footprint_problem,
+    mirror_problem,
+    rigidity_problem,
+    scale_problem,
+)
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
@@ -251,15 +257,15 @@ def classify_frame(
             reason += f"; {depth_hint}"
         return FrameResult(detections, markers, obs, coords, None, reason)
     guess = classify_coordinates(coords, references, **evidence, distances=front)
-    mirror = mirror_problem(
-        coords, references, evidence, obs.footprint, layout.width_mm * layout.height_mm,
-        front=front,
-    )
-    if mirror is not None:
+    area = layout.width_mm * layout.height_mm
+    doubt = mirror_problem(
+        coords, references, evidence, obs.footprint, area, front=front
+    ) or footprint_problem(obs.footprint, references, front, area)
+    if doubt is not None:
         # the nearest reference stays for reports, with no confidence in it
         doubted = replace(guess, confidence=0.0)
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {mirror}", doubted
+            detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted
         )
     if guess.confidence >= min_confidence:
         return FrameResult(detections, markers, obs, coords, guess, None, guess)

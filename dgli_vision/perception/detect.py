@@ -799,13 +799,13 @@ def find_washed_out(
     lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
     left = _pale_samples(color, found, layout, params, lower, colours)
     if len(left[0]) < 2:
-        return _washed(found, left)
+        return _washed(found, left, lower.stride)
     again = detect_stickers(
         color, depth_mm, intrinsics, layout, pale, napkin=lower, colours=colours
     )
     new = missing & again.found
     if not new.any():
-        return _washed(found, left)
+        return _washed(found, left, lower.stride)
     seen = found.centroids[found.found]
     if len(seen):
         d_px = np.linalg.norm(again.centroids[:, None] - seen[None], axis=2).min(axis=1)
@@ -823,7 +823,8 @@ def find_washed_out(
         out["centroids"], out["areas"], out["scores"], out["depth_mm"], found.rejected,
         out["foreshortening"],
     )
-    return _washed(merged, _pale_samples(color, merged, layout, params, lower, colours))
+    left = _pale_samples(color, merged, layout, params, lower, colours)
+    return _washed(merged, left, lower.stride)
 
 
 def _pale_samples(
@@ -847,7 +848,9 @@ def _pale_samples(
     import cv2
 
     s = lower.stride
-    sub = np.ascontiguousarray(color[::s, ::s])
+    h, w = color.shape[0] // s, color.shape[1] // s
+    # cells of s x s pixels averaged: a sensor's noise tints single pixels, not cells
+    sub = cv2.resize(color[: h * s, : w * s], (w, h), interpolation=cv2.INTER_AREA)
     hsv = cv2.cvtColor(cv2.LUT(sub, lower.lut), cv2.COLOR_RGB2HSV)
     pale = cv2.inRange(
         hsv,
@@ -855,15 +858,21 @@ def _pale_samples(
         (180, max(params.min_saturation - 1, 0), 255),
     ).astype(bool)
     hue_lut, _ = _hue_lut(layout, params, colours)
-    pale &= hue_lut[np.minimum(hsv[..., 0], 179)] > 0
-    if lower.cloth is not None and lower.cloth.shape == pale.shape:
+    sticker_hue = hue_lut[np.minimum(hsv[..., 0], 179)] > 0
+    pale &= sticker_hue
+    # a sheen washes whole discs: pale cells next to vivid ones are the rim of a sticker
+    # partly under a flap, not a washed-out one
+    vivid = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
+    vivid = cv2.dilate(vivid & sticker_hue.astype(np.uint8) * 255, np.ones((5, 5), np.uint8))
+    pale &= vivid == 0
+    if lower.cloth is not None and lower.cloth.shape[0] >= h and lower.cloth.shape[1] >= w:
         # on the napkin: inside the white cloth once its stickers' holes are filled (a
         # tinted table or a wood one is pale too)
         holes = np.ones((7, 7), np.uint8)
-        on_cloth = cv2.morphologyEx(lower.cloth.astype(np.uint8), cv2.MORPH_CLOSE, holes)
-        pale &= on_cloth.astype(bool)
+        cloth = np.ascontiguousarray(lower.cloth[:h, :w]).astype(np.uint8)
+        pale &= cv2.morphologyEx(cloth, cv2.MORPH_CLOSE, holes).astype(bool)
     ys, xs = np.nonzero(pale)
-    pts = np.column_stack([xs, ys]).astype(np.float64) * s
+    pts = (np.column_stack([xs, ys]).astype(np.float64) + 0.5) * s
     names = [_hue_lut(layout, params, colours)[1][k - 1] for k in hue_lut[hsv[ys, xs, 0]]]
     if not len(pts) or not found.found.any():
         return pts, tuple(names)
@@ -873,12 +882,29 @@ def _pale_samples(
     return pts[far], tuple(n for n, f in zip(names, far) if f)
 
 
-def _washed(found: StickerDetections, left: tuple[NDArray, tuple[str, ...]]):
-    """``found`` with the pastel samples left unread and the colours with two or more."""
+def _washed(
+    found: StickerDetections, left: tuple[NDArray, tuple[str, ...]], stride: int
+) -> StickerDetections:
+    """``found`` with the pastel samples left unread, and the colours of those that clump
+    like a sticker: a connected patch (on the sampling grid of ``stride`` pixels) of at
+    least a third of a sticker's area (that of the stickers found; 3 samples at least).
+    Sensor noise in a dim image tints single samples, never a patch."""
     from dataclasses import replace
 
+    import cv2
+
     pts, names = left
-    counts = {n: names.count(n) for n in set(names)}
-    return replace(
-        found, pale_px=pts, pale_colours=tuple(sorted(n for n, c in counts.items() if c >= 2))
-    )
+    colours = []
+    if len(pts):
+        cells = (pts // stride).astype(int)
+        disc = np.nanmedian(found.areas[found.found]) if found.found.any() else np.nan
+        least = max(3.0, np.nan_to_num(disc / stride**2 / 3, nan=3.0))
+        grid = np.zeros((cells[:, 1].max() + 1, cells[:, 0].max() + 1), np.uint8)
+        for name in sorted(set(names)):
+            grid[:] = 0
+            mine = np.array([n == name for n in names])
+            grid[cells[mine, 1], cells[mine, 0]] = 1
+            _, _, stats, _ = cv2.connectedComponentsWithStats(grid, connectivity=8)
+            if (stats[1:, cv2.CC_STAT_AREA] >= least).any():
+                colours.append(name)
+    return replace(found, pale_px=pts, pale_colours=tuple(colours))
