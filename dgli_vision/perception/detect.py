@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..colour import srgb_lut
 from ..layout import NapkinLayout
+from .footprint import FootprintParams, cloth_cells
 from .napkin import NapkinView, balance_lut, find_napkin
 
 __all__ = [
@@ -797,15 +798,19 @@ def find_washed_out(
         min_surround=params.washed_surround,
     )
     lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
-    left = _pale_samples(color, found, layout, params, lower, colours)
-    if len(left[0]) < 2:
-        return _washed(found, left, lower.stride)
+    def unread(d: StickerDetections) -> StickerDetections:
+        """``d`` with the pastel patches on the napkin that no search could read."""
+        left = _pale_samples(color, d, layout, params, lower, colours, edge_cells=1)
+        return _washed(d, left, lower.stride)
+
+    if len(_pale_samples(color, found, layout, params, lower, colours)[0]) < 2:
+        return unread(found)
     again = detect_stickers(
         color, depth_mm, intrinsics, layout, pale, napkin=lower, colours=colours
     )
     new = missing & again.found
     if not new.any():
-        return _washed(found, left, lower.stride)
+        return unread(found)
     seen = found.centroids[found.found]
     if len(seen):
         d_px = np.linalg.norm(again.centroids[:, None] - seen[None], axis=2).min(axis=1)
@@ -823,8 +828,7 @@ def find_washed_out(
         out["centroids"], out["areas"], out["scores"], out["depth_mm"], found.rejected,
         out["foreshortening"],
     )
-    left = _pale_samples(color, merged, layout, params, lower, colours)
-    return _washed(merged, left, lower.stride)
+    return unread(merged)
 
 
 def _pale_samples(
@@ -834,6 +838,8 @@ def _pale_samples(
     params: DetectorParams,
     lower: NapkinView,
     colours: dict[str, tuple[int, int, int]] | None,
+    *,
+    edge_cells: int = 0,
 ) -> tuple[NDArray[np.float64], tuple[str, ...]]:
     """Pixels (x, y), shape (k, 2), and colour names of pastel samples of a sticker hue
     away from the
@@ -841,8 +847,9 @@ def _pale_samples(
     the second search, and what it leaves unread.
 
     Pastel: HSV saturation from ``washed_saturation`` to below ``min_saturation`` in the
-    image balanced by ``lower.lut``, on the napkin (its white cloth with the holes of its
-    stickers filled). The rims of the stickers found are pastel too (their pixels mix
+    image balanced by ``lower.lut``; with ``edge_cells``, only on the napkin that many
+    cells in from its edge (cells across the edge mix white with the table, and a tinted
+    or wood table is pale too). The rims of the stickers found are pastel too (their pixels mix
     with the cloth), so samples within two disc radii of them do not count.
     """
     import cv2
@@ -865,12 +872,13 @@ def _pale_samples(
     vivid = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
     vivid = cv2.dilate(vivid & sticker_hue.astype(np.uint8) * 255, np.ones((5, 5), np.uint8))
     pale &= vivid == 0
-    if lower.cloth is not None and lower.cloth.shape[0] >= h and lower.cloth.shape[1] >= w:
-        # on the napkin: inside the white cloth once its stickers' holes are filled (a
-        # tinted table or a wood one is pale too)
-        holes = np.ones((7, 7), np.uint8)
-        cloth = np.ascontiguousarray(lower.cloth[:h, :w]).astype(np.uint8)
-        pale &= cv2.morphologyEx(cloth, cv2.MORPH_CLOSE, holes).astype(bool)
+    # on the napkin, two cells in from its edge (cells across it mix white with the
+    # table, and a tinted or wood table is pale too)
+    if found.found.any() and edge_cells:  # (with nothing found, look anywhere)
+        cloth = cloth_cells(color, lower, found.centroids, FootprintParams(cell_px=s))
+        if cloth is not None:  # (else the napkin is not told from the table: anywhere)
+            edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
+            pale &= cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
     ys, xs = np.nonzero(pale)
     pts = (np.column_stack([xs, ys]).astype(np.float64) + 0.5) * s
     names = [_hue_lut(layout, params, colours)[1][k - 1] for k in hue_lut[hsv[ys, xs, 0]]]

@@ -24,7 +24,7 @@ from ..camera import Intrinsics
 from ..colour import srgb_lut
 from .napkin import NapkinParams, NapkinView
 
-__all__ = ["Footprint", "FootprintParams", "measure_footprint"]
+__all__ = ["Footprint", "FootprintParams", "cloth_cells", "measure_footprint"]
 
 
 @dataclass(frozen=True)
@@ -96,6 +96,65 @@ def _cell_areas_mm2(
     return np.linalg.norm(np.cross(ex, ey), axis=-1) * 1e6
 
 
+def cloth_cells(
+    color: NDArray[np.uint8],
+    napkin: NapkinView,
+    sticker_px: NDArray[np.float64],
+    params: FootprintParams | None = None,
+    napkin_params: NapkinParams | None = None,
+) -> NDArray[np.bool_] | None:
+    """The napkin's cells: image cells of ``params.cell_px`` pixels (averaged) that are
+    its white cloth, with its stickers' holes filled, in the parts that hold located
+    stickers; shape ``(H // cell_px, W // cell_px)``. None where the cloth cannot be
+    told from the table (it reaches the image border).
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+    napkin : NapkinView
+        The napkin's white.
+    sticker_px : ndarray, shape (n, 2)
+        Pixels (x, y) of located stickers (NaN rows ignored).
+    params, napkin_params : optional
+    """
+    import cv2
+
+    p = params or FootprintParams()
+    q = napkin_params or NapkinParams()
+    c = p.cell_px
+    h, w = color.shape[0] // c, color.shape[1] // c
+    if h < 4 or w < 4:
+        return None
+    small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
+    # The napkin's white; where the napkin is blown out the estimate falls on the next
+    # brightest surface (the table), so the level is at least that of the brightest
+    # few per cent of the cells, clipped ones included.
+    lin = srgb_lut()[small]  # (h, w, 3) linear RGB
+    white = np.maximum(napkin.white_rgb, 1e-4)
+    level = np.quantile(lin.mean(axis=2), 1.0 - q.bright_fraction)
+    white = white * max(1.0, level / float(white.mean()))
+    lin = lin / white  # the napkin at 1
+    lum = lin.mean(axis=2)
+    chroma = lin.max(axis=2) - lin.min(axis=2)
+    # Most of the view is table: a table nearly as bright as the napkin raises the bar.
+    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
+    cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
+    kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
+    closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
+    _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
+    px = px[np.isfinite(px).all(axis=1)]
+    cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])
+    held = np.unique(labels[cells[:, 1], cells[:, 0]])
+    held = held[held > 0]
+    if held.size == 0:
+        return None
+    cloth = np.isin(labels, held)
+    if cloth[0].any() or cloth[-1].any() or cloth[:, 0].any() or cloth[:, -1].any():
+        return None
+    return cloth
+
+
 def measure_footprint(
     color: NDArray[np.uint8],
     intrinsics: Intrinsics,
@@ -137,34 +196,10 @@ def measure_footprint(
     q = napkin_params or NapkinParams()
     c = p.cell_px
     h, w = color.shape[0] // c, color.shape[1] // c
-    if h < 4 or w < 4 or float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
+    if float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
         return None
-    small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
-    # The napkin's white; where the napkin is blown out the estimate falls on the next
-    # brightest surface (the table), so the level is at least that of the brightest
-    # few per cent of the cells, clipped ones included.
-    lin = srgb_lut()[small]  # (h, w, 3) linear RGB
-    white = np.maximum(napkin.white_rgb, 1e-4)
-    level = np.quantile(lin.mean(axis=2), 1.0 - q.bright_fraction)
-    white = white * max(1.0, level / float(white.mean()))
-    lin = lin / white  # the napkin at 1
-    lum = lin.mean(axis=2)
-    chroma = lin.max(axis=2) - lin.min(axis=2)
-    # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
-    cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
-    kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
-    closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
-    _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
-    px = px[np.isfinite(px).all(axis=1)]
-    cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])
-    held = np.unique(labels[cells[:, 1], cells[:, 0]])
-    held = held[held > 0]
-    if held.size == 0:
-        return None
-    cloth = np.isin(labels, held)
-    if cloth[0].any() or cloth[-1].any() or cloth[:, 0].any() or cloth[:, -1].any():
+    cloth = cloth_cells(color, napkin, sticker_px, p, q)
+    if cloth is None:
         return None
     area = _cell_areas_mm2(intrinsics, (h, w), c, up, offset_m)
     low = float(area[cloth].sum())
