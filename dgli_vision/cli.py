@@ -721,6 +721,39 @@ def _open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bo
     return writer, []
 
 
+def _classify_into(
+    todo: Any,
+    count: int,
+    label: str,
+    run: Any,
+    writer: Any,
+    done: dict,
+    stop: Any,
+    **options: Any,
+) -> None:
+    """Classify the pairs of ``todo`` (``count`` of them) on ``run.jobs`` workers with
+    ``run.refs`` and a progress bar, each outcome into ``done`` by its pair and, at once,
+    into ``writer`` (results.jsonl): a run stopped by Ctrl-C or SIGTERM (``stop``) keeps
+    what is done. ``options`` go to ``evaluate_pairs``."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    from .evaluate import evaluate_pairs, outcome_to_dict
+
+    try:
+        with _progress_bar(count, label, quiet=run.as_json) as bar:
+            for outcome in evaluate_pairs(
+                todo, run.refs, jobs=run.jobs, on_progress=bar.update, **options
+            ):
+                if writer:  # flushed at once: an interrupted run keeps its work
+                    writer.write(outcome_to_dict(outcome))
+                done[_pair_key(outcome.pair)] = outcome
+    except KeyboardInterrupt:
+        stop.stopped = True
+    except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+        if not stop.stopped:
+            raise
+
+
 class _EvaluationRun:
     """``dgli evaluate`` once its inputs are known: classify, print, report."""
 
@@ -787,10 +820,8 @@ class _EvaluationRun:
     def _classify(self, done: dict, writer: Any, stop: _Stop) -> None:
         """Classify the pairs not in ``done`` into it (and ``writer``), until all are or
         a stop signal comes (:func:`_stop_signals`)."""
-        from concurrent.futures.process import BrokenProcessPool
 
         from .colours_file import read_colours
-        from .evaluate import evaluate_pairs, outcome_to_dict
 
         recording, pairs = self.recording, self.pairs
         colours = read_colours(self.colours_path) if self.colours_path else None
@@ -807,24 +838,10 @@ class _EvaluationRun:
                     yield pair
 
         count = recording.count if recording else sum(_pair_key(p) not in done for p in pairs)
-        try:
-            with _progress_bar(count, "classifying", quiet=self.as_json) as bar:
-                if count:
-                    for outcome in evaluate_pairs(
-                        todo(),
-                        self.refs,
-                        jobs=self.jobs,
-                        on_progress=bar.update,
-                        colours=colours,
-                    ):
-                        if writer:  # flushed at once: an interrupted run keeps its work
-                            writer.write(outcome_to_dict(outcome))
-                        done[_pair_key(outcome.pair)] = outcome
-        except KeyboardInterrupt:
-            stop.stopped = True
-        except BrokenProcessPool:  # a stop sent to the whole group ended the workers
-            if not stop.stopped:
-                raise
+        if count:
+            _classify_into(
+                todo(), count, "classifying", self, writer, done, stop, colours=colours
+            )
 
     def _print(self, result: Any, skipped: list[str]) -> None:
         from .evaluate import json_ready
@@ -1398,9 +1415,7 @@ class _TrackRun:
             sys.exit(1)
 
     def _classify(self, done: dict, writer: Any, seen: list, stop: _Stop) -> None:
-        from concurrent.futures.process import BrokenProcessPool
 
-        from .evaluate import evaluate_pairs, outcome_to_dict
 
         def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
             for pair in self.recording.frames:
@@ -1408,24 +1423,10 @@ class _TrackRun:
                 if _pair_key(pair) not in done:
                     yield pair
 
-        try:
-            with _progress_bar(self.recording.count, "tracking", quiet=self.as_json) as bar:
-                for outcome in evaluate_pairs(
-                    todo(),
-                    self.refs,
-                    jobs=self.jobs,
-                    on_progress=bar.update,
-                    colours=self.colours,
-                    distances=True,
-                ):
-                    if writer:  # flushed at once: an interrupted run keeps its work
-                        writer.write(outcome_to_dict(outcome))
-                    done[_pair_key(outcome.pair)] = outcome
-        except KeyboardInterrupt:
-            stop.stopped = True
-        except BrokenProcessPool:  # a stop sent to the whole group ended the workers
-            if not stop.stopped:
-                raise
+        _classify_into(
+            todo(), self.recording.count, "tracking", self, writer, done, stop,
+            colours=self.colours, distances=True,
+        )
 
     def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
         from .classes import CLASS_NAMES

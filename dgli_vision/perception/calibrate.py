@@ -14,10 +14,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..camera import Intrinsics
-from ..errors import CalibrationError
 from ..layout import NapkinLayout
-from .detect import DetectorParams, detect_stickers
-from .napkin import find_napkin
+from .detect import DetectorParams, detect_all_stickers
 
 __all__ = ["calibrate_colours"]
 
@@ -58,14 +56,9 @@ def calibrate_colours(
     import cv2
 
     params = params or DetectorParams(max_hue_distance=40)
-    napkin = find_napkin(color, depth_mm, intrinsics)
-    det = detect_stickers(color, depth_mm, intrinsics, layout, params, napkin=napkin)
-    if not det.found.all():
-        missing = np.flatnonzero(~det.found).tolist()
-        raise CalibrationError(
-            f"'{source}': found {int(det.found.sum())} of 16 stickers (missing {missing}); "
-            "calibration needs the flat napkin with all 16 stickers in view"
-        )
+    det, napkin = detect_all_stickers(
+        color, depth_mm, intrinsics, layout, params, source=source, purpose="calibration"
+    )
     norm = cv2.LUT(color, napkin.lut)
     samples: dict[str, list[NDArray]] = {name: [] for name in layout.colours_srgb}
     yy, xx = np.mgrid[0 : color.shape[0], 0 : color.shape[1]]

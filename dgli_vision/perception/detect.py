@@ -30,6 +30,7 @@ __all__ = [
     "DetectorParams",
     "Rejection",
     "StickerDetections",
+    "detect_all_stickers",
     "detect_stickers",
     "find_washed_out",
     "hue_of",
@@ -916,3 +917,48 @@ def _washed(
             if (stats[1:, cv2.CC_STAT_AREA] >= least).any():
                 colours.append(name)
     return replace(found, pale_px=pts, pale_colours=tuple(colours))
+
+
+def detect_all_stickers(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    params: DetectorParams | None = None,
+    *,
+    source: str,
+    purpose: str,
+) -> tuple[StickerDetections, NapkinView]:
+    """Detect every sticker of the flat napkin, as a calibration needs them.
+
+    Parameters
+    ----------
+    color, depth_mm, intrinsics, layout, params
+        As for :func:`detect_stickers`.
+    source : str, keyword-only
+        Name of the image, for messages.
+    purpose : str, keyword-only
+        What needs them (``"lens calibration"``), for messages.
+
+    Returns
+    -------
+    StickerDetections, NapkinView
+        The 16 stickers, and the napkin they were found on.
+
+    Raises
+    ------
+    CalibrationError
+        With fewer than all the stickers found, naming the missing ones.
+    """
+    from ..errors import CalibrationError
+
+    napkin = find_napkin(color, depth_mm, intrinsics)
+    det = detect_stickers(color, depth_mm, intrinsics, layout, params, napkin=napkin)
+    if not det.found.all():
+        missing = np.flatnonzero(~det.found).tolist()
+        raise CalibrationError(
+            f"'{source}': found {int(det.found.sum())} of {layout.n_stickers} stickers "
+            f"(missing {missing}); {purpose} needs the flat napkin with all "
+            f"{layout.n_stickers} stickers in view"
+        )
+    return det, napkin

@@ -25,8 +25,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..errors import CalibrationError
 from ..layout import NapkinLayout
-from .detect import DetectorParams, StickerDetections, detect_stickers
-from .napkin import find_napkin
+from .detect import DetectorParams, StickerDetections, detect_all_stickers
 
 __all__ = ["LensEstimate", "estimate_lens", "fit_lens", "sticker_depths"]
 
@@ -302,15 +301,9 @@ def _detect_all(
     params: DetectorParams | None,
     source: str,
 ) -> StickerDetections:
-    napkin = find_napkin(color, depth_mm, intrinsics)
-    det = detect_stickers(color, depth_mm, intrinsics, layout, params, napkin=napkin)
-    if not det.found.all():
-        missing = np.flatnonzero(~det.found).tolist()
-        raise CalibrationError(
-            f"'{source}': found {int(det.found.sum())} of 16 stickers (missing {missing}); "
-            "lens calibration needs the flat napkin with all 16 stickers in view"
-        )
-    return det
+    return detect_all_stickers(
+        color, depth_mm, intrinsics, layout, params, source=source, purpose="lens calibration"
+    )[0]
 
 
 def estimate_lens(
