@@ -805,7 +805,7 @@ def find_washed_out(
         return _washed(d, left, lower.stride)
 
     if len(_pale_samples(color, found, layout, params, lower, colours)[0]) < 2:
-        return unread(found)
+        return found  # no pastel patch anywhere: nothing to search, nothing left unread
     again = detect_stickers(
         color, depth_mm, intrinsics, layout, pale, napkin=lower, colours=colours
     )

@@ -79,9 +79,13 @@ def _cell_areas_mm2(
     intrinsics: Intrinsics, shape: tuple[int, int], cell: int, up: NDArray, offset_m: float
 ) -> NDArray[np.float64]:
     """Area on the table plane (mm^2) of every image cell, shape ``shape``: the corners
-    of each cell's rays meet the plane ``up . x = offset`` at ``offset d / (up . d)``."""
+    of each cell's rays meet the plane ``up . x = offset`` at ``offset d / (up . d)``
+    (through the lens's distortion, when the intrinsics carry it)."""
     h, w = shape
     ys, xs = np.mgrid[0 : h + 1, 0 : w + 1] * cell - 0.5
+    if intrinsics.distorted:  # the rays of the pixels as the lens bent them
+        ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
+        xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
     d = np.stack(
         [
             (xs - intrinsics.cx) / intrinsics.fx,
