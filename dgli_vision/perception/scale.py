@@ -44,8 +44,9 @@ class NapkinRuler:
     worst : float
         Largest distance from 1 of a corner's median ratio.
     worst_against_scale : float
-        Largest relative distance of a corner's median ratio from ``scale``: how much
-        one corner is stretched or shrunk against the rest (0 for a rigid napkin).
+        Largest relative distance of a corner's median ratio from ``scale``, over the
+        corners with three stickers or more located: how much one corner is stretched
+        or shrunk against the rest (0 for a rigid napkin).
     pairs : int
         Number of sticker pairs measured.
     """
@@ -104,5 +105,12 @@ def measure_napkin(
     corners = np.array([corner_of[int(a)] for a in i])
     medians = [float(np.median(ratio[corners == k])) for k in np.unique(corners)]
     worst = float(max(abs(m - 1.0) for m in medians))
-    against = float(max(abs(m / scale - 1.0) for m in medians)) if scale > 0 else np.inf
+    # a corner is judged on three stickers or more (three pairs): one pair with a
+    # sticker half hidden (a gripper's finger, a flap's edge) moves its centre
+    judged = [
+        float(np.median(ratio[corners == k]))
+        for k in np.unique(corners)
+        if (corners == k).sum() >= 3
+    ]
+    against = max((abs(m / scale - 1.0) for m in judged), default=0.0) if scale > 0 else np.inf
     return NapkinRuler(scale, spread, worst, int(use.sum()), against)
