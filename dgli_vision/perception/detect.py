@@ -848,10 +848,11 @@ def _pale_samples(
     the second search, and what it leaves unread.
 
     Pastel: HSV saturation from ``washed_saturation`` to below ``min_saturation`` in the
-    image balanced by ``lower.lut``; with ``edge_cells``, only on the napkin that many
-    cells in from its edge (cells across the edge mix white with the table, and a tinted
-    or wood table is pale too). The rims of the stickers found are pastel too (their pixels mix
-    with the cloth), so samples within two disc radii of them do not count.
+    image balanced by ``lower.lut``, on the napkin and ``edge_cells`` cells in from its
+    edge (cells across the edge mix white with the table, and a tinted or wood table is
+    pale too); anywhere when the napkin is not told from the table. The rims of the
+    stickers found are pastel too (their pixels mix with the cloth), so samples within
+    two disc radii of them do not count.
     """
     import cv2
 
@@ -873,9 +874,7 @@ def _pale_samples(
     vivid = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
     vivid = cv2.dilate(vivid & sticker_hue.astype(np.uint8) * 255, np.ones((5, 5), np.uint8))
     pale &= vivid == 0
-    # on the napkin, two cells in from its edge (cells across it mix white with the
-    # table, and a tinted or wood table is pale too)
-    if found.found.any() and edge_cells:  # (with nothing found, look anywhere)
+    if found.found.any() and pale.any():  # (with nothing found, look anywhere)
         cloth = cloth_cells(color, lower, found.centroids, FootprintParams(cell_px=s))
         if cloth is not None:  # (else the napkin is not told from the table: anywhere)
             edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
