@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..errors import CalibrationError
 from ..layout import NapkinLayout
-from .detect import DetectorParams, StickerDetections, detect_all_stickers
+from .detect import DetectorParams, detect_all_stickers
 
 __all__ = ["LensEstimate", "estimate_lens", "fit_lens", "sticker_depths"]
 
@@ -293,19 +293,6 @@ def _reach(intrinsics: Intrinsics, pixels: NDArray[np.float64]) -> float:
     return float(np.linalg.norm(pixels - centre, axis=1).max() / corner)
 
 
-def _detect_all(
-    color: NDArray[np.uint8],
-    depth_mm: NDArray[np.uint16],
-    intrinsics: Intrinsics,
-    layout: NapkinLayout,
-    params: DetectorParams | None,
-    source: str,
-) -> StickerDetections:
-    return detect_all_stickers(
-        color, depth_mm, intrinsics, layout, params, source=source, purpose="lens calibration"
-    )[0]
-
-
 def estimate_lens(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
@@ -346,7 +333,9 @@ def estimate_lens(
         Fewer than 16 stickers found.
     """
     pinhole = replace(intrinsics, distortion=())
-    det = _detect_all(color, depth_mm, pinhole, layout, params, source)
+    det, _ = detect_all_stickers(
+        color, depth_mm, pinhole, layout, params, source=source, purpose="lens calibration"
+    )
     radii = np.sqrt(det.areas / np.pi)
     z = sticker_depths(depth_mm, det.centroids, radii) * 1e-3
     return fit_lens(
