@@ -64,6 +64,12 @@ HEIGHT_WEIGHT = 1.0
 #: changes the class at 90 degrees, where a flap seen edge-on shows no sticker and the
 #: lean of the raised cloth is all there is to tell.
 PAST_WEIGHT = 1.0
+#: Weight of the face term: the mean, over the corners whose stickers tell which face
+#: they show (``perception.handedness``), of how far the observation (back face up or
+#: not) is from the reference's rate. Three stickers of a corner tell a corner folded
+#: over from one lying flat where a gripper or the flap's edge hides the fourth, which
+#: the dGLI coordinates of that corner's segments then cannot.
+FACE_WEIGHT = 1.0
 #: Heights within this of a reference's range agree with it (sensor noise, cloth
 #: layers, a range drawn from a few states).
 HEIGHT_SLACK_MM = 15.0
@@ -170,6 +176,7 @@ def reference_distances(
     lifted: ArrayLike | None = None,
     heights_mm: ArrayLike | None = None,
     past: ArrayLike | None = None,
+    back: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Distance of one observation to every reference, shape (k,).
 
@@ -193,6 +200,10 @@ def reference_distances(
     past : array_like of float, shape (16,), optional
         For stickers on a flap held up: 1 where it has turned past 90 degrees, 0 where
         not, NaN where not measured (:data:`PAST_WEIGHT`).
+    back : array_like of float, shape (4,), optional
+        For each corner A-D: 1 where its stickers show the back face, 0 the front, NaN
+        where they do not tell (:data:`FACE_WEIGHT`; references without back-face
+        rates are not judged on it).
 
     Raises
     ------
@@ -233,6 +244,8 @@ def reference_distances(
         dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_ranges())
     if past is not None:
         dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
+    if back is not None:
+        dist = dist + FACE_WEIGHT * _face_gap(back, references.back_rates())
     return dist
 
 
@@ -244,6 +257,15 @@ def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.flo
     if not told.any():
         return np.zeros(len(rates))
     return np.abs(x[None, told] - rates[:, told]).mean(axis=1)
+
+
+def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean ``|back - rate|`` over the corners told both in the observation and in each
+    reference (``rates`` shape (k, 4), NaN where not told); 0 when none is."""
+    x = np.asarray(back, dtype=np.float64)
+    both = np.isfinite(x)[None, :] & np.isfinite(rates)
+    diff = np.where(both, np.abs(np.nan_to_num(x)[None, :] - np.nan_to_num(rates)), 0.0)
+    return diff.sum(axis=1) / np.maximum(both.sum(axis=1), 1)
 
 
 def _height_gap(heights_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -267,6 +289,7 @@ def classify_coordinates(
     lifted: ArrayLike | None = None,
     heights_mm: ArrayLike | None = None,
     past: ArrayLike | None = None,
+    back: ArrayLike | None = None,
     *,
     distances: ArrayLike | None = None,
 ) -> Prediction:
@@ -290,6 +313,8 @@ def classify_coordinates(
         Whether the flap a sticker held up is on has turned past 90 degrees (see
         :func:`reference_distances`). A sticker whose flap's lean was measured counts as
         known for the confidence: it is on that flap, standing.
+    back : array_like of float, shape (4,), optional
+        Which face each corner shows (see :func:`reference_distances`).
     distances : array_like, shape (k,), keyword-only, optional
         :func:`reference_distances` of these arguments, when already computed.
 
@@ -299,7 +324,7 @@ def classify_coordinates(
     """
     if distances is None:
         dist = reference_distances(
-            coords, references, visible, unknown, lifted, heights_mm, past
+            coords, references, visible, unknown, lifted, heights_mm, past, back
         )
     else:
         dist = np.asarray(distances, dtype=np.float64)

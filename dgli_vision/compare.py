@@ -137,6 +137,7 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
     from .track import change_frames, smooth
 
     coords = records.hidden_coordinates()
+    back = records.seen_back_faces()
     dist = np.array(
         [
             reference_distances(
@@ -153,6 +154,7 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
                     np.nan,
                 ),
                 np.where(records.unknown[k], float(records.past_vertical[k]), np.nan),
+                back[k],
             )
             for k in range(len(records))
         ]

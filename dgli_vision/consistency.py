@@ -245,7 +245,8 @@ def mirror_problem(
     evidence : dict
         The keyword arguments of :func:`~dgli_vision.classify.reference_distances`
         besides the coordinates (``visible``, ``unknown``, ``lifted``, ``heights_mm``,
-        ``past``): a mirror changes none of them.
+        ``past``, ``back``): a mirror changes none of them but ``back``, which it turns
+        round.
     footprint : Footprint or None
         The cloth's measured footprint.
     napkin_area_mm2 : float
@@ -259,7 +260,10 @@ def mirror_problem(
     """
     if front is None:
         front = reference_distances(coords, references, **evidence)
-    mirrored = reference_distances(-np.asarray(coords), references, **evidence)
+    flipped = dict(evidence)
+    if flipped.get("back") is not None:  # a mirror turns every corner's stickers round
+        flipped["back"] = 1.0 - np.asarray(flipped["back"], dtype=float)
+    mirrored = reference_distances(-np.asarray(coords), references, **flipped)
     pen = footprint_penalty(footprint, references, napkin_area_mm2)
     i, j = int(np.argmin(front)), int(np.argmin(mirrored))
     # The footprint speaks for a reading when it fits that reading's best reference and

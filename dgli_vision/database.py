@@ -15,6 +15,8 @@ from .classes import LIFTED_MM
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .dgli import cloth_coordinates
 from .fold_graph import fold_edges
+from .layout import default_layout
+from .perception.handedness import back_face_up, corner_turns
 
 __all__ = [
     "FOLD_BINS_DEG",
@@ -162,6 +164,18 @@ class StateRecords:
         shape (n, 16): on a flap held up, seen edge-on, which no camera can call
         hidden by cloth or not."""
         return ~self.visible & self.lifted
+
+    @property
+    def corner_turns(self) -> NDArray[np.float64]:
+        """Which face each corner A-D shows seen from above, shape (n, 4): +1 front, -1
+        back (on a flap folded over), 0 not told (its stickers seen edge on)."""
+        return corner_turns(self.sticker_points[..., :2], default_layout())
+
+    def seen_back_faces(self) -> NDArray[np.float64]:
+        """Which face each corner shows from above as a camera would tell it, shape
+        (n, 4): 1 back, 0 front, NaN where fewer than three of its stickers are visible."""
+        points = np.where(self.visible[..., None], self.sticker_points[..., :2], np.nan)
+        return back_face_up(corner_turns(points, default_layout()))
 
     @property
     def past_vertical(self) -> NDArray[np.bool_]:

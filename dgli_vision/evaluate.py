@@ -114,10 +114,7 @@ def _classify_pair(
     dist: tuple[float, ...] = ()
     if distances and result.best_guess is not None:  # to every reference, for tracking
         obs = result.observation
-        d = reference_distances(
-            result.coordinates, refs, obs.visible, obs.unknown, obs.lifted,
-            obs.matched_heights_mm, obs.past_vertical,
-        )
+        d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
         dist = tuple(round(float(v), 6) for v in d)
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None

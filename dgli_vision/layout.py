@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 from .dgli import cloth_coordinates
 
 __all__ = [
+    "CORNER_STICKERS",
     "NapkinLayout",
     "default_layout",
     "layout_from_dict",
@@ -27,6 +28,11 @@ __all__ = [
     "load_layout",
     "parse_size",
 ]
+
+#: Ids of the four stickers around each corner (A, B, C, D): the two at the end of one
+#: segment and the two at the start of the next, in SPEC's sticker order (the same for
+#: every napkin size).
+CORNER_STICKERS = ((14, 15, 0, 1), (2, 3, 4, 5), (6, 7, 8, 9), (10, 11, 12, 13))
 
 
 def _readonly(a: NDArray) -> NDArray:

@@ -38,6 +38,7 @@ from .perception.detect import (
 from .perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from .perception.flaps import flap_angles
 from .perception.footprint import Footprint, measure_footprint
+from .perception.handedness import back_face_up, image_turns
 from .perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from .perception.napkin import find_napkin
 from .perception.scale import NapkinRuler, measure_napkin
@@ -72,6 +73,9 @@ class ClothObservation:
         The napkin's measured scale and rigidity (distances of same-corner stickers,
         before any sticker is dropped); None with too few stickers located.
     footprint : Footprint, optional
+    turns : ndarray, shape (4,), optional
+        Which face each corner A-D shows the camera: +1 front, -1 back, 0 not told
+        (:func:`~dgli_vision.perception.handedness.image_turns`).
         The table area the cloth covers; None where it cannot be measured.
     """
 
@@ -84,6 +88,12 @@ class ClothObservation:
     flap_height_mm: NDArray[np.float64] | None = None
     ruler: NapkinRuler | None = None
     footprint: Footprint | None = None
+    turns: NDArray[np.float64] | None = None
+
+    @property
+    def back(self) -> NDArray[np.float64] | None:
+        """1 for a corner showing its back face, 0 its front, NaN not told, shape (4,)."""
+        return None if self.turns is None else back_face_up(self.turns)
 
     @property
     def lifted(self) -> NDArray[np.float64] | None:
@@ -124,6 +134,15 @@ class ClothObservation:
         if self.evidence is None:
             return np.zeros(len(self.visible), dtype=bool)
         return self.evidence.unknown
+
+    def classifier_evidence(self) -> dict[str, NDArray | None]:
+        """The keyword arguments of :func:`~dgli_vision.classify.reference_distances`
+        besides the coordinates: what the classifier weighs beside them."""
+        return {
+            "visible": self.visible, "unknown": self.unknown, "lifted": self.lifted,
+            "heights_mm": self.matched_heights_mm, "past": self.past_vertical,
+            "back": self.back,
+        }
 
     @property
     def segment_visible(self) -> NDArray[np.bool_]:
@@ -197,8 +216,11 @@ def observe(
         frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
         layout.width_mm * layout.height_mm,
     )
+    located = np.where(markers.found[:, None], detections.centroids, np.nan)
+    turns = image_turns(located, layout)
     return detections, markers, ClothObservation(
-        segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint
+        segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
+        turns,
     )
 
 
@@ -242,10 +264,7 @@ def classify_frame(
     )
     if problem is not None:
         return FrameResult(detections, markers, obs, coords, None, f"cannot tell: {problem}")
-    evidence = {
-        "visible": obs.visible, "unknown": obs.unknown, "lifted": obs.lifted,
-        "heights_mm": obs.matched_heights_mm, "past": obs.past_vertical,
-    }
+    evidence = obs.classifier_evidence()
     try:
         front = reference_distances(coords, references, **evidence)
     except DetectionError as exc:

@@ -78,6 +78,11 @@ class Reference:
     footprint_range : ndarray, shape (2,)
         Smallest and largest table area the group's cloth covers, as fractions of the
         flat napkin's area (NaN: not known, as in sets written before it was kept).
+    back_rate : ndarray, shape (4,)
+        Fraction of the group's states in which each corner A-D shows its back face seen
+        from above (on a flap folded over), over the states where its stickers tell
+        (:func:`~dgli_vision.perception.handedness.corner_turns`); NaN where none tell,
+        or as in sets written before it was kept.
     """
 
     class_id: str
@@ -94,6 +99,7 @@ class Reference:
     )
     past_rate: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
     footprint_range: NDArray[np.float64] = field(default_factory=lambda: np.full(2, np.nan))
+    back_rate: NDArray[np.float64] = field(default_factory=lambda: np.full(4, np.nan))
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,6 +144,10 @@ class ReferenceSet:
         """Smallest and largest footprint (fraction of the napkin's area), shape (k, 2)."""
         return np.stack([r.footprint_range for r in self.references])
 
+    def back_rates(self) -> NDArray[np.float64]:
+        """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""
+        return np.stack([r.back_rate for r in self.references])
+
 
 def build_references(
     records: StateRecords, *, provenance: dict[str, Any] | None = None
@@ -164,6 +174,7 @@ def build_references(
     for i, key in enumerate(zip(records.classes, records.variants, records.stages)):
         groups.setdefault(key, []).append(i)
     heights = records.sticker_points[..., 2] * 1e3
+    back = records.corner_turns
     past = records.lifted & records.past_vertical[:, None]
     refs = []
     for (class_id, variant, stage), members in sorted(
@@ -189,9 +200,19 @@ def build_references(
                 past_rate=past[members].mean(axis=0),
                 footprint_range=np.array([records.footprint[members].min(),
                                           records.footprint[members].max()]),
+                back_rate=_back_rate(back[members]),
             )
         )
     return ReferenceSet(tuple(refs), dict(provenance or {}))
+
+
+def _back_rate(turns: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Share of -1 among the told (non-zero) turns of each corner, shape (4,); NaN where
+    none tells."""
+    told = (turns != 0).sum(axis=0)
+    back = (turns < 0).sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(told > 0, back / np.maximum(told, 1), np.nan)
 
 
 def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
@@ -230,6 +251,12 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
                 **(
                     {"footprint_range": [round(float(v), 4) for v in r.footprint_range]}
                     if np.isfinite(r.footprint_range).all()
+                    else {}
+                ),
+                **(
+                    {"back_rate": [round(float(v), 4) if np.isfinite(v) else None
+                                   for v in r.back_rate]}
+                    if np.isfinite(r.back_rate).any()
                     else {}
                 ),
             }
@@ -317,6 +344,11 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             item, "footprint_range", (2,), np.nan, source, k,
             "footprint fractions [smallest, largest]",
         )
+        back = _optional_array(
+            item, "back_rate", (4,), np.nan, source, k, "back-face rates (or null)"
+        )
+        if not ((back >= 0) & (back <= 1) | np.isnan(back)).all():
+            raise ReferenceError_(f"'{source}': reference {k} has back-face rates outside 0-1")
         for name, rates in (("visible", rate), ("lifted", lifted), ("past-vertical", past)):
             if not ((rates >= 0) & (rates <= 1)).all():  # NaN fails too
                 raise ReferenceError_(
@@ -342,6 +374,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
                 heights,
                 past,
                 footprint,
+                back,
             )
         )
     if len({r.class_id for r in refs}) < 2:

@@ -69,7 +69,11 @@ class EvidenceParams:
         With an object over the napkin, a missing sticker is unknown unless at least this
         many stickers of its corner were seen. Default 3: a corner folded over moves its
         four stickers together, and three of them fix where the fourth lies; with fewer,
-        its flap may lie under the object.
+        its flap may lie under the object, if the object comes within
+        ``flap_reach_mm`` of the sticker's flat place.
+    flap_reach_mm : float
+        How far from its flat place a corner folded over lays its stickers, at most, for
+        :attr:`min_corner_support`. Default 250 mm.
     held_up_reach : float
         How near cloth held up (a flap being folded) must come to the place a missing
         sticker would have lying flat, as a fraction of the napkin's shorter side, for
@@ -90,6 +94,7 @@ class EvidenceParams:
     napkin_margin_mm: float = 15.0
     near_radii: float = 1.5
     min_corner_support: int = 3
+    flap_reach_mm: float = 150.0
     held_up_reach: float = 0.5
     cover_mm: float = 12.0
     steep_foreshortening: float = 0.6
@@ -450,8 +455,11 @@ def assess_stickers(
     if napkin is not None:
         near_occ = napkin.near(napkin.occluder, predicted[missing], radius_px)
         near_hl = napkin.near(napkin.highlight, predicted[missing], radius_px)
+        reach_px = p.flap_reach_mm * 1e-3 * intrinsics.fx / z_typ
+        near_flap = napkin.near(napkin.occluder, predicted[missing], reach_px)
+        near_flap |= ~np.isfinite(predicted[missing]).all(axis=1)
     else:
-        near_occ = near_hl = np.zeros(len(missing), dtype=bool)
+        near_occ = near_hl = near_flap = np.zeros(len(missing), dtype=bool)
     fore = foreshortening if foreshortening is not None else np.ones(n)
     steep = np.nan_to_num(fore[seen], nan=1.0) < p.steep_foreshortening
     held_up = _held_up(
@@ -466,7 +474,9 @@ def assess_stickers(
             -radius_px <= u <= w - 1 + radius_px and -radius_px <= v <= h - 1 + radius_px
         ):
             why = "out of view"
-        elif near_occ[k] or (occluded and group_support[sid] < p.min_corner_support):
+        elif near_occ[k] or (
+            occluded and group_support[sid] < p.min_corner_support and near_flap[k]
+        ):
             why = "possibly under an object above the napkin"
         elif near_hl[k]:
             why = "in a highlight"

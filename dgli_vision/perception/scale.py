@@ -19,15 +19,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..layout import NapkinLayout
+from ..layout import CORNER_STICKERS, NapkinLayout
 from .lift import Markers3D
 
 __all__ = ["NapkinRuler", "measure_napkin"]
-
-#: Pairs of sticker ids (i, j), i < j, that lie around the same corner: each corner's two
-#: stickers at the end of one segment and the two at the start of the next.
-_CORNER_STICKERS = ((14, 15, 0, 1), (2, 3, 4, 5), (6, 7, 8, 9), (10, 11, 12, 13))
-
 
 @dataclass(frozen=True)
 class NapkinRuler:
@@ -62,7 +57,7 @@ def _corner_pairs(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.in
     """Ids (i, j) of every pair of stickers around the same corner (24 pairs)."""
     del layout  # the pairing is the same for every napkin size (SPEC's sticker order)
     i, j = [], []
-    for ids in _CORNER_STICKERS:
+    for ids in CORNER_STICKERS:
         for a in range(4):
             for b in range(a + 1, 4):
                 i.append(ids[a])
@@ -101,7 +96,7 @@ def measure_napkin(
     ratio = d_mm / flat_mm
     scale = float(np.median(ratio))
     spread = float(np.median(np.abs(ratio - scale)))
-    corner_of = {s: k for k, ids in enumerate(_CORNER_STICKERS) for s in ids}
+    corner_of = {s: k for k, ids in enumerate(CORNER_STICKERS) for s in ids}
     corners = np.array([corner_of[int(a)] for a in i])
     medians = [float(np.median(ratio[corners == k])) for k in np.unique(corners)]
     worst = float(max(abs(m - 1.0) for m in medians))
