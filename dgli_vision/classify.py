@@ -70,6 +70,19 @@ PAST_WEIGHT = 1.0
 #: over from one lying flat where a gripper or the flap's edge hides the fourth, which
 #: the dGLI coordinates of that corner's segments then cannot.
 FACE_WEIGHT = 1.0
+#: Weight of the spread term: the mean, over the pairs of stickers seen, of how far
+#: their 3D distance lies outside the reference's range (beyond
+#: :data:`SPREAD_SLACK_MM`), as a fraction of :data:`SPREAD_SCALE_MM` (capped at 1).
+#: The dGLI coordinates rank how segments wind round each other; with few of them known
+#: (a gripper over half the napkin) a flat napkin and one with corners folded to the
+#: centre can rank alike, but their stickers lie 300 mm apart in one and 50 mm in the
+#: other.
+SPREAD_WEIGHT = 1.0
+#: Distances within this of a reference's range agree with it (sticker centres to a few
+#: mm, wrinkles up to 10 mm, a range drawn from a few states).
+SPREAD_SLACK_MM = 20.0
+#: A pair this far outside the range (beyond the slack) disagrees in full.
+SPREAD_SCALE_MM = 60.0
 #: Heights within this of a reference's range agree with it (sensor noise, cloth
 #: layers, a range drawn from a few states).
 HEIGHT_SLACK_MM = 15.0
@@ -177,6 +190,7 @@ def reference_distances(
     heights_mm: ArrayLike | None = None,
     past: ArrayLike | None = None,
     back: ArrayLike | None = None,
+    spread_mm: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Distance of one observation to every reference, shape (k,).
 
@@ -204,6 +218,9 @@ def reference_distances(
         For each corner A-D: 1 where its stickers show the back face, 0 the front, NaN
         where they do not tell (:data:`FACE_WEIGHT`; references without back-face
         rates are not judged on it).
+    spread_mm : array_like of float, shape (120,), optional
+        3D distance between the stickers of each pair (``references.sticker_pairs``),
+        mm, NaN where either was not seen (:data:`SPREAD_WEIGHT`).
 
     Raises
     ------
@@ -246,6 +263,8 @@ def reference_distances(
         dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
     if back is not None:
         dist = dist + FACE_WEIGHT * _face_gap(back, references.back_rates())
+    if spread_mm is not None:
+        dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_ranges())
     return dist
 
 
@@ -257,6 +276,18 @@ def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.flo
     if not told.any():
         return np.zeros(len(rates))
     return np.abs(x[None, told] - rates[:, told]).mean(axis=1)
+
+
+def _spread_gap(spread_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean disagreement in [0, 1] of the observed sticker-pair distances with each
+    reference's ranges (``ranges`` shape (k, 120, 2)); 0 where none is known."""
+    d = np.asarray(spread_mm, dtype=np.float64)
+    told = np.isfinite(d)
+    if not told.any() or not np.isfinite(ranges[:, told]).all():
+        return np.zeros(len(ranges))
+    r = ranges[:, told]
+    outside = np.maximum(r[..., 0] - d[None, told], d[None, told] - r[..., 1])
+    return np.clip((outside - SPREAD_SLACK_MM) / SPREAD_SCALE_MM, 0.0, 1.0).mean(axis=1)
 
 
 def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -290,6 +321,7 @@ def classify_coordinates(
     heights_mm: ArrayLike | None = None,
     past: ArrayLike | None = None,
     back: ArrayLike | None = None,
+    spread_mm: ArrayLike | None = None,
     *,
     distances: ArrayLike | None = None,
 ) -> Prediction:
@@ -315,6 +347,8 @@ def classify_coordinates(
         known for the confidence: it is on that flap, standing.
     back : array_like of float, shape (4,), optional
         Which face each corner shows (see :func:`reference_distances`).
+    spread_mm : array_like of float, shape (120,), optional
+        Distances between the stickers seen (see :func:`reference_distances`).
     distances : array_like, shape (k,), keyword-only, optional
         :func:`reference_distances` of these arguments, when already computed.
 
@@ -324,7 +358,7 @@ def classify_coordinates(
     """
     if distances is None:
         dist = reference_distances(
-            coords, references, visible, unknown, lifted, heights_mm, past, back
+            coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm
         )
     else:
         dist = np.asarray(distances, dtype=np.float64)

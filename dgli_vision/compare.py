@@ -138,6 +138,7 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
 
     coords = records.hidden_coordinates()
     back = records.seen_back_faces()
+    spread = records.seen_spreads_mm()
     dist = np.array(
         [
             reference_distances(
@@ -155,6 +156,7 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
                 ),
                 np.where(records.unknown[k], float(records.past_vertical[k]), np.nan),
                 back[k],
+                spread[k],
             )
             for k in range(len(records))
         ]

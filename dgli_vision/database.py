@@ -15,7 +15,7 @@ from .classes import LIFTED_MM
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .dgli import cloth_coordinates
 from .fold_graph import fold_edges
-from .layout import default_layout
+from .layout import default_layout, sticker_spreads_mm
 from .perception.handedness import back_face_up, corner_turns
 
 __all__ = [
@@ -170,6 +170,12 @@ class StateRecords:
         """Which face each corner A-D shows seen from above, shape (n, 4): +1 front, -1
         back (on a flap folded over), 0 not told (its stickers seen edge on)."""
         return corner_turns(self.sticker_points[..., :2], default_layout())
+
+    def seen_spreads_mm(self) -> NDArray[np.float64]:
+        """Distances between the visible stickers of each pair, mm, shape (n, 120) (NaN
+        where either is hidden)."""
+        seen = np.where(self.visible[..., None], self.sticker_points * 1e3, np.nan)
+        return sticker_spreads_mm(seen)
 
     def seen_back_faces(self) -> NDArray[np.float64]:
         """Which face each corner shows from above as a camera would tell it, shape

@@ -27,6 +27,8 @@ __all__ = [
     "layout_of_size",
     "load_layout",
     "parse_size",
+    "sticker_pairs",
+    "sticker_spreads_mm",
 ]
 
 #: Ids of the four stickers around each corner (A, B, C, D): the two at the end of one
@@ -240,3 +242,15 @@ def parse_size(text: str) -> tuple[float, float]:
     w, h = values[0], values[-1]
     load_layout(width_mm=w, height_mm=h)  # checks the stickers fit
     return w, h
+
+
+def sticker_pairs(n_stickers: int = 16) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Sticker ids (i, j), i < j, of every pair, in row order (120 pairs for 16)."""
+    return np.triu_indices(n_stickers, k=1)
+
+
+def sticker_spreads_mm(points_mm: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Distances between the stickers of every pair, shape (..., 120), from their
+    positions (..., 16, 3) in mm (NaN where either is not located)."""
+    i, j = sticker_pairs(points_mm.shape[-2])
+    return np.linalg.norm(points_mm[..., i, :] - points_mm[..., j, :], axis=-1)

@@ -28,7 +28,7 @@ from .consistency import (
 from .dgli import cloth_coordinates
 from .errors import DetectionError
 from .frames import RGBDFrame
-from .layout import NapkinLayout, default_layout, layout_of_size
+from .layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
 from .perception.detect import (
     DetectorParams,
     StickerDetections,
@@ -73,6 +73,8 @@ class ClothObservation:
         The napkin's measured scale and rigidity (distances of same-corner stickers,
         before any sticker is dropped); None with too few stickers located.
     footprint : Footprint, optional
+    points_m : ndarray, shape (16, 3), optional
+        The located stickers in the camera frame, metres (NaN where missing).
     turns : ndarray, shape (4,), optional
         Which face each corner A-D shows the camera: +1 front, -1 back, 0 not told
         (:func:`~dgli_vision.perception.handedness.image_turns`).
@@ -89,6 +91,18 @@ class ClothObservation:
     ruler: NapkinRuler | None = None
     footprint: Footprint | None = None
     turns: NDArray[np.float64] | None = None
+    points_m: NDArray[np.float64] | None = None
+
+    @property
+    def spread_mm(self) -> NDArray[np.float64] | None:
+        """3D distance between the stickers of each pair seen, mm, shape (120,), taken
+        to the napkin's printed scale when its ruler measured one (NaN where either
+        sticker is not seen)."""
+        if self.points_m is None:
+            return None
+        scale = self.ruler.scale if self.ruler is not None else 1.0
+        seen = np.where(self.visible[:, None], self.points_m, np.nan)
+        return sticker_spreads_mm(seen * 1e3 / scale)
 
     @property
     def back(self) -> NDArray[np.float64] | None:
@@ -141,7 +155,7 @@ class ClothObservation:
         return {
             "visible": self.visible, "unknown": self.unknown, "lifted": self.lifted,
             "heights_mm": self.matched_heights_mm, "past": self.past_vertical,
-            "back": self.back,
+            "back": self.back, "spread_mm": self.spread_mm,
         }
 
     @property
@@ -220,7 +234,7 @@ def observe(
     turns = image_turns(located, layout)
     return detections, markers, ClothObservation(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
-        turns,
+        turns, markers.points,
     )
 
 

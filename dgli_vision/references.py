@@ -20,6 +20,7 @@ from .classes import CLASS_NAMES, VARIANTS
 from .distance import pairwise_spearman
 from .errors import ReferenceError_, UnreadableInputError
 from .io import guard_outputs, read_json, record_outputs, write_json
+from .layout import sticker_spreads_mm
 
 if TYPE_CHECKING:
     from .database import StateRecords
@@ -41,6 +42,8 @@ FORMAT = "dgli-references"
 FORMAT_VERSION = 1
 
 #: Where a wheel carries the shipped reference set (copied there by ``setup.py``).
+#: Sticker pairs whose distances a reference keeps (16 stickers).
+N_PAIRS = 120
 PACKAGED_REFERENCES = "data/references/default.json"
 
 
@@ -83,6 +86,12 @@ class Reference:
         from above (on a flap folded over), over the states where its stickers tell
         (:func:`~dgli_vision.perception.handedness.corner_turns`); NaN where none tell,
         or as in sets written before it was kept.
+    spread_range_mm : ndarray, shape (120, 2)
+        Shortest and longest 3D distance between each pair of stickers (pairs in
+        :func:`sticker_pairs` order) over the group's states, mm (NaN: not known, as in
+        sets written before it was kept). The dGLI coordinates say how segments wind
+        round each other, not how far apart they are: a flat napkin and two corners
+        folded to the centre can rank their few known coordinates alike.
     """
 
     class_id: str
@@ -100,6 +109,9 @@ class Reference:
     past_rate: NDArray[np.float64] = field(default_factory=lambda: np.zeros(16))
     footprint_range: NDArray[np.float64] = field(default_factory=lambda: np.full(2, np.nan))
     back_rate: NDArray[np.float64] = field(default_factory=lambda: np.full(4, np.nan))
+    spread_range_mm: NDArray[np.float64] = field(
+        default_factory=lambda: np.full((N_PAIRS, 2), np.nan)
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,6 +156,10 @@ class ReferenceSet:
         """Smallest and largest footprint (fraction of the napkin's area), shape (k, 2)."""
         return np.stack([r.footprint_range for r in self.references])
 
+    def spread_ranges(self) -> NDArray[np.float64]:
+        """Shortest and longest distance of each sticker pair, mm, shape (k, 120, 2)."""
+        return np.stack([r.spread_range_mm for r in self.references])
+
     def back_rates(self) -> NDArray[np.float64]:
         """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""
         return np.stack([r.back_rate for r in self.references])
@@ -175,6 +191,7 @@ def build_references(
         groups.setdefault(key, []).append(i)
     heights = records.sticker_points[..., 2] * 1e3
     back = records.corner_turns
+    spread = sticker_spreads_mm(records.sticker_points * 1e3)
     past = records.lifted & records.past_vertical[:, None]
     refs = []
     for (class_id, variant, stage), members in sorted(
@@ -201,6 +218,8 @@ def build_references(
                 footprint_range=np.array([records.footprint[members].min(),
                                           records.footprint[members].max()]),
                 back_rate=_back_rate(back[members]),
+                spread_range_mm=np.stack([spread[members].min(axis=0),
+                                          spread[members].max(axis=0)], axis=1),
             )
         )
     return ReferenceSet(tuple(refs), dict(provenance or {}))
@@ -257,6 +276,12 @@ def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
                     {"back_rate": [round(float(v), 4) if np.isfinite(v) else None
                                    for v in r.back_rate]}
                     if np.isfinite(r.back_rate).any()
+                    else {}
+                ),
+                **(
+                    {"spread_range_mm": [[round(float(v)) for v in lh]
+                                         for lh in r.spread_range_mm]}
+                    if np.isfinite(r.spread_range_mm).all()
                     else {}
                 ),
             }
@@ -347,6 +372,10 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
         back = _optional_array(
             item, "back_rate", (4,), np.nan, source, k, "back-face rates (or null)"
         )
+        spread = _optional_array(
+            item, "spread_range_mm", (N_PAIRS, 2), np.nan, source, k,
+            "sticker-pair distance ranges [shortest, longest]",
+        )
         if not ((back >= 0) & (back <= 1) | np.isnan(back)).all():
             raise ReferenceError_(f"'{source}': reference {k} has back-face rates outside 0-1")
         for name, rates in (("visible", rate), ("lifted", lifted), ("past-vertical", past)):
@@ -375,6 +404,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
                 past,
                 footprint,
                 back,
+                spread,
             )
         )
     if len({r.class_id for r in refs}) < 2:
