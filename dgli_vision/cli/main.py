@@ -14,8 +14,8 @@ from typing import Any, TypeVar
 
 import click
 
-from .condition_names import CONDITION_HELP
-from .errors import DgliError
+from ..condition_names import CONDITION_HELP
+from ..errors import DgliError
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -50,7 +50,7 @@ MAX_NAPKIN_MM = 1000.0
 def _parse_size(
     ctx: click.Context, param: click.Parameter, value: str | None
 ) -> tuple[float, float] | None:
-    from .layout import parse_size
+    from ..layout import parse_size
 
     if value is None:
         return None
@@ -170,7 +170,7 @@ def recording_options(fn: F) -> F:
 
 def _open_recording(path: str, opts: dict[str, Any]) -> Any:
     """The recording at ``path`` with the options of :func:`recording_options`."""
-    from .recording import open_recording
+    from ..recording import open_recording
 
     return open_recording(
         path,
@@ -192,7 +192,7 @@ def _recording_notes(recording: Any, quiet: bool = False) -> None:
 def _os_error_message(exc: OSError) -> str:
     """One line for an operating-system error that no library function named: the file
     (or standard output) and the reason."""
-    from .io import display_path
+    from ..io import display_path
 
     reason = exc.strerror or str(exc) or type(exc).__name__
     if exc.filename is not None:
@@ -222,7 +222,7 @@ def _flush_stdout() -> None:
         if sys.stdout is not None:
             sys.stdout.flush()
     except OSError as exc:
-        from .errors import OutputError
+        from ..errors import OutputError
 
         raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
 
@@ -270,7 +270,7 @@ def _handle_errors(fn: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             if sys.stdout is None:
-                from .errors import OutputError
+                from ..errors import OutputError
 
                 raise OutputError("standard output is closed; dgli prints its answer there")
             try:
@@ -356,7 +356,7 @@ def _pair_key(pair: Any) -> tuple[str, str]:
 def _outcomes_of(items: list, pairs: list | None) -> dict[tuple[str, str], Any]:
     """Outcomes of ``pairs`` (None: any) among the objects of a results.jsonl (others
     left out), by pair."""
-    from .evaluate import outcome_from_dict
+    from ..evaluate import outcome_from_dict
 
     wanted = None if pairs is None else {_pair_key(p) for p in pairs}
     done = {}
@@ -399,9 +399,9 @@ MAX_SIMULATED_CLOTH = 10_000
 
 def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> None:
     """Refuse, before the work, a database that would not fit in memory."""
-    from .classes import CLASS_IDS
-    from .database import FOLD_BINS_DEG
-    from .fold_graph import fold_edges
+    from ..classes import CLASS_IDS
+    from ..database import FOLD_BINS_DEG
+    from ..fold_graph import fold_edges
 
     folds = sum("under" not in fold for *_, fold in fold_edges())
     n_states = per_class * len(CLASS_IDS) + in_progress * folds * len(FOLD_BINS_DEG)
@@ -445,10 +445,10 @@ def simulate(
     states with one fold in progress (every fold a robot can make, turned 10-170
     degrees), labelled by the 90-degree rule; `dgli compare` leaves them out.
     """
-    from .cloth.states import CLASS_IDS
-    from .database import simulate_folds_in_progress, simulate_states
-    from .database_files import write_database
-    from .layout import layout_of_size
+    from ..cloth.states import CLASS_IDS
+    from ..database import simulate_folds_in_progress, simulate_states
+    from ..database_files import write_database
+    from ..layout import layout_of_size
 
     layout = layout_of_size(size_mm)
     _check_simulation_size(per_class, in_progress, layout)
@@ -520,13 +520,13 @@ def evaluate(
     """
     from pathlib import Path
 
-    from .colours_file import read_colours
-    from .errors import InvalidInputError
-    from .evaluation_report import REPORT_FILES
-    from .io import guard_outputs
-    from .labelled import find_labelled_pairs
-    from .recording import is_recording_file
-    from .references import default_references_path, load_references
+    from ..colours_file import read_colours
+    from ..errors import InvalidInputError
+    from ..evaluation_report import REPORT_FILES
+    from ..io import guard_outputs
+    from ..labelled import find_labelled_pairs
+    from ..recording import is_recording_file
+    from ..references import default_references_path, load_references
 
     recording = None
     if is_recording_file(folder):
@@ -598,7 +598,7 @@ def _run_header(
     import os
     from pathlib import Path
 
-    from .run_lock import file_digest, intrinsics_digest, listing_digest, run_header
+    from ..run_lock import file_digest, intrinsics_digest, listing_digest, run_header
 
     root = Path(folder).resolve()
     if pairs is None:
@@ -673,7 +673,7 @@ def _run_lock(folder: Any):
     the ``with`` block; a stale lock left by a killed run is taken over with a note."""
     from contextlib import contextmanager
 
-    from .run_lock import RunLock
+    from ..run_lock import RunLock
 
     @contextmanager
     def context():
@@ -698,9 +698,9 @@ def _open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bo
     ``resume``, those of the same run (refused, naming the difference, when its header
     differs from ``header``); otherwise a new file starting with ``header`` (refused when
     an earlier run's results are there, unless ``overwrite``)."""
-    from .errors import OverwriteError
-    from .io import JsonLinesWriter, read_jsonl
-    from .run_lock import check_resume, repair_journal
+    from ..errors import OverwriteError
+    from ..io import JsonLinesWriter, read_jsonl
+    from ..run_lock import check_resume, repair_journal
 
     earlier = read_jsonl(path) if resume else []
     if earlier:
@@ -737,7 +737,7 @@ def _classify_into(
     what is done. ``options`` go to ``evaluate_pairs``."""
     from concurrent.futures.process import BrokenProcessPool
 
-    from .evaluate import evaluate_pairs, outcome_to_dict
+    from ..evaluate import evaluate_pairs, outcome_to_dict
 
     try:
         with _progress_bar(count, label, quiet=run.as_json) as bar:
@@ -783,7 +783,7 @@ class _EvaluationRun:
         objects already in it), print, write the report, exit as the outcome says."""
         import time
 
-        from .evaluate import summarise
+        from ..evaluate import summarise
 
         writer, earlier = journal if journal else (None, [])
         done = _outcomes_of(earlier, None if self.recording else self.pairs)
@@ -821,7 +821,7 @@ class _EvaluationRun:
         """Classify the pairs not in ``done`` into it (and ``writer``), until all are or
         a stop signal comes (:func:`_stop_signals`)."""
 
-        from .colours_file import read_colours
+        from ..colours_file import read_colours
 
         recording, pairs = self.recording, self.pairs
         colours = read_colours(self.colours_path) if self.colours_path else None
@@ -844,12 +844,12 @@ class _EvaluationRun:
             )
 
     def _print(self, result: Any, skipped: list[str]) -> None:
-        from .evaluate import json_ready
+        from ..evaluate import json_ready
 
         if self.as_json:
             click.echo(json.dumps(json_ready({**result.to_dict(), "skipped": skipped})))
             return
-        from .report import markdown_table
+        from ..report import markdown_table
 
         click.echo(
             f"{result.n} pairs, {result.classified} classified, "
@@ -873,10 +873,10 @@ class _EvaluationRun:
     def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
         from pathlib import Path
 
-        from .evaluate import json_ready
-        from .evaluation_report import build_report
-        from .frames import read_color
-        from .io import file_sha256, record_outputs, write_outputs
+        from ..evaluate import json_ready
+        from ..evaluation_report import build_report
+        from ..frames import read_color
+        from ..io import file_sha256, record_outputs, write_outputs
 
         meta = {
             "command": _command_line(),
@@ -979,11 +979,11 @@ def render_cmd(
     """
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
-    from .cloth.states import CLASS_IDS
-    from .dataset import sample_name
-    from .io import guard_outputs
-    from .labelled import labelled_folder_files
-    from .layout import layout_of_size
+    from ..cloth.states import CLASS_IDS
+    from ..dataset import sample_name
+    from ..io import guard_outputs
+    from ..labelled import labelled_folder_files
+    from ..layout import layout_of_size
 
     cases = [] if sequence else [(c, k) for c in CLASS_IDS for k in range(per_class)]
     if sequence:
@@ -1022,14 +1022,14 @@ def _render_set(
     """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
     kept from an interrupted run (``resume``), write them (all, or those done when a stop
     signal came), and exit 130/143 if stopped."""
-    from .dataset import (
+    from ..dataset import (
         SEQUENCE_FRAME_SECONDS,
         kept_pairs,
         merge_kept_pairs,
         render_sample,
         render_sequence,
     )
-    from .labelled import write_labelled_folder
+    from ..labelled import write_labelled_folder
 
     sequence, seed = provenance.get("sequence"), provenance["seed"]
     kept = kept_pairs(out, provenance, names) if resume else {}
@@ -1090,10 +1090,10 @@ def references_build(
 
     The set is for the napkin size DB was simulated for; --size only checks it.
     """
-    from .database_files import read_database
-    from .errors import InvalidInputError
-    from .layout import layout_of_size
-    from .references import build_references, write_references
+    from ..database_files import read_database
+    from ..errors import InvalidInputError
+    from ..layout import layout_of_size
+    from ..references import build_references, write_references
 
     records, db_provenance = read_database(db)
     simulated = db_provenance.get("napkin_mm")
@@ -1118,8 +1118,8 @@ def references_build(
 
 
 def _sequence_records(name: str):
-    from .cloth.sequences import folding_sequence
-    from .database import records_from_states
+    from ..cloth.sequences import folding_sequence
+    from ..database import records_from_states
 
     frames = folding_sequence(name)
     return records_from_states([(f"{name}_{k:03d}", s) for k, s in enumerate(frames)])
@@ -1144,11 +1144,11 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
 
     import numpy as np
 
-    from .compare import COMPARE_COLUMN_NOTES, davies_bouldin_table, distance_matrices
-    from .database_files import read_database
-    from .fold_graph import mirror_group
-    from .io import guard_outputs, write_outputs
-    from .report import csv_table, heatmap_image, markdown_table
+    from ..compare import COMPARE_COLUMN_NOTES, davies_bouldin_table, distance_matrices
+    from ..database_files import read_database
+    from ..fold_graph import mirror_group
+    from ..io import guard_outputs, write_outputs
+    from ..report import csv_table, heatmap_image, markdown_table
 
     if report_dir:  # fail before the work, not after it
         guard_outputs([Path(report_dir) / "table.json"], overwrite=overwrite)
@@ -1224,11 +1224,11 @@ def sequence(
     """
     from pathlib import Path
 
-    from .cloth.sequences import SEQUENCES
-    from .compare import analyse_sequence
-    from .io import guard_outputs, write_outputs
-    from .references import load_references
-    from .report import heatmap_image
+    from ..cloth.sequences import SEQUENCES
+    from ..compare import analyse_sequence
+    from ..io import guard_outputs, write_outputs
+    from ..references import load_references
+    from ..report import heatmap_image
 
     if report_dir:  # fail before the work, not after it
         guard_outputs([Path(report_dir) / f"sequence_{name}.json"], overwrite=overwrite)
@@ -1318,10 +1318,10 @@ def track(
     """
     from pathlib import Path
 
-    from .colours_file import read_colours
-    from .errors import InvalidInputError
-    from .io import guard_outputs
-    from .references import default_references_path, load_references
+    from ..colours_file import read_colours
+    from ..errors import InvalidInputError
+    from ..io import guard_outputs
+    from ..references import default_references_path, load_references
 
     recording = _open_recording(folder, recording_opts)
     if resume and not report_dir:
@@ -1376,7 +1376,7 @@ class _TrackRun:
     def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
         """Classify the frames not done yet (``journal``: the results.jsonl writer and
         the objects already in it), smooth, print, report, exit as the outcome says."""
-        from .track import track_outcomes
+        from ..track import track_outcomes
 
         writer, earlier = journal if journal else (None, [])
         done = _outcomes_of(earlier, None)
@@ -1429,7 +1429,7 @@ class _TrackRun:
         )
 
     def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
-        from .classes import CLASS_NAMES
+        from ..classes import CLASS_NAMES
 
         if self.as_json:
             click.echo(json.dumps(data))
@@ -1471,12 +1471,12 @@ class _TrackRun:
     ) -> None:
         from pathlib import Path
 
-        from .classes import CLASS_IDS, CLASS_NAMES
-        from .evaluate import coordinate_matrix
-        from .evaluation_report import heatmap_sample, sample_distance_matrix
-        from .io import record_outputs, write_outputs
-        from .report import csv_table, heatmap_image, timeline_image
-        from .track import TIMELINE_COLUMNS, timeline_rows
+        from ..classes import CLASS_IDS, CLASS_NAMES
+        from ..evaluate import coordinate_matrix
+        from ..evaluation_report import heatmap_sample, sample_distance_matrix
+        from ..io import record_outputs, write_outputs
+        from ..report import csv_table, heatmap_image, timeline_image
+        from ..track import TIMELINE_COLUMNS, timeline_rows
 
         out = Path(self.report_dir)
         picture = timeline_image(
@@ -1515,8 +1515,8 @@ class _TrackRun:
 
 def _timeline_json(timeline: Any) -> dict[str, Any]:
     """A timeline's JSON object with NaN written as null."""
-    from .evaluate import json_ready
-    from .track import timeline_to_dict
+    from ..evaluate import json_ready
+    from ..track import timeline_to_dict
 
     return json_ready(timeline_to_dict(timeline))
 
@@ -1571,8 +1571,8 @@ def extract(
     and, with --labels, labels.csv: the folder format every command reads. Frames that
     cannot be written (no depth near them in time) are listed, not lost silently.
     """
-    from .errors import InvalidInputError
-    from .extract import extract_recording
+    from ..errors import InvalidInputError
+    from ..extract import extract_recording
 
     if start is not None and end is not None and end < start:
         raise InvalidInputError(f"--end {end} is before --start {start}")
@@ -1705,11 +1705,11 @@ def classify_cmd(
     """
     from pathlib import Path
 
-    from .colours_file import read_colours
-    from .frames import read_frame
-    from .io import guard_outputs, write_outputs
-    from .pipeline import classify_frame
-    from .references import load_references
+    from ..colours_file import read_colours
+    from ..frames import read_frame
+    from ..io import guard_outputs, write_outputs
+    from ..pipeline import classify_frame
+    from ..references import load_references
 
     if overlay:
         guard_outputs([overlay], overwrite=overwrite)
@@ -1718,7 +1718,7 @@ def classify_cmd(
     colours = read_colours(colours_path) if colours_path else None
     result = classify_frame(frame, refs, colours=colours)
     if overlay:
-        from .report import overlay_image
+        from ..report import overlay_image
 
         detail = f"{int(result.observation.visible.sum())}/16 stickers"
         image = overlay_image(
@@ -1786,11 +1786,11 @@ def calibrate(
     """
     from pathlib import Path
 
-    from .colours_file import write_colours
-    from .frames import read_frame
-    from .io import guard_outputs, write_outputs
-    from .layout import default_layout
-    from .perception.calibrate import calibrate_colours
+    from ..colours_file import write_colours
+    from ..frames import read_frame
+    from ..io import guard_outputs, write_outputs
+    from ..layout import default_layout
+    from ..perception.calibrate import calibrate_colours
 
     if output is None and lens_out is None:
         raise click.UsageError("give -o FILE (the colours) and/or --lens-out FILE (the lens)")
@@ -1813,8 +1813,8 @@ def calibrate(
         click.echo(f"wrote {output}")
     if lens_out is None:
         return
-    from .intrinsics_files import intrinsics_text
-    from .perception.lens import estimate_lens
+    from ..intrinsics_files import intrinsics_text
+    from ..perception.lens import estimate_lens
 
     est = estimate_lens(
         frame.color,
@@ -1904,11 +1904,11 @@ def robustness(
     import os
     from pathlib import Path
 
-    from .condition_names import CONDITION_NAMES
-    from .io import guard_outputs, write_outputs
-    from .references import load_references
-    from .report import markdown_table
-    from .robustness import (
+    from ..condition_names import CONDITION_NAMES
+    from ..io import guard_outputs, write_outputs
+    from ..references import load_references
+    from ..report import markdown_table
+    from ..robustness import (
         reliability_rows,
         reliability_table,
         robustness_table,
@@ -1975,10 +1975,10 @@ def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> 
     """
     from pathlib import Path
 
-    from .errors import InvalidInputError
-    from .io import write_outputs
-    from .layout import layout_of_size
-    from .sticker_sheet import sheet_image, sheet_svg, sticker_sheet
+    from ..errors import InvalidInputError
+    from ..io import write_outputs
+    from ..layout import layout_of_size
+    from ..sticker_sheet import sheet_image, sheet_svg, sticker_sheet
 
     svg = Path(out)
     if svg.suffix.lower() != ".svg":
@@ -1998,8 +1998,8 @@ def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> 
 @_handle_errors
 def coords(as_json: bool) -> None:
     """Show the 28 dGLI cloth coordinates of the flat napkin."""
-    from .dgli import pair_indices
-    from .layout import default_layout
+    from ..dgli import pair_indices
+    from ..layout import default_layout
 
     layout = default_layout()
     values = layout.flat_coordinates()
@@ -2058,8 +2058,8 @@ def bench(
     import shutil
     from pathlib import Path
 
-    from .bench import run_dgli_benchmarks, run_pipeline_benchmarks, run_recording_benchmarks
-    from .io import guard_outputs, write_outputs
+    from ..bench import run_dgli_benchmarks, run_pipeline_benchmarks, run_recording_benchmarks
+    from ..io import guard_outputs, write_outputs
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
