@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from dgli_vision.cli import main
-from dgli_vision.cli.main import classify_cmd
+from dgli_vision.cli.classify import classify_cmd
 from dgli_vision.errors import OverwriteError
 from dgli_vision.io import MANIFEST_NAME, guard_outputs, record_outputs, write_text
 
