@@ -53,13 +53,8 @@ def calibrate(
     off to one side, towards a corner); otherwise nothing is written and the exit code
     is 1.
     """
-    from pathlib import Path
-
-    from ..colours_file import write_colours
     from ..frames import read_frame
-    from ..io import guard_outputs, write_outputs
-    from ..layout import default_layout
-    from ..perception.calibrate import calibrate_colours
+    from ..io import guard_outputs
 
     if output is None and lens_out is None:
         raise click.UsageError("give -o FILE (the colours) and/or --lens-out FILE (the lens)")
@@ -68,21 +63,42 @@ def calibrate(
     guard_outputs([p for p in (output, lens_out) if p], overwrite=overwrite)
     frame = read_frame(color, depth, intrinsics)
     if output is not None:
-        colours = calibrate_colours(
-            frame.color, frame.depth_mm, frame.intrinsics, default_layout(), source=color
-        )
-        write_colours(
-            output,
-            colours,
-            {"command": command_line(), "package_version": package_version()},
-            overwrite=overwrite,
-        )
-        for name, rgb in colours.items():
-            click.echo(f"{name:<7} {rgb}")
-        click.echo(f"wrote {output}")
+        _calibrate_colours(frame, color, output, overwrite)
     if lens_out is None:
         return
+    _calibrate_lens(frame, color, lens_out, focal, overwrite)
+
+
+def _calibrate_colours(frame: Any, color: str, output: str, overwrite: bool) -> None:
+    """Measure the sticker colours of ``frame`` (read from ``color``), write them to
+    ``output`` and list them."""
+    from ..colours_file import write_colours
+    from ..layout import default_layout
+    from ..perception.calibrate import calibrate_colours
+
+    colours = calibrate_colours(
+        frame.color, frame.depth_mm, frame.intrinsics, default_layout(), source=color
+    )
+    write_colours(
+        output,
+        colours,
+        {"command": command_line(), "package_version": package_version()},
+        overwrite=overwrite,
+    )
+    for name, rgb in colours.items():
+        click.echo(f"{name:<7} {rgb}")
+    click.echo(f"wrote {output}")
+
+
+def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrite: bool) -> None:
+    """Estimate the lens of ``frame`` (read from ``color``), say what was found, and write
+    the intrinsics with it to ``lens_out``; exit 1 without writing when the view does not
+    determine it."""
+    from pathlib import Path
+
     from ..intrinsics_files import intrinsics_text
+    from ..io import write_outputs
+    from ..layout import default_layout
     from ..perception.lens import estimate_lens
 
     est = estimate_lens(

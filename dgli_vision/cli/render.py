@@ -11,7 +11,7 @@ from ..condition_names import CONDITION_HELP
 from .errors import handle_errors
 from .options import overwrite_option, parse_conditions, per_class_option, size_option
 from .output import command_line, napkin_provenance, package_version, progress
-from .runs import folder_lock, stop_signals
+from .runs import Stop, folder_lock, stop_signals
 
 
 @click.command("render")
@@ -85,17 +85,12 @@ def render_cmd(
     """
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
-    from ..cloth.states import CLASS_IDS
-    from ..dataset import sample_name
+    from ..dataset import render_plan
     from ..io import guard_outputs
     from ..labelled import labelled_folder_files
     from ..layout import layout_of_size
 
-    cases = [] if sequence else [(c, k) for c in CLASS_IDS for k in range(per_class)]
-    if sequence:
-        names = [f"{sequence}_{k:03d}" for k in range(frames)]
-    else:
-        names = [sample_name(c, k) for c, k in cases]
+    names, cases = render_plan(per_class, sequence, frames)
     planned = labelled_folder_files(out, names, frames=bool(sequence))
     guard_outputs(planned, overwrite=overwrite)  # before the work
 
@@ -152,14 +147,7 @@ def _render_set(
         )
     else:
         stream = (render_sample(*cases[k], seed, **options) for k in todo)
-    samples = []
-    with stop_signals() as stop:
-        try:
-            with progress(todo, "rendering") as bar:
-                for sample, _ in zip(stream, bar):
-                    samples.append(sample)
-        except KeyboardInterrupt:
-            stop.stopped = True
+    samples, stop = _rendered(stream, todo)
     index = {n: k for k, n in enumerate(names)}
     times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
     labels = f"{out}/labels.csv"
@@ -176,3 +164,17 @@ def _render_set(
         )
         sys.exit(stop.exit_code)
     click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
+
+
+def _rendered(stream: Any, todo: list[int]) -> tuple[list, Stop]:
+    """The samples of ``stream`` (one per item of ``todo``) with a progress bar, until
+    all are rendered or a stop signal comes."""
+    samples = []
+    with stop_signals() as stop:
+        try:
+            with progress(todo, "rendering") as bar:
+                for sample, _ in zip(stream, bar):
+                    samples.append(sample)
+        except KeyboardInterrupt:
+            stop.stopped = True
+    return samples, stop

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import click
 
@@ -61,50 +62,23 @@ def robustness(
     from ..io import guard_outputs, write_outputs
     from ..references import load_references
     from ..report import markdown_table
-    from ..robustness import (
-        reliability_rows,
-        reliability_table,
-        robustness_table,
-        score_condition,
-    )
+    from ..robustness import reliability_table, robustness_table
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
     refs = load_references(references_path)
     names = conditions or ("clean", *CONDITION_NAMES)
     jobs = jobs or os.cpu_count() or 1
-    scores = []
-    for name in names:
-        for score in score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs):
-            scores.append(score)
-            if not as_json:
-                click.echo(
-                    f"{score.condition}: {score.right}/{score.n} right, {score.wrong} wrong",
-                    err=True,
-                )
+    scores = _scores(names, refs, per_class, seed, jobs, quiet=as_json)
     header, rows = robustness_table(scores)
     table = markdown_table(header, rows)
     reliability = "Reliability (best guesses over all conditions):\n\n" + markdown_table(
         *reliability_table(scores)
     )
     if as_json:
-        click.echo(
-            json.dumps(
-                {
-                    "seed": seed,
-                    "per_class": per_class,
-                    "rows": [dict(zip(header, r)) for r in rows],
-                    "wrong": {s.condition: list(s.wrong_cases) for s in scores},
-                    "reliability": reliability_rows(scores),
-                }
-            )
-        )
+        click.echo(json.dumps(_robustness_json(seed, per_class, header, rows, scores)))
     else:
-        click.echo(table, nl=False)
-        for s in scores:
-            for case in s.wrong_cases:
-                click.echo(f"wrong under {s.condition}: {case}")
-        click.echo("\n" + reliability, nl=False)
+        _print_robustness(table, reliability, scores)
     if markdown:
         command = command_line()
         write_outputs(
@@ -112,3 +86,46 @@ def robustness(
             overwrite=overwrite,
             command=command,
         )
+
+
+def _scores(
+    names: tuple[str, ...], refs: Any, per_class: int, seed: int, jobs: int, *, quiet: bool
+) -> list:
+    """The scores of the conditions ``names``, each told on stderr as it comes (unless
+    ``quiet``)."""
+    from ..robustness import score_condition
+
+    scores = []
+    for name in names:
+        for score in score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs):
+            scores.append(score)
+            if not quiet:
+                click.echo(
+                    f"{score.condition}: {score.right}/{score.n} right, {score.wrong} wrong",
+                    err=True,
+                )
+    return scores
+
+
+def _robustness_json(
+    seed: int, per_class: int, header: list, rows: list, scores: list
+) -> dict[str, Any]:
+    """The JSON object of ``dgli robustness --json``."""
+    from ..robustness import reliability_rows
+
+    return {
+        "seed": seed,
+        "per_class": per_class,
+        "rows": [dict(zip(header, r)) for r in rows],
+        "wrong": {s.condition: list(s.wrong_cases) for s in scores},
+        "reliability": reliability_rows(scores),
+    }
+
+
+def _print_robustness(table: str, reliability: str, scores: list) -> None:
+    """The robustness table, the wrong answers and the reliability table on stdout."""
+    click.echo(table, nl=False)
+    for s in scores:
+        for case in s.wrong_cases:
+            click.echo(f"wrong under {s.condition}: {case}")
+    click.echo("\n" + reliability, nl=False)
