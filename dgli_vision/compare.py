@@ -171,3 +171,45 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
         true_changes=tuple(change_frames(records.classes)),
         detected_changes=tuple(change_frames(smoothed)),
     )
+
+
+def sequence_records(name: str) -> StateRecords:
+    """The simulator's frames of folding sequence ``name`` (I, II or III) as records
+    named ``{name}_000``, ``{name}_001``, ..."""
+    from .cloth.sequences import folding_sequence
+    from .database import records_from_states
+
+    frames = folding_sequence(name)
+    return records_from_states([(f"{name}_{k:03d}", s) for k, s in enumerate(frames)])
+
+
+def folded_by_class(records: StateRecords) -> StateRecords:
+    """The paper's states of a database (every fold laid flat), sorted by class, then
+    variant (stable)."""
+    records = records.subset(records.folded)
+    keys = [f"{c}/{v or ''}" for c, v in zip(records.classes, records.variants)]
+    order = np.argsort(np.asarray(keys), kind="stable")
+    return records.subset(order)
+
+
+def compare_datasets(records: StateRecords) -> dict[str, StateRecords]:
+    """The columns of ``dgli compare``: the database ``records`` (see
+    :func:`folded_by_class`) labelled by class, the three folding sequences, the database
+    labelled by class and variant, and by class and variant with mirror images merged."""
+    import dataclasses
+
+    from .fold_graph import mirror_group
+
+    by_variant = dataclasses.replace(
+        records, classes=tuple(f"{c}/{v}" for c, v in zip(records.classes, records.variants))
+    )
+    mirrored = dataclasses.replace(
+        records,
+        classes=tuple(mirror_group(k) for k in zip(records.classes, records.variants)),
+    )
+    return {
+        "database": records,
+        **{n: sequence_records(n) for n in ("I", "II", "III")},
+        "database by variant": by_variant,
+        "by variant, mirrors merged": mirrored,
+    }

@@ -489,3 +489,15 @@ def merge_kept_pairs(
         written.append(root / "frames.csv")
     write_json(truth_path, {**truth, "images": {n: images[n] for n in order}})
     record_outputs(written, command)
+
+
+def render_plan(
+    per_class: int, sequence: str | None, frames: int
+) -> tuple[list[str], list[tuple[str, int]]]:
+    """The names of the pairs of a set to render and, for a set of classes (no
+    ``sequence``), each pair's class and number: ``per_class`` pairs of every class, or
+    the ``frames`` frames of folding ``sequence``."""
+    if sequence:
+        return [f"{sequence}_{k:03d}" for k in range(frames)], []
+    cases = [(c, k) for c in CLASS_IDS for k in range(per_class)]
+    return [sample_name(c, k) for c, k in cases], cases

@@ -468,3 +468,26 @@ def coordinate_matrix(outcomes: list[PairOutcome]) -> NDArray[np.float64]:
     return np.array(
         [o.coordinates if o.coordinates else (np.nan,) * 28 for o in outcomes], dtype=float
     )
+
+
+def pair_key(pair: Any) -> tuple[str, str]:
+    """A pair's colour and depth files by their real paths: the same pair however named."""
+    import os
+
+    # realpath, not Path.resolve: a symbolic link loop is the pair's read error, not a crash
+    return os.path.realpath(pair.color), os.path.realpath(pair.depth)
+
+
+def outcomes_of(items: list, pairs: list | None) -> dict[tuple[str, str], PairOutcome]:
+    """Outcomes of ``pairs`` (None: any) among the objects of a results.jsonl (others
+    left out), by pair (:func:`pair_key`)."""
+    wanted = None if pairs is None else {pair_key(p) for p in pairs}
+    done = {}
+    for item in items:
+        try:
+            outcome = outcome_from_dict(item)
+        except (KeyError, TypeError, ValueError):
+            continue
+        if wanted is None or pair_key(outcome.pair) in wanted:
+            done[pair_key(outcome.pair)] = outcome
+    return done

@@ -290,3 +290,45 @@ def repair_journal(path: str | Path) -> None:
             fh.truncate(0)
     except FileNotFoundError:
         return
+
+
+def run_header_of(
+    kind: str,
+    folder: str,
+    pairs: Any,
+    *,
+    labels_path: str | None,
+    refs_path: Any,
+    colours_path: str | None,
+    options: dict[str, Any],
+) -> dict[str, Any]:
+    """What defines a run of ``kind`` on ``folder``, for its results.jsonl: the input (a
+    folder by path, its pairs by their list, labels and intrinsics files by checksum; a
+    recording file by path, size and time), the references and colours by checksum, and
+    the options that change results.
+
+    ``pairs`` are the folder's pairs, None for a recording file."""
+    root = Path(folder).resolve()
+    if pairs is None:
+        stat = root.stat()  # a recording is known by its size and time, not read twice
+        source = listing_digest([(str(root), stat.st_size, stat.st_mtime_ns)])
+        listing, intrinsics = None, None
+    else:
+        source = str(root)
+        listing = listing_digest(
+            (os.path.relpath(p.color, root), os.path.relpath(p.depth, root)) for p in pairs
+        )
+        intrinsics = intrinsics_digest(p.color for p in pairs)
+    labels = file_digest(labels_path) if labels_path else file_digest(root / "labels.csv")
+    if labels is None and pairs is not None:  # class folders
+        labels = listing_digest((p.label, p.variant) for p in pairs)
+    fields = {
+        "input": source,
+        "pairs": listing,
+        "labels": labels,
+        "references": file_digest(refs_path),
+        "colours": file_digest(colours_path),
+        "intrinsics": intrinsics,
+        "options": {k: v for k, v in sorted(options.items()) if k != "labels_path"},
+    }
+    return run_header(kind, fields)

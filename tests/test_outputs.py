@@ -9,7 +9,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision.cli import classify_cmd, main
+from dgli_vision.cli import main
+from dgli_vision.cli.classify import classify_cmd
 from dgli_vision.errors import OverwriteError
 from dgli_vision.io import MANIFEST_NAME, guard_outputs, record_outputs, write_text
 

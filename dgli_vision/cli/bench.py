@@ -1,0 +1,93 @@
+"""``dgli bench``: the benchmark figures against their budgets."""
+
+from __future__ import annotations
+
+import sys
+
+import click
+
+from .errors import handle_errors
+from .options import overwrite_option
+from .output import command_line
+
+
+def _format_figure(value: float, unit: str) -> str:
+    if unit.endswith("/s"):
+        for scale, prefix in ((1e6, "M "), (1e3, "k ")):
+            if value >= scale:
+                return f"{value / scale:.2f} {prefix}{unit}"
+        return f"{value:.1f} {unit}"
+    if unit == "x":
+        return f"{value:,.0f}x" if value >= 10 else f"{value:.2f}x"
+    return f"{value:.3g} {unit}"
+
+
+@click.command()
+@click.option("--states", default=100_000, show_default=True, help="States in the batch case.")
+@click.option("--repeats", default=5, show_default=True, help="Timing rounds (best is kept).")
+@click.option(
+    "--markdown",
+    type=click.Path(),
+    help="Also write the figures as a Markdown table to this file.",
+)
+@click.option(
+    "--only",
+    type=click.Choice(["dgli", "pipeline", "recording"]),
+    help="Run one group of benchmarks only.",
+)
+@click.option(
+    "--samples",
+    default="sample_images",
+    show_default=True,
+    type=click.Path(file_okay=False),
+    help="Labelled folder for the pipeline benchmarks.",
+)
+@overwrite_option
+@handle_errors
+def bench(
+    states: int,
+    repeats: int,
+    markdown: str | None,
+    only: str | None,
+    samples: str,
+    overwrite: bool,
+) -> None:
+    """Measure the benchmark figures against their budgets (one core where a budget says so)."""
+    import platform
+    import shutil
+    from pathlib import Path
+
+    from ..bench import run_dgli_benchmarks, run_pipeline_benchmarks, run_recording_benchmarks
+    from ..io import guard_outputs, write_outputs
+
+    if markdown:
+        guard_outputs([markdown], overwrite=overwrite)
+    results = []
+    if only in (None, "dgli"):
+        results += run_dgli_benchmarks(n_states=states, repeats=repeats)
+    if only in (None, "pipeline"):
+        exe = Path(sys.executable).parent / "dgli-classify"
+        exe_path = str(exe) if exe.exists() else shutil.which("dgli-classify")
+        results += run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
+    if only in (None, "recording"):
+        results += run_recording_benchmarks(samples)
+    rows = []
+    for r in results:
+        value = _format_figure(r.value, r.unit)
+        verdict = "" if r.ok is None else ("ok" if r.ok else "MISSED")
+        rows.append((r.name, value, r.goal, verdict))
+        click.echo(f"{r.name:<60} {value:>18}  {r.goal:<16} {verdict}")
+    if markdown:
+        lines = [
+            "| benchmark | figure | goal | verdict |",
+            "|---|---|---|---|",
+            *(f"| {n} | {v} | {g} | {ok} |" for n, v, g, ok in rows),
+            "",
+            f"Machine: {platform.machine()}, Python {platform.python_version()}, "
+            f"numpy {__import__('numpy').__version__}.",
+        ]
+        write_outputs(
+            {Path(markdown): "\n".join(lines) + "\n"},
+            overwrite=overwrite,
+            command=command_line(),
+        )

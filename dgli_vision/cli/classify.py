@@ -1,0 +1,152 @@
+"""``dgli classify`` (also ``dgli-classify``): one colour + depth pair."""
+
+from __future__ import annotations
+
+import json
+import sys
+from typing import Any
+
+import click
+
+from .errors import handle_errors
+from .options import (
+    colours_option,
+    image_output,
+    intrinsics_option,
+    json_option,
+    overwrite_option,
+    references_option,
+)
+from .output import command_line
+
+
+def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
+    """The JSON object of `--json` for one classified pair (see the README)."""
+    import numpy as np
+
+    found = result.observation.visible
+    p = result.prediction
+    out: dict[str, Any] = {"color": color, "depth": depth}
+    if p is None:
+        guess = result.best_guess
+        out.update(
+            {
+                "class": None,
+                "name": None,
+                "variant": None,
+                "distance": None,
+                "runner_up": None,
+                "confidence": None if guess is None else guess.confidence,
+                "reason": result.reason,
+            }
+        )
+    else:
+        ru = p.runner_up
+        out.update(
+            {
+                "class": p.class_id,
+                "name": p.name,
+                "variant": p.variant,
+                "distance": round(p.distance, 6),
+                "confidence": p.confidence,
+                "runner_up": None
+                if ru is None
+                else {
+                    "class": ru.class_id,
+                    "name": ru.name,
+                    "variant": ru.variant,
+                    "distance": round(ru.distance, 6),
+                },
+            }
+        )
+    unknown = result.observation.unknown
+    evidence = result.observation.evidence
+    out["stickers"] = {
+        "found": int(found.sum()),
+        "missing": np.flatnonzero(~found).tolist(),
+        "unknown": {str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)}
+        if evidence is not None
+        else {},
+    }
+    out["coordinates"] = [
+        None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
+    ]
+    return out
+
+
+def verdict_line(result: Any) -> str:
+    """One readable line for a classified pair."""
+    p = result.prediction
+    if p is None:
+        return f"no class: {result.reason}"
+    text = f"{p.class_id} {p.name}"
+    if p.variant:
+        text += f" ({p.variant})"
+    text += f", distance {p.distance:.3f}, confidence {p.confidence:.2f}"
+    if p.runner_up:
+        ru = p.runner_up
+        text += f"; runner-up {ru.class_id} {ru.name}" + (f" ({ru.variant})" if ru.variant else "")
+        text += f" {ru.distance:.3f}"
+    return text
+
+
+@click.command("classify")
+@click.argument("color", type=click.Path())
+@click.argument("depth", type=click.Path())
+@intrinsics_option
+@references_option
+@colours_option
+@json_option("Print one JSON object.")
+@click.option(
+    "--overlay",
+    type=click.Path(dir_okay=False),
+    callback=image_output,
+    help="Write the image with stickers, segments and verdict (PNG or JPEG).",
+)
+@overwrite_option
+@handle_errors
+def classify_cmd(
+    color: str,
+    depth: str,
+    intrinsics: str | None,
+    references_path: str | None,
+    colours_path: str | None,
+    as_json: bool,
+    overlay: str | None,
+    overwrite: bool,
+) -> None:
+    """Classify the cloth state in one colour + depth pair.
+
+    Exit 1 when no class can be given: too few stickers seen, or a confidence below
+    the documented threshold ("cannot tell", with the reason).
+    """
+    from pathlib import Path
+
+    from ..colours_file import read_colours
+    from ..frames import read_frame
+    from ..io import guard_outputs, write_outputs
+    from ..pipeline import classify_frame
+    from ..references import load_references
+
+    if overlay:
+        guard_outputs([overlay], overwrite=overwrite)
+    frame = read_frame(color, depth, intrinsics)
+    refs = load_references(references_path)
+    colours = read_colours(colours_path) if colours_path else None
+    result = classify_frame(frame, refs, colours=colours)
+    if overlay:
+        from ..report import overlay_image
+
+        detail = f"{int(result.observation.visible.sum())}/16 stickers"
+        image = overlay_image(
+            frame.color, result.detections.centroids, verdict_line(result), detail=detail
+        )
+        write_outputs({Path(overlay): image}, overwrite=overwrite, command=command_line())
+    if as_json:
+        click.echo(json.dumps(result_to_json(result, color, depth)))
+    else:
+        click.echo(verdict_line(result))
+    if result.prediction is None:
+        if not as_json:
+            click.echo(f"error: '{color}': {result.reason}", err=True)
+        sys.exit(1)

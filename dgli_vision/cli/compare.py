@@ -1,0 +1,178 @@
+"""``dgli compare`` and ``dgli sequence``: how well the representations separate the
+states of the database and of the three folding sequences."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from .errors import handle_errors
+from .options import json_option, overwrite_option, references_option, report_option
+from .output import command_line
+
+
+@click.command()
+@click.argument("db", type=click.Path())
+@report_option("Write the table and heatmaps here.")
+@json_option("Print the table as JSON.")
+@overwrite_option
+@handle_errors
+def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> None:
+    """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
+
+    Columns: the database labelled by class, the three folding sequences labelled by
+    their frames' true class, the database labelled by class and variant, and by class
+    and variant with mirror images merged (the grouping comparable to the paper's
+    corner-specific classes; see the report).
+    """
+    from pathlib import Path
+
+    from ..compare import (
+        COMPARE_COLUMN_NOTES,
+        compare_datasets,
+        davies_bouldin_table,
+        folded_by_class,
+    )
+    from ..database_files import read_database
+    from ..io import guard_outputs
+
+    if report_dir:  # fail before the work, not after it
+        guard_outputs([Path(report_dir) / "table.json"], overwrite=overwrite)
+    records, _ = read_database(db)
+    records = folded_by_class(records)  # the paper's states: every fold laid flat
+    table = davies_bouldin_table(compare_datasets(records))
+    table["column_notes"] = COMPARE_COLUMN_NOTES
+    columns = ["representation", *table["columns"]]
+    rows = [[name, *vals] for name, vals in table["rows"].items()]
+    _print_compare_table(table, columns, rows, as_json)
+    if report_dir:
+        _write_compare_report(Path(report_dir), table, columns, rows, records, overwrite)
+
+
+def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_json: bool) -> None:
+    """The Davies-Bouldin table on stdout: JSON, or Markdown and the column notes."""
+    from ..compare import COMPARE_COLUMN_NOTES
+    from ..report import markdown_table
+
+    if as_json:
+        click.echo(json.dumps(table))
+    else:
+        click.echo("Davies-Bouldin index (lower is better)")
+        click.echo(markdown_table(columns, rows), nl=False)
+        click.echo("columns: " + "; ".join(f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()))
+
+
+def _write_compare_report(
+    out: Any, table: dict[str, Any], columns: list, rows: list, records: Any, overwrite: bool
+) -> None:
+    """The table (JSON, Markdown with the column notes, CSV) and a heatmap of the
+    distances of each representation into the folder ``out``."""
+    from ..compare import COMPARE_COLUMN_NOTES, distance_matrices
+    from ..io import write_outputs
+    from ..report import csv_table, heatmap_image, markdown_table
+
+    notes = "\n".join(f"- **{k}**: {v}" for k, v in COMPARE_COLUMN_NOTES.items())
+    files: dict[Any, Any] = {
+        out / "table.json": table,
+        out / "table.md": "# Davies-Bouldin index (lower is better)\n\n"
+        + markdown_table(columns, rows)
+        + "\n## What each column groups\n\n"
+        + notes
+        + "\n",
+        out / "table.csv": csv_table(columns, rows),
+    }
+    for name, mat in distance_matrices(records).items():
+        files[out / f"distances_{name}.png"] = heatmap_image(
+            mat,
+            title=f"{name}: distances, samples by class",
+            groups=records.classes,
+            value_label="distance",
+        )
+    write_outputs(files, overwrite=overwrite, command=command_line())
+    click.echo(f"report written to {out}", err=True)
+
+
+@click.command()
+@click.argument("name", type=click.Choice(["I", "II", "III"]))
+@references_option
+@report_option("Write the heatmap and frames here.")
+@json_option("Print a JSON object.")
+@overwrite_option
+@handle_errors
+def sequence(
+    name: str,
+    references_path: str | None,
+    report_dir: str | None,
+    as_json: bool,
+    overwrite: bool,
+) -> None:
+    """Folding sequence NAME: frame distance matrix and detected state changes.
+
+    The simulator's frames of the sequence, each compared with the references as a
+    camera above would see it, then smoothed over time as `dgli track` does.
+    """
+    from pathlib import Path
+
+    from ..compare import analyse_sequence, sequence_records
+    from ..io import guard_outputs, write_outputs
+    from ..references import load_references
+    from ..report import heatmap_image
+
+    if report_dir:  # fail before the work, not after it
+        guard_outputs([Path(report_dir) / f"sequence_{name}.json"], overwrite=overwrite)
+    refs = load_references(references_path)
+    records = sequence_records(name)
+    result = analyse_sequence(records, refs)
+    summary = _sequence_summary(name, len(records), result)
+    if as_json:
+        click.echo(json.dumps(summary))
+    else:
+        _print_sequence(summary, result)
+    if report_dir:
+        out = Path(report_dir)
+        img = heatmap_image(
+            result.distances,
+            title=f"sequence {name}: Spearman distance of dGLI",
+            groups=result.truth,
+            value_label="1 - rho",
+        )
+        write_outputs(
+            {out / f"sequence_{name}.json": summary, out / f"sequence_{name}.png": img},
+            overwrite=overwrite,
+            command=command_line(),
+        )
+
+
+def _sequence_summary(name: str, n_frames: int, result: Any) -> dict[str, Any]:
+    """The JSON object of ``dgli sequence`` for its :class:`SequenceAnalysis`."""
+    from ..cloth.sequences import SEQUENCES
+
+    return {
+        "sequence": name,
+        "description": SEQUENCES[name][0],
+        "frames": n_frames,
+        "truth": list(result.truth),
+        "predicted": list(result.predicted),
+        "smoothed": list(result.smoothed),
+        "true_changes": list(result.true_changes),
+        "detected_changes": list(result.detected_changes),
+        "frame_accuracy": round(result.frame_accuracy, 4),
+        "smoothed_accuracy": round(result.smoothed_accuracy, 4),
+    }
+
+
+def _print_sequence(summary: dict[str, Any], result: Any) -> None:
+    """``dgli sequence`` in words: the frames' classes and the state changes."""
+    click.echo(
+        f"sequence {summary['sequence']}: {summary['description']} ({summary['frames']} frames)"
+    )
+    click.echo(f"  truth:     {' '.join(result.truth)}")
+    click.echo(f"  per frame: {' '.join(result.predicted)}")
+    click.echo(f"  smoothed:  {' '.join(result.smoothed)}")
+    click.echo(
+        f"  state changes: true at frames {list(result.true_changes)}, "
+        f"detected at {list(result.detected_changes)}; frame accuracy "
+        f"{result.frame_accuracy:.0%} per frame, {result.smoothed_accuracy:.0%} smoothed"
+    )

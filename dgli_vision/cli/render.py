@@ -1,0 +1,180 @@
+"""``dgli render``: a labelled RGB-D folder (or a recorded sequence) of simulated states."""
+
+from __future__ import annotations
+
+import sys
+from typing import Any
+
+import click
+
+from ..condition_names import CONDITION_HELP
+from .errors import handle_errors
+from .options import overwrite_option, parse_conditions, per_class_option, size_option
+from .output import command_line, napkin_provenance, package_version, progress
+from .runs import Stop, folder_lock, stop_signals
+
+
+@click.command("render")
+@click.argument("out", type=click.Path(file_okay=False))
+@per_class_option(1, 50, "Pairs per class")
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the whole set.")
+@click.option(
+    "--clean", is_flag=True, help="Switch the sensor model off (no noise, blur, dropouts)."
+)
+@click.option(
+    "--nominal", is_flag=True, help="Nominal scene: straight down from 520 mm, default lighting."
+)
+@click.option(
+    "--conditions",
+    "conditions",
+    callback=parse_conditions,
+    default="",
+    help="Capture conditions, comma-separated: "
+    + ", ".join(f"{k} ({v})" for k, v in CONDITION_HELP.items())
+    + ".",
+)
+@click.option(
+    "--sequence",
+    type=click.Choice(["I", "II", "III"]),
+    default=None,
+    help="Render this folding sequence as one recording instead (frames in order, "
+    "frames.csv, labels by the 90-degree rule).",
+)
+@click.option(
+    "--frames",
+    default=25,
+    show_default=True,
+    type=click.IntRange(2),
+    help="Frames of --sequence, spread evenly over its folds.",
+)
+@click.option(
+    "--gripper",
+    is_flag=True,
+    help="A robot's gripper holds the corner being folded in every frame of --sequence "
+    "(without --sequence: the condition grasp).",
+)
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted render of the same set into OUT: keep its complete "
+    "pairs and render the rest (refused when the set differs).",
+)
+@size_option
+@overwrite_option
+@handle_errors
+def render_cmd(
+    out: str,
+    per_class: int,
+    seed: int,
+    clean: bool,
+    nominal: bool,
+    conditions: tuple[str, ...],
+    sequence: str | None,
+    frames: int,
+    gripper: bool,
+    resume: bool,
+    size_mm: tuple[float, float] | None,
+    overwrite: bool,
+) -> None:
+    """Render a labelled RGB-D folder of simulated states to OUT (the labelled-folder
+    format of docs/napkin.md).
+
+    With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
+    Ctrl-C or SIGTERM writes the pairs rendered so far with their labels.csv and exits
+    130 (143); --resume renders the rest.
+    """
+    if gripper and "grasp" not in conditions:
+        conditions = (*conditions, "grasp")
+    from ..dataset import render_plan
+    from ..io import guard_outputs
+    from ..labelled import labelled_folder_files
+    from ..layout import layout_of_size
+
+    names, cases = render_plan(per_class, sequence, frames)
+    planned = labelled_folder_files(out, names, frames=bool(sequence))
+    guard_outputs(planned, overwrite=overwrite)  # before the work
+
+    layout = layout_of_size(size_mm)
+    provenance = {
+        "command": command_line(),
+        "seed": seed,
+        **({"sequence": sequence, "frames": frames} if sequence else {"per_class": per_class}),
+        "clean": clean,
+        "nominal": nominal,
+        **({"conditions": list(conditions)} if conditions else {}),
+        **napkin_provenance(layout),
+        "package_version": package_version(),
+    }
+    options = {"nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout}
+    with folder_lock(out):
+        _render_set(out, names, cases, provenance, options, resume=resume, overwrite=overwrite)
+
+
+def _render_set(
+    out: str,
+    names: list[str],
+    cases: list[tuple[str, int]],
+    provenance: dict[str, Any],
+    options: dict[str, Any],
+    *,
+    resume: bool,
+    overwrite: bool,
+) -> None:
+    """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
+    kept from an interrupted run (``resume``), write them (all, or those done when a stop
+    signal came), and exit 130/143 if stopped."""
+    from ..dataset import (
+        SEQUENCE_FRAME_SECONDS,
+        kept_pairs,
+        merge_kept_pairs,
+        render_sample,
+        render_sequence,
+    )
+    from ..labelled import write_labelled_folder
+
+    sequence, seed = provenance.get("sequence"), provenance["seed"]
+    kept = kept_pairs(out, provenance, names) if resume else {}
+    todo = [k for k, n in enumerate(names) if n not in kept]
+    if kept:
+        click.echo(f"resuming: {len(kept)} of {len(names)} pairs kept", err=True)
+    if sequence:
+        stream = render_sequence(
+            sequence,
+            len(names),
+            seed,
+            skip={k for k, n in enumerate(names) if n in kept},
+            **options,
+        )
+    else:
+        stream = (render_sample(*cases[k], seed, **options) for k in todo)
+    samples, stop = _rendered(stream, todo)
+    index = {n: k for k, n in enumerate(names)}
+    times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
+    labels = f"{out}/labels.csv"
+    if samples:
+        labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
+    if kept:
+        merge_kept_pairs(out, kept, names, frames=bool(sequence), command=provenance["command"])
+    done = len(samples) + len(kept)
+    if stop.stopped:
+        click.echo(
+            f"interrupted: {done} of {len(names)} pairs written to {out}"
+            + (f" (labels: {labels}); go on with the same command and --resume" if done else ""),
+            err=True,
+        )
+        sys.exit(stop.exit_code)
+    click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
+
+
+def _rendered(stream: Any, todo: list[int]) -> tuple[list, Stop]:
+    """The samples of ``stream`` (one per item of ``todo``) with a progress bar, until
+    all are rendered or a stop signal comes."""
+    samples = []
+    with stop_signals() as stop:
+        try:
+            with progress(todo, "rendering") as bar:
+                for sample, _ in zip(stream, bar):
+                    samples.append(sample)
+        except KeyboardInterrupt:
+            stop.stopped = True
+    return samples, stop

@@ -1,0 +1,131 @@
+"""``dgli robustness``: the robustness and reliability tables."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import click
+
+from .errors import handle_errors
+from .options import (
+    jobs_option,
+    json_option,
+    overwrite_option,
+    parse_conditions,
+    per_class_option,
+    references_option,
+)
+from .output import command_line
+
+
+@click.command()
+@per_class_option(4, 50, "Pairs per class")
+@click.option("--seed", default=1000, show_default=True, type=int, help="Seed of the renders.")
+@click.option(
+    "--conditions",
+    "conditions",
+    callback=parse_conditions,
+    default="",
+    help="Conditions to score, comma-separated [default: clean and all].",
+)
+@jobs_option
+@click.option(
+    "--markdown",
+    type=click.Path(),
+    help="Also write the table as Markdown to this file.",
+)
+@references_option
+@json_option("Print the table as JSON.")
+@overwrite_option
+@handle_errors
+def robustness(
+    per_class: int,
+    seed: int,
+    conditions: tuple[str, ...],
+    jobs: int | None,
+    markdown: str | None,
+    references_path: str | None,
+    as_json: bool,
+    overwrite: bool,
+) -> None:
+    """Render fresh pairs under each capture condition and score the answers.
+
+    Right, "cannot tell" (exit 1) and wrong, per condition: the robustness table. Then
+    the reliability table: for bins of confidence, how many best guesses (those that
+    became "cannot tell" included) were right, over all conditions.
+    """
+    import os
+    from pathlib import Path
+
+    from ..condition_names import CONDITION_NAMES
+    from ..io import guard_outputs, write_outputs
+    from ..references import load_references
+    from ..report import markdown_table
+    from ..robustness import reliability_table, robustness_table
+
+    if markdown:
+        guard_outputs([markdown], overwrite=overwrite)
+    refs = load_references(references_path)
+    names = conditions or ("clean", *CONDITION_NAMES)
+    jobs = jobs or os.cpu_count() or 1
+    scores = _scores(names, refs, per_class, seed, jobs, quiet=as_json)
+    header, rows = robustness_table(scores)
+    table = markdown_table(header, rows)
+    reliability = "Reliability (best guesses over all conditions):\n\n" + markdown_table(
+        *reliability_table(scores)
+    )
+    if as_json:
+        click.echo(json.dumps(_robustness_json(seed, per_class, header, rows, scores)))
+    else:
+        _print_robustness(table, reliability, scores)
+    if markdown:
+        command = command_line()
+        write_outputs(
+            {Path(markdown): f"Robustness: `{command}`\n\n" + table + "\n" + reliability},
+            overwrite=overwrite,
+            command=command,
+        )
+
+
+def _scores(
+    names: tuple[str, ...], refs: Any, per_class: int, seed: int, jobs: int, *, quiet: bool
+) -> list:
+    """The scores of the conditions ``names``, each told on stderr as it comes (unless
+    ``quiet``)."""
+    from ..robustness import score_condition
+
+    scores = []
+    for name in names:
+        for score in score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs):
+            scores.append(score)
+            if not quiet:
+                click.echo(
+                    f"{score.condition}: {score.right}/{score.n} right, {score.wrong} wrong",
+                    err=True,
+                )
+    return scores
+
+
+def _robustness_json(
+    seed: int, per_class: int, header: list, rows: list, scores: list
+) -> dict[str, Any]:
+    """The JSON object of ``dgli robustness --json``."""
+    from ..robustness import reliability_rows
+
+    return {
+        "seed": seed,
+        "per_class": per_class,
+        "rows": [dict(zip(header, r)) for r in rows],
+        "wrong": {s.condition: list(s.wrong_cases) for s in scores},
+        "reliability": reliability_rows(scores),
+    }
+
+
+def _print_robustness(table: str, reliability: str, scores: list) -> None:
+    """The robustness table, the wrong answers and the reliability table on stdout."""
+    click.echo(table, nl=False)
+    for s in scores:
+        for case in s.wrong_cases:
+            click.echo(f"wrong under {s.condition}: {case}")
+    click.echo("\n" + reliability, nl=False)

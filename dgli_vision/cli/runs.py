@@ -1,0 +1,206 @@
+"""What the long runs (``dgli evaluate``, ``track``, ``render``, ``extract``) share:
+recordings, the lock of an output folder, results.jsonl journals, stop signals."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from ..errors import DgliError
+from .output import command_line, progress_bar
+
+
+def open_recording_with(path: str, opts: dict[str, Any]) -> Any:
+    """The recording at ``path`` with the options of :func:`recording_options`."""
+    from ..recording import open_recording
+
+    return open_recording(
+        path,
+        color_topic=opts["color_topic"],
+        depth_topic=opts["depth_topic"],
+        info_topic=opts["info_topic"],
+        tolerance=opts["tolerance_ms"] / 1000.0,
+        labels=opts["labels_path"],
+    )
+
+
+def recording_notes(recording: Any, quiet: bool = False) -> None:
+    """A recording's notes on stderr (topics read, distortion, frames without a partner)."""
+    if not quiet and recording.kind != "folder":
+        for note in recording.notes:
+            click.echo(f"{recording.kind}: {note}", err=True)
+
+
+#: How each stop signal ends a command: 128 + its number, as a shell reports it.
+STOP_EXIT_CODES = {2: 130, 15: 143}  # SIGINT, SIGTERM
+
+
+class Stop:
+    """Whether a stop signal came, and which (Ctrl-C unless SIGTERM came)."""
+
+    stopped = False
+    signum = 2
+
+    @property
+    def exit_code(self) -> int:
+        return STOP_EXIT_CODES.get(self.signum, 128 + self.signum)
+
+
+def stop_signals():
+    """A context in which SIGTERM stops the work as Ctrl-C does (a KeyboardInterrupt),
+    yielding a :class:`Stop` that says which of the two came."""
+    import signal
+    import threading
+    from contextlib import contextmanager
+
+    @contextmanager
+    def context():
+        stop = Stop()
+
+        def on_term(signum: int, frame: Any) -> None:
+            stop.signum, stop.stopped = signum, True
+            raise KeyboardInterrupt
+
+        if threading.current_thread() is not threading.main_thread():
+            yield stop
+            return
+        before = signal.signal(signal.SIGTERM, on_term)
+        try:
+            yield stop
+        finally:
+            signal.signal(signal.SIGTERM, before)
+
+    return context()
+
+
+def folder_lock(folder: Any):
+    """The lock of an output folder (:class:`~dgli_vision.run_lock.RunLock`), held for
+    the ``with`` block; a stale lock left by a killed run is taken over with a note."""
+    from contextlib import contextmanager
+
+    from ..run_lock import RunLock
+
+    @contextmanager
+    def context():
+        lock = RunLock(folder, command_line())
+        lock.acquire()
+        try:
+            if lock.took_over:
+                click.echo(
+                    f"note: took over the lock of a run that ended without releasing it "
+                    f"(pid {lock.took_over.get('pid')})",
+                    err=True,
+                )
+            yield lock
+        finally:
+            lock.release()
+
+    return context()
+
+
+def open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bool):
+    """The writer of a run's results.jsonl and the objects already in it: with
+    ``resume``, those of the same run (refused, naming the difference, when its header
+    differs from ``header``); otherwise a new file starting with ``header`` (refused when
+    an earlier run's results are there, unless ``overwrite``)."""
+    from ..errors import OverwriteError
+    from ..io import JsonLinesWriter, read_jsonl
+    from ..run_lock import check_resume, repair_journal
+
+    earlier = read_jsonl(path) if resume else []
+    if earlier:
+        check_resume(path, earlier[0], header)
+        repair_journal(path)
+        return JsonLinesWriter(path, append=True), earlier[1:]
+    if path.exists() and not (resume or overwrite):
+        raise OverwriteError(
+            f"'{path}' holds the results of an earlier run; use --resume to go on "
+            "with it, or --overwrite to start again"
+        )
+    writer = JsonLinesWriter(path, append=False)
+    try:
+        writer.write(header)
+    except DgliError:
+        writer.close()  # quietly: the failed write names the file
+        raise
+    return writer, []
+
+
+def classify_into(
+    todo: Any,
+    count: int,
+    label: str,
+    run: Any,
+    writer: Any,
+    done: dict,
+    stop: Any,
+    **options: Any,
+) -> None:
+    """Classify the pairs of ``todo`` (``count`` of them) on ``run.jobs`` workers with
+    ``run.refs`` and a progress bar, each outcome into ``done`` by its pair and, at once,
+    into ``writer`` (results.jsonl): a run stopped by Ctrl-C or SIGTERM (``stop``) keeps
+    what is done. ``options`` go to ``evaluate_pairs``."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    from ..evaluate import evaluate_pairs, outcome_to_dict, pair_key
+
+    try:
+        with progress_bar(count, label, quiet=run.as_json) as bar:
+            for outcome in evaluate_pairs(
+                todo, run.refs, jobs=run.jobs, on_progress=bar.update, **options
+            ):
+                if writer:  # flushed at once: an interrupted run keeps its work
+                    writer.write(outcome_to_dict(outcome))
+                done[pair_key(outcome.pair)] = outcome
+    except KeyboardInterrupt:
+        stop.stopped = True
+    except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+        if not stop.stopped:
+            raise
+
+
+def references_of(references_path: str | None) -> tuple[Any, Any]:
+    """The reference set of ``--references`` (None: the default one) and its path."""
+    from pathlib import Path
+
+    from ..references import default_references_path, load_references
+
+    refs_path = Path(references_path) if references_path else default_references_path()
+    return load_references(refs_path), refs_path
+
+
+def require_report_for_resume(resume: bool, report_dir: str | None) -> None:
+    """Refuse ``--resume`` without ``--report DIR``."""
+    if resume and not report_dir:
+        from ..errors import InvalidInputError
+
+        raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
+
+
+def run_journalled(
+    run: Any,
+    report_dir: str | None,
+    files: tuple[str, ...],
+    header: dict[str, Any],
+    *,
+    resume: bool,
+    overwrite: bool,
+) -> None:
+    """``run.go`` without a report folder; with one, check its ``files`` first (before
+    the work, not after it), then, holding the folder's lock, with the journal
+    (results.jsonl) of the run described by ``header`` (the arguments of
+    :func:`~dgli_vision.run_lock.run_header_of`)."""
+    if not report_dir:
+        run.go(None, overwrite=overwrite)
+        return
+    from pathlib import Path
+
+    from ..io import guard_outputs
+    from ..run_lock import run_header_of
+
+    out = Path(report_dir)
+    guard_outputs([out / name for name in files], overwrite=overwrite)
+    with folder_lock(out):
+        journal = open_journal(out / "results.jsonl", run_header_of(**header), resume, overwrite)
+        run.go(journal, overwrite=overwrite)

@@ -1,0 +1,90 @@
+"""``dgli simulate``: a simulated database of cloth states."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import click
+
+from .errors import handle_errors
+from .options import overwrite_option, per_class_option, size_option
+from .output import command_line, napkin_provenance, package_version, progress
+
+#: The most cloth ``dgli simulate`` holds, counted in states of the nominal 400 mm napkin
+#: (a state of a larger napkin counts by its area): about 3 GB.
+MAX_SIMULATED_CLOTH = 10_000
+
+
+def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> None:
+    """Refuse, before the work, a database that would not fit in memory."""
+    from ..classes import CLASS_IDS
+    from ..database import FOLD_BINS_DEG
+    from ..fold_graph import fold_edges
+
+    folds = sum("under" not in fold for *_, fold in fold_edges())
+    n_states = per_class * len(CLASS_IDS) + in_progress * folds * len(FOLD_BINS_DEG)
+    area = layout.width_mm * layout.height_mm / 400.0**2
+    if n_states * area > MAX_SIMULATED_CLOTH:
+        raise click.BadParameter(
+            f"{n_states} states of a {layout.width_mm:g} x {layout.height_mm:g} mm napkin "
+            f"hold as much cloth as {n_states * area:.0f} of the 400 mm one; at most "
+            f"{MAX_SIMULATED_CLOTH} fit in memory: lower --per-class or --in-progress",
+            param_hint="'--per-class'",
+        )
+
+
+@click.command()
+@click.argument("out", type=click.Path(file_okay=False))
+@per_class_option(20, 200, "States per class")
+@click.option("--seed", default=0, show_default=True, type=int, help="Seed of the database.")
+@click.option("--no-wrinkles", is_flag=True, help="Fold cleanly, without wrinkles.")
+@click.option(
+    "--in-progress",
+    default=3,
+    show_default=True,
+    type=click.IntRange(0, 20),
+    help="States with a fold in progress, per fold and angle bin (0: none; at most 20).",
+)
+@size_option
+@overwrite_option
+@handle_errors
+def simulate(
+    out: str,
+    per_class: int,
+    seed: int,
+    no_wrinkles: bool,
+    in_progress: int,
+    size_mm: tuple[float, float] | None,
+    overwrite: bool,
+) -> None:
+    """Write a simulated database of cloth states to OUT (meshes, truth, index).
+
+    Besides PER-CLASS states of every class with its folds laid flat, the database holds
+    states with one fold in progress (every fold a robot can make, turned 10-170
+    degrees), labelled by the 90-degree rule; `dgli compare` leaves them out.
+    """
+    from ..cloth.states import CLASS_IDS
+    from ..database import simulate_folds_in_progress, simulate_states
+    from ..database_files import write_database
+    from ..layout import layout_of_size
+
+    layout = layout_of_size(size_mm)
+    _check_simulation_size(per_class, in_progress, layout)
+    kw = {"wrinkles": not no_wrinkles, "layout": layout}
+    states = []
+    with progress(list(CLASS_IDS), "simulating") as classes:
+        for class_id in classes:
+            states += simulate_states(per_class, seed, classes=(class_id,), **kw)
+    if in_progress:
+        states += simulate_folds_in_progress(in_progress, seed, **kw)
+    provenance = {
+        "command": command_line(),
+        "seed": seed,
+        "per_class": per_class,
+        "in_progress": in_progress,
+        "wrinkles": not no_wrinkles,
+        **napkin_provenance(layout),
+        "package_version": package_version(),
+    }
+    index = write_database(out, states, provenance, overwrite=overwrite)
+    click.echo(f"wrote {len(states)} states to {index}")

@@ -1,0 +1,283 @@
+"""``dgli track``: the state timeline of the frames of a recording."""
+
+from __future__ import annotations
+
+import json
+import sys
+from collections.abc import Iterator
+from typing import Any
+
+import click
+
+from .errors import handle_errors
+from .options import (
+    colours_option,
+    jobs_option,
+    json_option,
+    overwrite_option,
+    recording_options,
+    references_option,
+    report_option,
+)
+from .output import command_line
+from .runs import (
+    Stop,
+    classify_into,
+    open_recording_with,
+    recording_notes,
+    references_of,
+    require_report_for_resume,
+    run_journalled,
+    stop_signals,
+)
+
+
+@click.command()
+@click.argument("folder", metavar="RECORDING", type=click.Path())
+@report_option(
+    "Write the timeline (CSV, JSON, picture), the frame distance heatmap and each "
+    "frame's result (results.jsonl, as it is done) here."
+)
+@json_option("Print the timeline as JSON.")
+@jobs_option
+@references_option
+@colours_option
+@recording_options
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted run: keep the frames already in the report folder's "
+    "results.jsonl and classify the rest (refused when the run differs).",
+)
+@overwrite_option
+@handle_errors
+def track(
+    folder: str,
+    report_dir: str | None,
+    as_json: bool,
+    jobs: int | None,
+    references_path: str | None,
+    colours_path: str | None,
+    resume: bool,
+    overwrite: bool,
+    **recording_opts: Any,
+) -> None:
+    """The state timeline of the frames of RECORDING.
+
+    RECORDING is a folder of pairs (in the order of its frames.csv, color,depth[,time],
+    or by name), a ROS 1 .bag, a ROS 2 bag (.db3, .mcap or its folder; needs the
+    'recordings' extra) or a RealSense SDK .bag. A bag is read as it is classified.
+    Each frame is classified, then the states are smoothed over time (a hidden Markov
+    model whose moves are single folds and unfolds). A frame that cannot be read is a
+    gap, listed; the run goes on. With labels (a folder's labels.csv, a bag's --labels),
+    the timeline is scored. Exit 1 when no frame could be classified at all. With
+    --report, each frame's result is kept as it is done: Ctrl-C or SIGTERM gives the
+    timeline of the frames done and exits 130 (143), and --resume goes on from there.
+    """
+    from ..colours_file import read_colours
+
+    recording = open_recording_with(folder, recording_opts)
+    require_report_for_resume(resume, report_dir)
+    refs, refs_path = references_of(references_path)
+    colours = read_colours(colours_path) if colours_path else None
+    run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
+    header = {
+        "kind": "track",
+        "folder": folder,
+        "pairs": recording.frames if recording.kind == "folder" else None,
+        "labels_path": recording_opts["labels_path"],
+        "refs_path": refs_path,
+        "colours_path": colours_path,
+        "options": recording_opts,
+    }
+    run_journalled(run, report_dir, TRACK_FILES, header, resume=resume, overwrite=overwrite)
+
+
+#: The files of a ``dgli track`` report (besides its results.jsonl).
+TRACK_FILES = ("timeline.json", "timeline.csv", "timeline.png", "distances.png")
+
+
+class _TrackRun:
+    """``dgli track`` once its inputs are known: classify, smooth, print, report."""
+
+    def __init__(
+        self,
+        folder: str,
+        report_dir: str | None,
+        recording: Any,
+        refs: Any,
+        colours: dict | None,
+        jobs: int | None,
+        as_json: bool,
+    ) -> None:
+        import os
+
+        self.folder, self.report_dir, self.recording = folder, report_dir, recording
+        self.refs, self.colours = refs, colours
+        self.jobs = jobs or os.cpu_count() or 1
+        self.as_json = as_json
+
+    def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
+        """Classify the frames not done yet (``journal``: the results.jsonl writer and
+        the objects already in it), smooth, print, report, exit as the outcome says."""
+        from ..evaluate import outcomes_of, pair_key
+        from ..track import track_outcomes
+
+        writer, earlier = journal if journal else (None, [])
+        done = outcomes_of(earlier, None)
+        seen: list[Any] = []  # the frames in order, as far as they were read
+        with stop_signals() as stop:
+            try:
+                self._classify(done, writer, seen, stop)
+            finally:
+                if writer:
+                    writer.close()
+        outcomes = [done[k] for k in (pair_key(p) for p in seen) if k in done]
+        recording_notes(self.recording, quiet=self.as_json)
+        labelled = self.recording.labelled and all(o.pair.label for o in outcomes)
+        timeline = track_outcomes(
+            outcomes, self.refs, times=[o.pair.time for o in outcomes], labelled=labelled
+        )
+        data = {
+            "folder": self.folder,
+            "recording": {"kind": self.recording.kind, "notes": list(self.recording.notes)},
+            "n_frames": len(outcomes),
+            **_timeline_json(timeline),
+        }
+        if stop.stopped:
+            data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
+        self._print(data, timeline, len(outcomes))
+        if self.report_dir:
+            self._report(data, timeline, outcomes, labelled, overwrite)
+        if stop.stopped:
+            click.echo(
+                f"interrupted: {len(outcomes)} of {self.recording.count} frames done"
+                + ("; go on with the same command and --resume" if self.report_dir else ""),
+                err=True,
+            )
+            sys.exit(stop.exit_code)
+        if all(f.gap for f in timeline.frames):
+            sys.exit(1)
+
+    def _classify(self, done: dict, writer: Any, seen: list, stop: Stop) -> None:
+        """Classify the frames not in ``done`` into it (and ``writer``), each frame read
+        into ``seen``, until all are or a stop signal comes (:func:`stop_signals`)."""
+        from ..evaluate import pair_key
+
+        def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
+            for pair in self.recording.frames:
+                seen.append(pair.light())
+                if pair_key(pair) not in done:
+                    yield pair
+
+        classify_into(
+            todo(),
+            self.recording.count,
+            "tracking",
+            self,
+            writer,
+            done,
+            stop,
+            colours=self.colours,
+            distances=True,
+        )
+
+    def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
+        from ..classes import CLASS_NAMES
+
+        if self.as_json:
+            click.echo(json.dumps(data))
+            return
+
+        def state(key: tuple[str, str | None]) -> str:
+            return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
+
+        first = next((f for f in timeline.frames if not f.gap), None)
+        click.echo(
+            f"{n} frames; "
+            + (
+                f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
+                if first
+                else "no frame could be classified"
+            )
+        )
+        for t, a, b in timeline.changes:
+            click.echo(f"  frame {t}: {state(a)} -> {state(b)}")
+        for f in timeline.frames:
+            if f.gap:
+                click.echo(f"gap: frame {f.index} ({f.color}): {f.note}")
+        sc = timeline.score
+        if sc is not None:
+            click.echo(
+                f"frame accuracy {sc.raw_accuracy:.0%} raw, {sc.smoothed_accuracy:.0%} "
+                f"smoothed; state changes true {list(sc.true_changes)}, found "
+                f"{list(sc.found_changes)} (precision {sc.precision:.2f}, recall "
+                f"{sc.recall:.2f}, within 2 frames)"
+            )
+
+    def _report(
+        self,
+        data: dict[str, Any],
+        timeline: Any,
+        outcomes: list,
+        labelled: bool,
+        overwrite: bool,
+    ) -> None:
+        from pathlib import Path
+
+        from ..classes import CLASS_IDS, CLASS_NAMES
+        from ..io import record_outputs, write_outputs
+        from ..report import csv_table, timeline_image
+        from ..track import TIMELINE_COLUMNS, timeline_rows
+
+        out = Path(self.report_dir)
+        picture = timeline_image(
+            CLASS_IDS,
+            [f.smoothed_class for f in timeline.frames],
+            [f.raw_class for f in timeline.frames],
+            truth=[f.label or "" for f in timeline.frames] if labelled else None,
+            names=CLASS_NAMES,
+            title=f"timeline of {self.folder}",
+        )
+        files: dict[Any, Any] = {
+            out / "timeline.json": {"command": command_line(), **data},
+            out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
+            out / "timeline.png": picture,
+        }
+        heatmap = _distances_heatmap(outcomes)
+        if heatmap is not None:
+            files[out / "distances.png"], files[out / "timeline.json"]["distances_png"] = heatmap
+        write_outputs(files, overwrite=overwrite, command=command_line())
+        record_outputs([out / "results.jsonl"], command_line())
+        click.echo(f"report written to {out}", err=True)
+
+
+def _distances_heatmap(outcomes: list) -> tuple[Any, dict[str, int]] | None:
+    """The heatmap of the frames' distances (a sample of frames evenly spread in time
+    when there are many) and what it shows; None without frames."""
+    from ..evaluate import coordinate_matrix
+    from ..evaluation_report import heatmap_sample, sample_distance_matrix
+    from ..report import heatmap_image
+
+    shown = heatmap_sample(["frames"] * len(outcomes))  # evenly spread in time
+    if not shown:
+        return None
+    image = heatmap_image(
+        sample_distance_matrix(coordinate_matrix([outcomes[k] for k in shown])),
+        title="frames: Spearman distance of dGLI"
+        + (
+            ""
+            if len(shown) == len(outcomes)
+            else f" ({len(shown)} of {len(outcomes)} frames, evenly spread)"
+        ),
+        value_label="1 - rho",
+    )
+    return image, {"frames_shown": len(shown), "frames": len(outcomes)}
+
+
+def _timeline_json(timeline: Any) -> dict[str, Any]:
+    """A timeline's JSON object with NaN written as null."""
+    from ..evaluate import json_ready
+    from ..track import timeline_to_dict
+
+    return json_ready(timeline_to_dict(timeline))
