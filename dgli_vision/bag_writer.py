@@ -8,8 +8,9 @@ Used to make test episodes and benchmark recordings with real bag formats (needs
 from __future__ import annotations
 
 from collections.abc import Iterable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -24,6 +25,124 @@ DEPTH_TOPIC = "/camera/aligned_depth_to_color/image_raw"
 INFO_TOPIC = "/camera/color/camera_info"
 
 BagFormat = Literal["ros1", "ros2-sqlite3", "ros2-mcap"]
+
+_IMAGE = "sensor_msgs/msg/Image"
+_COMPRESSED = "sensor_msgs/msg/CompressedImage"
+_INFO = "sensor_msgs/msg/CameraInfo"
+
+
+@dataclass(frozen=True)
+class _Messages:
+    """Builds and serialises the messages of one bag (ROS 1 or ROS 2 types).
+
+    Attributes
+    ----------
+    store : Any
+        The ``rosbags`` type store of the bag's ROS version.
+    ros1 : bool
+        ROS 1 messages (headers with ``seq``, upper-case ``CameraInfo`` matrices).
+    """
+
+    store: Any
+    ros1: bool
+
+    def serialize(self, msg: object, type_name: str) -> bytes:
+        """The message's bytes as the bag stores them."""
+        if self.ros1:
+            return self.store.serialize_ros1(msg, type_name)
+        return self.store.serialize_cdr(msg, type_name)
+
+    def header(self, t: float) -> object:
+        """A ``Header`` stamped ``t`` seconds in the colour camera's optical frame."""
+        types = self.store.types
+        sec = int(t)
+        stamp = types["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((t - sec) * 1e9))
+        return types["std_msgs/msg/Header"](
+            **({"seq": 0} if self.ros1 else {}),
+            stamp=stamp,
+            frame_id="camera_color_optical_frame",
+        )
+
+    def image(self, t: float, pixels: NDArray, encoding: str) -> object:
+        """A raw ``Image`` of ``pixels`` (H, W[, C]) in ``encoding``."""
+        h, w = pixels.shape[:2]
+        data = np.ascontiguousarray(pixels).view(np.uint8).reshape(-1)
+        return self.store.types[_IMAGE](
+            header=self.header(t),
+            height=h,
+            width=w,
+            encoding=encoding,
+            is_bigendian=0,
+            step=data.size // h,
+            data=data,
+        )
+
+    def camera_info(
+        self, t: float, intrinsics: Intrinsics, distortion: tuple[float, ...]
+    ) -> object:
+        """The colour camera's ``CameraInfo`` (``plumb_bob`` distortion, no rectification)."""
+        types = self.store.types
+        k = intrinsics.matrix().reshape(-1)
+        p_matrix = np.array([k[0], 0, k[2], 0, 0, k[4], k[5], 0, 0, 0, 1, 0], float)
+        fields = {"D": "d", "K": "k", "R": "r", "P": "p"}
+        if self.ros1:
+            fields = {key: key for key in fields}
+        roi = types["sensor_msgs/msg/RegionOfInterest"](
+            x_offset=0, y_offset=0, height=0, width=0, do_rectify=False
+        )
+        return types[_INFO](
+            header=self.header(t),
+            height=intrinsics.height,
+            width=intrinsics.width,
+            distortion_model="plumb_bob",
+            **{
+                fields["D"]: np.array(distortion, float),
+                fields["K"]: k.astype(float),
+                fields["R"]: np.eye(3).reshape(-1),
+                fields["P"]: p_matrix,
+            },
+            binning_x=0,
+            binning_y=0,
+            roi=roi,
+        )
+
+    def colour(self, t: float, rgb: NDArray[np.uint8], encoding: str) -> tuple[object, str]:
+        """The colour message and its type: a JPEG ``CompressedImage`` or a raw image."""
+        if encoding == "jpeg":
+            import cv2
+
+            ok, buf = cv2.imencode(".jpg", rgb[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
+            assert ok
+            msg = self.store.types[_COMPRESSED](
+                header=self.header(t), format="jpeg", data=buf.reshape(-1).astype(np.uint8)
+            )
+            return msg, _COMPRESSED
+        pixels = rgb[:, :, ::-1] if encoding == "bgr8" else rgb
+        return self.image(t, pixels, encoding), _IMAGE
+
+    def depth(self, t: float, depth_mm: NDArray[np.uint16], encoding: str) -> object:
+        """The depth image: millimetres (``16UC1``) or metres with NaN for none (``32FC1``)."""
+        if encoding == "32FC1":
+            metres = depth_mm.astype(np.float32) / 1000.0
+            metres[depth_mm == 0] = np.nan
+            return self.image(t, metres, "32FC1")
+        return self.image(t, depth_mm.astype(np.uint16), "16UC1")
+
+
+def _open_writer(path: Path, fmt: BagFormat) -> tuple[Any, _Messages]:
+    """A ``rosbags`` writer of a new bag in ``fmt`` and its message builder."""
+    from rosbags.typesys import Stores, get_typestore
+
+    ros1 = fmt == "ros1"
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if ros1:
+        from rosbags.rosbag1 import Writer
+
+        return Writer(path), _Messages(store, ros1)
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    plugin = StoragePlugin.MCAP if fmt == "ros2-mcap" else StoragePlugin.SQLITE3
+    return Writer(path, version=9, storage_plugin=plugin), _Messages(store, ros1)
 
 
 def write_bag(
@@ -67,83 +186,24 @@ def write_bag(
     OverwriteError
         ``path`` exists.
     """
-    import cv2
-    from rosbags.typesys import Stores, get_typestore
-
     path = Path(path)
     if path.exists():
         raise OverwriteError(f"'{path}' exists; a bag is written only to a new path")
-    ros1 = fmt == "ros1"
-    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    T = store.types
-    image_t, compressed_t = "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage"
-    info_t = "sensor_msgs/msg/CameraInfo"
-    if ros1:
-        from rosbags.rosbag1 import Writer
-
-        writer = Writer(path)
-        serialize = store.serialize_ros1
-    else:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-
-        plugin = StoragePlugin.MCAP if fmt == "ros2-mcap" else StoragePlugin.SQLITE3
-        writer = Writer(path, version=9, storage_plugin=plugin)
-        serialize = store.serialize_cdr
+    writer, messages = _open_writer(path, fmt)
     jpeg = color_encoding == "jpeg"
     color_topic = COLOR_TOPIC + ("/compressed" if jpeg else "")
 
-    def header(t: float) -> object:
-        sec = int(t)
-        stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=round((t - sec) * 1e9))
-        return T["std_msgs/msg/Header"](**({"seq": 0} if ros1 else {}), stamp=stamp,
-                                        frame_id="camera_color_optical_frame")
+    def write(connection: Any, t: float, msg: object, type_name: str) -> None:
+        writer.write(connection, round(t * 1e9), messages.serialize(msg, type_name))
 
-    def image(t: float, pixels: NDArray, encoding: str) -> object:
-        h, w = pixels.shape[:2]
-        data = np.ascontiguousarray(pixels).view(np.uint8).reshape(-1)
-        return T[image_t](header=header(t), height=h, width=w, encoding=encoding,
-                          is_bigendian=0, step=data.size // h, data=data)
-
-    k = intrinsics.matrix().reshape(-1)
-    p_matrix = np.array([k[0], 0, k[2], 0, 0, k[4], k[5], 0, 0, 0, 1, 0], float)
-    info_fields = {"D": "d", "K": "k", "R": "r", "P": "p"}
-    if ros1:
-        info_fields = {key: key for key in info_fields}
-    roi = T["sensor_msgs/msg/RegionOfInterest"](x_offset=0, y_offset=0, height=0, width=0,
-                                                 do_rectify=False)
     with writer:
-        kw = {"typestore": store}
-        c_color = writer.add_connection(color_topic, compressed_t if jpeg else image_t, **kw)
-        c_depth = writer.add_connection(DEPTH_TOPIC, image_t, **kw)
-        c_info = writer.add_connection(INFO_TOPIC, info_t, **kw)
+        kw = {"typestore": messages.store}
+        c_color = writer.add_connection(color_topic, _COMPRESSED if jpeg else _IMAGE, **kw)
+        c_depth = writer.add_connection(DEPTH_TOPIC, _IMAGE, **kw)
+        c_info = writer.add_connection(INFO_TOPIC, _INFO, **kw)
         for t, rgb, depth_mm in frames:
-            ns = round(t * 1e9)
-            info = T[info_t](
-                header=header(t), height=intrinsics.height, width=intrinsics.width,
-                distortion_model="plumb_bob",
-                **{info_fields["D"]: np.array(distortion, float),
-                   info_fields["K"]: k.astype(float),
-                   info_fields["R"]: np.eye(3).reshape(-1),
-                   info_fields["P"]: p_matrix},
-                binning_x=0, binning_y=0, roi=roi,
-            )
-            writer.write(c_info, ns, serialize(info, info_t))
-            if jpeg:
-                ok, buf = cv2.imencode(".jpg", rgb[:, :, ::-1], [cv2.IMWRITE_JPEG_QUALITY, 95])
-                assert ok
-                msg = T[compressed_t](header=header(t), format="jpeg",
-                                      data=buf.reshape(-1).astype(np.uint8))
-                writer.write(c_color, ns, serialize(msg, compressed_t))
-            else:
-                pixels = rgb[:, :, ::-1] if color_encoding == "bgr8" else rgb
-                msg = image(t, pixels, color_encoding)
-                writer.write(c_color, ns, serialize(msg, image_t))
+            write(c_info, t, messages.camera_info(t, intrinsics, distortion), _INFO)
+            write(c_color, t, *messages.colour(t, rgb, color_encoding))
             td = t + depth_offset_s
-            if depth_encoding == "32FC1":
-                metres = depth_mm.astype(np.float32) / 1000.0
-                metres[depth_mm == 0] = np.nan
-                msg = image(td, metres, "32FC1")
-            else:
-                msg = image(td, depth_mm.astype(np.uint16), "16UC1")
-            writer.write(c_depth, round(td * 1e9), serialize(msg, image_t))
+            write(c_depth, td, messages.depth(td, depth_mm, depth_encoding), _IMAGE)
     return path

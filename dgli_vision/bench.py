@@ -13,6 +13,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -198,6 +199,37 @@ def _best_seconds(fn: Callable[[], object], *, repeats: int, min_time: float = 0
     return best
 
 
+def _loop_seconds(states: NDArray, *, use_numpy: bool, repeats: int) -> float:
+    """Best time per pair of :func:`baseline_cloth_coordinates_loop` over ``states``."""
+
+    def run() -> None:
+        for state in states:
+            baseline_cloth_coordinates_loop(state, use_numpy=use_numpy)
+
+    return _best_seconds(run, repeats=repeats) / (len(states) * 28)
+
+
+@dataclass(frozen=True)
+class _KernelTimes:
+    """Seconds per call of the kernel (a boundary, the batch) and per pair of the loops."""
+
+    boundary: float
+    batch: float
+    loop_float: float
+    loop_numpy: float
+
+
+def _time_kernel_and_loops(boundary: NDArray, batch: NDArray, repeats: int) -> _KernelTimes:
+    """Time the kernel and the per-pair loops on one core (the loops on a few states)."""
+    loop_states = batch[: max(1, min(len(batch), 200))]
+    with _one_core():
+        t_boundary = _best_seconds(lambda: cloth_coordinates(boundary), repeats=repeats)
+        t_batch = _best_seconds(lambda: cloth_coordinates(batch), repeats=repeats, min_time=1.0)
+        t_loop = _loop_seconds(loop_states, use_numpy=False, repeats=min(repeats, 3))
+        t_loop_np = _loop_seconds(loop_states[:20], use_numpy=True, repeats=min(repeats, 3))
+    return _KernelTimes(t_boundary, t_batch, t_loop, t_loop_np)
+
+
 def run_dgli_benchmarks(
     *, n_states: int = 100_000, repeats: int = 5, seed: int = 0
 ) -> list[BenchResult]:
@@ -221,33 +253,21 @@ def run_dgli_benchmarks(
     batch = rng.normal(size=(n_states, 8, 2, 3))
     n_boundary = 76 * 75 // 2
     n_batch = n_states * 28
-    loop_states = batch[: max(1, min(n_states, 200))]
-    results = []
-    with _one_core():
-        t_boundary = _best_seconds(lambda: cloth_coordinates(boundary), repeats=repeats)
-        t_batch = _best_seconds(lambda: cloth_coordinates(batch), repeats=repeats, min_time=1.0)
-
-        def loop(states: NDArray, use_numpy: bool) -> Callable[[], None]:
-            def run() -> None:
-                for state in states:
-                    baseline_cloth_coordinates_loop(state, use_numpy=use_numpy)
-
-            return run
-
-        t_loop = _best_seconds(loop(loop_states, False), repeats=min(repeats, 3))
-        t_loop /= len(loop_states) * 28
-        np_states = loop_states[:20]
-        t_loop_np = _best_seconds(loop(np_states, True), repeats=min(repeats, 3))
-        t_loop_np /= len(np_states) * 28
+    times = _time_kernel_and_loops(boundary, batch, repeats)
     goal = ">= 10 M pairs/s"
+    results = []
     for name, n, t in (
-        ("dGLI kernel: one 76-segment boundary (2,850 pairs)", n_boundary, t_boundary),
-        (f"dGLI kernel: {n_states:,} states x 8 segments ({n_batch:,} pairs)", n_batch, t_batch),
+        ("dGLI kernel: one 76-segment boundary (2,850 pairs)", n_boundary, times.boundary),
+        (
+            f"dGLI kernel: {n_states:,} states x 8 segments ({n_batch:,} pairs)",
+            n_batch,
+            times.batch,
+        ),
     ):
         rate = n / t
         results.append(BenchResult(name, rate, "pairs/s", goal, rate >= 10e6))
-    rate = n_batch / t_batch
-    np_rate = 1.0 / t_loop_np
+    rate = n_batch / times.batch
+    np_rate = 1.0 / times.loop_numpy
     results.append(
         BenchResult("per-pair loop, numpy on 3-vectors (paper eqs. 3, 8)", np_rate, "pairs/s")
     )
@@ -255,7 +275,7 @@ def run_dgli_benchmarks(
     results.append(
         BenchResult("kernel / numpy per-pair loop", ratio, "x", ">= 1000x", ratio >= 1000)
     )
-    float_rate = 1.0 / t_loop
+    float_rate = 1.0 / times.loop_float
     results.append(BenchResult("per-pair loop, plain Python floats", float_rate, "pairs/s"))
     results.append(BenchResult("kernel / plain-float loop", rate / float_rate, "x"))
     return results
@@ -268,6 +288,124 @@ def _median_seconds(fn: Callable[[], object], repeats: int) -> float:
         fn()
         times.append(time.perf_counter() - t0)
     return float(np.median(times))
+
+
+def _classify_figures(pair: Any, refs: Any, repeats: int) -> list[BenchResult]:
+    """Classifying one pair: from the files in-process, and from memory on one core."""
+    from .frames import read_frame
+    from .pipeline import classify_frame
+
+    classify_frame(read_frame(pair.color, pair.depth), refs)  # warm-up (imports, caches)
+    t = _median_seconds(
+        lambda: classify_frame(read_frame(pair.color, pair.depth), refs), repeats * 4
+    )
+    frame = read_frame(pair.color, pair.depth)
+    with _one_core():
+        t_mem = _median_seconds(lambda: classify_frame(frame, refs), repeats * 4)
+    return [
+        BenchResult(
+            "classify one 1280x720 pair in-process, decode included",
+            t * 1e3,
+            "ms",
+            "<= 50 ms median",
+            t <= 0.050,
+        ),
+        BenchResult(
+            "detect + lift + classify one 1280x720 frame in memory, one core",
+            t_mem * 1e3,
+            "ms",
+            "<= 15 ms median",
+            t_mem <= 0.015,
+        ),
+    ]
+
+
+def _cold_start_figures(classify_exe: str, pair: Any, repeats: int) -> list[BenchResult]:
+    """``dgli-classify`` on one pair from a cold shell, and a bare Python start-up."""
+    import subprocess
+    import sys
+
+    def cold() -> None:
+        subprocess.run([classify_exe, pair.color, pair.depth], check=True, capture_output=True)
+
+    def bare() -> None:
+        subprocess.run([sys.executable, "-c", "pass"], check=True, capture_output=True)
+
+    t_cold = _median_seconds(cold, repeats)
+    t_bare = _median_seconds(bare, repeats)
+    return [
+        BenchResult(
+            "dgli-classify from a cold shell, one pair",
+            t_cold,
+            "s",
+            "<= 1.5 s wall",
+            t_cold <= 1.5,
+        ),
+        BenchResult("  of which bare Python start-up (same run)", t_bare, "s"),
+    ]
+
+
+def _render_and_simulate_figures(repeats: int) -> list[BenchResult]:
+    """Rendering one pair, and simulating a database of 12 x 20 states."""
+    from .camera import look_at_table
+    from .cloth.states import sample_state
+    from .database import simulate_states
+    from .render import render
+
+    state = sample_state("05", rng=1)
+    pose = look_at_table(0.52, target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0))
+    render(state, pose, rng=0)  # warm-up (Open3D import, texture)
+    t_render = _median_seconds(lambda: render(state, pose, rng=0), repeats)
+    t_sim = _median_seconds(lambda: simulate_states(20, 0), 1)
+    return [
+        BenchResult("render one 1280x720 RGB-D pair", t_render, "s", "<= 0.3 s", t_render <= 0.3),
+        BenchResult("simulate 12 x 20 states (no files)", t_sim, "s", "< 10 s", t_sim < 10),
+    ]
+
+
+def _parallel_evaluate_figures(pairs: list, refs: Any) -> list[BenchResult]:
+    """Evaluating about 144 pairs with -j 1 and -j 2, and the speed-up."""
+    from .evaluate import _shutdown_pool, evaluate_pairs
+
+    many = pairs * max(1, 144 // len(pairs))
+    # -j 1 and -j 2 in turn, three times, each -j 2 call starting its worker afresh (as a
+    # command does); the median of the three paired ratios, robust to a noisy machine
+    runs = []
+    for _ in range(3):
+        _shutdown_pool()
+        t1 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=1)), 1)
+        t2 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=2)), 1)
+        runs.append((t1 / t2, t1, t2))
+    ratio, t1, t2 = sorted(runs)[1]
+    return [
+        BenchResult(f"evaluate {len(many)} pairs, -j 1", t1, "s"),
+        BenchResult(f"evaluate {len(many)} pairs, -j 2", t2, "s"),
+        BenchResult(
+            "evaluate speed-up -j 2 / -j 1 (median of 3 pairs of runs)",
+            ratio,
+            "x",
+            ">= 1.8x",
+            ratio >= 1.8,
+        ),
+    ]
+
+
+def _track_figure(pairs: list, refs: Any) -> BenchResult:
+    """dgli track: 300 frames (the sample pairs in turn), classified with 2 workers and
+    smoothed over time; what a recording of a folding episode costs."""
+    from .evaluate import evaluate_pairs
+    from .track import track_outcomes
+
+    frames = (pairs * (300 // len(pairs) + 1))[:300]
+
+    def track() -> None:
+        outcomes = list(evaluate_pairs(frames, refs, jobs=2, distances=True))
+        track_outcomes(outcomes, refs)
+
+    fps = len(frames) / _median_seconds(track, 1)
+    return BenchResult(
+        "track 300 frames of 1280x720, -j 2", fps, "frames/s", ">= 20 frames/s", fps >= 20
+    )
 
 
 def run_pipeline_benchmarks(
@@ -283,117 +421,23 @@ def run_pipeline_benchmarks(
         Repetitions per figure (the median is kept).
     classify_exe : str, keyword-only
         The ``dgli-classify`` executable for the cold-start figure (skipped if None).
+
+    Returns
+    -------
+    list of BenchResult
     """
-    import subprocess
-    import sys
-
-    from .camera import look_at_table
-    from .cloth.states import sample_state
-    from .database import simulate_states
-    from .evaluate import _shutdown_pool, evaluate_pairs
-    from .frames import read_frame
     from .labelled import find_pairs
-    from .pipeline import classify_frame
     from .references import load_references
-    from .render import render
-    from .track import track_outcomes
 
-    results = []
     pairs = find_pairs(samples_dir)
     refs = load_references()
     pair = pairs[min(4, len(pairs) - 1)]
-    classify_frame(read_frame(pair.color, pair.depth), refs)  # warm-up (imports, caches)
-    t = _median_seconds(
-        lambda: classify_frame(read_frame(pair.color, pair.depth), refs), repeats * 4
-    )
-    results.append(
-        BenchResult(
-            "classify one 1280x720 pair in-process, decode included",
-            t * 1e3,
-            "ms",
-            "<= 50 ms median",
-            t <= 0.050,
-        )
-    )
-    frame = read_frame(pair.color, pair.depth)
-    with _one_core():
-        t_mem = _median_seconds(lambda: classify_frame(frame, refs), repeats * 4)
-    results.append(
-        BenchResult(
-            "detect + lift + classify one 1280x720 frame in memory, one core",
-            t_mem * 1e3,
-            "ms",
-            "<= 15 ms median",
-            t_mem <= 0.015,
-        )
-    )
+    results = _classify_figures(pair, refs, repeats)
     if classify_exe:
-
-        def cold() -> None:
-            subprocess.run([classify_exe, pair.color, pair.depth], check=True, capture_output=True)
-
-        def bare() -> None:
-            subprocess.run([sys.executable, "-c", "pass"], check=True, capture_output=True)
-
-        t_cold = _median_seconds(cold, repeats)
-        t_bare = _median_seconds(bare, repeats)
-        results.append(
-            BenchResult(
-                "dgli-classify from a cold shell, one pair",
-                t_cold,
-                "s",
-                "<= 1.5 s wall",
-                t_cold <= 1.5,
-            )
-        )
-        results.append(BenchResult("  of which bare Python start-up (same run)", t_bare, "s"))
-    state = sample_state("05", rng=1)
-    pose = look_at_table(0.52, target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0))
-    render(state, pose, rng=0)  # warm-up (Open3D import, texture)
-    t_render = _median_seconds(lambda: render(state, pose, rng=0), repeats)
-    results.append(
-        BenchResult("render one 1280x720 RGB-D pair", t_render, "s", "<= 0.3 s", t_render <= 0.3)
-    )
-    t_sim = _median_seconds(lambda: simulate_states(20, 0), 1)
-    results.append(
-        BenchResult("simulate 12 x 20 states (no files)", t_sim, "s", "< 10 s", t_sim < 10)
-    )
-    many = pairs * max(1, 144 // len(pairs))
-    # -j 1 and -j 2 in turn, three times, each -j 2 call starting its worker afresh (as a
-    # command does); the median of the three paired ratios, robust to a noisy machine
-    runs = []
-    for _ in range(3):
-        _shutdown_pool()
-        t1 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=1)), 1)
-        t2 = _median_seconds(lambda: list(evaluate_pairs(many, refs, jobs=2)), 1)
-        runs.append((t1 / t2, t1, t2))
-    ratio, t1, t2 = sorted(runs)[1]
-    results.append(BenchResult(f"evaluate {len(many)} pairs, -j 1", t1, "s"))
-    results.append(BenchResult(f"evaluate {len(many)} pairs, -j 2", t2, "s"))
-    results.append(
-        BenchResult(
-            "evaluate speed-up -j 2 / -j 1 (median of 3 pairs of runs)",
-            ratio,
-            "x",
-            ">= 1.8x",
-            ratio >= 1.8,
-        )
-    )
-    # dgli track: 300 frames (the sample pairs in turn), classified with 2 workers and
-    # smoothed over time; what a recording of a folding episode costs.
-    frames = (pairs * (300 // len(pairs) + 1))[:300]
-
-    def track() -> None:
-        outcomes = list(evaluate_pairs(frames, refs, jobs=2, distances=True))
-        track_outcomes(outcomes, refs)
-
-    t_track = _median_seconds(track, 1)
-    fps = len(frames) / t_track
-    results.append(
-        BenchResult(
-            "track 300 frames of 1280x720, -j 2", fps, "frames/s", ">= 20 frames/s", fps >= 20
-        )
-    )
+        results += _cold_start_figures(classify_exe, pair, repeats)
+    results += _render_and_simulate_figures(repeats)
+    results += _parallel_evaluate_figures(pairs, refs)
+    results.append(_track_figure(pairs, refs))
     return results
 
 

@@ -314,42 +314,18 @@ def render_sequence(
     )
     intr, heights = _camera_for(cond, intrinsics, layout)
     steps = sequence_steps(name, layout, rng=rng)
-    wrinkle_seed = [seed, 1000 + index, 5]
-    scene = {
-        "wrinkle_mm": 0.0 if nominal else float(rng.uniform(0, 8)),
-        "yaw": 0.0 if nominal else float(rng.uniform(0, 2 * np.pi)),
-        "offset_m": (0.0, 0.0) if nominal else tuple(rng.uniform(-0.03, 0.03, size=2)),
-    }
+    states = _SequenceStates(
+        name, steps, layout, cond, [seed, 1000 + index, 5], _sequence_scene(rng, nominal)
+    )
     if progress is None:
         progress = sequence_progress(name, n_frames)
-
-    def state_at(p: float) -> ClothState:
-        state = sequence_state(
-            name, p, steps=steps, layout=layout, rng=np.random.default_rng(wrinkle_seed), **scene
-        )
-        if cond.grasp is not None:
-            corner = _sequence_held_corner(steps, state, layout, cond.grasp)
-            state = replace(state, params={**state.params, "held_corner": corner})
-        if cond.backface_axis_deg is not None:
-            state = turn_over(state, cond.backface_axis_deg, layout)
-        return state
-
-    # the camera must see the napkin at every stage, flaps held up included
-    probes = [state_at(p) for p in np.linspace(0, len(steps), 4 * len(steps) + 1)]
-    for _ in range(50):
-        pose, camera = random_camera(
-            probes[0], rng, intrinsics=intr, nominal=nominal, height_range_m=heights
-        )
-        if _fits_all(probes, pose, intr, 10.0):
-            break
-    else:
-        raise ValueError(f"no camera pose in range sees the whole of sequence {name}")
+    pose, camera = _sequence_camera(states, rng, intr, heights, nominal=nominal)
     lighting = Lighting() if nominal else Lighting.random(rng)
     sensor = SensorModel(enabled=not clean)
     for k, p in enumerate(progress):
         if k in skip:
             continue
-        state = state_at(p)
+        state = states.at(p)
         result = render(
             state,
             pose,
@@ -361,6 +337,81 @@ def render_sequence(
             layout=layout,
         )
         yield RenderedSample(f"{name}_{k:03d}", state, result, camera, lighting, cond)
+
+
+def _sequence_scene(rng: np.random.Generator, nominal: bool) -> dict[str, Any]:
+    """The wrinkles, yaw and place of a sequence's napkin, drawn once for the recording
+    (none of them on a nominal scene)."""
+    return {
+        "wrinkle_mm": 0.0 if nominal else float(rng.uniform(0, 8)),
+        "yaw": 0.0 if nominal else float(rng.uniform(0, 2 * np.pi)),
+        "offset_m": (0.0, 0.0) if nominal else tuple(rng.uniform(-0.03, 0.03, size=2)),
+    }
+
+
+@dataclass(frozen=True)
+class _SequenceStates:
+    """The cloth states of one rendered sequence: the same folds, wrinkles, place and
+    conditions at every point of it.
+
+    Attributes
+    ----------
+    name : str
+    steps : list
+        The sequence's folds (:func:`dgli_vision.cloth.sequences.sequence_steps`).
+    layout : NapkinLayout
+    cond : Conditions
+        The recording's conditions (``grasp`` holds a corner, ``backface`` turns it over).
+    wrinkle_seed : list of int
+        Seeds the same wrinkles in every frame.
+    scene : dict
+        :func:`_sequence_scene`.
+    """
+
+    name: str
+    steps: list
+    layout: NapkinLayout
+    cond: Conditions
+    wrinkle_seed: list[int]
+    scene: dict[str, Any]
+
+    def at(self, p: float) -> ClothState:
+        """The state at point ``p`` of the sequence (see :func:`render_sequence`)."""
+        state = sequence_state(
+            self.name,
+            p,
+            steps=self.steps,
+            layout=self.layout,
+            rng=np.random.default_rng(self.wrinkle_seed),
+            **self.scene,
+        )
+        if self.cond.grasp is not None:
+            corner = _sequence_held_corner(self.steps, state, self.layout, self.cond.grasp)
+            state = replace(state, params={**state.params, "held_corner": corner})
+        if self.cond.backface_axis_deg is not None:
+            state = turn_over(state, self.cond.backface_axis_deg, self.layout)
+        return state
+
+
+def _sequence_camera(
+    states: _SequenceStates,
+    rng: np.random.Generator,
+    intr: Intrinsics,
+    heights: tuple[float, float],
+    *,
+    nominal: bool,
+) -> tuple[CameraPose, dict[str, Any]]:
+    """A camera that sees the napkin at every stage of the sequence, flaps held up
+    included (50 draws at most)."""
+    n_steps = len(states.steps)
+    probes = [states.at(p) for p in np.linspace(0, n_steps, 4 * n_steps + 1)]
+    for _ in range(50):
+        pose, camera = random_camera(
+            probes[0], rng, intrinsics=intr, nominal=nominal, height_range_m=heights
+        )
+        if _fits_all(probes, pose, intr, 10.0):
+            return pose, camera
+    raise ValueError(f"no camera pose in range sees the whole of sequence {states.name}")
 
 
 # --- going on with an interrupted render -------------------------------------------------

@@ -396,46 +396,39 @@ def cloth_coordinates(
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         for lo in range(0, n_states, states_per_block):
             hi = min(lo + states_per_block, n_states)
-            nb = hi - lo
-            w = ws.view(nb * n_pairs)
-            start = comp[0, :, :, lo:hi]  # (3, m, nb)
-            end = comp[1, :, :, lo:hi]
-            # Corners p, q, r, s as (3, P, nb) views of workspace rows.
-            corners = w[:12].reshape(4, 3, n_pairs, nb)
-            s_i, e_i = start.take(i, axis=1), end.take(i, axis=1)  # (3, P, nb)
-            s_j, e_j = start.take(j, axis=1), end.take(j, axis=1)
-            _load_corners(corners, s_i, e_i, s_j, e_j)
-            raw = _dgli_z(w).reshape(n_pairs, nb)
-            seg_len = length[:, lo:hi]
-            bound = seg_len.take(i, axis=0)  # (P, nb)
-            bound += seg_len.take(j, axis=0)
-            np.divide(2.0 * clip, bound, out=bound)
-            bound[np.isnan(bound)] = np.inf
-            nan_in = None
-            if np.isnan(raw).any():
-                missing = np.isnan(comp[:, :, :, lo:hi]).any(axis=(0, 1))  # (m, nb)
-                nan_in = missing[i] | missing[j]
-            out[lo:hi] = _finish(raw, bound, nan_in).T
+            out[lo:hi] = _state_block(comp[..., lo:hi], length[:, lo:hi], i, j, clip, ws).T
     return out.reshape((*batch, n_pairs))
-    states_per_block = max(1, _BLOCK // n_pairs)
-    ws = _Workspace(min(states_per_block, n_states) * n_pairs)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for lo in range(0, n_states, states_per_block):
-            hi = min(lo + states_per_block, n_states)
-            nb = hi - lo
-            w = ws.view(nb * n_pairs)
-            start = comp[0, :, lo:hi]  # (3, nb, m)
-            end = comp[1, :, lo:hi]
-            # (3, nb * P) views of the workspace rows for the corners p, q, r, s.
-            corners = w[:12].reshape(4, 3, nb, n_pairs)
-            _load_corners(corners, start[:, :, i], end[:, :, i], start[:, :, j], end[:, :, j])
-            raw = _dgli_z(w).reshape(nb, n_pairs)
-            seg_len = length[lo:hi]
-            bound = (2.0 * clip) / (seg_len[:, i] + seg_len[:, j])
-            bound[np.isnan(bound)] = np.inf
-            nan_in = None
-            if np.isnan(raw).any():
-                missing = np.isnan(comp[:, :, lo:hi]).any(axis=(0, 1))  # (nb, m)
-                nan_in = missing[:, i] | missing[:, j]
-            out[lo:hi] = _finish(raw, bound, nan_in)
-    return out.reshape((*batch, n_pairs))
+
+
+def _state_block(
+    comp: NDArray[np.float64],
+    length: NDArray[np.float64],
+    i: NDArray[np.intp],
+    j: NDArray[np.intp],
+    clip: float,
+    ws: _Workspace,
+) -> NDArray[np.float64]:
+    """Clipped dGLI (P, nb) of the pairs ``(i, j)`` of a block of nb states.
+
+    ``comp`` (2, 3, m, nb) holds the segments' endpoints (start, end), component-major,
+    states last; ``length`` (m, nb) their lengths. Computed in the workspace ``ws``.
+    """
+    n_pairs, nb = len(i), comp.shape[-1]
+    w = ws.view(nb * n_pairs)
+    start = comp[0]  # (3, m, nb)
+    end = comp[1]
+    # Corners p, q, r, s as (3, P, nb) views of workspace rows.
+    corners = w[:12].reshape(4, 3, n_pairs, nb)
+    s_i, e_i = start.take(i, axis=1), end.take(i, axis=1)  # (3, P, nb)
+    s_j, e_j = start.take(j, axis=1), end.take(j, axis=1)
+    _load_corners(corners, s_i, e_i, s_j, e_j)
+    raw = _dgli_z(w).reshape(n_pairs, nb)
+    bound = length.take(i, axis=0)  # (P, nb)
+    bound += length.take(j, axis=0)
+    np.divide(2.0 * clip, bound, out=bound)
+    bound[np.isnan(bound)] = np.inf
+    nan_in = None
+    if np.isnan(raw).any():
+        missing = np.isnan(comp).any(axis=(0, 1))  # (m, nb)
+        nan_in = missing[i] | missing[j]
+    return _finish(raw, bound, nan_in)

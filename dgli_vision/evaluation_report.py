@@ -7,6 +7,7 @@ CLI hands them to :mod:`dgli_vision.io` to write. Nothing here touches the disk.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -138,53 +139,71 @@ def _name(c: str | None) -> str:
     return f"{c} {CLASS_NAMES.get(c, '')}".strip() if c else "none"
 
 
-def build_report(
-    result: EvaluationResult, meta: dict[str, Any], read_color: Any
-) -> dict[str, str | dict | NDArray[np.uint8]]:
-    """All report files: name -> Markdown/CSV text, JSON-ready dict, or BGR image.
+@dataclass(frozen=True)
+class _Tables:
+    """The confusion and per-class tables, as the CSV files and the Markdown show them."""
 
-    Parameters
-    ----------
-    result : EvaluationResult
-    meta : dict
-        ``command``, ``references``, ``references_sha256``, ``package_version``, ``jobs``.
-    read_color : callable
-        ``read_color(path) -> RGB array``, used for the overlays of misclassified pairs.
-    """
-    files: dict[str, Any] = {}
+    cols: list[str]
+    confusion_rows: list[list]
+    per_class_header: list[str]
+    per_class_rows: list[list]
+
+
+@dataclass(frozen=True)
+class _Heatmap:
+    """The distance heatmap of the evaluated samples (None for fewer than two) and the
+    words that say which samples it shows."""
+
+    image: NDArray[np.uint8] | None
+    note: str
+
+
+def _tables(result: EvaluationResult) -> _Tables:
     labels = result.labels
-    cols = [*labels, "none"]
-    summary = {**result.to_dict(), **meta}
-    files["summary.json"] = summary
-    conf_rows = [[lab, *row] for lab, row in zip(labels, result.confusion)]
-    files["confusion.csv"] = csv_table(["true \\ predicted", *cols], conf_rows)
     pc_rows = [
         [c, CLASS_NAMES.get(c, ""), v["precision"], v["recall"], v["f1"], v["support"]]
         for c, v in result.per_class.items()
     ]
-    pc_header = ["class", "name", "precision", "recall", "f1", "support"]
-    files["per_class.csv"] = csv_table(pc_header, pc_rows)
-    files["confusion.png"] = confusion_image(
-        np.array(result.confusion), labels, names=CLASS_NAMES, title="confusion"
+    return _Tables(
+        cols=[*labels, "none"],
+        confusion_rows=[[lab, *row] for lab, row in zip(labels, result.confusion)],
+        per_class_header=["class", "name", "precision", "recall", "f1", "support"],
+        per_class_rows=pc_rows,
     )
+
+
+def _distance_heatmap(result: EvaluationResult) -> _Heatmap:
+    """Spearman distances between the samples, ordered by true class (a sample per class
+    when there are more than :data:`HEATMAP_MAX`)."""
     outs = result.outcomes
     order = sorted(range(len(outs)), key=lambda k: (outs[k].pair.label, outs[k].pair.color))
     shown = [order[k] for k in heatmap_sample([outs[k].pair.label for k in order])]
-    heatmap_note = (
+    note = (
         f"all {len(outs):,} samples"
         if len(shown) == len(outs)
         else f"{len(shown):,} of {len(outs):,} samples, the same number from each true class "
         "(all of a smaller class), evenly spread in each"
     )
-    if len(shown) >= 2:
-        files["distances.png"] = heatmap_image(
-            sample_distance_matrix(coordinate_matrix([outs[k] for k in shown])),
-            title="Spearman distance of dGLI, samples by true class"
-            + ("" if len(shown) == len(outs) else f" ({len(shown)} of {len(outs)})"),
-            groups=[outs[k].pair.label for k in shown],
-            value_label="1 - rho",
-        )
-    wrong = [o for o in outs if o.predicted is not None and not o.correct]
+    if len(shown) < 2:
+        return _Heatmap(None, note)
+    image = heatmap_image(
+        sample_distance_matrix(coordinate_matrix([outs[k] for k in shown])),
+        title="Spearman distance of dGLI, samples by true class"
+        + ("" if len(shown) == len(outs) else f" ({len(shown)} of {len(outs)})"),
+        groups=[outs[k].pair.label for k in shown],
+        value_label="1 - rho",
+    )
+    return _Heatmap(image, note)
+
+
+def _misclassified(result: EvaluationResult) -> list[Any]:
+    """The outcomes given a class that is not their label."""
+    return [o for o in result.outcomes if o.predicted is not None and not o.correct]
+
+
+def _overlays(wrong: list[Any], read_color: Any) -> dict[str, NDArray[np.uint8]]:
+    """The overlay image of every misclassified pair, by report file name."""
+    files = {}
     for o in wrong:
         stem = _stem(o.pair.color)
         verdict = f"predicted {_name(o.predicted)} ({o.distance:.3f}); true {_name(o.pair.label)}"
@@ -194,7 +213,12 @@ def build_report(
             verdict,
             detail=f"runner-up {_name(o.runner_up)} ({o.runner_up_distance or float('nan'):.3f})",
         )
-    md = [
+    return files
+
+
+def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _Tables) -> list:
+    """The report's header lines, the confusion and the per-class tables."""
+    return [
         "# dgli evaluate report",
         "",
         f"- pairs: **{result.n}**, classified: **{result.classified}**, "
@@ -210,68 +234,118 @@ def build_report(
         "## Confusion (rows: true class, columns: predicted)",
         "",
         markdown_table(
-            ["true \\ predicted", *cols],
-            [[_name(lab), *row] for lab, row in zip(labels, result.confusion)],
+            ["true \\ predicted", *tables.cols],
+            [[_name(lab), *row] for lab, row in zip(result.labels, result.confusion)],
         ),
         "![confusion matrix](confusion.png)",
         "",
         "## Per class",
         "",
-        markdown_table(pc_header, pc_rows),
-        "## Misclassified pairs",
+        markdown_table(tables.per_class_header, tables.per_class_rows),
+    ]
+
+
+def _markdown_misclassified(wrong: list[Any]) -> list[str]:
+    """The section listing the misclassified pairs with their overlays."""
+    md = ["## Misclassified pairs", ""]
+    if not wrong:
+        return [*md, "None.\n"]
+    header = [
+        "colour image",
+        "true",
+        "predicted",
+        "distance",
+        "runner-up",
+        "runner-up distance",
+        "overlay",
+    ]
+    rows = [
+        [
+            o.pair.color,
+            f"{_name(o.pair.label)} {o.pair.variant or ''}".strip(),
+            f"{_name(o.predicted)} {o.predicted_variant or ''}".strip(),
+            round(o.distance or 0, 4),
+            _name(o.runner_up),
+            round(o.runner_up_distance or 0, 4),
+            f"[overlay](overlays/{_stem(o.pair.color)}_overlay.png)",
+        ]
+        for o in wrong
+    ]
+    return [*md, markdown_table(header, rows)]
+
+
+def _markdown_failures(result: EvaluationResult) -> list[str]:
+    """The section listing the pairs not read or given no class."""
+    md = ["## Failures (not read, or no class given)", ""]
+    if not result.failures:
+        return [*md, "None.\n"]
+    rows = [[f["color"], f["depth"], f["error"]] for f in result.failures]
+    return [*md, markdown_table(["colour image", "depth image", "error"], rows)]
+
+
+def _markdown_skipped(meta: dict[str, Any]) -> list[str]:
+    """The label rows ``--lenient`` skipped (no section when there are none)."""
+    if not meta.get("skipped"):
+        return []
+    return [
+        "## Label rows skipped (--lenient)",
+        "",
+        *[f"- {message}" for message in meta["skipped"]],
         "",
     ]
-    if wrong:
-        md.append(
-            markdown_table(
-                [
-                    "colour image",
-                    "true",
-                    "predicted",
-                    "distance",
-                    "runner-up",
-                    "runner-up distance",
-                    "overlay",
-                ],
-                [
-                    [
-                        o.pair.color,
-                        f"{_name(o.pair.label)} {o.pair.variant or ''}".strip(),
-                        f"{_name(o.predicted)} {o.predicted_variant or ''}".strip(),
-                        round(o.distance or 0, 4),
-                        _name(o.runner_up),
-                        round(o.runner_up_distance or 0, 4),
-                        f"[overlay](overlays/{_stem(o.pair.color)}_overlay.png)",
-                    ]
-                    for o in wrong
-                ],
-            )
-        )
-    else:
-        md.append("None.\n")
-    md += ["## Failures (not read, or no class given)", ""]
-    if result.failures:
-        md.append(
-            markdown_table(
-                ["colour image", "depth image", "error"],
-                [[f["color"], f["depth"], f["error"]] for f in result.failures],
-            )
-        )
-    else:
-        md.append("None.\n")
-    if meta.get("skipped"):
-        md += ["## Label rows skipped (--lenient)", ""]
-        md += [f"- {message}" for message in meta["skipped"]]
-        md.append("")
-    if "distances.png" in files:
-        md += [
-            "## Distances between evaluated samples",
-            "",
-            f"Spearman distance of the dGLI coordinates between {heatmap_note}, "
-            "ordered by true class.",
-            "",
-            "![distance matrix](distances.png)",
-            "",
-        ]
+
+
+def _markdown_distances(heatmap: _Heatmap) -> list[str]:
+    """The section showing the distance heatmap (none without it)."""
+    if heatmap.image is None:
+        return []
+    return [
+        "## Distances between evaluated samples",
+        "",
+        f"Spearman distance of the dGLI coordinates between {heatmap.note}, "
+        "ordered by true class.",
+        "",
+        "![distance matrix](distances.png)",
+        "",
+    ]
+
+
+def build_report(
+    result: EvaluationResult, meta: dict[str, Any], read_color: Any
+) -> dict[str, str | dict | NDArray[np.uint8]]:
+    """All report files: name -> Markdown/CSV text, JSON-ready dict, or BGR image.
+
+    Parameters
+    ----------
+    result : EvaluationResult
+    meta : dict
+        ``command``, ``references``, ``references_sha256``, ``package_version``, ``jobs``.
+    read_color : callable
+        ``read_color(path) -> RGB array``, used for the overlays of misclassified pairs.
+
+    Returns
+    -------
+    dict
+        Report file name (relative to the report folder) -> its content.
+    """
+    tables = _tables(result)
+    files: dict[str, Any] = {"summary.json": {**result.to_dict(), **meta}}
+    files["confusion.csv"] = csv_table(["true \\ predicted", *tables.cols], tables.confusion_rows)
+    files["per_class.csv"] = csv_table(tables.per_class_header, tables.per_class_rows)
+    files["confusion.png"] = confusion_image(
+        np.array(result.confusion), result.labels, names=CLASS_NAMES, title="confusion"
+    )
+    heatmap = _distance_heatmap(result)
+    if heatmap.image is not None:
+        files["distances.png"] = heatmap.image
+    wrong = _misclassified(result)
+    files.update(_overlays(wrong, read_color))
+    md = [
+        *_markdown_summary(result, meta, tables),
+        *_markdown_misclassified(wrong),
+        *_markdown_failures(result),
+        *_markdown_skipped(meta),
+        *_markdown_distances(heatmap),
+    ]
     files["report.md"] = "\n".join(md)
     return files

@@ -11,10 +11,13 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
+from .camera import Intrinsics
 from .errors import DgliError, InvalidInputError, OutputError
-from .frames import write_color, write_depth
+from .frames import RGBDFrame, write_color, write_depth
 from .io import guard_outputs, record_outputs, write_json, write_text
+from .labelled import LabelledPair
 from .recording import Recording, select_frames
 from .report import csv_table
 
@@ -83,14 +86,59 @@ def extract_recording(
     listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
     guard_outputs(listing, overwrite=overwrite)  # and makes OUT: an impossible OUT fails here
     result = ExtractResult()
-    rows: list[tuple[str, str, str, str, str]] = []
     written: list[Path] = []
+    window = {"every": every, "start": start, "end": end}
+    done = _write_frames(recording, root, window, overwrite, command, on_progress, result, written)
+    if not done.rows:
+        raise InvalidInputError(_nothing_to_extract(recording, done.seen, start, end, result))
+    _write_listing(root, recording, done, written)
+    record_outputs(written, command)
+    result.written = len(done.rows)
+    result.frames_csv = root / "frames.csv"
+    return result
+
+
+@dataclass(frozen=True)
+class _FramesWritten:
+    """The image pairs written: one row ``(colour, depth, time, label, variant)`` each,
+    the recording's intrinsics (None when no frame decoded) and the frames read."""
+
+    rows: list[tuple[str, str, str, str, str]]
+    intrinsics: Intrinsics | None
+    seen: int
+
+
+def _same_intrinsics(pair: LabelledPair, frame: RGBDFrame, intr: Intrinsics | None) -> Intrinsics:
+    """The recording's intrinsics: the first frame's, which every frame must share."""
+    if intr is None:
+        return frame.intrinsics
+    if frame.intrinsics != intr:
+        raise InvalidInputError(
+            f"{pair.color}: the camera intrinsics change within the recording; a "
+            "folder holds one intrinsics.json: extract each part with --start/--end"
+        )
+    return intr
+
+
+def _write_frames(
+    recording: Recording,
+    root: Path,
+    window: dict[str, Any],
+    overwrite: bool,
+    command: str,
+    on_progress: Callable[[int], None] | None,
+    result: ExtractResult,
+    written: list[Path],
+) -> _FramesWritten:
+    """Decode the frames in ``window`` (``every``, ``start``, ``end``) one at a time and
+    write their PNGs with two threads; undecodable frames go to ``result.skipped``."""
+    rows: list[tuple[str, str, str, str, str]] = []
     intr = None
     seen = 0
     jobs: list[tuple[Future, Path]] = []
     with ThreadPoolExecutor(2) as pool:
         try:
-            for index, pair in select_frames(recording.frames, every=every, start=start, end=end):
+            for index, pair in select_frames(recording.frames, **window):
                 seen += 1
                 if on_progress:
                     on_progress(1)
@@ -99,13 +147,7 @@ def extract_recording(
                 except DgliError as exc:
                     result.skipped.append(str(exc))
                     continue
-                if intr is None:
-                    intr = frame.intrinsics
-                elif frame.intrinsics != intr:
-                    raise InvalidInputError(
-                        f"{pair.color}: the camera intrinsics change within the recording; a "
-                        "folder holds one intrinsics.json: extract each part with --start/--end"
-                    )
+                intr = _same_intrinsics(pair, frame, intr)
                 name = f"frame_{index:06d}"
                 color, depth = root / f"{name}_color.png", root / f"{name}_depth.png"
                 guard_outputs([color, depth], overwrite=overwrite)
@@ -119,10 +161,16 @@ def extract_recording(
                 _finish(jobs.pop(0), written)
         except OutputError as exc:
             raise _kept_frames(exc, jobs, written, root, command) from None
-    if not rows:
-        raise InvalidInputError(_nothing_to_extract(recording, seen, start, end, result))
-    if intr is not None:
-        write_json(root / "intrinsics.json", intr.to_open3d_dict())
+    return _FramesWritten(rows, intr, seen)
+
+
+def _write_listing(
+    root: Path, recording: Recording, done: _FramesWritten, written: list[Path]
+) -> None:
+    """``intrinsics.json``, ``frames.csv`` and, for a labelled recording, ``labels.csv``."""
+    rows = done.rows
+    if done.intrinsics is not None:
+        write_json(root / "intrinsics.json", done.intrinsics.to_open3d_dict())
         written.append(root / "intrinsics.json")
     write_text(root / "frames.csv", csv_table(["color", "depth", "time"], [r[:3] for r in rows]))
     written.append(root / "frames.csv")
@@ -130,10 +178,6 @@ def extract_recording(
         labels = [(c, d, lab, var) for c, d, _, lab, var in rows]
         write_text(root / "labels.csv", csv_table(["color", "depth", "label", "variant"], labels))
         written.append(root / "labels.csv")
-    record_outputs(written, command)
-    result.written = len(rows)
-    result.frames_csv = root / "frames.csv"
-    return result
 
 
 def _finish(job: tuple[Future, Path], written: list[Path]) -> None:

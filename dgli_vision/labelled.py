@@ -257,6 +257,60 @@ def _check_labels(
     return keep, problems
 
 
+def _pairs_from_labels_csv(root: Path, labels: Path) -> tuple[list[LabelledPair], list[str]]:
+    """The pairs ``labels.csv`` lists, and where each is listed (``'<file>' line k``)."""
+    import csv
+
+    pairs, where = [], []
+    try:
+        with labels.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
+            reader = csv.DictReader(fh)
+            missing = {"color", "depth", "label"} - set(reader.fieldnames or [])
+            if missing:
+                raise InvalidInputError(
+                    f"labels file '{labels}' lacks column(s) {', '.join(sorted(missing))}; "
+                    "expected color,depth,label[,variant]"
+                )
+            for k, row in enumerate(reader, start=2):
+                label = (row.get("label") or "").strip()
+                if not row.get("color") or not row.get("depth") or not label:
+                    raise InvalidInputError(f"labels file '{labels}' line {k} is incomplete")
+                variant = (row.get("variant") or "").strip() or None
+                color = root / row["color"]
+                pairs.append(
+                    LabelledPair(
+                        str(color),
+                        str(root / row["depth"]),
+                        label.zfill(2),
+                        variant,
+                        k,
+                        intrinsics_file=folder_intrinsics(root, color),
+                    )
+                )
+                where.append(f"'{labels}' line {k}")
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise UnreadableInputError(f"cannot read labels file '{labels}': {exc}") from None
+    return pairs, where
+
+
+def _pairs_from_class_folders(root: Path) -> tuple[list[LabelledPair], list[str]]:
+    """The pairs in class folders (``02_corner-over/<name>_color.png``) and their paths."""
+    pairs, where = [], []
+    for color in sorted(root.rglob("*_color.png")):
+        rel = color.relative_to(root)
+        if len(rel.parts) < 2:
+            continue  # no class folder: unlabelled
+        head = rel.parts[0]
+        label = head[:2]
+        if not label.isdigit():
+            continue
+        depth = color.with_name(color.name[: -len("_color.png")] + "_depth.png")
+        intrinsics = folder_intrinsics(root, color)
+        pairs.append(LabelledPair(str(color), str(depth), label, intrinsics_file=intrinsics))
+        where.append(f"'{color}'")
+    return pairs, where
+
+
 def find_labelled_pairs(
     folder: str | Path, *, lenient: bool = False
 ) -> tuple[list[LabelledPair], list[LabelProblem]]:
@@ -287,56 +341,14 @@ def find_labelled_pairs(
         The folder is missing, ``labels.csv`` is malformed, no pair is found, or (not
         ``lenient``) a row has an unknown class or variant or repeats another.
     """
-    import csv
-
     root = Path(folder)
     if not root.is_dir():
         raise UnreadableInputError(f"folder '{root}' does not exist or is not a directory")
     labels = root / "labels.csv"
-    pairs = []
-    where = []
     if labels.is_file():
-        try:
-            with labels.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
-                reader = csv.DictReader(fh)
-                missing = {"color", "depth", "label"} - set(reader.fieldnames or [])
-                if missing:
-                    raise InvalidInputError(
-                        f"labels file '{labels}' lacks column(s) {', '.join(sorted(missing))}; "
-                        "expected color,depth,label[,variant]"
-                    )
-                for k, row in enumerate(reader, start=2):
-                    label = (row.get("label") or "").strip()
-                    if not row.get("color") or not row.get("depth") or not label:
-                        raise InvalidInputError(f"labels file '{labels}' line {k} is incomplete")
-                    variant = (row.get("variant") or "").strip() or None
-                    color = root / row["color"]
-                    pairs.append(
-                        LabelledPair(
-                            str(color),
-                            str(root / row["depth"]),
-                            label.zfill(2),
-                            variant,
-                            k,
-                            intrinsics_file=folder_intrinsics(root, color),
-                        )
-                    )
-                    where.append(f"'{labels}' line {k}")
-        except (OSError, UnicodeDecodeError, csv.Error) as exc:
-            raise UnreadableInputError(f"cannot read labels file '{labels}': {exc}") from None
+        pairs, where = _pairs_from_labels_csv(root, labels)
     else:
-        for color in sorted(root.rglob("*_color.png")):
-            rel = color.relative_to(root)
-            if len(rel.parts) < 2:
-                continue  # no class folder: unlabelled
-            head = rel.parts[0]
-            label = head[:2]
-            if not label.isdigit():
-                continue
-            depth = color.with_name(color.name[: -len("_color.png")] + "_depth.png")
-            intrinsics = folder_intrinsics(root, color)
-            pairs.append(LabelledPair(str(color), str(depth), label, intrinsics_file=intrinsics))
-            where.append(f"'{color}'")
+        pairs, where = _pairs_from_class_folders(root)
     if not pairs:
         raise InvalidInputError(
             f"folder '{root}' holds no labelled pairs (no labels.csv and no "

@@ -13,36 +13,30 @@ dropouts at depth edges and at random.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from .camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics
 from .cloth.states import VISIBLE_FRACTION, ClothState, disc_samples, normalize_rng
-from .colour import linear_to_srgb, srgb_to_linear
+from .colour import linear_to_srgb
 from .conditions import (
     Conditions,
     SceneObject,
-    Sheen,
     apply_lens_distortion,
-    area_light_lobe,
     grasp_frame,
     highlight_spot,
     jpeg_roundtrip,
-    mirror_light_direction,
     realistic_depth,
     scene_objects,
     shadow_factor,
-    sheen_sticker,
-    specular_for_saturation,
     wood_albedo,
 )
 from .layout import NapkinLayout, default_layout
+from .render_scene import RaycastScene, sample_texture, sticker_texture
+from .render_sheen import SHEEN_EXPOSURE_PEAK, SheenLobes, sheen_lobes
 
 __all__ = ["Lighting", "RenderResult", "SensorModel", "render", "sticker_texture"]
-
-_TEXTURE_PX_PER_MM = 2.0
 
 
 @dataclass(frozen=True)
@@ -152,224 +146,290 @@ class RenderResult:
         return self.visible_fraction >= VISIBLE_FRACTION
 
 
-@lru_cache(maxsize=4)
-def _texture_cached(layout: NapkinLayout) -> NDArray[np.float32]:
-    import cv2
-
-    s = _TEXTURE_PX_PER_MM
-    h, w = int(round(layout.height_mm * s)) + 1, int(round(layout.width_mm * s)) + 1
-    # Label image: 0 napkin, k + 1 colour k (drawn at 4x and averaged for soft edges).
-    names = list(layout.colours_srgb)
-    lin = np.array([srgb_to_linear(np.array(layout.colours_srgb[n]) / 255.0) for n in names])
-    ss = 4
-    canvas = np.zeros((h * ss, w * ss), np.uint8)
-    for uv, disc, dot in zip(layout.sticker_uv, layout.sticker_disc, layout.sticker_dot):
-        centre = (int(round(uv[0] * s * ss)), int(round(uv[1] * s * ss)))
-        cv2.circle(
-            canvas,
-            centre,
-            int(round(layout.disc_diameter_mm / 2 * s * ss)),
-            names.index(disc) + 1,
-            -1,
-        )
-        cv2.circle(
-            canvas,
-            centre,
-            int(round(layout.dot_diameter_mm / 2 * s * ss)),
-            names.index(dot) + 1,
-            -1,
-        )
-    weights = np.zeros((h, w, len(names) + 1), np.float32)
-    for k in range(len(names) + 1):
-        weights[..., k] = cv2.resize(
-            (canvas == k).astype(np.float32), (w, h), interpolation=cv2.INTER_AREA
-        )
-    tex = weights[..., 1:] @ lin.astype(np.float32)  # (h, w, 3) linear colour of stickers
-    tex = np.concatenate([tex, weights[..., :1]], axis=2)  # last channel: napkin weight
-    tex.flags.writeable = False
-    return tex
-
-
-def sticker_texture(layout: NapkinLayout | None = None) -> NDArray[np.float32]:
-    """Texture (h, w, 4) in material coordinates at 2 px/mm: linear RGB of the stickers
-    and, in channel 3, the weight of the bare napkin (1 off the stickers)."""
-    return _texture_cached(layout or default_layout())
-
-
-def _sample_texture(tex: NDArray, uv_mm: NDArray) -> NDArray:
-    """Bilinear lookup of the texture at material points (n, 2) mm -> (n, 4)."""
-    import cv2
-
-    s = _TEXTURE_PX_PER_MM
-    n = len(uv_mm)
-    cols = 1024  # remap maps must stay below 32767 rows
-    rows = max(1, -(-n // cols))
-    maps = np.zeros((2, rows * cols), np.float32)
-    maps[:, :n] = (uv_mm * s).T
-    out = cv2.remap(
-        tex,
-        maps[0].reshape(rows, cols),
-        maps[1].reshape(rows, cols),
-        cv2.INTER_LINEAR,
-        borderMode=cv2.BORDER_REPLICATE,
-    )
-    return out.reshape(-1, 4)[:n]
-
-
-class _Scene:
-    """Open3D raycasting scene of one cloth state and the table."""
-
-    def __init__(self, state: ClothState, objects: list[SceneObject] = ()) -> None:
-        import open3d as o3d
-
-        self._o3d = o3d
-        self.scene = o3d.t.geometry.RaycastingScene()
-        tri = state.mesh.triangles()
-        self.triangles = tri
-        self.uv = state.mesh.uv
-        self.cloth_id = self.scene.add_triangles(
-            o3d.core.Tensor(state.mesh.xyz.astype(np.float32)),
-            o3d.core.Tensor(tri.astype(np.uint32)),
-        )
-        big = 5.0  # the table: a 10 m square just below the cloth's lowest layer
-        z = -2e-4
-        table_v = np.array(
-            [[-big, -big, z], [big, -big, z], [big, big, z], [-big, big, z]], np.float32
-        )
-        table_t = np.array([[0, 1, 2], [0, 2, 3]], np.uint32)
-        self.table_id = self.scene.add_triangles(
-            o3d.core.Tensor(table_v), o3d.core.Tensor(table_t)
-        )
-        self.objects = {
-            self.scene.add_triangles(
-                o3d.core.Tensor(obj.vertices.astype(np.float32)),
-                o3d.core.Tensor(obj.triangles.astype(np.uint32)),
-            ): obj
-            for obj in objects
-        }
-
-    def cast(self, origins: NDArray, directions: NDArray) -> dict[str, NDArray]:
-        rays = np.concatenate([origins, directions], axis=-1).astype(np.float32)
-        result = self.scene.cast_rays(self._o3d.core.Tensor(rays))
-        return {
-            k: result[k].numpy()
-            for k in (
-                "t_hit",
-                "geometry_ids",
-                "primitive_ids",
-                "primitive_uvs",
-                "primitive_normals",
-            )
-        }
-
-    def material_uv(self, hits: dict[str, NDArray], mask: NDArray) -> NDArray:
-        """Material coordinates (k, 2) mm of the cloth hits selected by ``mask``."""
-        tri = self.triangles[hits["primitive_ids"][mask]]
-        b = hits["primitive_uvs"][mask].astype(np.float64)
-        w0 = 1.0 - b[:, 0] - b[:, 1]
-        return (
-            w0[:, None] * self.uv[tri[:, 0]]
-            + b[:, :1] * self.uv[tri[:, 1]]
-            + b[:, 1:] * self.uv[tri[:, 2]]
-        )
-
-
-#: Linear level the brightest pixel is exposed to under ``sheen`` (sRGB about 231): a
-#: camera's auto-exposure keeps the large light's reflection from blowing out.
-_SHEEN_EXPOSURE_PEAK = 0.8
-#: HSV saturations every printed colour keeps in the full lobe under ``sheen``: pastel,
-#: yet never so pale and bright that it reads as a highlight (chroma below a quarter of
-#: the brightness, the tool's definition).
-_SHEEN_SATURATION = (0.13, 0.3)
-
-
-@dataclass(frozen=True, eq=False)
-class _SheenLobes:
-    """A large area light's reflection on the cloth hits (see :func:`_sheen_lobes`)."""
-
-    sheen: Sheen
-    vinyl: NDArray[np.float64]
-    fabric: NDArray[np.float64]
-    napkin: NDArray[np.float32]
-    sticker: int
-    diffuse: NDArray[np.float64]
-    printed: NDArray[np.float64]
-
-    def light(self, gain: NDArray) -> NDArray[np.float64]:
-        """Linear light (k, 3) the reflection adds as the camera sees it through ``gain``
-        (3,): the vinyl's strength makes the chosen sticker's disc reach the drawn
-        saturation in the image, within the strengths that keep every printed colour
-        (``printed``, as lit there) in :data:`_SHEEN_SATURATION`."""
-        sheen = self.sheen
-
-        def solve(diffuse: NDArray, saturation: float) -> float:
-            return specular_for_saturation(
-                diffuse * gain, saturation, tint=gain, peak=_SHEEN_EXPOSURE_PEAK
-            )
-
-        strength = solve(self.diffuse, sheen.saturation)
-        # every printed colour in the full lobe stays within the pastel range
-        lo = max(solve(c, _SHEEN_SATURATION[1]) for c in self.printed)
-        hi = min(solve(c, _SHEEN_SATURATION[0]) for c in self.printed)
-        strength = max(lo, min(strength, hi))
-        grey = strength * self.vinyl * (1 - self.napkin) + (
-            sheen.cloth_strength * self.fabric * self.napkin
-        )
-        return grey[:, None] * gain
-
-
-def _sheen_lobes(
-    cond: Conditions,
-    state: ClothState,
-    scene: _Scene,
-    pose: CameraPose,
-    lighting: Lighting,
-    layout: NapkinLayout,
-    hits: dict[str, NDArray],
-    dirs: NDArray,
-    tex: NDArray,
-) -> _SheenLobes | None:
-    """The lobes of a large area light on the cloth hits; None without ``sheen`` or when
-    no sticker is in view.
-
-    The light stands where the mirror direction of the chosen sticker's centre points,
-    so that sticker lies in the full lobe of the vinyl (stickers) and of the fabric.
-    """
-    sheen = cond.sheen
-    sid = sheen_sticker(cond, state.visible)
-    if sheen is None or sid is None:
-        return None
-    point = state.sticker_points[sid]
-    probe = scene.cast(pose.position[None], (point - pose.position)[None])
-    normal = probe["primitive_normals"][0].astype(np.float64)
-    view = pose.position - point
-    view /= np.linalg.norm(view)
-    light = mirror_light_direction(normal, view)
-    sun = np.asarray(lighting.light_direction, np.float64)
-    shade = lighting.ambient + (1 - lighting.ambient) * abs(normal @ sun / np.linalg.norm(sun))
-    printed = srgb_to_linear(np.array(list(layout.colours_srgb.values())) / 255.0) * shade
-    disc = srgb_to_linear(np.array(layout.colours_srgb[layout.sticker_disc[sid]]) / 255.0)
-    on_cloth = hits["geometry_ids"] == scene.cloth_id
-    normals = hits["primitive_normals"][on_cloth].astype(np.float64)
-    views = -dirs[on_cloth] / np.linalg.norm(dirs[on_cloth], axis=1)[:, None]
-    radius = np.radians(sheen.light_radius_deg)
-    return _SheenLobes(
-        sheen=sheen,
-        vinyl=area_light_lobe(normals, views, light, radius, sheen.shininess),
-        fabric=area_light_lobe(normals, views, light, radius, sheen.cloth_shininess),
-        napkin=tex[:, 3],
-        sticker=sid,
-        diffuse=disc * shade,
-        printed=printed,
-    )
-
-
-def _info(cond: Conditions, sheen: _SheenLobes | None) -> dict:
+def _info(cond: Conditions, sheen: SheenLobes | None) -> dict:
     """The render's ``info``: the conditions, and the sticker a large light washes out."""
     info: dict = {"conditions": cond.label} if cond.names else {}
     if sheen is not None:
         info["sheen_sticker"] = sheen.sticker
     return info
+
+
+@dataclass(frozen=True, eq=False)
+class _ViewHits:
+    """Where the camera's pixel rays meet the scene (``n = H * W`` rays, row-major).
+
+    Attributes
+    ----------
+    rays : dict of ndarray
+        Open3D's ray-casting results (see :meth:`RaycastScene.cast`).
+    dirs : ndarray, shape (n, 3)
+        World ray directions, camera-z component 1.
+    t_hit : ndarray, shape (n,)
+        z-depth of each hit, metres (inf: none).
+    on_cloth, on_table : ndarray of bool, shape (n,)
+    hit_xy : ndarray, shape (n, 2) or None
+        World (x, y) of every hit, for the conditions that need it (wood, shadow).
+    """
+
+    rays: dict[str, NDArray]
+    dirs: NDArray[np.float64]
+    t_hit: NDArray[np.float64]
+    on_cloth: NDArray[np.bool_]
+    on_table: NDArray[np.bool_]
+    hit_xy: NDArray[np.float64] | None
+
+
+@dataclass(frozen=True, eq=False)
+class _Surface:
+    """What the camera sees at every pixel before light: albedo and the cloth's texture.
+
+    Attributes
+    ----------
+    albedo : ndarray, shape (n, 3)
+        Linear RGB.
+    no_depth : ndarray of bool, shape (n,)
+        Pixels on solids the depth sensor cannot read.
+    cloth_uv : ndarray, shape (k, 2)
+        Material coordinates (mm) of the cloth hits.
+    tex : ndarray, shape (k, 4)
+        The sticker texture at ``cloth_uv``.
+    """
+
+    albedo: NDArray[np.float64]
+    no_depth: NDArray[np.bool_]
+    cloth_uv: NDArray[np.float64]
+    tex: NDArray[np.float32]
+
+
+def _pixel_rays(pose: CameraPose, intrinsics: Intrinsics) -> tuple[NDArray, NDArray]:
+    """Origins and world directions (H * W, 3) of one ray per pixel (camera-z 1)."""
+    dirs_cam = intrinsics.ray_directions().reshape(-1, 3)
+    dirs = dirs_cam @ pose.rotation.T  # world directions with camera-z component 1
+    return np.broadcast_to(pose.position, dirs.shape), dirs
+
+
+def _condition_objects(
+    cond: Conditions,
+    state: ClothState,
+    pose: CameraPose,
+    dirs: NDArray,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+) -> list[SceneObject]:
+    """The solids the conditions add, placed within the table area the camera sees."""
+    h, w = intrinsics.height, intrinsics.width
+    corner = state.params.get("held_corner") if cond.grasp is not None else None
+    if not (cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth or corner):
+        return []
+    corners = dirs.reshape(h, w, 3)[[0, 0, -1, -1], [0, -1, 0, -1]]
+    table_xy = pose.position[:2] + corners[:, :2] * (-pose.position[2] / corners[:, 2:])
+    view = (table_xy.min(axis=0) + 0.03, table_xy.max(axis=0) - 0.03)
+    held = grasp_frame(state, corner, layout) if corner else None
+    return scene_objects(cond, state.mesh.xyz, view, held)
+
+
+def _cast_view(
+    scene: RaycastScene, origins: NDArray, dirs: NDArray, pose: CameraPose, cond: Conditions
+) -> _ViewHits:
+    """Cast the pixel rays into the scene."""
+    hits = scene.cast(origins, dirs)
+    t_hit = hits["t_hit"].astype(np.float64)  # = z-depth, metres
+    gid = hits["geometry_ids"]
+    hit_xy = None
+    if cond.wood_table or cond.shadow:
+        hit_xy = pose.position[:2] + dirs[:, :2] * np.where(np.isfinite(t_hit), t_hit, 0)[:, None]
+    return _ViewHits(hits, dirs, t_hit, gid == scene.cloth_id, gid == scene.table_id, hit_xy)
+
+
+def _surface(
+    view: _ViewHits,
+    scene: RaycastScene,
+    cond: Conditions,
+    lighting: Lighting,
+    layout: NapkinLayout,
+) -> _Surface:
+    """Albedo (linear RGB) of every pixel: table (or wood), the objects, the textured cloth."""
+    n = len(view.t_hit)
+    gid = view.rays["geometry_ids"]
+    on_table, on_cloth = view.on_table, view.on_cloth
+    albedo = np.zeros((n, 3))
+    if view.hit_xy is not None and cond.wood_table:
+        albedo[on_table] = wood_albedo(view.hit_xy[on_table], cond.seed)
+    else:
+        albedo[on_table] = lighting.table_rgb
+    no_depth = np.zeros(n, bool)
+    for oid, obj in scene.objects.items():
+        mine = gid == oid
+        albedo[mine] = obj.albedo
+        no_depth |= mine & (not obj.has_depth)
+    cloth_uv = scene.material_uv(view.rays, on_cloth)
+    tex = sample_texture(sticker_texture(layout), cloth_uv)
+    albedo[on_cloth] = tex[:, :3] + tex[:, 3:] * np.asarray(lighting.napkin_rgb)
+    return _Surface(albedo, no_depth, cloth_uv, tex)
+
+
+def _lit(
+    view: _ViewHits, surface: _Surface, cond: Conditions, lighting: Lighting, state: ClothState
+) -> NDArray[np.float64]:
+    """Linear light (n, 3): Lambert shading, two-sided (both faces are the same cloth),
+    under the arm's shadow when there is one."""
+    light = np.asarray(lighting.light_direction, dtype=np.float64)
+    light /= np.linalg.norm(light)
+    normals = view.rays["primitive_normals"].astype(np.float64)
+    lambert = np.abs(normals @ light)
+    shade = lighting.ambient + (1 - lighting.ambient) * lambert
+    if view.hit_xy is not None and cond.shadow:
+        shade = shade * shadow_factor(view.hit_xy, cond, state.mesh.xyz.mean(axis=0))
+    return surface.albedo * shade[:, None]
+
+
+def _add_highlight(
+    linear: NDArray,
+    view: _ViewHits,
+    surface: _Surface,
+    cond: Conditions,
+    layout: NapkinLayout,
+    state: ClothState,
+) -> None:
+    """Glossy vinyl: add a mirror highlight on a sticker, not on the cloth (in place)."""
+    spot = highlight_spot(cond, layout.sticker_uv, state.visible)
+    if spot is None:
+        return
+    centre, sigma, peak, _ = spot
+    lobe = np.exp(-((surface.cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
+    linear[view.on_cloth] += (peak * lobe * (1 - surface.tex[:, 3]))[:, None]
+
+
+def _exposed(
+    linear: NDArray, cond: Conditions, sensor: SensorModel, rng: np.random.Generator
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Linear light through the camera's exposure and channel gains (the condition's, then
+    the sensor's jitter); returns it and the total gain per channel (3,)."""
+    gain = cond.exposure * np.asarray(cond.colour_gains)  # the camera's, per channel
+    if cond.exposure != 1.0 or cond.colour_gains != (1.0, 1.0, 1.0):
+        linear = linear * cond.exposure * np.asarray(cond.colour_gains)
+    if sensor.enabled:
+        exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
+        gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
+        linear = linear * exposure * gains
+        gain = gain * exposure * gains
+    return linear, gain
+
+
+def _add_sheen(linear: NDArray, on_cloth: NDArray, sheen: SheenLobes, gain: NDArray) -> NDArray:
+    """Semi-gloss vinyl and fabric under a large light, then the camera's auto-exposure:
+    the brightest pixel stays below white."""
+    linear[on_cloth] += sheen.light(gain)
+    return linear * min(1.0, SHEEN_EXPOSURE_PEAK / max(float(linear.max()), 1e-9))
+
+
+def _colour_sensor(
+    srgb: NDArray, sensor: SensorModel, cond: Conditions, rng: np.random.Generator
+) -> NDArray[np.uint8]:
+    """The 8-bit colour image: the sensor's blur and noise on the sRGB levels (H, W, 3)."""
+    if sensor.enabled:
+        import cv2
+
+        if sensor.blur_sigma_px > 0:
+            srgb = cv2.GaussianBlur(srgb.astype(np.float32), (0, 0), sensor.blur_sigma_px)
+        noise = sensor.colour_noise if cond.colour_noise is None else cond.colour_noise
+        srgb = srgb + rng.normal(0.0, noise, srgb.shape)
+    return np.clip(np.rint(srgb), 0, 255).astype(np.uint8)
+
+
+def _depth_edges(depth: NDArray) -> NDArray[np.bool_]:
+    """Pixels (H, W) on either side of a depth jump of more than 10 mm."""
+    jump = np.zeros(depth.shape, bool)
+    dz_x = np.abs(np.diff(depth, axis=1)) > 10
+    dz_y = np.abs(np.diff(depth, axis=0)) > 10
+    jump[:, 1:] |= dz_x
+    jump[:, :-1] |= dz_x
+    jump[1:] |= dz_y
+    jump[:-1] |= dz_y
+    return jump
+
+
+def _depth_image(
+    view: _ViewHits,
+    no_depth: NDArray,
+    shape: tuple[int, int],
+    cond: Conditions,
+    sensor: SensorModel,
+    rng: np.random.Generator,
+) -> NDArray[np.uint16]:
+    """The depth image in mm (0 = no reading): noise growing with depth, dropouts at edges
+    and at random, the realistic-depth effects and the wrong-units scale."""
+    depth = np.where(np.isfinite(view.t_hit), view.t_hit, 0.0).reshape(shape) * 1000.0  # mm
+    depth[no_depth.reshape(shape)] = 0.0
+    valid = depth > 0
+    if sensor.enabled:
+        noise_mm = cond.depth_noise_mm if cond.realistic_depth else sensor.depth_noise_mm
+        sigma = noise_mm * (depth / 500.0) ** 2
+        depth = depth + rng.normal(0.0, 1.0, depth.shape) * sigma
+        jump = _depth_edges(depth)
+        drop = (jump & (rng.random(shape) < sensor.edge_dropout)) | (
+            rng.random(shape) < sensor.random_dropout
+        )
+        valid &= ~drop
+    depth = np.where(valid, depth, 0.0)
+    if cond.realistic_depth:
+        depth = realistic_depth(depth, cond, rng)
+    return np.clip(np.rint(depth * cond.depth_scale), 0, 65535).astype(np.uint16)
+
+
+def _camera_output(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    cond: Conditions,
+) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
+    """The images as the camera delivers them: through its lens, mirrored, JPEG-coded."""
+    if any(cond.distortion):
+        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion)
+    if cond.mirror:  # the camera flips its image left to right, colour and depth alike
+        color, depth_mm = color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
+    if cond.jpeg_quality is not None:
+        color = jpeg_roundtrip(color, cond.jpeg_quality)
+    return color, depth_mm
+
+
+def _visible_fraction(
+    state: ClothState,
+    pose: CameraPose,
+    scene: RaycastScene,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+) -> NDArray[np.float64]:
+    """Truth: how much of each sticker's disc (16,) the camera sees."""
+    h, w = intrinsics.height, intrinsics.width
+    offsets = disc_samples(layout)
+    uv = (layout.sticker_uv[:, None, :] + offsets[None]).reshape(-1, 2)
+    pts = state.mesh.interpolate(uv)
+    ray_dirs = pts - pose.position
+    sample_hits = scene.cast(np.broadcast_to(pose.position, ray_dirs.shape), ray_dirs)
+    seen = sample_hits["geometry_ids"] == scene.cloth_id
+    hit_uv = np.full((len(pts), 2), np.inf)
+    hit_uv[seen] = scene.material_uv(sample_hits, seen)
+    # Seen: the ray meets the cloth at this very material point (within 4 mm).
+    seen &= np.linalg.norm(hit_uv - uv, axis=1) < 4.0
+    pix = intrinsics.project(pose.world_to_camera(pts))
+    inside = (pix[:, 0] >= 0) & (pix[:, 0] <= w - 1) & (pix[:, 1] >= 0) & (pix[:, 1] <= h - 1)
+    seen &= inside
+    return seen.reshape(len(layout.sticker_uv), -1).mean(axis=1)
+
+
+def _sticker_points_cam(
+    state: ClothState, pose: CameraPose, intrinsics: Intrinsics, cond: Conditions
+) -> NDArray[np.float64]:
+    """Truth: sticker centres (16, 3) in the camera frame, where the (mirrored) image
+    shows them through the same intrinsics."""
+    points_cam = pose.world_to_camera(state.sticker_points)
+    if cond.mirror:
+        w = intrinsics.width
+        points_cam[:, 0] = (w - 1 - 2 * intrinsics.cx) * points_cam[:, 2] / intrinsics.fx - (
+            points_cam[:, 0]
+        )
+    return points_cam
 
 
 def render(
@@ -418,133 +478,26 @@ def render(
     rng = normalize_rng(rng)
     given = intrinsics
     intrinsics = replace(intrinsics, distortion=())  # rays: the ideal pinhole camera
-    h, w = intrinsics.height, intrinsics.width
-    dirs_cam = intrinsics.ray_directions().reshape(-1, 3)
-    dirs = dirs_cam @ pose.rotation.T  # world directions with camera-z component 1
-    origins = np.broadcast_to(pose.position, dirs.shape)
-    objects = []
-    corner = state.params.get("held_corner") if cond.grasp is not None else None
-    if cond.clutter or cond.gripper_height_m is not None or cond.realistic_depth or corner:
-        corners = dirs.reshape(h, w, 3)[[0, 0, -1, -1], [0, -1, 0, -1]]
-        table_xy = pose.position[:2] + corners[:, :2] * (-pose.position[2] / corners[:, 2:])
-        view = (table_xy.min(axis=0) + 0.03, table_xy.max(axis=0) - 0.03)
-        held = grasp_frame(state, corner, layout) if corner else None
-        objects = scene_objects(cond, state.mesh.xyz, view, held)
-    scene = _Scene(state, objects)
-    hits = scene.cast(origins, dirs)
-    t_hit = hits["t_hit"].astype(np.float64)  # = z-depth, metres
-    gid = hits["geometry_ids"]
-    on_cloth = gid == scene.cloth_id
-    on_table = gid == scene.table_id
-    hit_xy = None  # world (x, y) of every hit, for the conditions that need it
-    if cond.wood_table or cond.shadow:
-        hit_xy = pose.position[:2] + dirs[:, :2] * np.where(np.isfinite(t_hit), t_hit, 0)[:, None]
-
-    # Albedo (linear RGB) of every pixel.
-    albedo = np.zeros((h * w, 3))
-    if hit_xy is not None and cond.wood_table:
-        albedo[on_table] = wood_albedo(hit_xy[on_table], cond.seed)
-    else:
-        albedo[on_table] = lighting.table_rgb
-    no_depth = np.zeros(h * w, bool)
-    for oid, obj in scene.objects.items():
-        mine = gid == oid
-        albedo[mine] = obj.albedo
-        no_depth |= mine & (not obj.has_depth)
-    cloth_uv = scene.material_uv(hits, on_cloth)
-    tex = _sample_texture(sticker_texture(layout), cloth_uv)
-    albedo[on_cloth] = tex[:, :3] + tex[:, 3:] * np.asarray(lighting.napkin_rgb)
-    # Lambert shading, two-sided (both faces are the same cloth).
-    light = np.asarray(lighting.light_direction, dtype=np.float64)
-    light /= np.linalg.norm(light)
-    normals = hits["primitive_normals"].astype(np.float64)
-    lambert = np.abs(normals @ light)
-    shade = lighting.ambient + (1 - lighting.ambient) * lambert
-    if hit_xy is not None and cond.shadow:
-        shade = shade * shadow_factor(hit_xy, cond, state.mesh.xyz.mean(axis=0))
-    linear = albedo * shade[:, None]
-    sheen = _sheen_lobes(cond, state, scene, pose, lighting, layout, hits, dirs, tex)
-    spot = highlight_spot(cond, layout.sticker_uv, state.visible)
-    if spot is not None:  # glossy vinyl: a mirror highlight on a sticker, not on the cloth
-        centre, sigma, peak, _ = spot
-        lobe = np.exp(-((cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
-        linear[on_cloth] += (peak * lobe * (1 - tex[:, 3]))[:, None]
-    gain = cond.exposure * np.asarray(cond.colour_gains)  # the camera's, per channel
-    if cond.exposure != 1.0 or cond.colour_gains != (1.0, 1.0, 1.0):
-        linear = linear * cond.exposure * np.asarray(cond.colour_gains)
-    if sensor.enabled:
-        exposure = 1 + rng.uniform(-sensor.exposure_jitter, sensor.exposure_jitter)
-        gains = 1 + rng.uniform(-sensor.white_balance_jitter, sensor.white_balance_jitter, 3)
-        linear = linear * exposure * gains
-        gain = gain * exposure * gains
-    if sheen is not None:  # semi-gloss vinyl and fabric under a large light
-        linear[on_cloth] += sheen.light(gain)
-        # auto-exposure: the brightest pixel stays below white
-        linear = linear * min(1.0, _SHEEN_EXPOSURE_PEAK / max(float(linear.max()), 1e-9))
-    srgb = linear_to_srgb(linear).reshape(h, w, 3) * 255.0
-    if sensor.enabled:
-        import cv2
-
-        if sensor.blur_sigma_px > 0:
-            srgb = cv2.GaussianBlur(srgb.astype(np.float32), (0, 0), sensor.blur_sigma_px)
-        noise = sensor.colour_noise if cond.colour_noise is None else cond.colour_noise
-        srgb = srgb + rng.normal(0.0, noise, srgb.shape)
-    color = np.clip(np.rint(srgb), 0, 255).astype(np.uint8)
-
-    depth = np.where(np.isfinite(t_hit), t_hit, 0.0).reshape(h, w) * 1000.0  # mm
-    depth[no_depth.reshape(h, w)] = 0.0
-    valid = depth > 0
-    if sensor.enabled:
-        noise_mm = cond.depth_noise_mm if cond.realistic_depth else sensor.depth_noise_mm
-        sigma = noise_mm * (depth / 500.0) ** 2
-        depth = depth + rng.normal(0.0, 1.0, depth.shape) * sigma
-        jump = np.zeros((h, w), bool)
-        dz_x = np.abs(np.diff(depth, axis=1)) > 10
-        dz_y = np.abs(np.diff(depth, axis=0)) > 10
-        jump[:, 1:] |= dz_x
-        jump[:, :-1] |= dz_x
-        jump[1:] |= dz_y
-        jump[:-1] |= dz_y
-        drop = (jump & (rng.random((h, w)) < sensor.edge_dropout)) | (
-            rng.random((h, w)) < sensor.random_dropout
-        )
-        valid &= ~drop
-    depth = np.where(valid, depth, 0.0)
-    if cond.realistic_depth:
-        depth = realistic_depth(depth, cond, rng)
-    depth_mm = np.clip(np.rint(depth * cond.depth_scale), 0, 65535).astype(np.uint16)
-    if any(cond.distortion):
-        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion)
-    if cond.mirror:  # the camera flips its image left to right, colour and depth alike
-        color, depth_mm = color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
-    if cond.jpeg_quality is not None:
-        color = jpeg_roundtrip(color, cond.jpeg_quality)
-
-    # Truth: sticker centres in the camera frame, and how much of each disc is seen.
-    offsets = disc_samples(layout)
-    uv = (layout.sticker_uv[:, None, :] + offsets[None]).reshape(-1, 2)
-    pts = state.mesh.interpolate(uv)
-    ray_dirs = pts - pose.position
-    sample_hits = scene.cast(np.broadcast_to(pose.position, ray_dirs.shape), ray_dirs)
-    seen = sample_hits["geometry_ids"] == scene.cloth_id
-    hit_uv = np.full((len(pts), 2), np.inf)
-    hit_uv[seen] = scene.material_uv(sample_hits, seen)
-    # Seen: the ray meets the cloth at this very material point (within 4 mm).
-    seen &= np.linalg.norm(hit_uv - uv, axis=1) < 4.0
-    pix = intrinsics.project(pose.world_to_camera(pts))
-    inside = (pix[:, 0] >= 0) & (pix[:, 0] <= w - 1) & (pix[:, 1] >= 0) & (pix[:, 1] <= h - 1)
-    seen &= inside
-    fraction = seen.reshape(len(layout.sticker_uv), -1).mean(axis=1)
-    points_cam = pose.world_to_camera(state.sticker_points)
-    if cond.mirror:  # where the mirrored image shows them, through the same intrinsics
-        points_cam[:, 0] = (w - 1 - 2 * intrinsics.cx) * points_cam[:, 2] / intrinsics.fx - (
-            points_cam[:, 0]
-        )
+    shape = (intrinsics.height, intrinsics.width)
+    origins, dirs = _pixel_rays(pose, intrinsics)
+    scene = RaycastScene(state, _condition_objects(cond, state, pose, dirs, intrinsics, layout))
+    view = _cast_view(scene, origins, dirs, pose, cond)
+    surface = _surface(view, scene, cond, lighting, layout)
+    linear = _lit(view, surface, cond, lighting, state)
+    sheen = sheen_lobes(cond, state, scene, pose, lighting, layout, view.rays, dirs, surface.tex)
+    _add_highlight(linear, view, surface, cond, layout, state)
+    linear, gain = _exposed(linear, cond, sensor, rng)
+    if sheen is not None:
+        linear = _add_sheen(linear, view.on_cloth, sheen, gain)
+    srgb = linear_to_srgb(linear).reshape(*shape, 3) * 255.0
+    color = _colour_sensor(srgb, sensor, cond, rng)
+    depth_mm = _depth_image(view, surface.no_depth, shape, cond, sensor, rng)
+    color, depth_mm = _camera_output(color, depth_mm, intrinsics, cond)
     return RenderResult(
         color=color,
         depth_mm=depth_mm,
-        sticker_points_cam=points_cam,
-        visible_fraction=fraction,
+        sticker_points_cam=_sticker_points_cam(state, pose, intrinsics, cond),
+        visible_fraction=_visible_fraction(state, pose, scene, intrinsics, layout),
         pose=pose,
         intrinsics=replace(intrinsics, distortion=cond.distortion)
         if cond.distortion_known

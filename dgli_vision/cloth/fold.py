@@ -39,6 +39,30 @@ def flap_mask(
     return np.sign(_side(uv, a, b)) == np.sign(ref)
 
 
+def _top_under_flap(
+    xyz: NDArray[np.float64],
+    z_rel: NDArray[np.float64],
+    moving: NDArray[np.bool_],
+    landing: NDArray[np.float64],
+    angle: float,
+    spacing_mm: tuple[float, ...],
+) -> float:
+    """Height (m, relative to the hinge, at least 0) of the cloth that stays, where the
+    flap lands (``landing``, world (k, 2), for a complete fold) or anywhere (a partial
+    fold)."""
+    stay = ~moving
+    if not stay.any():
+        return 0.0
+    if angle != np.pi:
+        return max(float(z_rel[stay].max()), 0.0)
+    tree = cKDTree(xyz[stay, :2])
+    near = tree.query_ball_point(landing, 1.5e-3 * max(spacing_mm))
+    hit = np.unique(np.concatenate([np.asarray(n, dtype=np.intp) for n in near]))
+    if hit.size:
+        return max(float(z_rel[stay][hit].max()), 0.0)
+    return 0.0
+
+
 def fold(
     mesh: ClothMesh,
     p0_uv: ArrayLike,
@@ -94,20 +118,10 @@ def fold(
     rel = xyz[moving, :2] - w0[:2]
     d = rel @ normal  # (k,) distance beyond the line
     along = rel @ axis
+    landing = w0[:2] + along[:, None] * axis - np.abs(d)[:, None] * normal
+    stay_top = _top_under_flap(xyz, z_rel, moving, landing, angle, mesh.spacing_mm)
     # Hinge radius: the flap's top layer lands one thickness above the top of what lies
-    # where it lands (for a complete fold; anywhere on the cloth for a partial one).
-    stay = ~moving
-    stay_top = 0.0
-    if stay.any():
-        if angle == np.pi:
-            landing = w0[:2] + along[:, None] * axis - np.abs(d)[:, None] * normal
-            tree = cKDTree(xyz[stay, :2])
-            near = tree.query_ball_point(landing, 1.5e-3 * max(mesh.spacing_mm))
-            hit = np.unique(np.concatenate([np.asarray(n, dtype=np.intp) for n in near]))
-            if hit.size:
-                stay_top = max(float(z_rel[stay][hit].max()), 0.0)
-        else:
-            stay_top = max(float(z_rel[stay].max()), 0.0)
+    # where it lands.
     flap_top = max(float(z_rel[moving].max()), 0.0)
     rho = 0.5 * (stay_top + flap_top + thickness_m)
     y = z_rel[moving] - rho  # height relative to the hinge axis

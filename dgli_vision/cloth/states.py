@@ -175,44 +175,47 @@ def diagonal_fold_line(
     return FoldStep(tuple(p0), tuple(p1), tuple(here), False)
 
 
-def _steps_for(
-    class_id: str, variant: str | None, layout: NapkinLayout, rng: np.random.Generator
-) -> tuple[list[FoldStep], dict[str, Any]]:
-    """The folds of one state of a class and variant, with the drawn parameters."""
-    u = rng.uniform
-    params: dict[str, Any] = {}
-    steps: list[FoldStep] = []
-    words: list[str] = []  # each step's fold in the words of :mod:`dgli_vision.fold_graph`
+class _FoldDraw:
+    """Draws the folds of one state, collecting the fold lines, their words (those of
+    :mod:`dgli_vision.fold_graph`) and the drawn parameters."""
 
-    def along(a: str, b: str) -> float:
+    def __init__(self, layout: NapkinLayout, rng: np.random.Generator) -> None:
+        self.layout = layout
+        self.rng = rng
+        self.params: dict[str, Any] = {}
+        self.steps: list[FoldStep] = []
+        self.words: list[str] = []
+
+    def along(self, a: str, b: str) -> float:
         """Scale of a fold size measured from corner a towards corner b."""
-        d = np.abs(layout.corner_uv[_corner_index(b)] - layout.corner_uv[_corner_index(a)])
-        return float(d @ np.array(layout.fold_scale) / d.sum())
+        c = self.layout.corner_uv
+        d = np.abs(c[_corner_index(b)] - c[_corner_index(a)])
+        return float(d @ np.array(self.layout.fold_scale) / d.sum())
 
-    def legs_scale(name: str) -> tuple[float, float]:
+    def legs_scale(self, name: str) -> tuple[float, float]:
         """Scales of a corner's legs along its leaving and its arriving edge."""
         k = _corner_index(name)
-        return along(name, CORNERS[(k + 1) % 4]), along(name, CORNERS[k - 1])
+        return self.along(name, CORNERS[(k + 1) % 4]), self.along(name, CORNERS[k - 1])
 
-    def across(side: str) -> float:
+    def across(self, side: str) -> float:
         """Scale of a fold size measured from a side into the napkin."""
-        return along(side[1], CORNERS[(_corner_index(side[1]) + 1) % 4])
+        return self.along(side[1], CORNERS[(_corner_index(side[1]) + 1) % 4])
 
-    def corner(name: str, lo: float, hi: float, *, under: bool = False) -> None:
-        s_out, s_in = legs_scale(name)
+    def corner(self, name: str, lo: float, hi: float, *, under: bool = False) -> None:
+        """A corner folded with both legs drawn in [lo, hi] mm (scaled)."""
+        s_out, s_in = self.legs_scale(name)
+        u = self.rng.uniform
         legs = (float(u(lo, hi)) * s_out, float(u(lo, hi)) * s_in)
-        params.setdefault("legs_mm", {})[name] = legs
-        steps.append(corner_fold_line(layout, name, *legs, under=under))
-        words.append(f"{name} {'under' if under else 'over'}")
+        self.params.setdefault("legs_mm", {})[name] = legs
+        self.steps.append(corner_fold_line(self.layout, name, *legs, under=under))
+        self.words.append(f"{name} {'under' if under else 'over'}")
 
-    if class_id == "01":
-        pass
-    elif class_id in ("02", "03"):
-        corner(variant, 150, 200, under=class_id == "03")
-    elif class_id in ("04", "05"):
+    def two_corners_of_side(self, class_id: str, variant: str) -> None:
+        """Classes 04 (a side's two corners) and 05 (two corners, one across the other)."""
+        u = self.rng.uniform
         side, top = (variant, variant[1]) if class_id == "04" else variant.split("/")
         if class_id == "04":
-            top = side[int(rng.integers(2))]
+            top = side[int(self.rng.integers(2))]
         first = side[0] if top == side[1] else side[1]
         shared, other = ((150, 160), (150, 180)) if class_id == "04" else ((170, 195), (230, 260))
         for name in (first, top):
@@ -220,40 +223,66 @@ def _steps_for(
             leg_shared = float(u(*shared))
             leg_other = float(u(*other))
             legs = (leg_shared, leg_other) if name == side[0] else (leg_other, leg_shared)
-            legs = tuple(leg * s for leg, s in zip(legs, legs_scale(name)))
-            params.setdefault("legs_mm", {})[name] = legs
-            steps.append(corner_fold_line(layout, name, *legs))
+            legs = tuple(leg * s for leg, s in zip(legs, self.legs_scale(name)))
+            self.params.setdefault("legs_mm", {})[name] = legs
+            self.steps.append(corner_fold_line(self.layout, name, *legs))
             crossing = f" crossing {first}" if class_id == "05" and name == top else ""
-            words.append(f"{name} over{crossing}")
-        params["order"] = [first, top]
+            self.words.append(f"{name} over{crossing}")
+        self.params["order"] = [first, top]
+
+    def side(self, variant: str, lo: float, hi: float, word: str, *, under: bool = False) -> None:
+        """A strip along a side folded, its inset drawn in [lo, hi] mm (scaled)."""
+        inset = float(self.rng.uniform(lo, hi)) * self.across(variant)
+        self.params["inset_mm"] = inset
+        self.steps.append(side_fold_line(self.layout, variant, inset, under=under))
+        self.words.append(f"{variant} {word}")
+
+    def diagonal(self, variant: str) -> None:
+        """The napkin folded along a diagonal, its ends offset up to 10 mm (scaled)."""
+        s = min(self.layout.fold_scale)
+        u = self.rng.uniform
+        offsets = (float(u(-10, 10)) * s, float(u(-10, 10)) * s)
+        self.params["diagonal_offsets_mm"] = offsets
+        self.steps.append(diagonal_fold_line(self.layout, variant, *offsets))
+        self.words.append(f"{variant} diagonal")
+
+
+def _draw_class_folds(draw: _FoldDraw, class_id: str, variant: str | None) -> None:
+    """Draw the folds of class ``class_id`` (SPEC section 3's ranges) into ``draw``."""
+    if class_id == "01":
+        pass
+    elif class_id in ("02", "03"):
+        draw.corner(variant, 150, 200, under=class_id == "03")
+    elif class_id in ("04", "05"):
+        draw.two_corners_of_side(class_id, variant)
     elif class_id == "06":
         for name in variant:
-            corner(name, 150, 200)
+            draw.corner(name, 150, 200)
     elif class_id == "07":
         for name in CORNERS:
             if name != variant:
-                corner(name, 150, 170)
+                draw.corner(name, 150, 170)
     elif class_id == "08":
         for name in CORNERS:
-            corner(name, 170, 200)
+            draw.corner(name, 170, 200)
     elif class_id in ("09", "10"):
-        inset = float(u(125, 140)) * across(variant)
-        params["inset_mm"] = inset
-        steps.append(side_fold_line(layout, variant, inset, under=class_id == "10"))
-        words.append(f"{variant} strip {'under' if class_id == '10' else 'over'}")
+        under = class_id == "10"
+        draw.side(variant, 125, 140, f"strip {'under' if under else 'over'}", under=under)
     elif class_id == "11":
-        inset = float(u(198, 210)) * across(variant)
-        params["inset_mm"] = inset
-        steps.append(side_fold_line(layout, variant, inset))
-        words.append(f"{variant} half")
+        draw.side(variant, 198, 210, "half")
     elif class_id == "12":
-        s = min(layout.fold_scale)
-        offsets = (float(u(-10, 10)) * s, float(u(-10, 10)) * s)
-        params["diagonal_offsets_mm"] = offsets
-        steps.append(diagonal_fold_line(layout, variant, *offsets))
-        words.append(f"{variant} diagonal")
+        draw.diagonal(variant)
     else:
         raise ValueError(f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}")
+
+
+def _steps_for(
+    class_id: str, variant: str | None, layout: NapkinLayout, rng: np.random.Generator
+) -> tuple[list[FoldStep], dict[str, Any]]:
+    """The folds of one state of a class and variant, with the drawn parameters."""
+    draw = _FoldDraw(layout, rng)
+    _draw_class_folds(draw, class_id, variant)
+    steps, words, params = draw.steps, draw.words, draw.params
     order = list(range(len(steps)))
     if class_id in ("06", "07", "08"):
         rng.shuffle(order)  # the order of non-overlapping folds does not matter
@@ -391,6 +420,40 @@ def make_state(
     )
 
 
+def _made_last(
+    steps: list[FoldStep], params: dict[str, Any], last_fold: str, what: str
+) -> list[FoldStep]:
+    """The steps with fold ``last_fold`` (a word of ``params["folds"]``, reordered in place)
+    made last."""
+    if last_fold not in params["folds"]:
+        raise ValueError(f"{what} has no fold {last_fold!r}")
+    k = params["folds"].index(last_fold)
+    params["folds"] = params["folds"][:k] + params["folds"][k + 1 :] + [last_fold]
+    return steps[:k] + steps[k + 1 :] + [steps[k]]
+
+
+def _fold_in_progress(
+    steps: list[FoldStep],
+    params: dict[str, Any],
+    last_fold_deg: float,
+    class_id: str,
+    variant: str | None,
+) -> tuple[list[float], tuple[str, str | None]]:
+    """The fold angles (radians) with the last fold turned ``last_fold_deg``, and the
+    class and variant of that state by the 90-degree rule; notes the stage in ``params``."""
+    if not steps:
+        raise ValueError(f"class {class_id} has no fold to leave in progress")
+    if not 0 < last_fold_deg < 180:
+        raise ValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
+    angles = [np.pi] * (len(steps) - 1) + [float(np.radians(last_fold_deg))]
+    moving = params["folds"][-1]
+    params["stage"] = f"{'settling' if last_fold_deg > 90 else 'rising'} {moving}"
+    params["last_fold_deg"] = float(last_fold_deg)
+    if last_fold_deg <= 90:
+        class_id, variant = unfold((class_id, variant), moving)
+    return angles, (class_id, variant)
+
+
 def sample_state(
     class_id: str,
     variant: str | None = None,
@@ -447,23 +510,12 @@ def sample_state(
     layout = layout or default_layout()
     steps, params = _steps_for(class_id, variant, layout, rng)
     if last_fold is not None:
-        if last_fold not in params["folds"]:
-            raise ValueError(f"{class_id}/{variant} has no fold {last_fold!r}")
-        k = params["folds"].index(last_fold)
-        steps = steps[:k] + steps[k + 1 :] + [steps[k]]
-        params["folds"] = params["folds"][:k] + params["folds"][k + 1 :] + [last_fold]
+        steps = _made_last(steps, params, last_fold, f"{class_id}/{variant}")
     angles = None
     if last_fold_deg is not None:
-        if not steps:
-            raise ValueError(f"class {class_id} has no fold to leave in progress")
-        if not 0 < last_fold_deg < 180:
-            raise ValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
-        angles = [np.pi] * (len(steps) - 1) + [float(np.radians(last_fold_deg))]
-        moving = params["folds"][-1]
-        params["stage"] = f"{'settling' if last_fold_deg > 90 else 'rising'} {moving}"
-        params["last_fold_deg"] = float(last_fold_deg)
-        if last_fold_deg <= 90:
-            class_id, variant = unfold((class_id, variant), moving)
+        angles, (class_id, variant) = _fold_in_progress(
+            steps, params, last_fold_deg, class_id, variant
+        )
     return make_state(
         class_id,
         variant,
