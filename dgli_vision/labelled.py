@@ -55,8 +55,11 @@ def write_labelled_folder(
     """Write rendered samples as a labelled folder (SPEC section 4) with ``truth.json``.
 
     ``samples`` are :class:`~dgli_vision.dataset.RenderedSample`; writes
-    ``<name>_color.png``, ``<name>_depth.png``, ``intrinsics.json`` (of the first sample;
-    all must share it), ``labels.csv`` and ``truth.json``; with ``times`` (seconds, one
+    ``<name>_color.png``, ``<name>_depth.png``, ``intrinsics.json`` (of the first sample),
+    ``labels.csv`` and ``truth.json``. Samples seen by another camera than the first (a
+    ``vga`` or ``distortion-known`` condition drawn by ``combo``) go to a subfolder
+    ``camera2/``, ``camera3/``... with its own ``intrinsics.json``, which readers of the
+    folder use for the pairs in it. With ``times`` (seconds, one
     per sample) also ``frames.csv`` (``color,depth,time``: the frames of a recording in
     order). Existing files are replaced only if dgli wrote them or with ``overwrite``
     (:func:`guard_outputs`). Returns the labels file.
@@ -69,20 +72,29 @@ def write_labelled_folder(
         are kept, recorded and named.
     """
     root = Path(out)
+    if not samples:
+        raise ValueError("no samples to write")
+    cameras: list = []
+    for s in samples:
+        if s.result.intrinsics not in cameras:
+            cameras.append(s.result.intrinsics)
+    where = [_camera_folder(cameras.index(s.result.intrinsics)) for s in samples]
     planned = labelled_folder_files(root, [s.name for s in samples], frames=times is not None)
+    planned += [
+        root / sub / f"{s.name}_{kind}.png"
+        for s, sub in zip(samples, where) if sub for kind in ("color", "depth")
+    ]
+    planned += [root / _camera_folder(k) / "intrinsics.json" for k in range(1, len(cameras))]
     guard_outputs(planned, overwrite=overwrite)
     if times is not None and len(times) != len(samples):
         raise ValueError(f"{len(times)} times for {len(samples)} samples")
     rows = []
     truth = {}
-    intr = None
     written: list[Path] = []
-    for s in samples:
-        if intr is None:
-            intr = s.result.intrinsics
-        elif s.result.intrinsics != intr:
-            raise ValueError("all samples of a folder must share their intrinsics")
-        color, depth = f"{s.name}_color.png", f"{s.name}_depth.png"
+    for k, intr in enumerate(cameras):
+        write_json(root / _camera_folder(k) / "intrinsics.json", intr.to_open3d_dict())
+    for s, sub in zip(samples, where):
+        color, depth = f"{sub}{s.name}_color.png", f"{sub}{s.name}_depth.png"
         try:
             write_color(root / color, s.result.color)
             written.append(root / color)
@@ -103,9 +115,6 @@ def write_labelled_folder(
             "visible_fraction": np.round(s.result.visible_fraction, 3).tolist(),
             "state_params": s.state.params,
         }
-    if intr is None:
-        raise ValueError("no samples to write")
-    write_json(root / "intrinsics.json", intr.to_open3d_dict())
     from .report import csv_table
 
     labels = root / "labels.csv"
@@ -119,8 +128,16 @@ def write_labelled_folder(
             ),
         )
     write_json(root / "truth.json", {"provenance": provenance, "images": truth})
-    record_outputs(planned, str(provenance.get("command", "")))
+    record_outputs(
+        [p for p in planned if p.exists()], str(provenance.get("command", ""))
+    )
     return labels
+
+
+def _camera_folder(k: int) -> str:
+    """Subfolder (with its slash) of the pairs of the k-th camera of a folder: ``""``
+    for the first."""
+    return f"camera{k + 1}/" if k else ""
 
 
 @dataclass(frozen=True)

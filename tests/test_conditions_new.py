@@ -4,6 +4,7 @@ under them are the subject of tests/test_robustness.py)."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from functools import lru_cache, partial
 
 import cv2
@@ -232,6 +233,23 @@ def test_a_known_lens_is_one_for_the_whole_set_and_written_into_intrinsics_json(
     assert data["distortion"] == list(samples[0].result.intrinsics.distortion)
     assert len(data["distortion"]) == 5 and data["distortion"][4] == 0.0
 
+
+
+def test_a_set_whose_pairs_come_from_two_cameras_keeps_each_pairs_intrinsics(tmp_path):
+    """``combo`` may draw ``distortion-known`` for some pairs only: those pairs go to a
+    subfolder with their own intrinsics, and the folder reads back pair by pair."""
+    from dgli_vision.labelled import find_labelled_pairs, write_labelled_folder
+
+    plain = render_small("01", 0, 4)
+    lens = render_small("02", 0, 4, ("distortion-known",))
+    labels = write_labelled_folder(tmp_path / "set", [plain, lens], {"command": "test"})
+    pairs, problems = find_labelled_pairs(labels.parent)
+    assert not problems
+    pairs = sorted(pairs, key=lambda p: p.color)
+    assert [Path(p.color).parent.name for p in pairs] == ["set", "camera2"]
+    frames = [p.load() for p in pairs]
+    assert frames[0].intrinsics == plain.result.intrinsics
+    assert frames[1].intrinsics == lens.result.intrinsics
 
 # --- grasp: a gripper holding the corner it folds -----------------------------------------
 
