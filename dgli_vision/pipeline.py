@@ -113,13 +113,19 @@ class ClothObservation:
     def lifted(self) -> NDArray[np.float64] | None:
         """1 for a sticker standing more than ``LIFTED_MM`` above the table, 0 for one on
         it, NaN where not known, shape (16,). A missing sticker that may have gone up
-        with a flap held up steeply counts as standing."""
+        with a flap held up steeply counts as standing, unless its place may also lie
+        under an object and its flap's lean was not measured (then the raised cloth may
+        be the object's doing)."""
         if self.heights_mm is None:
             return None
         out = np.where(self.visible, (self.heights_mm > LIFTED_MM).astype(float), np.nan)
         if self.evidence is not None:
-            held = [why == HELD_UP for why in self.evidence.reasons]
-            out[np.asarray(held) & self.unknown] = 1.0
+            held = np.array([why == HELD_UP for why in self.evidence.reasons]) & self.unknown
+            if self.flap_deg is not None:
+                told = ~self.evidence.near_object | np.isfinite(self.flap_deg)
+            else:
+                told = ~self.evidence.near_object
+            out[held & told] = 1.0
         return out
 
     @property

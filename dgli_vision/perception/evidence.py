@@ -13,7 +13,7 @@ napkin. A sticker that breaks this with others is a false detection and is dropp
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import combinations
 
 import numpy as np
@@ -115,12 +115,16 @@ class StickerEvidence:
         pixels; NaN where that cannot be told.
     occluded : bool
         Something that is not napkin stands over the napkin.
+    near_object : ndarray of bool, shape (16,), optional
+        Missing stickers whose place may lie under that object (their reason may still be
+        cloth held up, which tells more when the flap's lean is measured).
     """
 
     status: NDArray[np.int8]
     reasons: tuple[str | None, ...]
     predicted_px: NDArray[np.float64]
     occluded: bool = False
+    near_object: NDArray[np.bool_] = field(default_factory=lambda: np.zeros(16, dtype=bool))
 
     @property
     def seen(self) -> NDArray[np.bool_]:
@@ -466,22 +470,24 @@ def assess_stickers(
         napkin, predicted, missing, pts[seen], steep, intrinsics, layout, p, z_typ,
         pred3 if up is not None else None, up,
     )
+    near_object = np.zeros(n, dtype=bool)
     w, h = intrinsics.width, intrinsics.height
     for k, sid in enumerate(missing):
         u, v = predicted[sid]
+        poorly_seen = occluded and group_support[sid] < p.min_corner_support
         why = None
         if np.isfinite(u) and not (
             -radius_px <= u <= w - 1 + radius_px and -radius_px <= v <= h - 1 + radius_px
         ):
             why = "out of view"
-        elif near_occ[k] or (
-            occluded and group_support[sid] < p.min_corner_support and near_flap[k]
-        ):
+        elif held_up[k]:  # a flap held up by the object over it tells its lean
+            why = HELD_UP
+            near_object[sid] = bool(near_occ[k] or (poorly_seen and near_flap[k]))
+        elif near_occ[k] or (poorly_seen and near_flap[k]):
             why = "possibly under an object above the napkin"
+            near_object[sid] = True
         elif near_hl[k]:
             why = "in a highlight"
-        elif held_up[k]:
-            why = HELD_UP
         elif layout.sticker_disc[sid] in pale_colours:
             why = WASHED_OUT
         elif dropped is not None and dropped[sid] and np.isnan(u):
@@ -489,4 +495,4 @@ def assess_stickers(
         if why:
             status[sid] = UNKNOWN
             reasons[sid] = why
-    return StickerEvidence(status, tuple(reasons), predicted, occluded)
+    return StickerEvidence(status, tuple(reasons), predicted, occluded, near_object)
