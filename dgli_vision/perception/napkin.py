@@ -15,7 +15,7 @@ applies to the full frame in about a millisecond.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..colour import linear_to_srgb, srgb_lut
 
-__all__ = ["NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
+__all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 
 
 @dataclass(frozen=True)
@@ -143,15 +143,87 @@ class NapkinView:
 
     def near(self, mask: NDArray[np.bool_], uv: NDArray, radius_px: float) -> NDArray[np.bool_]:
         """Which pixels ``uv`` (n, 2) have a ``mask`` sample within ``radius_px``."""
-        out = np.zeros(len(uv), dtype=bool)
-        if not mask.any():
+        return _near(mask, uv, radius_px, self.stride)
+
+    def masks(self) -> NapkinMasks:
+        """What the later stages ask of this view (the masks, heights, nearness), as a
+        value of its own."""
+        return NapkinMasks(
+            self.stride, self.highlight, self.occluder, self.cloth, self.raised, self.height_mm
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class NapkinMasks:
+    """Where things are around the napkin, on its sampling grid: what the evidence stage
+    receives from the napkin stage (:meth:`NapkinView.masks`).
+
+    Attributes
+    ----------
+    stride : int
+        Subsampling of the masks, pixels: sample (i, j) is pixel (u, v) = (j, i) * stride.
+    highlight, occluder : ndarray of bool, shape (H // stride + 1, W // stride + 1)
+        Highlights, and objects above the table (see :class:`NapkinView`).
+    cloth, raised : ndarray of bool, same shape, optional
+        The napkin's samples, and cloth held up above the table.
+    height_mm : ndarray of float32, same shape, optional
+        Height of every sample above the table plane, mm (NaN without a reading).
+    """
+
+    stride: int
+    highlight: NDArray[np.bool_]
+    occluder: NDArray[np.bool_]
+    cloth: NDArray[np.bool_] | None = None
+    raised: NDArray[np.bool_] | None = None
+    height_mm: NDArray[np.float32] | None = None
+
+    def near(self, mask: NDArray[np.bool_], uv: NDArray, radius_px: float) -> NDArray[np.bool_]:
+        """Which pixels ``uv`` (n, 2) have a ``mask`` sample within ``radius_px``."""
+        return _near(mask, uv, radius_px, self.stride)
+
+    def height_at(self, uv: NDArray) -> NDArray[np.float64]:
+        """Median height above the table (mm) of the 3 x 3 samples around pixels ``uv``
+        (n, 2); NaN where there is no reading (or no heights at all)."""
+        out = np.full(len(uv), np.nan)
+        if self.height_mm is None:
             return out
-        vs, us = np.nonzero(mask)
-        pts = np.stack([us, vs], 1) * self.stride
-        for k, p in enumerate(np.asarray(uv, dtype=np.float64)):
-            if np.all(np.isfinite(p)):
-                out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + self.stride).any())
+        for k, (u, v) in enumerate(np.asarray(uv, dtype=np.float64)):
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue
+            i, j = round(v / self.stride), round(u / self.stride)
+            win = self.height_mm[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
+            if win.size and np.isfinite(win).any():
+                out[k] = float(np.nanmedian(win))
         return out
+
+    def without_objects_near(self, uv: NDArray, radius_px: float) -> NapkinMasks:
+        """These masks with no object within ``radius_px`` of the pixels ``uv`` (n, 2)
+        (more than a sample): a sticker on a flap held up is a raised, coloured patch,
+        not an object."""
+        if not self.occluder.any() or not len(uv):
+            return self
+        hh, ww = self.occluder.shape
+        vs, us = np.mgrid[0:hh, 0:ww] * self.stride
+        mine = np.zeros((hh, ww), dtype=bool)
+        for u, v in uv:
+            mine |= np.hypot(us - u, vs - v) <= radius_px + self.stride
+        return replace(self, occluder=self.occluder & ~mine)
+
+
+def _near(
+    mask: NDArray[np.bool_], uv: NDArray, radius_px: float, stride: int
+) -> NDArray[np.bool_]:
+    """Which pixels ``uv`` (n, 2) have a sample of ``mask`` (on a grid of ``stride``
+    pixels) within ``radius_px`` (and a sample)."""
+    out = np.zeros(len(uv), dtype=bool)
+    if not mask.any():
+        return out
+    vs, us = np.nonzero(mask)
+    pts = np.stack([us, vs], 1) * stride
+    for k, p in enumerate(np.asarray(uv, dtype=np.float64)):
+        if np.all(np.isfinite(p)):
+            out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + stride).any())
+    return out
 
 
 def balance_lut(white_rgb: NDArray[np.float64], level: int) -> NDArray[np.uint8]:
