@@ -104,7 +104,7 @@ class DetectorParams:
         Below this cosine a sticker is seen too obliquely to be read (its dot shrinks
         to a line). Default 0.25 (75 degrees): the 12 mm dot keeps about 3 mm.
     washed_saturation : int
-        ``min_saturation`` of the second search (:func:`find_washed_out`) for stickers a
+        ``min_saturation`` of the second search (:func:`.detect.find_washed_out`) for stickers a
         broad sheen washed to pastel. Default 25 (0.1): a semi-gloss sticker under a
         softbox keeps 0.1-0.3 and its hue, while the napkin once balanced stays below
         about 0.05.
@@ -180,7 +180,7 @@ class StickerDetections:
     pale_px : ndarray, shape (k, 2), optional
         Pixels (x, y) of pastel sticker colour left away from every sticker found: a
         broad sheen's washed-out stickers that no search could read (see
-        :func:`find_washed_out`).
+        :func:`.detect.find_washed_out`).
     pale_colours : tuple of str
         The sticker colours (names) of two or more of those samples.
     """
