@@ -21,7 +21,7 @@ from .condition_names import CONDITION_NAMES
 from .frames import RGBDFrame
 from .references import ReferenceSet
 
-__all__ = ["FrameTime", "FrameBench", "bench_frames", "bench_set"]
+__all__ = ["FrameBench", "FrameTime", "bench_frames", "bench_set"]
 
 #: The sequence rendered with a gripper for the frames of folds in progress.
 SEQUENCE = "II"

@@ -218,7 +218,7 @@ def observe(
         markers,
         frame.intrinsics,
         layout,
-        napkin,
+        napkin.masks(),
         dropped=dropped,
         foreshortening=detections.foreshortening,
         up=up,

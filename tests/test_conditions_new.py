@@ -4,8 +4,8 @@ under them are the subject of tests/test_robustness.py)."""
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from functools import lru_cache, partial
+from pathlib import Path
 
 import cv2
 import numpy as np

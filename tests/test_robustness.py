@@ -207,7 +207,18 @@ def test_a_missing_sticker_under_an_object_is_unknown_and_elsewhere_hidden():
         ev.predicted_px[0], DEFAULT_INTRINSICS.project(truth.points[[0]])[0], atol=1.0
     )
     assert ev.occluded
-    # but an object over the napkin makes a whole missing corner unknown too
+    # the object stands over the far corner: a corner folded over here would show its
+    # stickers, so their absence is a fold
+    assert (ev.status[[0, 1, 14, 15]] == HIDDEN).all()
+    # an object within reach of the missing corner (100 mm from its place) may cover
+    # its flap: the whole missing corner is unknown
+    near_a = truth.points[[0]] + np.array([[0.07, 0.07, 0.0]])
+    a_px = DEFAULT_INTRINSICS.project(near_a)[0] / stride
+    also = occluder.copy()
+    also[int(a_px[1]) - 2 : int(a_px[1]) + 3, int(a_px[0]) - 2 : int(a_px[0]) + 3] = True
+    ev = assess_stickers(
+        markers, DEFAULT_INTRINSICS, LAYOUT, dataclasses.replace(view, occluder=also)
+    )
     assert (ev.status[[0, 1, 14, 15]] == UNKNOWN).all()
     clear = dataclasses.replace(view, occluder=np.zeros(shape, bool))
     ev = assess_stickers(markers, DEFAULT_INTRINSICS, LAYOUT, clear)

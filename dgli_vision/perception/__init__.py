@@ -1,4 +1,19 @@
-"""Perception: sticker detection by HSV thresholding, lifting to 3D, the table plane."""
+"""Perception: from an RGB-D frame to the stickers in 3D and what the missing ones say.
+
+The stages run in the order the data flows, each receiving the frozen result of the one
+before (:func:`dgli_vision.pipeline.observe` chains them):
+
+1. the table plane (:mod:`.lift`) and the napkin (:mod:`.napkin`): its white, and masks
+   of highlights, objects above the table and cloth held up (:class:`.napkin.NapkinView`);
+2. the stickers (:mod:`.detect`: colour labels :mod:`.labels`, one blob judged
+   :mod:`.blobs`, the second search for pastel stickers :mod:`.washed`; parameters and
+   results :mod:`.detections`);
+3. 3D (:mod:`.lift`), with the napkin's scale (:mod:`.scale`);
+4. evidence (:mod:`.evidence`): each missing sticker hidden by cloth or unknown, from
+   the napkin view's masks (:meth:`.napkin.NapkinView.masks`);
+5. flaps (:mod:`.flaps`): how far a flap held up has turned; and the footprint
+   (:mod:`.footprint`) and the face each corner shows (:mod:`.handedness`).
+"""
 
 from .detect import DetectorParams, StickerDetections, detect_stickers
 from .lift import Markers3D, estimate_table_normal, lift_stickers

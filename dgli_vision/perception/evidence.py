@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..layout import NapkinLayout
 from .lift import Markers3D
-from .napkin import NapkinView
+from .napkin import NapkinMasks, NapkinView
 
 __all__ = [
     "HELD_UP",
@@ -216,68 +216,136 @@ def _rigid_prediction(
     return uv_m @ r1.T + t1, mask
 
 
-def _without_stickers(
-    napkin: NapkinView, located: NDArray, intrinsics: Intrinsics, radius_px: float
-) -> NapkinView:
-    """The napkin view with the located stickers taken out of its object mask: a
-    sticker on a flap held up is a raised, coloured patch, not an object."""
-    import dataclasses
+@dataclass(frozen=True, eq=False)
+class _Seen:
+    """The located stickers, as the judging of the missing ones uses them.
 
-    if not napkin.occluder.any() or not len(located):
-        return napkin
-    hh, ww = napkin.occluder.shape
-    vs, us = np.mgrid[0:hh, 0:ww] * napkin.stride
-    mine = np.zeros((hh, ww), dtype=bool)
-    for u, v in intrinsics.project(located):
-        mine |= np.hypot(us - u, vs - v) <= radius_px + napkin.stride
-    return dataclasses.replace(napkin, occluder=napkin.occluder & ~mine)
+    Attributes
+    ----------
+    points : ndarray, shape (k, 3)
+        Camera frame, metres.
+    pixels : ndarray, shape (k, 2)
+        Where they image.
+    steep : ndarray of bool, shape (k,)
+        Seen strongly foreshortened (on cloth held up steeply).
+    z_typ : float
+        Their median depth, metres (0.6 without any).
+    radius_px : float
+        ``near_radii`` sticker radii at ``z_typ``, pixels.
+    """
+
+    points: NDArray[np.float64]
+    pixels: NDArray[np.float64]
+    steep: NDArray[np.bool_]
+    z_typ: float
+    radius_px: float
 
 
-def _over_napkin(
-    napkin: NapkinView, margin_mm: float, located: NDArray, intrinsics: Intrinsics
-) -> bool:
+@dataclass(frozen=True)
+class _Near:
+    """For each missing sticker (m,), what its predicted place is near: an object (within
+    ``radius_px``), a highlight, an object within ``flap_reach_mm`` (or no place)."""
+
+    occluder: NDArray[np.bool_]
+    highlight: NDArray[np.bool_]
+    flap_reach: NDArray[np.bool_]
+
+
+def _seen_stickers(
+    markers: Markers3D,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    p: EvidenceParams,
+    foreshortening: NDArray[np.float64] | None,
+) -> _Seen:
+    seen = markers.found
+    pts = markers.points[seen]
+    z_typ = float(np.nanmedian(pts[:, 2])) if seen.any() else 0.6
+    radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
+    fore = foreshortening if foreshortening is not None else np.ones(len(seen))
+    steep = np.nan_to_num(fore[seen], nan=1.0) < p.steep_foreshortening
+    pixels = intrinsics.project(pts) if len(pts) else np.zeros((0, 2))
+    return _Seen(pts, pixels, steep, z_typ, radius_px)
+
+
+def _predict_missing(
+    markers: Markers3D, layout: NapkinLayout, p: EvidenceParams
+) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """Where each missing sticker would be if its part of the cloth lay as the rest
+    (camera frame, (16, 3), NaN where that cannot be told), and how many stickers of its
+    corner were seen (16,).
+
+    A rigid fit of the stickers seen of its corner, where three or more lie as one;
+    else of all the stickers seen, when they span corners (only a flat part that spans
+    corners says where another corner would lie).
+    """
+    n = len(markers.points)
+    seen = markers.found
+    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(n)])
+    pts = markers.points
+    tol = p.fit_tolerance_mm * 1e-3
+    corner_of = np.argmin(
+        np.linalg.norm(layout.sticker_uv[:, None] - layout.corner_uv[None], axis=2), axis=1
+    )
+    pred3 = np.full((n, 3), np.nan)
+    group_support = np.zeros(n, dtype=int)
+    for corner in range(len(layout.corner_uv)):
+        group = corner_of == corner
+        group_support[group] = int((group & seen).sum())
+        if (group & ~seen).any():  # only where something is missing
+            fit = _rigid_prediction(uv_m, pts, group & seen, tol)
+            if fit is not None:
+                pred3[group] = fit[0][group]
+    todo = np.isnan(pred3[:, 0]) & ~seen
+    if todo.any():
+        overall = _rigid_prediction(uv_m, pts, seen, tol)
+        if overall is not None and len(set(corner_of[overall[1]])) >= 2:
+            pred3[todo] = overall[0][todo]
+    return pred3, group_support
+
+
+def _over_napkin(masks: NapkinMasks, margin_mm: float, seen: _Seen, fx: float) -> bool:
     """Does an object above the table touch the napkin in the image (or stand within
     the outline of the located stickers)?"""
     import cv2
 
-    if not napkin.occluder.any():
+    if not masks.occluder.any():
         return False
-    if napkin.cloth is not None:
-        z = float(np.nanmedian(located[:, 2])) if len(located) else 0.6
-        reach = max(1, round(margin_mm * 1e-3 * intrinsics.fx / z / napkin.stride))
+    if masks.cloth is not None:
+        reach = max(1, round(margin_mm * 1e-3 * fx / seen.z_typ / masks.stride))
         kernel = np.ones((2 * reach + 1, 2 * reach + 1), np.uint8)
-        near_cloth = cv2.dilate(napkin.cloth.astype(np.uint8), kernel).astype(bool)
-        if (near_cloth & napkin.occluder).any():
+        near_cloth = cv2.dilate(masks.cloth.astype(np.uint8), kernel).astype(bool)
+        if (near_cloth & masks.occluder).any():
             return True
-    if len(located) < 3:
+    if len(seen.points) < 3:
         return False
-    hull = cv2.convexHull(intrinsics.project(located).astype(np.float32))
-    vs, us = np.nonzero(napkin.occluder)
+    hull = cv2.convexHull(seen.pixels.astype(np.float32))
+    vs, us = np.nonzero(masks.occluder)
     return any(
-        cv2.pointPolygonTest(hull, (float(u * napkin.stride), float(v * napkin.stride)), False)
+        cv2.pointPolygonTest(hull, (float(u * masks.stride), float(v * masks.stride)), False)
         >= 0
         for u, v in zip(us, vs)
     )
 
 
-def _sample_height(napkin: NapkinView, uv: NDArray) -> NDArray[np.float64]:
-    """Median height above the table (mm) of the 3 x 3 mask samples around pixels
-    ``uv`` (n, 2); NaN where there is no reading."""
-    assert napkin.height_mm is not None
-    hgt = napkin.height_mm
-    out = np.full(len(uv), np.nan)
-    for k, (u, v) in enumerate(np.asarray(uv, dtype=np.float64)):
-        if not (np.isfinite(u) and np.isfinite(v)):
-            continue
-        i, j = round(v / napkin.stride), round(u / napkin.stride)
-        win = hgt[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
-        if win.size and np.isfinite(win).any():
-            out[k] = float(np.nanmedian(win))
-    return out
+def _nearness(
+    masks: NapkinMasks | None, where: NDArray, radius_px: float, flap_reach_px: float
+) -> _Near:
+    """What the predicted places ``where`` (m, 2) of the missing stickers are near."""
+    if masks is None:
+        none = np.zeros(len(where), dtype=bool)
+        return _Near(none, none, none)
+    near_flap = masks.near(masks.occluder, where, flap_reach_px)
+    near_flap |= ~np.isfinite(where).all(axis=1)
+    return _Near(
+        masks.near(masks.occluder, where, radius_px),
+        masks.near(masks.highlight, where, radius_px),
+        near_flap,
+    )
 
 
 def _covered_from_above(
-    napkin: NapkinView,
+    masks: NapkinMasks,
     flat: NDArray,
     up: NDArray,
     intrinsics: Intrinsics,
@@ -293,21 +361,66 @@ def _covered_from_above(
     step = 10.0
     for height in np.arange(min_mm, top_mm + step, step):
         above = flat[ok] + height * 1e-3 * up
-        seen = _sample_height(napkin, intrinsics.project(above))
+        seen = masks.height_at(intrinsics.project(above))
         out[ok] |= np.isfinite(seen) & (np.abs(seen - height) <= step / 2)
     return out
 
 
-def _held_up(
-    napkin: NapkinView | None,
-    predicted: NDArray,
-    missing: NDArray,
-    located: NDArray,
-    steep: NDArray[np.bool_],
+def _steep_cloth(masks: NapkinMasks, seen: _Seen) -> NDArray[np.bool_] | None:
+    """The samples of cloth held up steeply (None if none): the parts of ``raised``
+    where a sticker is seen strongly foreshortened, or none is seen at all (a flap
+    edge-on shows none)."""
+    import cv2
+
+    assert masks.raised is not None
+    n_parts, parts = cv2.connectedComponents(masks.raised.astype(np.uint8), connectivity=8)
+    steep_parts = np.ones(n_parts, dtype=bool)
+    steep_parts[0] = False
+    if len(seen.points):
+        ij = np.rint(seen.pixels[:, ::-1] / masks.stride).astype(int)
+        gentle = np.zeros(n_parts, dtype=bool)
+        for (i, j), is_steep in zip(ij, seen.steep):
+            win = parts[max(i - 3, 0) : i + 4, max(j - 3, 0) : j + 4]  # past the sticker
+            for lab in np.unique(win[win > 0]):
+                if is_steep:
+                    gentle[lab] = False
+                    steep_parts[lab] = True
+                elif steep_parts[lab]:
+                    gentle[lab] = True
+        steep_parts &= ~gentle
+    return steep_parts[parts] if steep_parts.any() else None
+
+
+def _layer_over(
+    masks: NapkinMasks,
+    where: NDArray,
+    flat3d: NDArray | None,
+    up: NDArray | None,
+    seen: _Seen,
     intrinsics: Intrinsics,
     layout: NapkinLayout,
     p: EvidenceParams,
-    z_typ: float,
+) -> NDArray[np.bool_]:
+    """Which missing stickers' flat places (pixels ``where`` (m, 2); 3D ``flat3d``
+    (m, 3)) have a layer hovering over them, ``cover_mm`` above the napkin around: they
+    are under it, not up on the flap. With ``flat3d`` and the table normal ``up`` the
+    layer is looked for straight above the place; without, along the camera's ray."""
+    base = masks.height_at(seen.pixels)
+    ground = float(np.nanmedian(base)) if np.isfinite(base).any() else 0.0
+    if flat3d is not None and up is not None:
+        top = max(layout.width_mm, layout.height_mm) / 2
+        return _covered_from_above(masks, flat3d, up, intrinsics, ground + p.cover_mm, top)
+    over = masks.height_at(where)
+    return np.isfinite(over) & (over > ground + p.cover_mm)
+
+
+def _held_up(
+    masks: NapkinMasks | None,
+    where: NDArray,
+    seen: _Seen,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    p: EvidenceParams,
     flat3d: NDArray | None = None,
     up: NDArray | None = None,
 ) -> NDArray[np.bool_]:
@@ -322,65 +435,88 @@ def _held_up(
 
     Parameters
     ----------
-    located : ndarray, shape (k, 3)
-        The located stickers, camera frame.
-    steep : ndarray of bool, shape (k,)
-        Which of them are seen strongly foreshortened.
-    flat3d : ndarray, shape (16, 3), optional
-        Where each sticker would lie flat, camera frame (NaN where not known).
+    where : ndarray, shape (m, 2)
+        Where each missing sticker would be lying flat, pixels (NaN where not known).
+    seen : _Seen
+        The located stickers.
+    flat3d : ndarray, shape (m, 3), optional
+        Where each missing sticker would lie flat, camera frame (NaN where not known).
     up : ndarray, shape (3,), optional
         Table normal. With ``flat3d``, a layer over a sticker's flat place is looked for
         straight above it; without, along the camera's ray (where a flap standing in
         front of the place, its own, would count).
     """
-    import cv2
-
-    out = np.zeros(len(missing), dtype=bool)
-    if napkin is None or napkin.raised is None or not napkin.raised.any():
+    out = np.zeros(len(where), dtype=bool)
+    if masks is None or masks.raised is None or not masks.raised.any():
         return out
-    n_parts, parts = cv2.connectedComponents(napkin.raised.astype(np.uint8), connectivity=8)
-    steep_parts = np.ones(n_parts, dtype=bool)
-    steep_parts[0] = False
-    if len(located):
-        px = intrinsics.project(located)
-        ij = np.rint(px[:, ::-1] / napkin.stride).astype(int)
-        gentle = np.zeros(n_parts, dtype=bool)
-        for (i, j), is_steep in zip(ij, steep):
-            win = parts[max(i - 3, 0) : i + 4, max(j - 3, 0) : j + 4]  # past the sticker
-            for lab in np.unique(win[win > 0]):
-                if is_steep:
-                    gentle[lab] = False
-                    steep_parts[lab] = True
-                elif steep_parts[lab]:
-                    gentle[lab] = True
-        steep_parts &= ~gentle
-    if not steep_parts.any():
+    steep_mask = _steep_cloth(masks, seen)
+    if steep_mask is None:
         return out
-    steep_mask = steep_parts[parts]
     reach_px = p.held_up_reach * min(layout.width_mm, layout.height_mm) * 1e-3
-    reach_px *= intrinsics.fx / z_typ
-    where = predicted[missing]
-    unplaced = ~np.isfinite(where[:, 0])
-    out = napkin.near(steep_mask, where, reach_px) | unplaced
-    if napkin.height_mm is not None and len(located):
-        base = _sample_height(napkin, intrinsics.project(located))
-        ground = float(np.nanmedian(base)) if np.isfinite(base).any() else 0.0
-        if flat3d is not None and up is not None:
-            top = max(layout.width_mm, layout.height_mm) / 2
-            out &= ~_covered_from_above(
-                napkin, flat3d[missing], up, intrinsics, ground + p.cover_mm, top
-            )
-        else:
-            over = _sample_height(napkin, where)
-            out &= ~(np.isfinite(over) & (over > ground + p.cover_mm))
+    reach_px *= intrinsics.fx / seen.z_typ
+    out = masks.near(steep_mask, where, reach_px) | ~np.isfinite(where[:, 0])
+    if masks.height_mm is not None and len(seen.points):
+        out &= ~_layer_over(masks, where, flat3d, up, seen, intrinsics, layout, p)
     return out
+
+
+def _out_of_view(uv: NDArray, radius_px: float, intrinsics: Intrinsics) -> bool:
+    """A predicted place more than ``radius_px`` outside the image (NaN: not known)."""
+    u, v = uv
+    w, h = intrinsics.width, intrinsics.height
+    return bool(np.isfinite(u)) and not (
+        -radius_px <= u <= w - 1 + radius_px and -radius_px <= v <= h - 1 + radius_px
+    )
+
+
+@dataclass(frozen=True)
+class _Missing:
+    """What is known of each missing sticker, arrays of shape (m,): its predicted place
+    out of view; near an object, a highlight, an object within ``flap_reach_mm`` (see
+    :class:`_Near`); possibly held up; the stickers of its corner seen; its disc colour
+    seen pastel; dropped as a false detection, with no place predicted."""
+
+    out_of_view: NDArray[np.bool_]
+    near: _Near
+    held_up: NDArray[np.bool_]
+    corner_support: NDArray[np.intp]
+    pale: NDArray[np.bool_]
+    dropped: NDArray[np.bool_]
+
+
+def _why_unknown(
+    k: int, m: _Missing, occluded: bool, p: EvidenceParams
+) -> tuple[str | None, bool]:
+    """Why the ``k``-th missing sticker is unknown, the first reason that holds (None
+    where only cloth can hide it), and whether its place may lie under an object."""
+    under = bool(
+        m.near.occluder[k]
+        or (occluded and m.corner_support[k] < p.min_corner_support and m.near.flap_reach[k])
+    )
+    if m.out_of_view[k]:
+        return "out of view", False
+    if m.held_up[k]:  # a flap held up by the object over it tells its lean
+        return HELD_UP, under
+    if under:
+        return "possibly under an object above the napkin", True
+    if m.near.highlight[k]:
+        return "in a highlight", False
+    if m.pale[k]:
+        return WASHED_OUT, False
+    if m.dropped[k]:
+        return "found where the napkin cannot be", False
+    return None, False
+
+
+def _masks_of(napkin: NapkinMasks | NapkinView | None) -> NapkinMasks | None:
+    return napkin.masks() if isinstance(napkin, NapkinView) else napkin
 
 
 def assess_stickers(
     markers: Markers3D,
     intrinsics: Intrinsics,
     layout: NapkinLayout,
-    napkin: NapkinView | None,
+    napkin: NapkinMasks | NapkinView | None,
     *,
     dropped: NDArray[np.bool_] | None = None,
     params: EvidenceParams | None = None,
@@ -396,8 +532,10 @@ def assess_stickers(
         Located stickers (after :func:`drop_inconsistent`).
     intrinsics : Intrinsics
     layout : NapkinLayout
-    napkin : NapkinView or None
-        Highlights and objects above the table; None: nothing is ever unknown.
+    napkin : NapkinMasks or None
+        The napkin stage's masks (:meth:`.napkin.NapkinView.masks`): highlights, objects
+        above the table, cloth held up and heights; None: nothing is ever unknown. A
+        :class:`~.napkin.NapkinView` is taken as its masks.
     dropped : ndarray of bool, shape (16,), keyword-only, optional
         Stickers dropped as false detections.
     params : EvidenceParams, keyword-only, optional
@@ -425,73 +563,31 @@ def assess_stickers(
     predicted = np.full((n, 2), np.nan)
     if seen.all():
         return StickerEvidence(status, tuple(reasons), predicted)
-    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(n)])
-    pts = markers.points
-    tol = p.fit_tolerance_mm * 1e-3
-    corner_of = np.argmin(
-        np.linalg.norm(layout.sticker_uv[:, None] - layout.corner_uv[None], axis=2), axis=1
-    )
-    pred3 = np.full((n, 3), np.nan)
-    group_support = np.zeros(n, dtype=int)
-    for corner in range(len(layout.corner_uv)):
-        group = corner_of == corner
-        group_support[group] = int((group & seen).sum())
-        if (group & ~seen).any():  # only where something is missing
-            fit = _rigid_prediction(uv_m, pts, group & seen, tol)
-            if fit is not None:
-                pred3[group] = fit[0][group]
-    todo = np.isnan(pred3[:, 0]) & ~seen
-    if todo.any():
-        overall = _rigid_prediction(uv_m, pts, seen, tol)
-        # only a flat part that spans corners says where another corner would lie
-        if overall is not None and len(set(corner_of[overall[1]])) >= 2:
-            pred3[todo] = overall[0][todo]
+    pred3, support = _predict_missing(markers, layout, p)
     ok = np.isfinite(pred3[:, 0]) & (pred3[:, 2] > 0)
     predicted[ok] = intrinsics.project(pred3[ok])
-    z_typ = float(np.nanmedian(pts[seen, 2])) if seen.any() else 0.6
-    radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
-    if napkin is not None:
-        napkin = _without_stickers(napkin, pts[seen], intrinsics, radius_px)
-    occluded = napkin is not None and _over_napkin(
-        napkin, p.napkin_margin_mm, pts[seen], intrinsics
-    )
+    located = _seen_stickers(markers, intrinsics, layout, p, foreshortening)
+    masks = _masks_of(napkin)
+    if masks is not None:
+        masks = masks.without_objects_near(located.pixels, located.radius_px)
+    fx = intrinsics.fx
+    occluded = masks is not None and _over_napkin(masks, p.napkin_margin_mm, located, fx)
     missing = np.flatnonzero(~seen)
-    if napkin is not None:
-        near_occ = napkin.near(napkin.occluder, predicted[missing], radius_px)
-        near_hl = napkin.near(napkin.highlight, predicted[missing], radius_px)
-        reach_px = p.flap_reach_mm * 1e-3 * intrinsics.fx / z_typ
-        near_flap = napkin.near(napkin.occluder, predicted[missing], reach_px)
-        near_flap |= ~np.isfinite(predicted[missing]).all(axis=1)
-    else:
-        near_occ = near_hl = near_flap = np.zeros(len(missing), dtype=bool)
-    fore = foreshortening if foreshortening is not None else np.ones(n)
-    steep = np.nan_to_num(fore[seen], nan=1.0) < p.steep_foreshortening
-    held_up = _held_up(
-        napkin, predicted, missing, pts[seen], steep, intrinsics, layout, p, z_typ,
-        pred3 if up is not None else None, up,
+    where = predicted[missing]
+    flap_reach_px = p.flap_reach_mm * 1e-3 * intrinsics.fx / located.z_typ
+    flat3d = pred3[missing] if up is not None else None
+    unplaced = np.isnan(where[:, 0])
+    facts = _Missing(
+        np.array([_out_of_view(uv, located.radius_px, intrinsics) for uv in where], bool),
+        _nearness(masks, where, located.radius_px, flap_reach_px),
+        _held_up(masks, where, located, intrinsics, layout, p, flat3d, up),
+        support[missing],
+        np.array([layout.sticker_disc[sid] in pale_colours for sid in missing], bool),
+        np.zeros(len(missing), bool) if dropped is None else dropped[missing] & unplaced,
     )
     near_object = np.zeros(n, dtype=bool)
-    w, h = intrinsics.width, intrinsics.height
     for k, sid in enumerate(missing):
-        u, v = predicted[sid]
-        poorly_seen = occluded and group_support[sid] < p.min_corner_support
-        why = None
-        if np.isfinite(u) and not (
-            -radius_px <= u <= w - 1 + radius_px and -radius_px <= v <= h - 1 + radius_px
-        ):
-            why = "out of view"
-        elif held_up[k]:  # a flap held up by the object over it tells its lean
-            why = HELD_UP
-            near_object[sid] = bool(near_occ[k] or (poorly_seen and near_flap[k]))
-        elif near_occ[k] or (poorly_seen and near_flap[k]):
-            why = "possibly under an object above the napkin"
-            near_object[sid] = True
-        elif near_hl[k]:
-            why = "in a highlight"
-        elif layout.sticker_disc[sid] in pale_colours:
-            why = WASHED_OUT
-        elif dropped is not None and dropped[sid] and np.isnan(u):
-            why = "found where the napkin cannot be"
+        why, near_object[sid] = _why_unknown(k, facts, occluded, p)
         if why:
             status[sid] = UNKNOWN
             reasons[sid] = why

@@ -145,59 +145,127 @@ def flap_angles(
         the fitted flap meets the table) times ``sin(angle)``, mm; NaN otherwise. A half
         fold's edge stands nearly twice as high as a strip's at the same angle.
     """
-    import cv2
-
     p = params or FlapParams()
     angle = np.full(len(points), np.nan)
     height = np.full(len(points), np.nan)
-    out = (angle, height)
-    if evidence is None or napkin is None or napkin.raised is None:
-        return out
-    held = evidence.unknown & np.array([why == HELD_UP for why in evidence.reasons])
-    lying = np.isfinite(heights_mm) & (heights_mm < lying_mm)
-    if not held.any() or not napkin.raised.any() or lying.sum() < 3:
-        return out
-    inside = points[lying].mean(axis=0)
-    if napkin.raised_px is None or not len(napkin.raised_px):
-        return out
-    s = napkin.stride
-    n_parts, parts = cv2.connectedComponents(napkin.raised.astype(np.uint8), connectivity=8)
-    every = max(1, len(napkin.raised_px) // p.max_pixels)
-    xy = napkin.raised_px[::every]
-    h = napkin.raised_height_mm[::every].astype(np.float64)
-    d = depth_mm[xy[:, 1], xy[:, 0]].astype(np.float64) * 1e-3
-    cloud = intrinsics.deproject(xy.astype(np.float64), d)
-    label = parts[xy[:, 1] // s, xy[:, 0] // s]
-
-    def horizontal(v: NDArray) -> NDArray:
-        return v - np.outer(v @ up, up) if v.ndim == 2 else v - (v @ up) * up
-
+    held, inside = _held_and_inside(napkin, evidence, points, heights_mm, lying_mm)
+    if held is None or napkin is None or evidence is None:
+        return angle, height
+    cloth = _RaisedCloth.of(napkin, depth_mm, intrinsics, p)
     flat_px = evidence.predicted_px
     rays = intrinsics.deproject(flat_px, np.ones(len(flat_px)))  # z = 1
     flat = rays * (offset_m / (rays @ up))[:, None]  # where each would lie on the table
     reach = p.reach * napkin_side_mm * 1e-3
-    sizes = np.bincount(label, minlength=n_parts)
     for sid in np.flatnonzero(held):
-        anchor = flat[sid]
-        placed = bool(np.isfinite(anchor).all())
-        if placed:
-            gap = np.linalg.norm(horizontal(cloud - anchor), axis=1)
-            near = gap < reach
-            if not near.any():
-                continue
-            part = label[near][np.argmin(gap[near])]
-        else:  # nowhere to put it: the largest raised part
-            part = int(np.argmax(sizes[1:])) + 1
-            anchor = cloud[label == part].mean(axis=0)
-        mine = label == part
-        towards = _across_fold(cloud[mine], up, inside - anchor)
-        if towards is None:
+        found = cloth.flap_of(flat[sid], up, reach)
+        if found is None:
             continue
-        x = horizontal(cloud[mine] - anchor) @ towards * 1e3
-        beta, hinge = _line(x, h[mine], p)  # beta = -cot(angle); hinge: x at the table
-        if not np.isfinite(beta):
+        mine, anchor = found
+        fit = _lean(cloth.cloud[mine], cloth.heights_mm[mine], up, inside - anchor, anchor, p)
+        if fit is None:
             continue
+        beta, hinge = fit  # beta = -cot(angle); hinge: x at the table
         angle[sid] = 90.0 + float(np.degrees(np.arctan(beta)))
-        if placed and hinge > 0:  # the sticker turns about the fold line, ``hinge`` away
+        if np.isfinite(flat[sid]).all() and hinge > 0:
+            # the sticker turns about the fold line, ``hinge`` away
             height[sid] = hinge * np.sin(np.radians(angle[sid]))
     return angle, height
+
+
+def _held_and_inside(
+    napkin: NapkinView | None,
+    evidence: StickerEvidence | None,
+    points: NDArray[np.float64],
+    heights_mm: NDArray[np.float64],
+    lying_mm: float,
+) -> tuple[NDArray[np.bool_] | None, NDArray[np.float64]]:
+    """The stickers possibly held up (None when there is nothing to measure: none, no
+    raised cloth, or fewer than three stickers lying on the table), and the mean of
+    those lying (a point inside the napkin)."""
+    nowhere = np.full(3, np.nan)
+    if evidence is None or napkin is None or napkin.raised is None:
+        return None, nowhere
+    held = evidence.unknown & np.array([why == HELD_UP for why in evidence.reasons])
+    lying = np.isfinite(heights_mm) & (heights_mm < lying_mm)
+    if not held.any() or not napkin.raised.any() or lying.sum() < 3:
+        return None, nowhere
+    if napkin.raised_px is None or not len(napkin.raised_px):
+        return None, nowhere
+    return held, points[lying].mean(axis=0)
+
+
+@dataclass(frozen=True, eq=False)
+class _RaisedCloth:
+    """The raised cloth's pixels (evenly thinned to about ``max_pixels``) as points:
+    ``cloud`` (n, 3) camera frame, ``heights_mm`` (n,) above the table, ``label`` (n,)
+    the connected part of ``NapkinView.raised`` each lies in, ``sizes`` the parts'."""
+
+    cloud: NDArray[np.float64]
+    heights_mm: NDArray[np.float64]
+    label: NDArray[np.intp]
+    sizes: NDArray[np.intp]
+
+    @classmethod
+    def of(
+        cls,
+        napkin: NapkinView,
+        depth_mm: NDArray[np.uint16],
+        intrinsics: Intrinsics,
+        p: FlapParams,
+    ) -> _RaisedCloth:
+        import cv2
+
+        assert napkin.raised is not None and napkin.raised_px is not None
+        assert napkin.raised_height_mm is not None
+        s = napkin.stride
+        n_parts, parts = cv2.connectedComponents(napkin.raised.astype(np.uint8), connectivity=8)
+        every = max(1, len(napkin.raised_px) // p.max_pixels)
+        xy = napkin.raised_px[::every]
+        h = napkin.raised_height_mm[::every].astype(np.float64)
+        d = depth_mm[xy[:, 1], xy[:, 0]].astype(np.float64) * 1e-3
+        cloud = intrinsics.deproject(xy.astype(np.float64), d)
+        label = parts[xy[:, 1] // s, xy[:, 0] // s]
+        return cls(cloud, h, label, np.bincount(label, minlength=n_parts))
+
+    def flap_of(
+        self, anchor: NDArray[np.float64], up: NDArray[np.float64], reach: float
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float64]] | None:
+        """The points (mask) of the raised part nearest the flat place ``anchor`` (3,)
+        within ``reach`` (m, horizontally), and the anchor; with no place (NaN), the
+        largest part and its mean. None when no raised cloth comes within reach."""
+        if np.isfinite(anchor).all():
+            gap = np.linalg.norm(_horizontal(self.cloud - anchor, up), axis=1)
+            near = gap < reach
+            if not near.any():
+                return None
+            part = self.label[near][np.argmin(gap[near])]
+        else:  # nowhere to put it: the largest raised part
+            part = int(np.argmax(self.sizes[1:])) + 1
+            anchor = self.cloud[self.label == part].mean(axis=0)
+        return self.label == part, anchor
+
+
+def _horizontal(v: NDArray, up: NDArray) -> NDArray:
+    return v - np.outer(v @ up, up) if v.ndim == 2 else v - (v @ up) * up
+
+
+def _lean(
+    cloud: NDArray[np.float64],
+    h: NDArray[np.float64],
+    up: NDArray[np.float64],
+    inwards: NDArray[np.float64],
+    anchor: NDArray[np.float64],
+    p: FlapParams,
+) -> tuple[float, float] | None:
+    """The flap ``cloud`` (n, 3) with heights ``h`` (n,): the slope ``-cot(angle)`` of
+    its horizontal position across the fold line (mm from ``anchor``, towards
+    ``inwards``) against height, and that position at the table; None when the flap
+    lies too flat or too few samples give a slope."""
+    towards = _across_fold(cloud, up, inwards)
+    if towards is None:
+        return None
+    x = _horizontal(cloud - anchor, up) @ towards * 1e3
+    beta, hinge = _line(x, h, p)
+    if not np.isfinite(beta):
+        return None
+    return beta, hinge

@@ -240,26 +240,15 @@ def fit_lens(
         raise ValueError("fitting the focal length needs the points' depths")
     pose = _initial_pose(intrinsics, plane, pix)
     k1, k2 = (*intrinsics.distortion, 0.0, 0.0)[:2]
-    problem = _Problem(intrinsics, plane, pix, depth, fit_k2, fit_focal)
+    fitted = _Problem(intrinsics, plane, pix, depth, fit_k2, fit_focal)
     start = [*pose, k1, *([k2] if fit_k2 else []), *([1.0] if fit_focal else [])]
-    x, sd, rms = _solve(problem, np.array(start))
+    x, sd, rms = _solve(fitted, np.array(start))
     k2_sd = float(sd[7]) if fit_k2 else float("nan")
-    lens = problem.lens(x)
+    lens = fitted.lens(x)
     focal_sd = float(sd[-1] * intrinsics.fx) if fit_focal else float("nan")
     k1_sd = float(sd[6])
     reach = _reach(intrinsics, pix)
-    problems = []
-    if not (k1_sd <= MAX_K1_SD):
-        problems.append(
-            f"k1 is known only to +/- {k1_sd:.3f}: the stickers reach {reach:.0%} of the way "
-            "to the image corner; place the napkin off to one side so that its stickers "
-            "reach towards a corner, or fill more of the view"
-        )
-    if fit_focal and not (focal_sd <= MAX_FOCAL_SD * intrinsics.fx):
-        problems.append(
-            f"the focal length is known only to +/- {focal_sd:.1f} px; tilt the camera or "
-            "fill more of the view"
-        )
+    problem = _poorly_constrained(k1_sd, focal_sd, reach, intrinsics.fx if fit_focal else None)
     shift = np.linalg.norm(lens.undistort_pixels(pix) - pix, axis=1)
     return LensEstimate(
         intrinsics=lens,
@@ -272,8 +261,29 @@ def fit_lens(
         rms_px=rms,
         reach=reach,
         shift_px=shift,
-        problem="; ".join(problems) or None,
+        problem=problem,
     )
+
+
+def _poorly_constrained(
+    k1_sd: float, focal_sd: float, reach: float, fx: float | None
+) -> str | None:
+    """Why a fit is poorly constrained, with what to do about it (None when it is not):
+    ``k1``'s standard deviation above :data:`MAX_K1_SD`, or the focal length's (when
+    fitted: ``fx`` given) above :data:`MAX_FOCAL_SD` of ``fx``."""
+    problems = []
+    if not (k1_sd <= MAX_K1_SD):
+        problems.append(
+            f"k1 is known only to +/- {k1_sd:.3f}: the stickers reach {reach:.0%} of the way "
+            "to the image corner; place the napkin off to one side so that its stickers "
+            "reach towards a corner, or fill more of the view"
+        )
+    if fx is not None and not (focal_sd <= MAX_FOCAL_SD * fx):
+        problems.append(
+            f"the focal length is known only to +/- {focal_sd:.1f} px; tilt the camera or "
+            "fill more of the view"
+        )
+    return "; ".join(problems) or None
 
 
 def _reach(intrinsics: Intrinsics, pixels: NDArray[np.float64]) -> float:

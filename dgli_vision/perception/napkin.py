@@ -15,7 +15,7 @@ applies to the full frame in about a millisecond.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 from ..camera import Intrinsics
 from ..colour import linear_to_srgb, srgb_lut
 
-__all__ = ["NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
+__all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 
 
 @dataclass(frozen=True)
@@ -143,15 +143,87 @@ class NapkinView:
 
     def near(self, mask: NDArray[np.bool_], uv: NDArray, radius_px: float) -> NDArray[np.bool_]:
         """Which pixels ``uv`` (n, 2) have a ``mask`` sample within ``radius_px``."""
-        out = np.zeros(len(uv), dtype=bool)
-        if not mask.any():
+        return _near(mask, uv, radius_px, self.stride)
+
+    def masks(self) -> NapkinMasks:
+        """What the later stages ask of this view (the masks, heights, nearness), as a
+        value of its own."""
+        return NapkinMasks(
+            self.stride, self.highlight, self.occluder, self.cloth, self.raised, self.height_mm
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class NapkinMasks:
+    """Where things are around the napkin, on its sampling grid: what the evidence stage
+    receives from the napkin stage (:meth:`NapkinView.masks`).
+
+    Attributes
+    ----------
+    stride : int
+        Subsampling of the masks, pixels: sample (i, j) is pixel (u, v) = (j, i) * stride.
+    highlight, occluder : ndarray of bool, shape (H // stride + 1, W // stride + 1)
+        Highlights, and objects above the table (see :class:`NapkinView`).
+    cloth, raised : ndarray of bool, same shape, optional
+        The napkin's samples, and cloth held up above the table.
+    height_mm : ndarray of float32, same shape, optional
+        Height of every sample above the table plane, mm (NaN without a reading).
+    """
+
+    stride: int
+    highlight: NDArray[np.bool_]
+    occluder: NDArray[np.bool_]
+    cloth: NDArray[np.bool_] | None = None
+    raised: NDArray[np.bool_] | None = None
+    height_mm: NDArray[np.float32] | None = None
+
+    def near(self, mask: NDArray[np.bool_], uv: NDArray, radius_px: float) -> NDArray[np.bool_]:
+        """Which pixels ``uv`` (n, 2) have a ``mask`` sample within ``radius_px``."""
+        return _near(mask, uv, radius_px, self.stride)
+
+    def height_at(self, uv: NDArray) -> NDArray[np.float64]:
+        """Median height above the table (mm) of the 3 x 3 samples around pixels ``uv``
+        (n, 2); NaN where there is no reading (or no heights at all)."""
+        out = np.full(len(uv), np.nan)
+        if self.height_mm is None:
             return out
-        vs, us = np.nonzero(mask)
-        pts = np.stack([us, vs], 1) * self.stride
-        for k, p in enumerate(np.asarray(uv, dtype=np.float64)):
-            if np.all(np.isfinite(p)):
-                out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + self.stride).any())
+        for k, (u, v) in enumerate(np.asarray(uv, dtype=np.float64)):
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue
+            i, j = round(v / self.stride), round(u / self.stride)
+            win = self.height_mm[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
+            if win.size and np.isfinite(win).any():
+                out[k] = float(np.nanmedian(win))
         return out
+
+    def without_objects_near(self, uv: NDArray, radius_px: float) -> NapkinMasks:
+        """These masks with no object within ``radius_px`` of the pixels ``uv`` (n, 2)
+        (more than a sample): a sticker on a flap held up is a raised, coloured patch,
+        not an object."""
+        if not self.occluder.any() or not len(uv):
+            return self
+        hh, ww = self.occluder.shape
+        vs, us = np.mgrid[0:hh, 0:ww] * self.stride
+        mine = np.zeros((hh, ww), dtype=bool)
+        for u, v in uv:
+            mine |= np.hypot(us - u, vs - v) <= radius_px + self.stride
+        return replace(self, occluder=self.occluder & ~mine)
+
+
+def _near(
+    mask: NDArray[np.bool_], uv: NDArray, radius_px: float, stride: int
+) -> NDArray[np.bool_]:
+    """Which pixels ``uv`` (n, 2) have a sample of ``mask`` (on a grid of ``stride``
+    pixels) within ``radius_px`` (and a sample)."""
+    out = np.zeros(len(uv), dtype=bool)
+    if not mask.any():
+        return out
+    vs, us = np.nonzero(mask)
+    pts = np.stack([us, vs], 1) * stride
+    for k, p in enumerate(np.asarray(uv, dtype=np.float64)):
+        if np.all(np.isfinite(p)):
+            out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + stride).any())
+    return out
 
 
 def balance_lut(white_rgb: NDArray[np.float64], level: int) -> NDArray[np.uint8]:
@@ -258,84 +330,122 @@ def find_napkin(
     NapkinView
     """
     p = params or NapkinParams()
+    samples = _Samples.of(color, p)
+    white = _napkin_white(samples, p)
+    lut = balance_lut(white, p.target_level)
+    lum, chroma = samples.balanced(white)
+    lum, chroma = lum.reshape(samples.shape), chroma.reshape(samples.shape)
+    cloth = (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
+    highlight = samples.clipped.reshape(samples.shape) | (
+        (lum >= p.highlight_level) & (chroma <= p.highlight_chroma * lum)
+    )
+    if table_normal is None or table_offset_m is None:
+        occluder = np.zeros(samples.shape, dtype=bool)
+        return NapkinView(white, lut, highlight, occluder, p.stride, cloth)
     s = p.stride
-    sub = color[::s, ::s]
-    shape = sub.shape[:2]
-    lut8 = srgb_lut().astype(np.float32)
-    # Channels as separate flat arrays: reductions over a last axis of 3 are slow.
-    r, g, b = (lut8[sub[..., k].ravel()] for k in range(3))
-    lin = np.stack([r, g, b], axis=1)  # (n, 3) linear RGB
-    clipped = (
-        (sub[..., 0] >= p.clipped_level)
-        & (sub[..., 1] >= p.clipped_level)
-        & (sub[..., 2] >= p.clipped_level)
-    ).ravel()
-    bright = r + g + b
-    usable = ~clipped
-    if usable.sum() < 50:
-        usable = np.ones(len(bright), dtype=bool)
-    level = np.quantile(bright[usable], 1.0 - p.bright_fraction)
-    top = usable & (bright >= level)
-    white = np.median(lin[top], axis=0).astype(np.float64)
+    d = depth_mm[::s, ::s].astype(np.float32)
+    xs, ys = np.arange(samples.shape[1]) * s, np.arange(samples.shape[0]) * s
+    height_mm = _height_above_table(
+        intrinsics, table_normal, table_offset_m, xs[None, :], ys[:, None], d
+    )
+    occluder = _objects((d > 0) & (height_mm > p.occluder_height_mm), lum, chroma, p)
+    raised_px, raised_height = _raised_cloth_pixels(
+        color, depth_mm, intrinsics, table_normal, table_offset_m, white, p
+    )
+    raised_cloth, keep = _held_up_cloth(raised_px, samples.shape, p)
+    height_mm[d <= 0] = np.nan
+    return NapkinView(
+        white, lut, highlight, occluder, s, cloth, raised_cloth, height_mm,
+        raised_px[keep], raised_height[keep],
+    )
 
-    def balanced(white: NDArray) -> tuple[NDArray, NDArray]:
+
+@dataclass(frozen=True, eq=False)
+class _Samples:
+    """The image subsampled by ``stride``: linear channels as separate flat arrays
+    (reductions over a last axis of 3 are slow), shape (n,) each, float32; ``lin`` the
+    same as (n, 3); ``clipped`` (n,) the blown-out samples; ``shape`` the grid's."""
+
+    r: NDArray[np.float32]
+    g: NDArray[np.float32]
+    b: NDArray[np.float32]
+    lin: NDArray[np.float32]
+    clipped: NDArray[np.bool_]
+    shape: tuple[int, int]
+
+    @classmethod
+    def of(cls, color: NDArray[np.uint8], p: NapkinParams) -> _Samples:
+        sub = color[:: p.stride, :: p.stride]
+        lut8 = srgb_lut().astype(np.float32)
+        r, g, b = (lut8[sub[..., k].ravel()] for k in range(3))
+        clipped = (
+            (sub[..., 0] >= p.clipped_level)
+            & (sub[..., 1] >= p.clipped_level)
+            & (sub[..., 2] >= p.clipped_level)
+        ).ravel()
+        return cls(r, g, b, np.stack([r, g, b], axis=1), clipped, sub.shape[:2])
+
+    def balanced(self, white: NDArray) -> tuple[NDArray, NDArray]:
         """Brightness and chroma (n,) of every sample balanced to ``white``."""
         w = np.maximum(white, 1e-4).astype(np.float32)
-        br, bg, bb = r / w[0], g / w[1], b / w[2]
+        br, bg, bb = self.r / w[0], self.g / w[1], self.b / w[2]
         lum = (br + bg + bb) / 3
         chroma = np.maximum(np.maximum(br, bg), bb) - np.minimum(np.minimum(br, bg), bb)
         return lum, chroma
 
-    # Refine on the neutral, bright pixels under that white: the napkin itself.
+
+def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
+    """The napkin's white, linear RGB (3,): the median of the brightest samples, refined
+    twice on the neutral, bright samples under that white (the napkin itself), of which
+    the brighter half (the part facing the light) sets the level."""
+    bright = samples.r + samples.g + samples.b
+    usable = ~samples.clipped
+    if usable.sum() < 50:
+        usable = np.ones(len(bright), dtype=bool)
+    level = np.quantile(bright[usable], 1.0 - p.bright_fraction)
+    top = usable & (bright >= level)
+    white = np.median(samples.lin[top], axis=0).astype(np.float64)
     for _ in range(2):
-        lum, chroma = balanced(white)
+        lum, chroma = samples.balanced(white)
         napkin = usable & (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
         if napkin.sum() < 20:
             break
-        # The brighter half of the napkin: the part facing the light sets the level.
         lum_n = lum[napkin]
         keep = napkin.copy()
         keep[napkin] = lum_n >= np.median(lum_n)
-        white = np.median(lin[keep], axis=0).astype(np.float64)
-    white = np.maximum(white, 1e-4)
-    lut = balance_lut(white, p.target_level)
+        white = np.median(samples.lin[keep], axis=0).astype(np.float64)
+    return np.maximum(white, 1e-4)
 
-    lum, chroma = balanced(white)
-    lum, chroma = lum.reshape(shape), chroma.reshape(shape)
-    cloth = (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
-    highlight = clipped.reshape(shape) | (
-        (lum >= p.highlight_level) & (chroma <= p.highlight_chroma * lum)
-    )
-    occluder = np.zeros(shape, dtype=bool)
-    if table_normal is not None and table_offset_m is not None:
-        d = depth_mm[::s, ::s].astype(np.float32)
-        xs, ys = np.arange(shape[1]) * s, np.arange(shape[0]) * s
-        height_mm = _height_above_table(
-            intrinsics, table_normal, table_offset_m, xs[None, :], ys[:, None], d
-        )
-        raised = (d > 0) & (height_mm > p.occluder_height_mm)
-        occluder = raised & _not_napkin(lum, chroma, p)
-        # a few isolated samples are depth noise, not an object
-        import cv2
 
-        opened = np.ones((3, 3), np.uint8)
-        occluder = cv2.morphologyEx(occluder.astype(np.uint8), cv2.MORPH_OPEN, opened)
-        occluder = occluder.astype(bool)
-        raised_px, raised_height = _raised_cloth_pixels(
-            color, depth_mm, intrinsics, table_normal, table_offset_m, white, p
-        )
-        held_up = np.zeros(shape, dtype=np.uint8)
-        held_up[raised_px[:, 1] // s, raised_px[:, 0] // s] = 1
-        # A flap seen nearly edge-on is a line a pixel or two wide: every pixel counts
-        # for its sample (pooling), and connected parts of some size are kept rather than
-        # opening the mask, which would erase it.
-        _, lab, stats, _ = cv2.connectedComponentsWithStats(held_up, connectivity=8)
-        big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= p.min_raised_samples)
-        raised_cloth = np.isin(lab, big[big > 0])
-        keep = raised_cloth[raised_px[:, 1] // s, raised_px[:, 0] // s]
-        height_mm[d <= 0] = np.nan
-        return NapkinView(
-            white, lut, highlight, occluder, s, cloth, raised_cloth, height_mm,
-            raised_px[keep], raised_height[keep],
-        )
-    return NapkinView(white, lut, highlight, occluder, s, cloth)
+def _objects(
+    raised: NDArray[np.bool_], lum: NDArray, chroma: NDArray, p: NapkinParams
+) -> NDArray[np.bool_]:
+    """Samples of an object above the table: raised and not napkin-coloured; a few
+    isolated samples are depth noise, not an object."""
+    import cv2
+
+    occluder = raised & _not_napkin(lum, chroma, p)
+    opened = np.ones((3, 3), np.uint8)
+    occluder = cv2.morphologyEx(occluder.astype(np.uint8), cv2.MORPH_OPEN, opened)
+    return occluder.astype(bool)
+
+
+def _held_up_cloth(
+    raised_px: NDArray[np.intp], shape: tuple[int, int], p: NapkinParams
+) -> tuple[NDArray[np.bool_], NDArray[np.bool_]]:
+    """The samples (``shape``) of cloth held up, from its pixels ``raised_px`` (n, 2),
+    and which of those pixels they keep (n,).
+
+    A flap seen nearly edge-on is a line a pixel or two wide: every pixel counts for its
+    sample (pooling), and connected parts of some size are kept rather than opening the
+    mask, which would erase it.
+    """
+    import cv2
+
+    s = p.stride
+    held_up = np.zeros(shape, dtype=np.uint8)
+    held_up[raised_px[:, 1] // s, raised_px[:, 0] // s] = 1
+    _, lab, stats, _ = cv2.connectedComponentsWithStats(held_up, connectivity=8)
+    big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= p.min_raised_samples)
+    raised_cloth = np.isin(lab, big[big > 0])
+    return raised_cloth, raised_cloth[raised_px[:, 1] // s, raised_px[:, 0] // s]

@@ -1,0 +1,507 @@
+"""Judging one blob of the colour mask: a candidate sticker, or a rejection and why.
+
+A blob (an outer contour of the labelled pixels, :mod:`.labels`) is judged in the steps
+below, each a function; the first that fails gives the :class:`~.detections.Rejection`:
+
+1. its depth (the median of its own pixels), which gives the disc size expected there;
+2. its foreshortening: an elongated blob whose own depth says it is tilted as much is a
+   disc on a tilted flap; an elongated blob on flat cloth is a disc cut by an edge;
+3. highlight repair: the washed-out pixels of a glossy sticker's highlight next to it
+   are joined to it;
+4. its size against the expected disc, and its shape (solidity, elongation);
+5. its fill of the expected disc centred on it, and white cloth around it;
+6. its disc colour (the majority label of an outer band) and dot colour (of the inner
+   part), which name the sticker.
+
+Everything the steps share for one frame is a :class:`SearchImage`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..camera import Intrinsics
+from ..colour import srgb_lut
+from .detections import DetectorParams, Rejection
+
+__all__ = ["Candidate", "SearchImage", "judge_blob"]
+
+
+@dataclass(frozen=True, eq=False)
+class SearchImage:
+    """The image stickers are searched in (the frame, or the frame halved), and what
+    every blob of it is judged against.
+
+    Attributes
+    ----------
+    color : ndarray of uint8, shape (h, w, 3)
+        RGB as taken (halved by pixel-area averaging when ``halved``).
+    norm : ndarray of uint8, shape (h, w, 3)
+        ``color`` balanced to the napkin's white (``NapkinView.lut``).
+    hsv : ndarray of uint8, shape (h, w, 3)
+        HSV of ``norm``.
+    labels : ndarray of uint8, shape (h, w)
+        Colour label of every pixel: 0 none, k + 1 colour k (:func:`.labels.colour_labels`).
+    blown : ndarray of bool, shape (h, w)
+        Washed-out pixels: blown out as taken, or near-white once balanced.
+    depth_mm : ndarray of uint16, shape (h, w)
+        Depth, mm (0 = no reading), sampled to the search image.
+    intrinsics : Intrinsics
+        Of the search image.
+    median_depth_mm : float
+        Median depth of the frame, mm; NaN without readings.
+    disc_radius_mm : float
+        Radius of a sticker's disc.
+    min_area_px : float
+        Blobs smaller than this (and than 12 pixels) are specks, not judged.
+    halved : bool
+        The search image is the frame halved.
+    halo_px : int
+        Width of a highlight's pale halo in the search image, pixels.
+    repair_highlights : bool
+        The napkin itself is not blown out, so highlights can be told from cloth.
+    n_colours : int
+        Number of sticker colours.
+    params : DetectorParams
+    """
+
+    color: NDArray[np.uint8]
+    norm: NDArray[np.uint8]
+    hsv: NDArray[np.uint8]
+    labels: NDArray[np.uint8]
+    blown: NDArray[np.bool_]
+    depth_mm: NDArray[np.uint16]
+    intrinsics: Intrinsics
+    median_depth_mm: float
+    disc_radius_mm: float
+    min_area_px: float
+    halved: bool
+    halo_px: int
+    repair_highlights: bool
+    n_colours: int
+    params: DetectorParams
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """A blob taken as a sticker, its identity still to be given.
+
+    ``disc`` and ``dot`` are colour labels (k + 1 for colour k); ``dot`` is None where a
+    highlight washed the dot out. ``origin`` is the (x0, y0) of the window ``region``
+    (the blob) is cut from, in the search image. ``recovered``: washed-out pixels were
+    joined to it. ``foreshortening``: minor / major axis expected from its tilt.
+    """
+
+    score: float
+    where: tuple[float, float]
+    area: float
+    z_mm: float
+    disc: int
+    dot: int | None
+    origin: tuple[int, int] = (0, 0)
+    region: NDArray[np.bool_] | None = None
+    recovered: bool = False
+    foreshortening: float = 1.0
+
+
+@dataclass(frozen=True, eq=False)
+class _Blob:
+    """One blob in its window of the search image.
+
+    Attributes
+    ----------
+    where : (float, float)
+        Centroid (u, v), search-image pixels.
+    area : float
+        Pixels.
+    contour : ndarray
+        Its outer contour; ``moments`` are the contour's.
+    box : (int, int, int, int)
+        Bounding box (x, y, w, h) of the contour as found.
+    window : (int, int, int, int)
+        (x0, y0, x1, y1): the box grown by an expected diameter on each side.
+    inside : ndarray of bool, shape (y1 - y0, x1 - x0)
+        The blob in its window.
+    z_mm, r_exp : float
+        Its depth, and the radius of a face-on disc there (pixels).
+    washed : ndarray of bool, same shape as ``inside``, optional
+        Washed-out pixels near it (after :func:`_repair_highlight`).
+    recovered : bool
+        Washed-out pixels were joined to it.
+    """
+
+    where: tuple[float, float]
+    area: float
+    contour: NDArray
+    moments: dict
+    box: tuple[int, int, int, int]
+    window: tuple[int, int, int, int]
+    inside: NDArray[np.bool_]
+    z_mm: float
+    r_exp: float
+    washed: NDArray[np.bool_] | None = None
+    recovered: bool = False
+
+    @property
+    def grid(self) -> tuple[NDArray, NDArray]:
+        """Pixel rows and columns (yy, xx) of the window, search image."""
+        x0, y0, x1, y1 = self.window
+        return np.mgrid[y0:y1, x0:x1]
+
+
+@dataclass(frozen=True)
+class _Colours:
+    """Disc and dot colour labels of a blob (dot None: washed out) and their purity."""
+
+    disc: int
+    dot: int | None
+    purity: float
+
+
+def judge_blob(contour: NDArray, image: SearchImage) -> Candidate | Rejection | None:
+    """Judge one outer contour of the colour mask.
+
+    Returns
+    -------
+    Candidate, Rejection or None
+        A candidate sticker; the first check it fails, with the reason; or None for a
+        speck too small to report.
+    """
+    blob = _measure_blob(contour, image)
+    if blob is None or isinstance(blob, Rejection):
+        return blob
+    fore, minor_angle = _tilt(blob, image)
+    if fore < image.params.min_foreshortening:
+        why = f"seen too obliquely (foreshortened {fore:.2f})"
+        return Rejection(blob.where, blob.area, why)
+    blob = _repair_highlight(blob, image)
+    p = image.params
+    ratio = _area_ratio(blob, fore, image.halved)
+    why = _size_problem(ratio, blob.z_mm, p)
+    if why:
+        return Rejection(blob.where, blob.area, why)
+    solidity, elongation = _shape_of(blob)
+    why = _shape_problem(solidity, elongation, fore, p)
+    if why:
+        return Rejection(blob.where, blob.area, why)
+    r, radius = _radii(blob, fore, minor_angle)
+    why = _fill_problem(blob, r, radius, fore, p) or _surround_problem(blob, r, image)
+    if why:
+        return Rejection(blob.where, blob.area, why)
+    colours = _disc_and_dot(blob, r, image)
+    if isinstance(colours, str):
+        return Rejection(blob.where, blob.area, colours)
+    score = float(colours.purity * min(ratio, 1 / ratio) * solidity)
+    score *= 0.8 if blob.recovered else 1.0
+    x0, y0 = blob.window[:2]
+    return Candidate(
+        score, blob.where, blob.area, blob.z_mm, colours.disc, colours.dot, (x0, y0),
+        blob.inside, blob.recovered, fore,
+    )
+
+
+def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | None:
+    """The blob of ``contour``: centroid, area, depth and window; None for a speck, a
+    rejection without depth to judge its size."""
+    import cv2
+
+    area = cv2.contourArea(contour)
+    if area < max(image.min_area_px, 12.0):
+        return None
+    m = cv2.moments(contour)
+    if m["m00"] <= 0:
+        return None
+    where = (float(m["m10"] / m["m00"]), float(m["m01"] / m["m00"]))
+    x, y, w, h = cv2.boundingRect(contour)
+    roi = np.zeros((h, w), np.uint8)
+    cv2.drawContours(roi, [contour - [x, y]], -1, 1, thickness=-1)
+    z_mm = _blob_depth(image.depth_mm[y : y + h, x : x + w], roi, image.median_depth_mm)
+    if not (z_mm > 0):
+        return Rejection(where, area, "no depth to judge its size")
+    r_exp = image.disc_radius_mm * image.intrinsics.fx / z_mm
+    # A window around the blob, one expected diameter wider on each side.
+    pad = int(np.ceil(2 * r_exp)) + 2
+    h_img, w_img = image.labels.shape
+    x0, y0 = max(x - pad, 0), max(y - pad, 0)
+    x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
+    inside = np.zeros((y1 - y0, x1 - x0), bool)
+    inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
+    return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
+
+
+def _blob_depth(depth_roi: NDArray, roi: NDArray[np.uint8], fallback_mm: float) -> float:
+    """Median depth (mm) of a blob's inner pixels (its mask ``roi`` eroded by one), of
+    all its pixels when none of those has a reading, else ``fallback_mm``."""
+    import cv2
+
+    inner_depth = depth_roi[cv2.erode(roi, np.ones((3, 3), np.uint8)).astype(bool)]
+    inner_depth = inner_depth[inner_depth > 0]
+    if inner_depth.size == 0:
+        inner_depth = depth_roi[roi.astype(bool) & (depth_roi > 0)]
+    return _median(inner_depth) if inner_depth.size else fallback_mm
+
+
+def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
+    """The blob's foreshortening (minor / major axis; 1.0 face-on) and the image angle of
+    its minor axis (radians).
+
+    A sticker on a flap held up at an angle images as an ellipse. The sticker's own depth
+    says whether it is tilted; how much, its shape says more precisely than a plane
+    fitted to a few noisy millimetres of depth. The two must agree: a disc cut by an
+    edge is also elongated, but flat.
+    """
+    p = image.params
+    q, angle = _ellipse_of(blob.moments)
+    if q > p.flat_foreshortening:  # round enough: face-on
+        return 1.0, 0.0
+    x, y, w, h = blob.box
+    x0, y0 = blob.window[:2]
+    roi = blob.inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
+    tilt = _foreshortening(image.depth_mm[y : y + h, x : x + w], roi, x, y, image.intrinsics)
+    if tilt <= p.flat_foreshortening and abs(q - tilt) <= p.tilt_agreement:
+        return q, angle
+    return 1.0, 0.0
+
+
+def _repair_highlight(blob: _Blob, image: SearchImage) -> _Blob:
+    """The blob with the washed-out pixels next to it (a glossy sticker's highlight)
+    joined to it, unless the napkin itself is blown out; ``washed`` is set either way."""
+    import cv2
+
+    p = image.params
+    x0, y0, x1, y1 = blob.window
+    washed = np.zeros(blob.inside.shape, dtype=bool)
+    if image.repair_highlights and image.blown[y0:y1, x0:x1].any():
+        yy, xx = blob.grid
+        cu, cv = blob.where
+        washed = _highlight_pixels(
+            image.color[y0:y1, x0:x1], image.norm[y0:y1, x0:x1], image.hsv[y0:y1, x0:x1], p,
+            blob.r_exp, image.halo_px,
+        ) & (np.hypot(xx - cu, yy - cv) < p.highlight_reach * blob.r_exp)
+    if not (washed & ~blob.inside).any():
+        return replace(blob, washed=washed)
+    inside = blob.inside
+    union = (inside | washed).astype(np.uint8)
+    _, lab_img, _, _ = cv2.connectedComponentsWithStats(union, connectivity=8)
+    inside = lab_img == lab_img[inside][0] if inside.any() else union.astype(bool)
+    mu = cv2.moments(inside.astype(np.uint8), binaryImage=True)
+    cu, cv = mu["m10"] / mu["m00"] + x0, mu["m01"] / mu["m00"] + y0
+    cs, _ = cv2.findContours(inside.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(cs, key=cv2.contourArea)  # (in window coordinates)
+    return replace(
+        blob, where=(float(cu), float(cv)), area=float(inside.sum()), contour=contour,
+        moments=cv2.moments(contour), inside=inside, washed=washed, recovered=True,
+    )
+
+
+def _area_ratio(blob: _Blob, fore: float, halved: bool) -> float:
+    """The blob's area over that of the disc expected at its depth and tilt. Halved, a
+    blob loses about half a pixel of its rim to blending with the cloth (its area is
+    judged again at full resolution)."""
+    rim = 0.5 if halved else 0.0
+    return blob.area / (np.pi * max(blob.r_exp - rim, 1.0) * max(fore * blob.r_exp - rim, 1.0))
+
+
+def _size_problem(ratio: float, z_mm: float, p: DetectorParams) -> str | None:
+    if ratio < p.min_area_ratio:
+        return f"too small for a sticker at {z_mm:.0f} mm ({ratio:.2f} of a disc)"
+    if ratio > p.max_area_ratio:
+        return f"too large for a sticker at {z_mm:.0f} mm ({ratio:.2f} discs)"
+    return None
+
+
+def _shape_of(blob: _Blob) -> tuple[float, float]:
+    """Solidity (area / convex-hull area) and elongation (ratio of the principal axes)."""
+    import cv2
+
+    hull_area = cv2.contourArea(cv2.convexHull(blob.contour))
+    solidity = min(blob.area / hull_area, 1.0) if hull_area > 0 else 0.0
+    mu20, mu02, mu11 = blob.moments["mu20"], blob.moments["mu02"], blob.moments["mu11"]
+    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    elongation = np.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
+    return solidity, elongation
+
+
+def _shape_problem(
+    solidity: float, elongation: float, fore: float, p: DetectorParams
+) -> str | None:
+    if solidity < p.min_solidity or elongation * fore > p.max_elongation:
+        return f"not disc-shaped (solidity {solidity:.2f}, elongation {elongation:.2f})"
+    return None
+
+
+def _radii(blob: _Blob, fore: float, minor_angle: float) -> tuple[NDArray[np.float64], float]:
+    """Distance of every window pixel from the blob's centre, in radii of its equivalent
+    disc (elliptic when foreshortened: the minor axis along ``minor_angle``), shape of
+    the window; and that radius (the major semi-axis, pixels). The radius is the
+    expected disc's when the blob is partly covered, so that the dot stays in the inner
+    part."""
+    expected = np.pi * blob.r_exp**2 * fore
+    radius = np.sqrt(max(blob.area, expected) / (np.pi * fore))  # the major semi-axis
+    yy, xx = blob.grid
+    cu, cv = blob.where
+    if fore < 1.0:
+        ca, sa = np.cos(minor_angle), np.sin(minor_angle)
+        along, across = (xx - cu) * ca + (yy - cv) * sa, -(xx - cu) * sa + (yy - cv) * ca
+        return np.hypot(along / fore, across) / radius, radius
+    return np.hypot(xx - cu, yy - cv) / radius, radius
+
+
+def _fill_problem(
+    blob: _Blob, r: NDArray[np.float64], radius: float, fore: float, p: DetectorParams
+) -> str | None:
+    """Rejects crescents and slivers: too little of the equivalent disc covered."""
+    fill = blob.inside[r < 1.0].sum() / (np.pi * radius**2 * fore)
+    if fill < p.min_fill:
+        return f"not a whole disc (covers {fill:.2f} of one)"
+    return None
+
+
+def _surround_problem(blob: _Blob, r: NDArray[np.float64], image: SearchImage) -> str | None:
+    """A sticker lies on white cloth, an object on a table does not: the whiteness of a
+    ring around the blob against the blob's own brightness."""
+    x0, y0, x1, y1 = blob.window
+    win = image.norm[y0:y1, x0:x1]
+    inside_colour = blob.inside & (image.labels[y0:y1, x0:x1] > 0)
+    ring = (r > 1.3) & (r < 1.8) & ~blob.inside
+    disc_px = win[inside_colour & (r < 0.95)]
+    if not (ring.any() and disc_px.size):
+        return None
+    lin = srgb_lut()
+    ring_px = win[ring]
+    white = _median(lin[np.minimum(np.minimum(ring_px[:, 0], ring_px[:, 1]), ring_px[:, 2])])
+    own = _median(lin[np.maximum(np.maximum(disc_px[:, 0], disc_px[:, 1]), disc_px[:, 2])])
+    if white < image.params.min_surround * own:
+        return f"not on the napkin (surround {white / max(own, 1e-6):.2f} as bright as the blob)"
+    return None
+
+
+def _disc_and_dot(blob: _Blob, r: NDArray[np.float64], image: SearchImage) -> _Colours | str:
+    """Disc and dot colours: majority labels of an outer band and of the inner part of
+    the equivalent disc; or why they cannot be read."""
+    p = image.params
+    x0, y0, x1, y1 = blob.window
+    lab = image.labels[y0:y1, x0:x1]
+    outer_band = lab[blob.inside & (r > 0.6) & (r < 0.95) & (lab > 0)]
+    inner_area = r < 0.28
+    inner = lab[blob.inside & inner_area & (lab > 0)]
+    if outer_band.size == 0:
+        return "no disc colour inside"
+    disc_counts = np.bincount(outer_band, minlength=image.n_colours + 1)
+    disc = int(np.argmax(disc_counts))
+    purity = disc_counts[disc] / outer_band.size
+    dot: int | None = None
+    if inner.size >= p.min_dot_seen * inner_area.sum():
+        dot_counts = np.bincount(inner, minlength=image.n_colours + 1)
+        dot = int(np.argmax(dot_counts))
+        purity = min(purity, dot_counts[dot] / inner.size)
+    elif not (blob.washed & inner_area).any():
+        return "no dot colour inside"
+    if purity < p.min_purity:
+        return f"mixed colours (purity {purity:.2f})"
+    return _Colours(disc, dot, purity)
+
+
+def _highlight_pixels(
+    color: NDArray[np.uint8],
+    norm: NDArray[np.uint8],
+    hsv: NDArray[np.uint8],
+    params: DetectorParams,
+    disc_radius_px: float,
+    halo_px: int,
+) -> NDArray[np.bool_]:
+    """Pixels a glossy sticker's highlight washed out, in a window around a blob: small
+    blown-out spots (in the image as taken, or brighter than white cloth once balanced),
+    grown into the pale, tinted halo around them. Shape (h, w) of the window."""
+    import cv2
+
+    core = cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min
+    norm_min = cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2])
+    core |= norm_min >= params.highlight_min
+    if not core.any():
+        return core
+    # A highlight is smaller than a sticker; a large blown-out area is cloth.
+    _, lab, stats, _ = cv2.connectedComponentsWithStats(core.astype(np.uint8), connectivity=8)
+    small = stats[:, cv2.CC_STAT_AREA] <= 1.5 * np.pi * disc_radius_px**2
+    small[0] = False
+    core = small[lab]
+    if not core.any():
+        return core
+    sat = hsv[..., 1]
+    allowed = (
+        (
+            (sat >= params.halo_min_saturation)
+            & (sat < params.min_saturation)
+            & (hsv[..., 2] >= params.halo_min_value)
+        )
+        | (norm_min >= params.halo_min_value + 80)
+        | core
+    )
+    grown = core.astype(np.uint8)
+    allowed_u8 = allowed.astype(np.uint8)
+    cross = np.ones((3, 3), np.uint8)
+    for _ in range(halo_px):
+        grown = cv2.dilate(grown, cross) & allowed_u8
+    return grown.astype(bool)
+
+
+def _foreshortening(
+    depth_roi: NDArray, mask: NDArray[np.bool_], x0: int, y0: int, intrinsics: Intrinsics
+) -> float:
+    """How much the surface of a blob is tilted against the optical axis, from the
+    depth of the blob's own pixels: ``|n_z|`` of the plane fitted to them (1.0 when too
+    little depth is read).
+
+    Under a pinhole camera a disc parallel to the image plane images as a circle
+    wherever it is in the view; tilted, it images as (nearly) an ellipse whose minor /
+    major axis ratio is this cosine. Only the sticker's own pixels are used: around a
+    sticker partly under an object or a flap lies another surface.
+    """
+    h, w = depth_roi.shape
+    yy, xx = np.mgrid[y0 : y0 + h, x0 : x0 + w]
+    near = mask & (depth_roi > 0)
+    if near.sum() < 12:
+        return 1.0
+    z = depth_roi[near].astype(np.float64)
+    pts = np.column_stack(
+        [
+            (xx[near] - intrinsics.cx) / intrinsics.fx * z,
+            (yy[near] - intrinsics.cy) / intrinsics.fy * z,
+            z,
+        ]
+    )
+    normal = _plane_normal(pts)
+    if abs(normal[2]) > 0.95:  # face-on, as nearly every sticker on a lying napkin is
+        return float(abs(normal[2]))
+    # drop flying pixels at the blob's rim, then fit again
+    off = np.abs((pts - pts.mean(axis=0)) @ normal)
+    keep = off < max(3.0, 2.5 * _median(off))
+    if keep.sum() < 12:
+        return 1.0
+    return float(abs(_plane_normal(pts[keep])[2]))
+
+
+def _plane_normal(pts: NDArray) -> NDArray:
+    """Unit normal of the least-squares plane through points (n, 3)."""
+    centred = pts - pts.mean(axis=0)
+    return np.linalg.eigh(centred.T @ centred)[1][:, 0]
+
+
+def _ellipse_of(m: dict) -> tuple[float, float]:
+    """Minor / major axis ratio of a blob's moment ellipse and the image angle of its
+    minor axis (radians)."""
+    mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
+    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    major, minor = mu20 + mu02 + common, max(mu20 + mu02 - common, 1e-9)
+    major_angle = 0.5 * np.arctan2(2 * mu11, mu20 - mu02)
+    return float(np.sqrt(minor / major)), float(major_angle + np.pi / 2)
+
+
+def _median(values: NDArray) -> float:
+    """Median of a non-empty 1-d array (the upper one for an even count): np.median
+    without its overhead, for the many small arrays of the candidate loop."""
+    k = len(values) // 2
+    return float(np.partition(values, k)[k])

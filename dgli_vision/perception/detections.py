@@ -1,0 +1,200 @@
+"""What the sticker detector is told and what it returns.
+
+:class:`DetectorParams` says how stickers are found (every field with its unit and
+default), :class:`StickerDetections` what was found, and :class:`Rejection` each blob
+that was not taken, with the reason: what a person debugging a real image needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["DetectorParams", "Rejection", "StickerDetections"]
+
+
+@dataclass(frozen=True)
+class DetectorParams:
+    """How stickers are found. Every field has a unit and a default.
+
+    Attributes
+    ----------
+    min_saturation : int
+        Minimum HSV saturation (0-255) of a sticker pixel, in the image balanced to the
+        napkin's white (:mod:`.napkin`). Default 115 (0.45): the printed colours keep
+        over 0.6 even at their blurred rims, a light-wood table or a tinted surround
+        stays near 0.3.
+    min_value : int
+        Minimum HSV value (0-255) in the balanced image, where the napkin's white is at
+        ``NapkinParams.target_level`` (225): so this is relative to the napkin. Default
+        30 (0.13 of the napkin): a blue sticker in a deep shadow of a dim image keeps
+        about 0.25.
+    min_chroma : int
+        Minimum max - min channel (0-255) in the balanced image. Default 40 (0.18 of the
+        napkin's level): dark noisy pixels can reach a high HSV saturation with a small
+        chroma; a sticker in shadow keeps over 70.
+    max_hue_distance : int
+        Largest distance (OpenCV hue units, 2 degrees each) from a nominal hue. Default 22.
+    min_area_ratio, max_area_ratio : float
+        Accepted blob area relative to the disc area expected at the blob's depth.
+        Defaults 0.55 and 2.0: a whole sticker seen at up to 15 degrees of tilt and on
+        wrinkles keeps over 0.8; a sliver of a sticker mostly under a flap would give a
+        centroid far from the sticker's centre, so it is better left out; two merged
+        stickers are larger.
+    min_fill : float
+        Minimum fraction of the expected disc, centred at the blob's centroid, that the
+        blob covers. Default 0.6 (rejects crescents and slivers).
+    min_solidity : float
+        Minimum area / convex-hull area. Default 0.8.
+    max_elongation : float
+        Maximum ratio of the blob's principal axes. Default 2.5.
+    min_purity : float
+        Minimum fraction of the outer band with the disc colour, and of the inner part
+        with the dot colour. Default 0.5.
+    min_surround : float
+        Minimum ratio of the surround's whiteness (median of the smallest linear channel
+        on a ring 1.3-1.8 radii out) to the blob's brightness (median of its largest
+        linear channel). Default 0.55: a sticker sits on white cloth (0.8 against at most
+        0.83, so about 1 or more in any light), a cap or a box on a table does not (a
+        grey table reflects at most 0.35 against 0.6 for a saturated object; a wood
+        table's blue channel much less).
+    min_dot_seen : float
+        Minimum fraction of the dot area that is labelled with a colour (not washed out
+        by a highlight) for the dot colour to be read. Default 0.35.
+    highlight_min : int
+        Smallest channel (0-255) of a washed-out pixel, in the image as taken or balanced
+        to the napkin. Default 250: blown out, or brighter than white cloth can be.
+    highlight_halo_px : int
+        Width of the pale halo around a blown-out highlight counted with it, pixels
+        (pale: bright and below ``min_saturation``). Default 8: a mirror highlight fades
+        into the sticker's colour over a few pixels, pale but not white.
+    halo_min_saturation : int
+        Smallest HSV saturation (0-255, balanced image) of a halo pixel. Default 30: the
+        white napkin around a sticker stays below 20 once balanced, so the halo never
+        spreads over the cloth.
+    halo_min_value : int
+        Smallest HSV value (0-255, balanced image) of a halo pixel; near-white pixels
+        (every channel at least ``halo_min_value + 80``) count as halo whatever their
+        saturation. Default 150: the halo is brighter than the sticker's own colour.
+    highlight_reach : float
+        How far from a blob's centre, in expected disc radii, washed-out pixels may be
+        counted with it. Default 1.6: a highlight lies on the sticker, so within one
+        radius of its true centre, and the centre of what is left of the colour lies
+        at most about 0.6 radii off.
+    napkin_blown_level : int
+        8-bit level of the napkin's white at or above which highlights cannot be told
+        from cloth, and none are recovered. Default 240.
+    search_radius_px : float
+        Stickers are searched in the image halved while a sticker at the median depth
+        keeps at least this radius there, pixels; their centres are then measured at
+        full resolution. Default 6: the dot (0.4 radii) keeps a core of a few clean
+        pixels, and a 1280 x 720 frame from up to 750 mm is searched at 640 x 360.
+    tilt_agreement : float
+        Largest difference between the foreshortening read from a blob's shape (minor /
+        major axis) and from the tilt of its own depth for it to be taken as a tilted
+        disc. Default 0.25: the depth of a sticker's few hundred pixels gives the tilt
+        to about 10 degrees; a half disc on flat cloth (shape 0.53, depth 1.0) fails.
+    flat_foreshortening : float
+        Above this cosine of the angle between the surface and the line of sight, a
+        sticker is taken as seen face-on (the checks above apply unchanged). Default
+        0.85 (32 degrees): SPEC's tilted cameras and wrinkles stay within it.
+    min_foreshortening : float
+        Below this cosine a sticker is seen too obliquely to be read (its dot shrinks
+        to a line). Default 0.25 (75 degrees): the 12 mm dot keeps about 3 mm.
+    washed_saturation : int
+        ``min_saturation`` of the second search (:func:`.detect.find_washed_out`) for stickers a
+        broad sheen washed to pastel. Default 25 (0.1): a semi-gloss sticker under a
+        softbox keeps 0.1-0.3 and its hue, while the napkin once balanced stays below
+        about 0.05.
+    washed_surround : float
+        ``min_surround`` of that search. Default 0.35: a semi-gloss sticker in the lobe
+        of a large light reflects about twice what the matte cloth around it does.
+    washed_level : int
+        8-bit level the napkin's white is balanced to for that search. Default 150: a
+        sticker under a sheen is brighter than the napkin, and at the usual 225 it would
+        clip to white.
+    washed_chroma : int
+        ``min_chroma`` of that search. Default 20: a pastel sticker keeps the chroma of
+        its own colour under added white light (in linear light exactly; 8-bit levels
+        compress it), the napkin's noise stays below 10.
+    """
+
+    min_saturation: int = 115
+    min_value: int = 30
+    min_chroma: int = 40
+    max_hue_distance: int = 22
+    min_area_ratio: float = 0.55
+    max_area_ratio: float = 2.0
+    min_fill: float = 0.6
+    min_solidity: float = 0.8
+    max_elongation: float = 2.5
+    min_purity: float = 0.5
+    min_surround: float = 0.55
+    min_dot_seen: float = 0.35
+    highlight_min: int = 250
+    highlight_halo_px: int = 8
+    halo_min_saturation: int = 30
+    halo_min_value: int = 150
+    highlight_reach: float = 1.6
+    napkin_blown_level: int = 240
+    search_radius_px: float = 6.0
+    tilt_agreement: float = 0.25
+    flat_foreshortening: float = 0.85
+    min_foreshortening: float = 0.25
+    washed_saturation: int = 25
+    washed_chroma: int = 20
+    washed_level: int = 150
+    washed_surround: float = 0.35
+
+
+@dataclass(frozen=True)
+class Rejection:
+    """A blob that is not taken as a sticker: where, and why."""
+
+    centroid: tuple[float, float]
+    area_px: float
+    reason: str
+
+
+@dataclass(frozen=True, eq=False)
+class StickerDetections:
+    """What the detector found.
+
+    Attributes
+    ----------
+    centroids : ndarray, shape (16, 2)
+        Sub-pixel centroid (u, v) of each sticker id; NaN where not found.
+    areas : ndarray, shape (16,)
+        Blob area in pixels (NaN where not found).
+    scores : ndarray, shape (16,)
+        Colour purity times shape agreement in [0, 1] (0 where not found).
+    depth_mm : ndarray, shape (16,)
+        Median valid depth inside the blob, mm (NaN where none).
+    rejected : tuple of Rejection
+        Blobs that looked like candidates but were rejected, with the reason.
+    foreshortening : ndarray, shape (16,), optional
+        Minor / major axis of each sticker's image (1 face-on; lower on a tilted
+        flap); NaN where not found.
+    pale_px : ndarray, shape (k, 2), optional
+        Pixels (x, y) of pastel sticker colour left away from every sticker found: a
+        broad sheen's washed-out stickers that no search could read (see
+        :func:`.detect.find_washed_out`).
+    pale_colours : tuple of str
+        The sticker colours (names) of two or more of those samples.
+    """
+
+    centroids: NDArray[np.float64]
+    areas: NDArray[np.float64]
+    scores: NDArray[np.float64]
+    depth_mm: NDArray[np.float64]
+    rejected: tuple[Rejection, ...] = field(default_factory=tuple)
+    foreshortening: NDArray[np.float64] | None = None
+    pale_px: NDArray[np.float64] | None = None
+    pale_colours: tuple[str, ...] = ()
+
+    @property
+    def found(self) -> NDArray[np.bool_]:
+        """Which sticker ids were detected, shape (16,)."""
+        return ~np.isnan(self.centroids[:, 0])

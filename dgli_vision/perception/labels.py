@@ -1,0 +1,66 @@
+"""Colour labels: every pixel named by the nearest of the four sticker hues, or none.
+
+OpenCV's 8-bit hue runs 0-179 and red wraps around 0. A pixel is labelled when it is
+saturated, bright and chromatic enough in the image balanced to the napkin's white
+(:class:`~.detections.DetectorParams`), and its hue lies within ``max_hue_distance`` of
+a sticker colour's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..layout import NapkinLayout
+from .detections import DetectorParams
+
+__all__ = ["colour_labels", "hue_lut", "hue_of"]
+
+
+def hue_of(rgb: tuple[int, int, int]) -> int:
+    """OpenCV 8-bit hue (0-179) of an sRGB colour."""
+    import cv2
+
+    return int(cv2.cvtColor(np.uint8([[rgb]]), cv2.COLOR_RGB2HSV)[0, 0, 0])
+
+
+def hue_lut(
+    layout: NapkinLayout, params: DetectorParams, colours: dict[str, tuple[int, int, int]] | None
+) -> tuple[NDArray[np.uint8], list[str]]:
+    """Lookup table hue -> colour label (0 none, k + 1 for colour k) and colour names.
+
+    ``colours`` (calibrated sRGB of each colour name, as the balanced image shows them)
+    replaces the layout's nominal colours.
+    """
+    names = list(layout.colours_srgb)
+    source = {**layout.colours_srgb, **(colours or {})}
+    hues = np.array([hue_of(source[n]) for n in names])
+    h = np.arange(180)
+    dist = np.abs(h[:, None] - hues[None, :])
+    dist = np.minimum(dist, 180 - dist)  # hue is circular
+    lut = (np.argmin(dist, axis=1) + 1).astype(np.uint8)
+    lut[dist.min(axis=1) > params.max_hue_distance] = 0
+    return lut, names
+
+
+def colour_labels(
+    norm: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
+    """Colour label (0 none, k + 1 colour k) of every pixel of a balanced RGB image, and
+    its HSV. Shapes (h, w) and (h, w, 3). ``lut`` is :func:`hue_lut`'s table."""
+    import cv2
+
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
+    coloured = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
+    # chroma = S * V / 255 >= min_chroma: only binding where V is low (dark, noisy pixels)
+    v_limit = int(np.ceil(params.min_chroma * 255 / max(params.min_saturation, 1)))
+    dark_mask = cv2.bitwise_and(
+        coloured, cv2.inRange(hsv, (0, 0, 0), (180, 255, max(v_limit - 1, 0)))
+    )
+    if cv2.countNonZero(dark_mask):
+        dv, du = np.nonzero(dark_mask)
+        faint = hsv[dv, du, 1].astype(np.int32) * hsv[dv, du, 2] < params.min_chroma * 255
+        coloured[dv[faint], du[faint]] = 0
+    labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
+    return cv2.bitwise_and(labels, coloured), hsv
+

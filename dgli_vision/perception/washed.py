@@ -1,0 +1,171 @@
+"""The second search's pieces: stickers a broad sheen washed out to pastel.
+
+A semi-gloss sticker under a large light (a softbox, a window) reflects white light over
+its whole disc: its saturation falls to 0.1-0.3 while its hue survives. The detector
+(:func:`.detect.find_washed_out`) first looks for pastel samples of a sticker hue on the
+napkin (:func:`pale_samples`, cheap); only then does it search again with the pastel
+thresholds (:func:`pastel_params`), adds what that finds (:func:`merge_second_search`),
+and reports the pastel patches that no search could read (:func:`with_unread`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..layout import NapkinLayout
+from .detections import DetectorParams, StickerDetections
+from .footprint import FootprintParams, cloth_cells
+from .labels import hue_lut
+from .napkin import NapkinView
+
+__all__ = ["merge_second_search", "pale_samples", "pastel_params", "with_unread"]
+
+
+def pastel_params(params: DetectorParams) -> DetectorParams:
+    """``params`` with the second search's saturation, chroma and surround."""
+    return replace(
+        params,
+        min_saturation=params.washed_saturation,
+        min_chroma=params.washed_chroma,
+        min_surround=params.washed_surround,
+    )
+
+
+def pale_samples(
+    color: NDArray[np.uint8],
+    found: StickerDetections,
+    layout: NapkinLayout,
+    params: DetectorParams,
+    lower: NapkinView,
+    colours: dict[str, tuple[int, int, int]] | None,
+    *,
+    edge_cells: int = 0,
+) -> tuple[NDArray[np.float64], tuple[str, ...]]:
+    """Pixels (x, y), shape (k, 2), and colour names of pastel samples of a sticker hue
+    away from the stickers found, on the napkin's sampling grid (``lower.stride``): a
+    cheap look before the second search, and what it leaves unread.
+
+    Pastel: HSV saturation from ``washed_saturation`` to below ``min_saturation`` in the
+    image balanced by ``lower.lut``, on the napkin and ``edge_cells`` cells in from its
+    edge (cells across the edge mix white with the table, and a tinted or wood table is
+    pale too); anywhere when the napkin is not told from the table. The rims of the
+    stickers found are pastel too (their pixels mix with the cloth), so samples within
+    two disc radii of them do not count.
+    """
+    import cv2
+
+    s = lower.stride
+    lut, names = hue_lut(layout, params, colours)
+    pale, hsv = _pale_cells(color, lut, params, lower)
+    if found.found.any() and pale.any():  # (with nothing found, look anywhere)
+        cloth = cloth_cells(color, lower, found.centroids, FootprintParams(cell_px=s))
+        if cloth is not None:  # (else the napkin is not told from the table: anywhere)
+            edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
+            pale &= cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
+    ys, xs = np.nonzero(pale)
+    pts = (np.column_stack([xs, ys]).astype(np.float64) + 0.5) * s
+    sample_names = [names[k - 1] for k in lut[hsv[ys, xs, 0]]]
+    if not len(pts) or not found.found.any():
+        return pts, tuple(sample_names)
+    radius = float(np.sqrt(np.nanmedian(found.areas[found.found]) / np.pi))
+    seen = found.centroids[found.found]
+    far = np.linalg.norm(pts[:, None] - seen[None], axis=2).min(axis=1) >= 2 * radius
+    return pts[far], tuple(n for n, f in zip(sample_names, far) if f)
+
+
+def _pale_cells(
+    color: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams, lower: NapkinView
+) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
+    """Pastel cells of a sticker hue, not next to vivid ones, shape (H // s, W // s) for
+    cells of s = ``lower.stride`` pixels averaged (a sensor's noise tints single pixels,
+    not cells); and the cells' HSV once balanced by ``lower.lut``."""
+    import cv2
+
+    s = lower.stride
+    h, w = color.shape[0] // s, color.shape[1] // s
+    sub = cv2.resize(color[: h * s, : w * s], (w, h), interpolation=cv2.INTER_AREA)
+    hsv = cv2.cvtColor(cv2.LUT(sub, lower.lut), cv2.COLOR_RGB2HSV)
+    pale = cv2.inRange(
+        hsv,
+        (0, params.washed_saturation, params.min_value),
+        (180, max(params.min_saturation - 1, 0), 255),
+    ).astype(bool)
+    sticker_hue = lut[np.minimum(hsv[..., 0], 179)] > 0
+    pale &= sticker_hue
+    # a sheen washes whole discs: pale cells next to vivid ones are the rim of a sticker
+    # partly under a flap, not a washed-out one
+    vivid = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
+    vivid = cv2.dilate(vivid & sticker_hue.astype(np.uint8) * 255, np.ones((5, 5), np.uint8))
+    pale &= vivid == 0
+    return pale, hsv
+
+
+def merge_second_search(found: StickerDetections, again: StickerDetections) -> StickerDetections:
+    """``found`` with the stickers it lacks that ``again`` found, away from the stickers
+    found (a disc's distance); their scores halved, so that a person reading them sees
+    which they are. The rejections stay ``found``'s."""
+    new = ~found.found & again.found
+    if not new.any():
+        return found
+    seen = found.centroids[found.found]
+    if len(seen):
+        d_px = np.linalg.norm(again.centroids[:, None] - seen[None], axis=2).min(axis=1)
+        radius = np.sqrt(np.where(again.found, again.areas, 0.0) / np.pi)
+        new &= ~(d_px < 2 * radius)
+    n = len(found.centroids)
+    keys = ("centroids", "areas", "scores", "depth_mm", "foreshortening")
+    out = {
+        k: np.array(getattr(found, k) if getattr(found, k) is not None else np.ones(n))
+        for k in keys
+    }
+    for k in keys:
+        if getattr(again, k) is not None:
+            out[k][new] = getattr(again, k)[new]
+    out["scores"][new] *= 0.5
+    return StickerDetections(
+        out["centroids"], out["areas"], out["scores"], out["depth_mm"], found.rejected,
+        out["foreshortening"],
+    )
+
+
+def with_unread(
+    color: NDArray[np.uint8],
+    found: StickerDetections,
+    layout: NapkinLayout,
+    params: DetectorParams,
+    lower: NapkinView,
+    colours: dict[str, tuple[int, int, int]] | None,
+) -> StickerDetections:
+    """``found`` with the pastel patches on the napkin that no search could read
+    (``pale_px``, ``pale_colours``)."""
+    left = pale_samples(color, found, layout, params, lower, colours, edge_cells=1)
+    return _washed(found, left, lower.stride)
+
+
+def _washed(
+    found: StickerDetections, left: tuple[NDArray, tuple[str, ...]], stride: int
+) -> StickerDetections:
+    """``found`` with the pastel samples left unread, and the colours of those that clump
+    like a sticker: a connected patch (on the sampling grid of ``stride`` pixels) of at
+    least a third of a sticker's area (that of the stickers found; 3 samples at least).
+    Sensor noise in a dim image tints single samples, never a patch."""
+    import cv2
+
+    pts, names = left
+    colours = []
+    if len(pts):
+        cells = (pts // stride).astype(int)
+        disc = np.nanmedian(found.areas[found.found]) if found.found.any() else np.nan
+        least = max(3.0, np.nan_to_num(disc / stride**2 / 3, nan=3.0))
+        grid = np.zeros((cells[:, 1].max() + 1, cells[:, 0].max() + 1), np.uint8)
+        for name in sorted(set(names)):
+            grid[:] = 0
+            mine = np.array([n == name for n in names])
+            grid[cells[mine, 1], cells[mine, 0]] = 1
+            _, _, stats, _ = cv2.connectedComponentsWithStats(grid, connectivity=8)
+            if (stats[1:, cv2.CC_STAT_AREA] >= least).any():
+                colours.append(name)
+    return replace(found, pale_px=pts, pale_colours=tuple(colours))
