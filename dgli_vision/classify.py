@@ -324,6 +324,7 @@ def classify_coordinates(
     spread_mm: ArrayLike | None = None,
     *,
     distances: ArrayLike | None = None,
+    unsure: ArrayLike | None = None,
 ) -> Prediction:
     """Nearest reference of an observation (see :func:`reference_distances`).
 
@@ -351,6 +352,10 @@ def classify_coordinates(
         Distances between the stickers seen (see :func:`reference_distances`).
     distances : array_like, shape (k,), keyword-only, optional
         :func:`reference_distances` of these arguments, when already computed.
+    unsure : array_like of bool, shape (16,), keyword-only, optional
+        Stickers that count as unknown for the confidence whatever else is told of them
+        (held up where an object may cover them: the edge of an object over the napkin
+        reads as raised cloth too).
 
     Returns
     -------
@@ -377,6 +382,8 @@ def classify_coordinates(
         still = np.asarray(unknown, dtype=bool)
         if past is not None:
             still = still & ~np.isfinite(np.asarray(past, dtype=np.float64))
+        if unsure is not None:
+            still = still | np.asarray(unsure, dtype=bool)
         n_unknown = int(still.sum())
     x = np.asarray(coords, dtype=np.float64)
     n_known = int(np.isfinite(x).sum())

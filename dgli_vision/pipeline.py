@@ -295,7 +295,10 @@ def classify_frame(
         if depth_hint:
             reason += f"; {depth_hint}"
         return FrameResult(detections, markers, obs, coords, None, reason)
-    guess = classify_coordinates(coords, references, **evidence, distances=front)
+    unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
+    guess = classify_coordinates(
+        coords, references, **evidence, distances=front, unsure=unsure
+    )
     area = layout.width_mm * layout.height_mm
     doubt = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front

@@ -71,6 +71,11 @@ class EvidenceParams:
         four stickers together, and three of them fix where the fourth lies; with fewer,
         its flap may lie under the object, if the object comes within
         ``flap_reach_mm`` of the sticker's flat place.
+    object_band_samples : int
+        Cloth held up that lies within this many mask samples of an object over the
+        napkin throughout is not taken for a flap: at an object's edge the depth camera
+        blends the object's depth with the cloth's (flying pixels), which reads as cloth
+        standing up. Default 2 (16 px at the napkin masks' stride of 8).
     flap_reach_mm : float
         How far from its flat place a corner folded over lays its stickers, at most, for
         :attr:`min_corner_support`. Default 250 mm.
@@ -95,6 +100,7 @@ class EvidenceParams:
     near_radii: float = 1.5
     min_corner_support: int = 3
     flap_reach_mm: float = 150.0
+    object_band_samples: int = 2
     held_up_reach: float = 0.5
     cover_mm: float = 12.0
     steep_foreshortening: float = 0.6
@@ -366,16 +372,27 @@ def _covered_from_above(
     return out
 
 
-def _steep_cloth(masks: NapkinMasks, seen: _Seen) -> NDArray[np.bool_] | None:
+def _steep_cloth(
+    masks: NapkinMasks, seen: _Seen, band: int = 0
+) -> NDArray[np.bool_] | None:
     """The samples of cloth held up steeply (None if none): the parts of ``raised``
     where a sticker is seen strongly foreshortened, or none is seen at all (a flap
-    edge-on shows none)."""
+    edge-on shows none). Parts that lie within ``band`` samples of an object
+    throughout are left out."""
     import cv2
 
     assert masks.raised is not None
     n_parts, parts = cv2.connectedComponents(masks.raised.astype(np.uint8), connectivity=8)
     steep_parts = np.ones(n_parts, dtype=bool)
     steep_parts[0] = False
+    if masks.occluder.any() and band > 0:
+        # raised "cloth" only along an object's outline is the depth of its edge blended
+        # with the cloth's (flying pixels), not a flap
+        k = np.ones((2 * band + 1, 2 * band + 1), np.uint8)
+        rim = cv2.dilate(masks.occluder.astype(np.uint8), k).astype(bool)
+        beyond = np.unique(parts[~rim & (parts > 0)])
+        steep_parts[1:] = False
+        steep_parts[beyond] = True
     if len(seen.points):
         ij = np.rint(seen.pixels[:, ::-1] / masks.stride).astype(int)
         gentle = np.zeros(n_parts, dtype=bool)
@@ -449,7 +466,7 @@ def _held_up(
     out = np.zeros(len(where), dtype=bool)
     if masks is None or masks.raised is None or not masks.raised.any():
         return out
-    steep_mask = _steep_cloth(masks, seen)
+    steep_mask = _steep_cloth(masks, seen, p.object_band_samples)
     if steep_mask is None:
         return out
     reach_px = p.held_up_reach * min(layout.width_mm, layout.height_mm) * 1e-3
