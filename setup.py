@@ -2,7 +2,7 @@
 
 ``references/default.json`` at the top of the repository stays the one source (it is
 rebuilt by the command in ``references/README.md``); building the package copies it to
-``dgli_vision/data/references/default.json`` inside the wheel, so that an installed
+``dgli_vision/core/data/references/default.json`` inside the wheel, so that an installed
 ``dgli-classify`` finds it without ``--references``. Everything else is in pyproject.toml.
 """
 
@@ -19,7 +19,8 @@ class BuildWithReferences(build_py):
 
     def run(self) -> None:
         super().run()
-        target = Path(self.build_lib) / "dgli_vision" / "data" / "references" / "default.json"
+        package = Path(self.build_lib) / "dgli_vision" / "core"
+        target = package / "data" / "references" / "default.json"
         target.parent.mkdir(parents=True, exist_ok=True)
         self.copy_file(str(REFERENCES), str(target))
 

@@ -11,13 +11,13 @@ from typing import TYPE_CHECKING, Any
 __all__ = ["classify_pair"]
 
 if TYPE_CHECKING:
-    from .api import classify_pair
+    from .classifier.api import classify_pair
 
 
 def __getattr__(name: str) -> Any:
     # Lazy: importing the package (as every command does) stays cheap.
     if name == "classify_pair":
-        from .api import classify_pair
+        from .classifier.api import classify_pair
 
         return classify_pair
     raise AttributeError(f"module 'dgli_vision' has no attribute {name!r}")

@@ -12,13 +12,13 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from dgli_vision.camera import look_at_table
-from dgli_vision.classes import CLASS_IDS, CLASS_NAMES, VARIANTS
-from dgli_vision.cloth.states import sample_state
-from dgli_vision.io import write_png
-from dgli_vision.layout import default_layout
-from dgli_vision.render import Lighting, SensorModel, render
-from dgli_vision.sticker_sheet import napkin_drawing, sheet_image
+from dgli_vision.core.camera import look_at_table
+from dgli_vision.core.classes import CLASS_IDS, CLASS_NAMES, VARIANTS
+from dgli_vision.core.io import write_png
+from dgli_vision.core.layout import default_layout
+from dgli_vision.sim.cloth.states import sample_state
+from dgli_vision.sim.render import Lighting, SensorModel, render
+from dgli_vision.sim.sticker_sheet import napkin_drawing, sheet_image
 
 DOCS = Path(__file__).resolve().parent.parent / "docs"
 TILE_PX = 320

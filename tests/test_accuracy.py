@@ -6,10 +6,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from dgli_vision.dataset import render_samples
-from dgli_vision.frames import RGBDFrame
-from dgli_vision.pipeline import classify_frame
-from dgli_vision.references import load_references
+from dgli_vision.classifier.pipeline import classify_frame
+from dgli_vision.classifier.references import load_references
+from dgli_vision.sim.dataset import render_samples
+from dgli_vision.sources.frames import RGBDFrame
 
 
 def test_class_accuracy_on_fresh_noisy_renders():

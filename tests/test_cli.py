@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from dgli_vision.cli import main
-from dgli_vision.layout import default_layout
+from dgli_vision.core.layout import default_layout
 
 
 def run(args):

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dgli_vision.cloth import CLASS_IDS, VARIANTS, flat_mesh, sample_state
-from dgli_vision.cloth.states import corner_fold_line, side_fold_line
-from dgli_vision.layout import default_layout
+from dgli_vision.core.layout import default_layout
+from dgli_vision.sim.cloth import CLASS_IDS, VARIANTS, flat_mesh, sample_state
+from dgli_vision.sim.cloth.states import corner_fold_line, side_fold_line
 
 LAYOUT = default_layout()
 

@@ -9,18 +9,18 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision.baselines import (
+from dgli_vision.analysis.baselines import (
     align,
     corner_distances,
     discrete_frechet,
     hausdorff,
     segment_distances,
 )
-from dgli_vision.classes import CLASS_IDS
 from dgli_vision.cli import main
-from dgli_vision.cloth.sequences import folding_sequence
-from dgli_vision.database import FOLD_BINS_DEG
-from dgli_vision.fold_graph import folds_of
+from dgli_vision.core.classes import CLASS_IDS
+from dgli_vision.core.fold_graph import folds_of
+from dgli_vision.sim.cloth.sequences import folding_sequence
+from dgli_vision.sim.database import FOLD_BINS_DEG
 
 
 def run(args):
@@ -145,7 +145,7 @@ def test_references_build_on_missing_database_is_one_line_error(tmp_path):
 
 
 def test_database_meshes_read_back(small_db):
-    from dgli_vision.io import read_mesh_ply
+    from dgli_vision.core.io import read_mesh_ply
 
     xyz, tri = read_mesh_ply(small_db / "meshes" / "02_000.ply")
     truth = json.loads((small_db / "truth" / "02_000.json").read_text())
@@ -178,7 +178,7 @@ def test_references_from_a_database_with_folds_in_progress(small_db, tmp_path):
 
 
 def test_the_dgli_is_unchanged_by_a_mirror_through_the_table():
-    from dgli_vision.dgli import cloth_coordinates
+    from dgli_vision.core.dgli import cloth_coordinates
 
     rng = np.random.default_rng(14)
     segments = rng.normal(scale=0.1, size=(200, 8, 2, 3))
@@ -191,8 +191,8 @@ def test_the_dgli_is_unchanged_by_a_mirror_through_the_table():
 
 @pytest.mark.parametrize(("over", "under", "variant"), [("02", "03", "C"), ("09", "10", "DA")])
 def test_a_fold_over_and_the_same_fold_under_have_the_same_coordinates(over, under, variant):
-    from dgli_vision.cloth.states import sample_state
-    from dgli_vision.distance import pairwise_spearman
+    from dgli_vision.core.distance import pairwise_spearman
+    from dgli_vision.sim.cloth.states import sample_state
 
     for seed in range(3):
         a = sample_state(over, variant, seed).coordinates()
@@ -202,7 +202,7 @@ def test_a_fold_over_and_the_same_fold_under_have_the_same_coordinates(over, und
 
 
 def test_mirror_images_are_derived_from_the_fold_definitions():
-    from dgli_vision.fold_graph import mirror_group, state_keys
+    from dgli_vision.core.fold_graph import mirror_group, state_keys
 
     merged = sorted({mirror_group(k) for k in state_keys() if "|" in mirror_group(k)})
     assert merged == sorted(

@@ -11,10 +11,10 @@ import cv2
 import numpy as np
 from numpy.typing import NDArray
 
-from dgli_vision.camera import Intrinsics
-from dgli_vision.colour import srgb_to_linear
-from dgli_vision.dataset import render_sample
-from dgli_vision.layout import default_layout
+from dgli_vision.core.camera import Intrinsics
+from dgli_vision.core.colour import srgb_to_linear
+from dgli_vision.core.layout import default_layout
+from dgli_vision.sim.dataset import render_sample
 
 LAYOUT = default_layout()
 #: Half SPEC's camera in each direction: a quarter of the pixels, to keep the tests fast.
@@ -184,7 +184,7 @@ def test_distortion_moves_border_stickers_as_opencvs_model_says():
 
 
 def test_lens_distortion_moves_colour_and_depth_as_opencvs_full_model_says():
-    from dgli_vision.conditions import apply_lens_distortion
+    from dgli_vision.sim.conditions import apply_lens_distortion
 
     coeffs = (0.1, -0.05, 0.002, -0.002, 0.0)
     color = np.zeros((SMALL.height, SMALL.width, 3), np.uint8)
@@ -212,7 +212,7 @@ def test_lens_distortion_moves_colour_and_depth_as_opencvs_full_model_says():
 
 
 def test_lens_distortion_takes_k1_alone_or_opencvs_coefficient_vector():
-    from dgli_vision.conditions import apply_lens_distortion
+    from dgli_vision.sim.conditions import apply_lens_distortion
 
     r = render_small("01", 1, 9).result
     a = apply_lens_distortion(r.color, r.depth_mm, SMALL, 0.1)
@@ -222,7 +222,7 @@ def test_lens_distortion_takes_k1_alone_or_opencvs_coefficient_vector():
 
 
 def test_a_known_lens_is_one_for_the_whole_set_and_written_into_intrinsics_json(tmp_path):
-    from dgli_vision.labelled import write_labelled_folder
+    from dgli_vision.sources.labelled import write_labelled_folder
 
     samples = [render_small(c, 0, 4, ("distortion-known",)) for c in ("01", "02")]
     unknown = render_small("01", 0, 4, ("distortion",))
@@ -238,7 +238,7 @@ def test_a_known_lens_is_one_for_the_whole_set_and_written_into_intrinsics_json(
 def test_a_set_whose_pairs_come_from_two_cameras_keeps_each_pairs_intrinsics(tmp_path):
     """``combo`` may draw ``distortion-known`` for some pairs only: those pairs go to a
     subfolder with their own intrinsics, and the folder reads back pair by pair."""
-    from dgli_vision.labelled import find_labelled_pairs, write_labelled_folder
+    from dgli_vision.sources.labelled import find_labelled_pairs, write_labelled_folder
 
     plain = render_small("01", 0, 4)
     lens = render_small("02", 0, 4, ("distortion-known",))
@@ -256,7 +256,7 @@ def test_a_set_whose_pairs_come_from_two_cameras_keeps_each_pairs_intrinsics(tmp
 
 def tip_pixel_is_dark(sample) -> bool:
     """Whether the held corner's tip is under the gripper's (dark) finger in the image."""
-    from dgli_vision.conditions import grasp_frame
+    from dgli_vision.sim.conditions import grasp_frame
 
     tip, _, _ = grasp_frame(sample.state, sample.state.params["held_corner"])
     r = sample.result
@@ -265,7 +265,7 @@ def tip_pixel_is_dark(sample) -> bool:
 
 
 def test_the_grasp_gripper_closes_its_fingers_on_the_corner_tip():
-    from dgli_vision.conditions import grasp_frame, held_gripper
+    from dgli_vision.sim.conditions import grasp_frame, held_gripper
 
     s = render_small("02", 0, 5, ("grasp",))
     corner = s.state.params["held_corner"]
@@ -292,7 +292,7 @@ def test_grasp_states_follow_the_90_degree_rule():
 
 
 def test_a_sequence_rendered_with_the_gripper_holds_the_corner_being_folded():
-    from dgli_vision.dataset import render_sequence
+    from dgli_vision.sim.dataset import render_sequence
 
     frames = list(
         render_sequence("I", 2, 5, conditions=("grasp",), intrinsics=SMALL, progress=[0.4, 1.6])
@@ -305,7 +305,7 @@ def test_a_sequence_rendered_with_the_gripper_holds_the_corner_being_folded():
 def test_render_gripper_option_puts_the_grasp_in_a_sequence(tmp_path, monkeypatch):
     from click.testing import CliRunner
 
-    from dgli_vision import dataset
+    from dgli_vision.sim import dataset
     from dgli_vision.cli import main
 
     small = partial(dataset.render_sequence, intrinsics=SMALL)  # fewer pixels, same scene
@@ -338,7 +338,7 @@ def fake_outcome(args):
 
 
 def test_the_reliability_table_counts_right_best_guesses_per_confidence_bin(monkeypatch):
-    from dgli_vision import robustness
+    from dgli_vision.analysis import robustness
 
     monkeypatch.setattr(robustness, "_one", fake_outcome)
     scores = robustness.score_condition("cast", None, per_class=1, seed=0)
@@ -363,7 +363,7 @@ def test_the_reliability_table_counts_right_best_guesses_per_confidence_bin(monk
 def test_the_robustness_command_prints_and_writes_the_reliability_table(tmp_path, monkeypatch):
     from click.testing import CliRunner
 
-    from dgli_vision import robustness
+    from dgli_vision.analysis import robustness
     from dgli_vision.cli import main
 
     monkeypatch.setattr(robustness, "_one", fake_outcome)

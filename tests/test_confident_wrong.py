@@ -10,16 +10,16 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from dgli_vision.camera import Intrinsics
-from dgli_vision.cloth import sample_state
-from dgli_vision.dataset import render_sample
-from dgli_vision.frames import RGBDFrame
-from dgli_vision.layout import default_layout
+from dgli_vision.classifier.pipeline import classify_frame, observe
+from dgli_vision.classifier.references import load_references
+from dgli_vision.core.camera import Intrinsics
+from dgli_vision.core.layout import default_layout
 from dgli_vision.perception.footprint import measure_footprint
 from dgli_vision.perception.lift import Markers3D
 from dgli_vision.perception.scale import measure_napkin
-from dgli_vision.pipeline import classify_frame, observe
-from dgli_vision.references import load_references
+from dgli_vision.sim.cloth import sample_state
+from dgli_vision.sim.dataset import render_sample
+from dgli_vision.sources.frames import RGBDFrame
 
 LAYOUT = default_layout()
 REFS = load_references()
@@ -146,7 +146,7 @@ def test_stickers_a_broad_sheen_washed_to_pastel_are_found(class_id, k):
 
 def test_a_corner_stretched_off_the_printed_distances_asks_for_the_lens():
     # an uncorrected lens near the image border stretches one corner, not the napkin
-    from dgli_vision.consistency import rigidity_problem
+    from dgli_vision.classifier.consistency import rigidity_problem
 
     _, markers, _ = observe(frame(small("01")), LAYOUT)
     assert rigidity_problem(measure_napkin(markers, LAYOUT), lens_known=False) is None

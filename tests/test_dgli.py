@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import integrate
 
-from dgli_vision.bench import baseline_gli_pair, baseline_gli_pair_numpy
-from dgli_vision.dgli import DEFAULT_CLIP, cloth_coordinates, dgli, gli, pair_indices
+from dgli_vision.analysis.bench import baseline_gli_pair, baseline_gli_pair_numpy
+from dgli_vision.core.dgli import DEFAULT_CLIP, cloth_coordinates, dgli, gli, pair_indices
 
 RNG_SEED = 20261121
 

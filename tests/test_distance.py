@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.stats import rankdata, spearmanr
 
-from dgli_vision.distance import (
+from dgli_vision.core.distance import (
     average_ranks,
     davies_bouldin,
     davies_bouldin_points,

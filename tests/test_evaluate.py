@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from dgli_vision.analysis.evaluate import PairOutcome, summarise
 from dgli_vision.cli import main
-from dgli_vision.evaluate import PairOutcome, summarise
-from dgli_vision.labelled import LabelledPair, find_pairs
+from dgli_vision.sources.labelled import LabelledPair, find_pairs
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 
@@ -152,12 +152,12 @@ def test_summary_of_outcomes_without_images():
 def test_workers_start_cleanly_after_threads_in_the_parent():
     # The parent has run Open3D's raycaster and threaded PNG decoding; forked workers
     # could inherit a held lock and hang. Workers are spawned.
-    from dgli_vision.camera import look_at_table
-    from dgli_vision.cloth import sample_state
-    from dgli_vision.evaluate import evaluate_pairs
-    from dgli_vision.frames import read_frame
-    from dgli_vision.references import load_references
-    from dgli_vision.render import SensorModel, render
+    from dgli_vision.analysis.evaluate import evaluate_pairs
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.core.camera import look_at_table
+    from dgli_vision.sim.cloth import sample_state
+    from dgli_vision.sim.render import SensorModel, render
+    from dgli_vision.sources.frames import read_frame
 
     render(sample_state("01", rng=0), look_at_table(0.5), sensor=SensorModel(enabled=False))
     pairs = find_pairs(SAMPLES)[:3]
@@ -167,8 +167,8 @@ def test_workers_start_cleanly_after_threads_in_the_parent():
 
 
 def test_the_workers_stay_up_between_batches_with_the_same_references():
-    from dgli_vision import evaluate
-    from dgli_vision.references import load_references
+    from dgli_vision.analysis import evaluate
+    from dgli_vision.classifier.references import load_references
 
     pairs = find_pairs(SAMPLES)
     refs = load_references()
@@ -193,7 +193,7 @@ def test_the_tail_of_a_batch_is_taken_back_from_a_busy_worker():
     started (the latest first), and leaves running ones alone."""
     from concurrent.futures import Future
 
-    from dgli_vision.evaluate import _take_back
+    from dgli_vision.analysis.evaluate import _take_back
 
     running, queued_early, queued_late = Future(), Future(), Future()
     running.set_running_or_notify_cancel()

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 import dgli_vision
 from dgli_vision.cli import main
-from dgli_vision.errors import DgliError
+from dgli_vision.core.errors import DgliError
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 COLOR, DEPTH = SAMPLES / "05_000_color.png", SAMPLES / "05_000_depth.png"
@@ -83,7 +83,7 @@ def test_the_docs_link_only_inside_the_repository(md):
 def test_the_napkin_page_gives_the_layout_of_the_package():
     import re
 
-    from dgli_vision.layout import default_layout
+    from dgli_vision.core.layout import default_layout
 
     layout = default_layout()
     text = (ROOT / "docs" / "napkin.md").read_text(encoding="utf-8")

@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dgli_vision.dataset import render_sequence
-from dgli_vision.frames import RGBDFrame
-from dgli_vision.pipeline import classify_frame
-from dgli_vision.references import load_references
+from dgli_vision.classifier.pipeline import classify_frame
+from dgli_vision.classifier.references import load_references
+from dgli_vision.sim.dataset import render_sequence
+from dgli_vision.sources.frames import RGBDFrame
 
 REFS = load_references()
 

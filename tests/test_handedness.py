@@ -9,16 +9,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dgli_vision.cloth.states import sample_state
-from dgli_vision.frames import read_frame
-from dgli_vision.layout import default_layout
-from dgli_vision.perception.handedness import back_face_up, corner_turns, image_turns
-from dgli_vision.pipeline import observe
-from dgli_vision.references import (
+from dgli_vision.classifier.pipeline import observe
+from dgli_vision.classifier.references import (
     default_references_path,
     load_references,
     references_from_dict,
 )
+from dgli_vision.core.layout import default_layout
+from dgli_vision.perception.handedness import back_face_up, corner_turns, image_turns
+from dgli_vision.sim.cloth.states import sample_state
+from dgli_vision.sources.frames import read_frame
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_images"
 LAYOUT = default_layout()

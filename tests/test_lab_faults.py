@@ -21,18 +21,18 @@ import pytest
 from click.testing import CliRunner
 
 import dgli_vision
-from dgli_vision import io as dio
-from dgli_vision.camera import Intrinsics
+from dgli_vision.core import io as dio
 from dgli_vision.cli import main
-from dgli_vision.errors import (
+from dgli_vision.core.camera import Intrinsics
+from dgli_vision.core.errors import (
     CalibrationError,
     InvalidInputError,
     OutputError,
     ReferenceError_,
     UnreadableInputError,
 )
-from dgli_vision.frames import read_color, read_frame
-from dgli_vision.labelled import find_labelled_pairs
+from dgli_vision.sources.frames import read_color, read_frame
+from dgli_vision.sources.labelled import find_labelled_pairs
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 COLOR = SAMPLES / "05_000_color.png"
@@ -420,7 +420,7 @@ def test_input_path_that_is_a_symlink_loop_is_named(tmp_path):
 def small_bag(tmp_path_factory) -> Path:
     """Three frames of 64 x 48 pixels, 0.1 s apart, in a ROS 2 bag."""
     pytest.importorskip("rosbags")
-    from dgli_vision.bag_writer import write_bag
+    from dgli_vision.sources.bag_writer import write_bag
 
     rng = np.random.default_rng(29)
     intr = Intrinsics(64, 48, 60.0, 60.0, 31.5, 23.5)

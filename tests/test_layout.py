@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from dgli_vision.dgli import pair_indices
-from dgli_vision.layout import default_layout, load_layout
+from dgli_vision.core.dgli import pair_indices
+from dgli_vision.core.layout import default_layout, load_layout
 
 S = 400.0
 SPEC_SEGMENTS = [  # SPEC section 2, "from" and "to" for S = 400

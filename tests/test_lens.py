@@ -12,17 +12,23 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision.camera import DEFAULT_INTRINSICS, Intrinsics, look_at_table
+from dgli_vision.classifier.pipeline import classify_frame, observe
+from dgli_vision.classifier.references import load_references
 from dgli_vision.cli import main
-from dgli_vision.cloth import sample_state
-from dgli_vision.conditions import apply_lens_distortion
-from dgli_vision.dataset import VGA_INTRINSICS
-from dgli_vision.errors import CalibrationError
-from dgli_vision.frames import RGBDFrame, read_frame, read_intrinsics, write_color, write_depth
-from dgli_vision.layout import default_layout
-from dgli_vision.pipeline import classify_frame, observe
-from dgli_vision.references import load_references
-from dgli_vision.render import Lighting, SensorModel, render
+from dgli_vision.core.camera import DEFAULT_INTRINSICS, Intrinsics, look_at_table
+from dgli_vision.core.errors import CalibrationError
+from dgli_vision.core.layout import default_layout
+from dgli_vision.sim.cloth import sample_state
+from dgli_vision.sim.conditions import apply_lens_distortion
+from dgli_vision.sim.dataset import VGA_INTRINSICS
+from dgli_vision.sim.render import Lighting, SensorModel, render
+from dgli_vision.sources.frames import (
+    RGBDFrame,
+    read_frame,
+    read_intrinsics,
+    write_color,
+    write_depth,
+)
 
 LENS = (0.1, -0.03, 0.001, -0.0005, 0.0)
 K = np.array([[605.0, 0.0, 639.5], [0.0, 605.0, 359.5], [0.0, 0.0, 1.0]])
@@ -125,7 +131,7 @@ def test_a_wrong_calibration_file_is_refused_in_one_line(tmp_path, text, words):
 
 
 def test_camera_info_of_a_bag_carries_its_plumb_bob_coefficients():
-    from dgli_vision.ros_bags import _intrinsics
+    from dgli_vision.sources.ros_bags import _intrinsics
 
     msg = SimpleNamespace(
         width=1280, height=720, k=K.reshape(-1), d=list(LENS), distortion_model="plumb_bob"

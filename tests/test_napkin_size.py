@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from dgli_vision.cli import main
-from dgli_vision.cloth.states import sample_state
-from dgli_vision.layout import default_layout, layout_of_size, parse_size
+from dgli_vision.core.layout import default_layout, layout_of_size, parse_size
+from dgli_vision.sim.cloth.states import sample_state
 
 
 def _distance_to_nearest_corner(layout):

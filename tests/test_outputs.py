@@ -11,8 +11,8 @@ from click.testing import CliRunner
 
 from dgli_vision.cli import main
 from dgli_vision.cli.classify import classify_cmd
-from dgli_vision.errors import OverwriteError
-from dgli_vision.io import MANIFEST_NAME, guard_outputs, record_outputs, write_text
+from dgli_vision.core.errors import OverwriteError
+from dgli_vision.core.io import MANIFEST_NAME, guard_outputs, record_outputs, write_text
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 

@@ -6,13 +6,13 @@ import cv2
 import numpy as np
 import pytest
 
-from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
-from dgli_vision.cloth import sample_state
-from dgli_vision.frames import RGBDFrame
-from dgli_vision.layout import default_layout
+from dgli_vision.classifier.pipeline import observe
+from dgli_vision.core.camera import DEFAULT_INTRINSICS, look_at_table
+from dgli_vision.core.layout import default_layout
 from dgli_vision.perception import detect_stickers, estimate_table_normal, lift_stickers
-from dgli_vision.pipeline import observe
-from dgli_vision.render import Lighting, render
+from dgli_vision.sim.cloth import sample_state
+from dgli_vision.sim.render import Lighting, render
+from dgli_vision.sources.frames import RGBDFrame
 
 LAYOUT = default_layout()
 INTR = DEFAULT_INTRINSICS

@@ -13,16 +13,16 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision.bag_writer import COLOR_TOPIC, DEPTH_TOPIC, INFO_TOPIC, write_bag
+from dgli_vision.analysis.evaluate import evaluate_pairs
+from dgli_vision.classifier.references import load_references
 from dgli_vision.cli import main
-from dgli_vision.errors import InvalidInputError
-from dgli_vision.evaluate import evaluate_pairs
-from dgli_vision.frames import read_frame
-from dgli_vision.pairing import pair_by_time
-from dgli_vision.recording import open_recording, read_recording
-from dgli_vision.references import load_references
-from dgli_vision.ros_bags import IMAGE, INFO, choose_topics
-from dgli_vision.ros_images import ImagePayload, decode_color, decode_depth
+from dgli_vision.core.errors import InvalidInputError
+from dgli_vision.sources.bag_writer import COLOR_TOPIC, DEPTH_TOPIC, INFO_TOPIC, write_bag
+from dgli_vision.sources.frames import read_frame
+from dgli_vision.sources.pairing import pair_by_time
+from dgli_vision.sources.recording import open_recording, read_recording
+from dgli_vision.sources.ros_bags import IMAGE, INFO, choose_topics
+from dgli_vision.sources.ros_images import ImagePayload, decode_color, decode_depth
 
 pytest.importorskip("rosbags")  # the 'recordings' extra; scripts/setup.sh installs it
 
@@ -456,7 +456,7 @@ def test_lens_distortion_is_noted(episode, tmp_path):
 
 
 def test_a_file_that_is_not_a_realsense_recording_is_refused_in_one_line(tmp_path):
-    from dgli_vision.realsense_bags import is_realsense_bag
+    from dgli_vision.sources.realsense_bags import is_realsense_bag
 
     fake = tmp_path / "rs.bag"
     fake.write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 64 + b"/device_0/sensor_0/Depth_0" + b"\0" * 64)

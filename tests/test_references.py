@@ -7,16 +7,16 @@ import json
 import numpy as np
 import pytest
 
-from dgli_vision.classify import classify_coordinates
-from dgli_vision.database import records_from_states, simulate_states
-from dgli_vision.errors import DetectionError, ReferenceError_
-from dgli_vision.references import (
+from dgli_vision.classifier.classify import classify_coordinates
+from dgli_vision.classifier.references import (
     build_references,
     load_references,
     read_references,
     references_to_dict,
     write_references,
 )
+from dgli_vision.core.errors import DetectionError, ReferenceError_
+from dgli_vision.sim.database import records_from_states, simulate_states
 
 
 @pytest.fixture(scope="module")
@@ -40,7 +40,7 @@ def accuracy(records, refs, coords, with_visibility=True):
 
 
 def test_shipped_references_cover_every_class_and_variant(shipped):
-    from dgli_vision.cloth import VARIANTS
+    from dgli_vision.sim.cloth import VARIANTS
 
     keys = {(r.class_id, r.variant) for r in shipped.references}
     assert keys == {(c, v) for c, vs in VARIANTS.items() for v in vs}
@@ -136,7 +136,7 @@ def test_a_set_written_before_heights_were_kept_still_classifies(tmp_path, fresh
 def test_height_tells_a_half_fold_from_a_strip_held_up_at_the_same_angle(shipped):
     """Mid-fold at 110 degrees, with only the flat stickers' coordinates known: the
     flap's edge stands about 180 mm high for a half fold and 110 mm for a strip."""
-    from dgli_vision.cloth.states import sample_state
+    from dgli_vision.sim.cloth.states import sample_state
 
     for class_id, stand in (("11", 180.0), ("09", 110.0)):
         fold = "AB half" if class_id == "11" else "AB strip over"
@@ -181,7 +181,7 @@ def test_missing_reference_file(tmp_path):
 
 
 def test_reference_json_records_provenance(shipped):
-    from dgli_vision.references import references_to_dict
+    from dgli_vision.classifier.references import references_to_dict
 
     data = json.loads(json.dumps(references_to_dict(shipped)))
     assert data["provenance"]["command"].startswith("dgli references build")

@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
-from dgli_vision.cloth import sample_state
-from dgli_vision.layout import default_layout
+from dgli_vision.core.camera import DEFAULT_INTRINSICS, look_at_table
+from dgli_vision.core.layout import default_layout
 from dgli_vision.perception.detect import hue_of
-from dgli_vision.render import Lighting, SensorModel, render
+from dgli_vision.sim.cloth import sample_state
+from dgli_vision.sim.render import Lighting, SensorModel, render
 
 LAYOUT = default_layout()
 CLEAN = SensorModel(enabled=False)

@@ -13,15 +13,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision.camera import DEFAULT_INTRINSICS, look_at_table
-from dgli_vision.classify import FULL_MARGIN, MIN_CONFIDENCE, confidence_of
+from dgli_vision.classifier.classify import FULL_MARGIN, MIN_CONFIDENCE, confidence_of
+from dgli_vision.classifier.pipeline import classify_frame
+from dgli_vision.classifier.references import load_references
 from dgli_vision.cli import main
-from dgli_vision.cloth import sample_state
-from dgli_vision.colour import srgb_lut
-from dgli_vision.conditions import CONDITION_NAMES, draw_conditions
-from dgli_vision.dataset import VGA_INTRINSICS, render_sample
-from dgli_vision.frames import RGBDFrame, write_color, write_depth
-from dgli_vision.layout import default_layout
+from dgli_vision.core.camera import DEFAULT_INTRINSICS, look_at_table
+from dgli_vision.core.colour import srgb_lut
+from dgli_vision.core.layout import default_layout
 from dgli_vision.perception.calibrate import calibrate_colours
 from dgli_vision.perception.detect import detect_stickers
 from dgli_vision.perception.evidence import (
@@ -32,9 +30,11 @@ from dgli_vision.perception.evidence import (
 )
 from dgli_vision.perception.lift import Markers3D
 from dgli_vision.perception.napkin import NapkinView, find_napkin
-from dgli_vision.pipeline import classify_frame
-from dgli_vision.references import load_references
-from dgli_vision.render import render
+from dgli_vision.sim.cloth import sample_state
+from dgli_vision.sim.conditions import CONDITION_NAMES, draw_conditions
+from dgli_vision.sim.dataset import VGA_INTRINSICS, render_sample
+from dgli_vision.sim.render import render
+from dgli_vision.sources.frames import RGBDFrame, write_color, write_depth
 
 LAYOUT = default_layout()
 REFS = load_references()
@@ -132,7 +132,7 @@ def test_with_a_gripper_over_the_napkin_the_answer_is_right_or_cannot_tell(class
 def test_the_napkin_white_is_found_under_a_colour_cast():
     state = sample_state("01", None, np.random.default_rng(0), placement=False)
     pose = look_at_table(0.55, target=(*state.mesh.xyz[:, :2].mean(axis=0), 0.0))
-    from dgli_vision.conditions import Conditions
+    from dgli_vision.sim.conditions import Conditions
 
     cast = Conditions(names=("cast",), colour_gains=(1.4, 1.0, 0.6))
     r = render(state, pose, conditions=cast, rng=1)

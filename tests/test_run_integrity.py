@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision import evaluate as evaluate_module
+from dgli_vision.analysis import evaluate as evaluate_module
+from dgli_vision.analysis.evaluate import PairOutcome, summarise
+from dgli_vision.classifier.references import default_references_path
 from dgli_vision.cli import main
-from dgli_vision.evaluate import PairOutcome, summarise
-from dgli_vision.labelled import LabelledPair
-from dgli_vision.references import default_references_path
-from dgli_vision.run_lock import LOCK_NAME
+from dgli_vision.core.run_lock import LOCK_NAME
+from dgli_vision.sources.labelled import LabelledPair
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 
@@ -136,7 +136,7 @@ def test_a_second_run_into_a_busy_report_folder_is_refused_naming_the_first(
         [
             sys.executable,
             "-c",
-            "import sys, time; from dgli_vision.run_lock import RunLock\n"
+            "import sys, time; from dgli_vision.core.run_lock import RunLock\n"
             f"with RunLock({str(report)!r}, 'dgli evaluate (the first run)'):\n"
             "    print('held', flush=True); time.sleep(60)",
         ],
@@ -222,7 +222,7 @@ def test_track_report_conflict_is_found_before_any_classifying(
 
 
 def test_report_of_many_pairs_draws_a_sample_not_all_pairs(monkeypatch):
-    from dgli_vision import evaluation_report
+    from dgli_vision.analysis import evaluation_report
 
     sizes = []
     real = evaluation_report.sample_distance_matrix
@@ -252,7 +252,7 @@ def test_report_of_many_pairs_draws_a_sample_not_all_pairs(monkeypatch):
 
 def stopping_after(monkeypatch, n: int, how):
     """Make the next render stop (``how()``) when ``n`` frames are done."""
-    from dgli_vision import dataset
+    from dgli_vision.sim import dataset
 
     real = dataset.render_sequence
 
@@ -305,8 +305,8 @@ def test_interrupted_render_keeps_complete_pairs_and_resumes(tmp_path, monkeypat
 
 
 def test_the_heatmap_distances_are_the_pairwise_spearman_distances():
-    from dgli_vision.distance import spearman_distance
-    from dgli_vision.evaluation_report import sample_distance_matrix
+    from dgli_vision.analysis.evaluation_report import sample_distance_matrix
+    from dgli_vision.core.distance import spearman_distance
 
     rng = np.random.default_rng(3)
     x = np.round(rng.normal(size=(40, 28)), 1)  # ties too

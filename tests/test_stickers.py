@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from dgli_vision.cli import main
-from dgli_vision.layout import default_layout, layout_of_size, parse_size
+from dgli_vision.core.layout import default_layout, layout_of_size, parse_size
 
 NS = {"svg": "http://www.w3.org/2000/svg"}
 TOL_MM = 0.1

@@ -11,20 +11,20 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dgli_vision.classes import CLASS_IDS, VARIANTS
-from dgli_vision.cli import main
-from dgli_vision.cloth.sequences import SEQUENCES, folding_sequence, sequence_label
-from dgli_vision.cloth.states import sample_state
-from dgli_vision.compare import analyse_sequence
-from dgli_vision.database import records_from_states
-from dgli_vision.fold_graph import fold_edges, folds_of, neighbours, state_keys, unfold
-from dgli_vision.references import load_references
-from dgli_vision.track import (
+from dgli_vision.analysis.compare import analyse_sequence
+from dgli_vision.analysis.track import (
     score_timeline,
     smooth,
     transition_log_matrix,
     viterbi,
 )
+from dgli_vision.classifier.references import load_references
+from dgli_vision.cli import main
+from dgli_vision.core.classes import CLASS_IDS, VARIANTS
+from dgli_vision.core.fold_graph import fold_edges, folds_of, neighbours, state_keys, unfold
+from dgli_vision.sim.cloth.sequences import SEQUENCES, folding_sequence, sequence_label
+from dgli_vision.sim.cloth.states import sample_state
+from dgli_vision.sim.database import records_from_states
 
 REFS = load_references()
 

@@ -64,7 +64,7 @@ def test_the_wheel_carries_the_shipped_reference_set(installed):
     r = _run(
         py,
         "-c",
-        "import dgli_vision.references as r; print(r.default_references_path())",
+        "import dgli_vision.classifier.references as r; print(r.default_references_path())",
         cwd=installed,
         env={"PATH": "/usr/bin:/bin"},
     )

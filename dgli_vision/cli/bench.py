@@ -57,8 +57,12 @@ def bench(
     import shutil
     from pathlib import Path
 
-    from ..bench import run_dgli_benchmarks, run_pipeline_benchmarks, run_recording_benchmarks
-    from ..io import guard_outputs, write_outputs
+    from ..analysis.bench import (
+        run_dgli_benchmarks,
+        run_pipeline_benchmarks,
+        run_recording_benchmarks,
+    )
+    from ..core.io import guard_outputs, write_outputs
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)

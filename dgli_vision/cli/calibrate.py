@@ -53,8 +53,8 @@ def calibrate(
     off to one side, towards a corner); otherwise nothing is written and the exit code
     is 1.
     """
-    from ..frames import read_frame
-    from ..io import guard_outputs
+    from ..core.io import guard_outputs
+    from ..sources.frames import read_frame
 
     if output is None and lens_out is None:
         raise click.UsageError("give -o FILE (the colours) and/or --lens-out FILE (the lens)")
@@ -72,9 +72,9 @@ def calibrate(
 def _calibrate_colours(frame: Any, color: str, output: str, overwrite: bool) -> None:
     """Measure the sticker colours of ``frame`` (read from ``color``), write them to
     ``output`` and list them."""
-    from ..colours_file import write_colours
-    from ..layout import default_layout
+    from ..core.layout import default_layout
     from ..perception.calibrate import calibrate_colours
+    from ..sources.colours_file import write_colours
 
     colours = calibrate_colours(
         frame.color, frame.depth_mm, frame.intrinsics, default_layout(), source=color
@@ -96,10 +96,10 @@ def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrit
     determine it."""
     from pathlib import Path
 
-    from ..intrinsics_files import intrinsics_text
-    from ..io import write_outputs
-    from ..layout import default_layout
+    from ..core.io import write_outputs
+    from ..core.layout import default_layout
     from ..perception.lens import estimate_lens
+    from ..sources.intrinsics_files import intrinsics_text
 
     est = estimate_lens(
         frame.color,

@@ -122,11 +122,11 @@ def classify_cmd(
     """
     from pathlib import Path
 
-    from ..colours_file import read_colours
-    from ..frames import read_frame
-    from ..io import guard_outputs, write_outputs
-    from ..pipeline import classify_frame
-    from ..references import load_references
+    from ..classifier.pipeline import classify_frame
+    from ..classifier.references import load_references
+    from ..core.io import guard_outputs, write_outputs
+    from ..sources.colours_file import read_colours
+    from ..sources.frames import read_frame
 
     if overlay:
         guard_outputs([overlay], overwrite=overwrite)
@@ -135,7 +135,7 @@ def classify_cmd(
     colours = read_colours(colours_path) if colours_path else None
     result = classify_frame(frame, refs, colours=colours)
     if overlay:
-        from ..report import overlay_image
+        from ..analysis.report import overlay_image
 
         detail = f"{int(result.observation.visible.sum())}/16 stickers"
         image = overlay_image(

@@ -29,14 +29,14 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     """
     from pathlib import Path
 
-    from ..compare import (
+    from ..analysis.compare import (
         COMPARE_COLUMN_NOTES,
         compare_datasets,
         davies_bouldin_table,
         folded_by_class,
     )
-    from ..database_files import read_database
-    from ..io import guard_outputs
+    from ..core.io import guard_outputs
+    from ..sim.database_files import read_database
 
     if report_dir:  # fail before the work, not after it
         guard_outputs([Path(report_dir) / "table.json"], overwrite=overwrite)
@@ -53,8 +53,8 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
 
 def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_json: bool) -> None:
     """The Davies-Bouldin table on stdout: JSON, or Markdown and the column notes."""
-    from ..compare import COMPARE_COLUMN_NOTES
-    from ..report import markdown_table
+    from ..analysis.compare import COMPARE_COLUMN_NOTES
+    from ..analysis.report import markdown_table
 
     if as_json:
         click.echo(json.dumps(table))
@@ -69,9 +69,9 @@ def _write_compare_report(
 ) -> None:
     """The table (JSON, Markdown with the column notes, CSV) and a heatmap of the
     distances of each representation into the folder ``out``."""
-    from ..compare import COMPARE_COLUMN_NOTES, distance_matrices
-    from ..io import write_outputs
-    from ..report import csv_table, heatmap_image, markdown_table
+    from ..analysis.compare import COMPARE_COLUMN_NOTES, distance_matrices
+    from ..analysis.report import heatmap_image, markdown_table
+    from ..core.io import csv_table, write_outputs
 
     notes = "\n".join(f"- **{k}**: {v}" for k, v in COMPARE_COLUMN_NOTES.items())
     files: dict[Any, Any] = {
@@ -115,10 +115,10 @@ def sequence(
     """
     from pathlib import Path
 
-    from ..compare import analyse_sequence, sequence_records
-    from ..io import guard_outputs, write_outputs
-    from ..references import load_references
-    from ..report import heatmap_image
+    from ..analysis.compare import analyse_sequence, sequence_records
+    from ..analysis.report import heatmap_image
+    from ..classifier.references import load_references
+    from ..core.io import guard_outputs, write_outputs
 
     if report_dir:  # fail before the work, not after it
         guard_outputs([Path(report_dir) / f"sequence_{name}.json"], overwrite=overwrite)
@@ -147,7 +147,7 @@ def sequence(
 
 def _sequence_summary(name: str, n_frames: int, result: Any) -> dict[str, Any]:
     """The JSON object of ``dgli sequence`` for its :class:`SequenceAnalysis`."""
-    from ..cloth.sequences import SEQUENCES
+    from ..sim.cloth.sequences import SEQUENCES
 
     return {
         "sequence": name,

@@ -9,7 +9,7 @@ from typing import Any, TypeVar
 
 import click
 
-from ..errors import DgliError
+from ..core.errors import DgliError
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -17,7 +17,7 @@ F = TypeVar("F", bound=Callable[..., Any])
 def _os_error_message(exc: OSError) -> str:
     """One line for an operating-system error that no library function named: the file
     (or standard output) and the reason."""
-    from ..io import display_path
+    from ..core.io import display_path
 
     reason = exc.strerror or str(exc) or type(exc).__name__
     if exc.filename is not None:
@@ -47,7 +47,7 @@ def _flush_stdout() -> None:
         if sys.stdout is not None:
             sys.stdout.flush()
     except OSError as exc:
-        from ..errors import OutputError
+        from ..core.errors import OutputError
 
         raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
 
@@ -83,7 +83,7 @@ def _fail(message: str, code: int) -> None:
 def handle_errors(fn: F) -> F:
     """Turn every error into one line on stderr and its exit code (never a traceback).
 
-    A :class:`~dgli_vision.errors.DgliError` gives its own message and code; an
+    A :class:`~dgli_vision.core.errors.DgliError` gives its own message and code; an
     operating-system error that got through (a full disk, a closed or full standard
     output, a name too long) exits 2 naming the file; running out of memory exits 2.
     Standard output is flushed before the command counts as done, so that a full
@@ -95,7 +95,7 @@ def handle_errors(fn: F) -> F:
     def wrapper(*args: Any, **kwargs: Any) -> Any:
         try:
             if sys.stdout is None:
-                from ..errors import OutputError
+                from ..core.errors import OutputError
 
                 raise OutputError("standard output is closed; dgli prints its answer there")
             try:

@@ -78,8 +78,8 @@ def evaluate(
     exits 130 (143), and --resume goes on from there, giving the same report as an
     uninterrupted run. Exit 1 when no pair could be classified, 2 when none could be read.
     """
-    from ..colours_file import read_colours
-    from ..evaluation_report import REPORT_FILES
+    from ..analysis.evaluation_report import REPORT_FILES
+    from ..sources.colours_file import read_colours
 
     pairs, problems, recording = _labelled_input(folder, lenient, recording_opts)
     require_report_for_resume(resume, report_dir)
@@ -114,9 +114,9 @@ def _labelled_input(folder: str, lenient: bool, recording_opts: dict[str, Any]) 
     """The labelled pairs of ``folder``, the problems found in its labels (listed on
     stderr) and, for a recording file, the recording (its pairs are read as they are
     classified)."""
-    from ..errors import InvalidInputError
-    from ..labelled import find_labelled_pairs
-    from ..recording import is_recording_file
+    from ..core.errors import InvalidInputError
+    from ..sources.labelled import find_labelled_pairs
+    from ..sources.recording import is_recording_file
 
     recording = None
     if is_recording_file(folder):
@@ -164,7 +164,7 @@ class _EvaluationRun:
         objects already in it), print, write the report, exit as the outcome says."""
         import time
 
-        from ..evaluate import outcomes_of, pair_key, summarise
+        from ..analysis.evaluate import outcomes_of, pair_key, summarise
 
         writer, earlier = journal if journal else (None, [])
         done = outcomes_of(earlier, None if self.recording else self.pairs)
@@ -201,8 +201,8 @@ class _EvaluationRun:
     def _classify(self, done: dict, writer: Any, stop: Stop) -> None:
         """Classify the pairs not in ``done`` into it (and ``writer``), until all are or
         a stop signal comes (:func:`stop_signals`)."""
-        from ..colours_file import read_colours
-        from ..evaluate import pair_key
+        from ..analysis.evaluate import pair_key
+        from ..sources.colours_file import read_colours
 
         recording, pairs = self.recording, self.pairs
         colours = read_colours(self.colours_path) if self.colours_path else None
@@ -223,12 +223,12 @@ class _EvaluationRun:
             classify_into(todo(), count, "classifying", self, writer, done, stop, colours=colours)
 
     def _print(self, result: Any, skipped: list[str]) -> None:
-        from ..evaluate import json_ready
+        from ..analysis.evaluate import json_ready
 
         if self.as_json:
             click.echo(json.dumps(json_ready({**result.to_dict(), "skipped": skipped})))
             return
-        from ..report import markdown_table
+        from ..analysis.report import markdown_table
 
         click.echo(
             f"{result.n} pairs, {result.classified} classified, "
@@ -252,10 +252,10 @@ class _EvaluationRun:
     def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
         from pathlib import Path
 
-        from ..evaluate import json_ready
-        from ..evaluation_report import build_report
-        from ..frames import read_color
-        from ..io import file_sha256, record_outputs, write_outputs
+        from ..analysis.evaluate import json_ready
+        from ..analysis.evaluation_report import build_report
+        from ..core.io import file_sha256, record_outputs, write_outputs
+        from ..sources.frames import read_color
 
         meta = {
             "command": command_line(),

@@ -51,8 +51,8 @@ def extract(
     and, with --labels, labels.csv: the folder format every command reads. Frames that
     cannot be written (no depth near them in time) are listed, not lost silently.
     """
-    from ..errors import InvalidInputError
-    from ..extract import extract_recording
+    from ..core.errors import InvalidInputError
+    from ..sources.extract import extract_recording
 
     if start is not None and end is not None and end < start:
         raise InvalidInputError(f"--end {end} is before --start {start}")

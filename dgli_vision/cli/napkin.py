@@ -26,10 +26,10 @@ def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> 
     """
     from pathlib import Path
 
-    from ..errors import InvalidInputError
-    from ..io import write_outputs
-    from ..layout import layout_of_size
-    from ..sticker_sheet import sheet_image, sheet_svg, sticker_sheet
+    from ..core.errors import InvalidInputError
+    from ..core.io import write_outputs
+    from ..core.layout import layout_of_size
+    from ..sim.sticker_sheet import sheet_image, sheet_svg, sticker_sheet
 
     svg = Path(out)
     if svg.suffix.lower() != ".svg":
@@ -49,8 +49,8 @@ def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> 
 @handle_errors
 def coords(as_json: bool) -> None:
     """Show the 28 dGLI cloth coordinates of the flat napkin."""
-    from ..dgli import pair_indices
-    from ..layout import default_layout
+    from ..core.dgli import pair_indices
+    from ..core.layout import default_layout
 
     layout = default_layout()
     values = layout.flat_coordinates()

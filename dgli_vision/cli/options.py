@@ -8,7 +8,7 @@ from typing import Any, TypeVar
 
 import click
 
-from ..condition_names import CONDITION_HELP
+from ..sim.condition_names import CONDITION_HELP
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -48,7 +48,7 @@ MAX_NAPKIN_MM = 1000.0
 def _parse_size(
     ctx: click.Context, param: click.Parameter, value: str | None
 ) -> tuple[float, float] | None:
-    from ..layout import parse_size
+    from ..core.layout import parse_size
 
     if value is None:
         return None

@@ -27,10 +27,10 @@ def references_build(
 
     The set is for the napkin size DB was simulated for; --size only checks it.
     """
-    from ..database_files import read_database
-    from ..errors import InvalidInputError
-    from ..layout import layout_of_size
-    from ..references import build_references, write_references
+    from ..classifier.references import build_references, write_references
+    from ..core.errors import InvalidInputError
+    from ..core.layout import layout_of_size
+    from ..sim.database_files import read_database
 
     records, db_provenance = read_database(db)
     simulated = db_provenance.get("napkin_mm")

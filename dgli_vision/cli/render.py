@@ -7,7 +7,7 @@ from typing import Any
 
 import click
 
-from ..condition_names import CONDITION_HELP
+from ..sim.condition_names import CONDITION_HELP
 from .errors import handle_errors
 from .options import overwrite_option, parse_conditions, per_class_option, size_option
 from .output import command_line, napkin_provenance, package_version, progress
@@ -85,10 +85,10 @@ def render_cmd(
     """
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
-    from ..dataset import render_plan
-    from ..io import guard_outputs
-    from ..labelled import labelled_folder_files
-    from ..layout import layout_of_size
+    from ..core.io import guard_outputs
+    from ..core.layout import layout_of_size
+    from ..sim.dataset import render_plan
+    from ..sources.labelled import labelled_folder_files
 
     names, cases = render_plan(per_class, sequence, frames)
     planned = labelled_folder_files(out, names, frames=bool(sequence))
@@ -123,14 +123,14 @@ def _render_set(
     """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
     kept from an interrupted run (``resume``), write them (all, or those done when a stop
     signal came), and exit 130/143 if stopped."""
-    from ..dataset import (
+    from ..sim.dataset import (
         SEQUENCE_FRAME_SECONDS,
         kept_pairs,
         merge_kept_pairs,
         render_sample,
         render_sequence,
     )
-    from ..labelled import write_labelled_folder
+    from ..sources.labelled import write_labelled_folder
 
     sequence, seed = provenance.get("sequence"), provenance["seed"]
     kept = kept_pairs(out, provenance, names) if resume else {}

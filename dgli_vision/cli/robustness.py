@@ -58,11 +58,11 @@ def robustness(
     import os
     from pathlib import Path
 
-    from ..condition_names import CONDITION_NAMES
-    from ..io import guard_outputs, write_outputs
-    from ..references import load_references
-    from ..report import markdown_table
-    from ..robustness import reliability_table, robustness_table
+    from ..analysis.report import markdown_table
+    from ..analysis.robustness import reliability_table, robustness_table
+    from ..classifier.references import load_references
+    from ..core.io import guard_outputs, write_outputs
+    from ..sim.condition_names import CONDITION_NAMES
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
@@ -93,7 +93,7 @@ def _scores(
 ) -> list:
     """The scores of the conditions ``names``, each told on stderr as it comes (unless
     ``quiet``)."""
-    from ..robustness import score_condition
+    from ..analysis.robustness import score_condition
 
     scores = []
     for name in names:
@@ -111,7 +111,7 @@ def _robustness_json(
     seed: int, per_class: int, header: list, rows: list, scores: list
 ) -> dict[str, Any]:
     """The JSON object of ``dgli robustness --json``."""
-    from ..robustness import reliability_rows
+    from ..analysis.robustness import reliability_rows
 
     return {
         "seed": seed,

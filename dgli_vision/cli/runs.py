@@ -7,13 +7,13 @@ from typing import Any
 
 import click
 
-from ..errors import DgliError
+from ..core.errors import DgliError
 from .output import command_line, progress_bar
 
 
 def open_recording_with(path: str, opts: dict[str, Any]) -> Any:
     """The recording at ``path`` with the options of :func:`recording_options`."""
-    from ..recording import open_recording
+    from ..sources.recording import open_recording
 
     return open_recording(
         path,
@@ -75,11 +75,11 @@ def stop_signals():
 
 
 def folder_lock(folder: Any):
-    """The lock of an output folder (:class:`~dgli_vision.run_lock.RunLock`), held for
+    """The lock of an output folder (:class:`~dgli_vision.core.run_lock.RunLock`), held for
     the ``with`` block; a stale lock left by a killed run is taken over with a note."""
     from contextlib import contextmanager
 
-    from ..run_lock import RunLock
+    from ..core.run_lock import RunLock
 
     @contextmanager
     def context():
@@ -104,9 +104,9 @@ def open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: boo
     ``resume``, those of the same run (refused, naming the difference, when its header
     differs from ``header``); otherwise a new file starting with ``header`` (refused when
     an earlier run's results are there, unless ``overwrite``)."""
-    from ..errors import OverwriteError
-    from ..io import JsonLinesWriter, read_jsonl
-    from ..run_lock import check_resume, repair_journal
+    from ..core.errors import OverwriteError
+    from ..core.io import JsonLinesWriter, read_jsonl
+    from ..core.run_lock import check_resume, repair_journal
 
     earlier = read_jsonl(path) if resume else []
     if earlier:
@@ -143,7 +143,7 @@ def classify_into(
     what is done. ``options`` go to ``evaluate_pairs``."""
     from concurrent.futures.process import BrokenProcessPool
 
-    from ..evaluate import evaluate_pairs, outcome_to_dict, pair_key
+    from ..analysis.evaluate import evaluate_pairs, outcome_to_dict, pair_key
 
     try:
         with progress_bar(count, label, quiet=run.as_json) as bar:
@@ -164,7 +164,7 @@ def references_of(references_path: str | None) -> tuple[Any, Any]:
     """The reference set of ``--references`` (None: the default one) and its path."""
     from pathlib import Path
 
-    from ..references import default_references_path, load_references
+    from ..classifier.references import default_references_path, load_references
 
     refs_path = Path(references_path) if references_path else default_references_path()
     return load_references(refs_path), refs_path
@@ -173,7 +173,7 @@ def references_of(references_path: str | None) -> tuple[Any, Any]:
 def require_report_for_resume(resume: bool, report_dir: str | None) -> None:
     """Refuse ``--resume`` without ``--report DIR``."""
     if resume and not report_dir:
-        from ..errors import InvalidInputError
+        from ..core.errors import InvalidInputError
 
         raise InvalidInputError("--resume needs --report DIR, where results.jsonl is kept")
 
@@ -190,14 +190,14 @@ def run_journalled(
     """``run.go`` without a report folder; with one, check its ``files`` first (before
     the work, not after it), then, holding the folder's lock, with the journal
     (results.jsonl) of the run described by ``header`` (the arguments of
-    :func:`~dgli_vision.run_lock.run_header_of`)."""
+    :func:`~dgli_vision.core.run_lock.run_header_of`)."""
     if not report_dir:
         run.go(None, overwrite=overwrite)
         return
     from pathlib import Path
 
-    from ..io import guard_outputs
-    from ..run_lock import run_header_of
+    from ..core.io import guard_outputs
+    from ..core.run_lock import run_header_of
 
     out = Path(report_dir)
     guard_outputs([out / name for name in files], overwrite=overwrite)

@@ -17,9 +17,9 @@ MAX_SIMULATED_CLOTH = 10_000
 
 def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> None:
     """Refuse, before the work, a database that would not fit in memory."""
-    from ..classes import CLASS_IDS
-    from ..database import FOLD_BINS_DEG
-    from ..fold_graph import fold_edges
+    from ..core.classes import CLASS_IDS
+    from ..core.fold_graph import fold_edges
+    from ..sim.database import FOLD_BINS_DEG
 
     folds = sum("under" not in fold for *_, fold in fold_edges())
     n_states = per_class * len(CLASS_IDS) + in_progress * folds * len(FOLD_BINS_DEG)
@@ -63,10 +63,10 @@ def simulate(
     states with one fold in progress (every fold a robot can make, turned 10-170
     degrees), labelled by the 90-degree rule; `dgli compare` leaves them out.
     """
-    from ..cloth.states import CLASS_IDS
-    from ..database import simulate_folds_in_progress, simulate_states
-    from ..database_files import write_database
-    from ..layout import layout_of_size
+    from ..core.layout import layout_of_size
+    from ..sim.cloth.states import CLASS_IDS
+    from ..sim.database import simulate_folds_in_progress, simulate_states
+    from ..sim.database_files import write_database
 
     layout = layout_of_size(size_mm)
     _check_simulation_size(per_class, in_progress, layout)

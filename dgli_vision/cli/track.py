@@ -74,7 +74,7 @@ def track(
     --report, each frame's result is kept as it is done: Ctrl-C or SIGTERM gives the
     timeline of the frames done and exits 130 (143), and --resume goes on from there.
     """
-    from ..colours_file import read_colours
+    from ..sources.colours_file import read_colours
 
     recording = open_recording_with(folder, recording_opts)
     require_report_for_resume(resume, report_dir)
@@ -120,8 +120,8 @@ class _TrackRun:
     def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
         """Classify the frames not done yet (``journal``: the results.jsonl writer and
         the objects already in it), smooth, print, report, exit as the outcome says."""
-        from ..evaluate import outcomes_of, pair_key
-        from ..track import track_outcomes
+        from ..analysis.evaluate import outcomes_of, pair_key
+        from ..analysis.track import track_outcomes
 
         writer, earlier = journal if journal else (None, [])
         done = outcomes_of(earlier, None)
@@ -162,7 +162,7 @@ class _TrackRun:
     def _classify(self, done: dict, writer: Any, seen: list, stop: Stop) -> None:
         """Classify the frames not in ``done`` into it (and ``writer``), each frame read
         into ``seen``, until all are or a stop signal comes (:func:`stop_signals`)."""
-        from ..evaluate import pair_key
+        from ..analysis.evaluate import pair_key
 
         def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
             for pair in self.recording.frames:
@@ -183,7 +183,7 @@ class _TrackRun:
         )
 
     def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
-        from ..classes import CLASS_NAMES
+        from ..core.classes import CLASS_NAMES
 
         if self.as_json:
             click.echo(json.dumps(data))
@@ -225,10 +225,10 @@ class _TrackRun:
     ) -> None:
         from pathlib import Path
 
-        from ..classes import CLASS_IDS, CLASS_NAMES
-        from ..io import record_outputs, write_outputs
-        from ..report import csv_table, timeline_image
-        from ..track import TIMELINE_COLUMNS, timeline_rows
+        from ..analysis.report import timeline_image
+        from ..analysis.track import TIMELINE_COLUMNS, timeline_rows
+        from ..core.classes import CLASS_IDS, CLASS_NAMES
+        from ..core.io import csv_table, record_outputs, write_outputs
 
         out = Path(self.report_dir)
         picture = timeline_image(
@@ -255,9 +255,9 @@ class _TrackRun:
 def _distances_heatmap(outcomes: list) -> tuple[Any, dict[str, int]] | None:
     """The heatmap of the frames' distances (a sample of frames evenly spread in time
     when there are many) and what it shows; None without frames."""
-    from ..evaluate import coordinate_matrix
-    from ..evaluation_report import heatmap_sample, sample_distance_matrix
-    from ..report import heatmap_image
+    from ..analysis.evaluate import coordinate_matrix
+    from ..analysis.evaluation_report import heatmap_sample, sample_distance_matrix
+    from ..analysis.report import heatmap_image
 
     shown = heatmap_sample(["frames"] * len(outcomes))  # evenly spread in time
     if not shown:
@@ -277,7 +277,7 @@ def _distances_heatmap(outcomes: list) -> tuple[Any, dict[str, int]] | None:
 
 def _timeline_json(timeline: Any) -> dict[str, Any]:
     """A timeline's JSON object with NaN written as null."""
-    from ..evaluate import json_ready
-    from ..track import timeline_to_dict
+    from ..analysis.evaluate import json_ready
+    from ..analysis.track import timeline_to_dict
 
     return json_ready(timeline_to_dict(timeline))

@@ -1,7 +1,7 @@
 """Perception: from an RGB-D frame to the stickers in 3D and what the missing ones say.
 
 The stages run in the order the data flows, each receiving the frozen result of the one
-before (:func:`dgli_vision.pipeline.observe` chains them):
+before (:func:`dgli_vision.classifier.pipeline.observe` chains them):
 
 1. the table plane (:mod:`.lift`) and the napkin (:mod:`.napkin`): its white, and masks
    of highlights, objects above the table and cloth held up (:class:`.napkin.NapkinView`);

@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
-from ..colour import srgb_lut
+from ..core.camera import Intrinsics
+from ..core.colour import srgb_lut
 from .detections import DetectorParams, Rejection
 
 __all__ = ["Candidate", "SearchImage", "judge_blob"]

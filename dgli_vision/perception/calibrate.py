@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
-from ..layout import NapkinLayout
+from ..core.camera import Intrinsics
+from ..core.layout import NapkinLayout
 from .detect import DetectorParams, detect_all_stickers
 
 __all__ = ["calibrate_colours"]

@@ -30,9 +30,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
-from ..colour import srgb_lut
-from ..layout import NapkinLayout
+from ..core.camera import Intrinsics
+from ..core.colour import srgb_lut
+from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blob
 from .detections import DetectorParams, Rejection, StickerDetections
 from .labels import colour_labels, hue_lut, hue_of
@@ -420,7 +420,7 @@ def detect_all_stickers(
     CalibrationError
         With fewer than all the stickers found, naming the missing ones.
     """
-    from ..errors import CalibrationError
+    from ..core.errors import CalibrationError
 
     napkin = find_napkin(color, depth_mm, intrinsics)
     det = detect_stickers(color, depth_mm, intrinsics, layout, params, napkin=napkin)

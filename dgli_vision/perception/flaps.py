@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
+from ..core.camera import Intrinsics
 from .evidence import HELD_UP, StickerEvidence
 from .napkin import NapkinView
 

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
-from ..colour import srgb_lut
+from ..core.camera import Intrinsics
+from ..core.colour import srgb_lut
 from .napkin import NapkinParams, NapkinView
 
 __all__ = ["Footprint", "FootprintParams", "cloth_cells", "measure_footprint"]

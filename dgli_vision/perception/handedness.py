@@ -19,7 +19,7 @@ from itertools import combinations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..layout import CORNER_STICKERS, NapkinLayout
+from ..core.layout import CORNER_STICKERS, NapkinLayout
 
 __all__ = ["MIN_SHAPE", "back_face_up", "corner_turns", "image_turns"]
 

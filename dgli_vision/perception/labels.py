@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from ..layout import NapkinLayout
+from ..core.layout import NapkinLayout
 from .detections import DetectorParams
 
 __all__ = ["colour_labels", "hue_lut", "hue_of"]

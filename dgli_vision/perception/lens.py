@@ -22,9 +22,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
-from ..errors import CalibrationError
-from ..layout import NapkinLayout
+from ..core.camera import Intrinsics
+from ..core.errors import CalibrationError
+from ..core.layout import NapkinLayout
 from .detect import DetectorParams, detect_all_stickers
 
 __all__ = ["LensEstimate", "estimate_lens", "fit_lens", "sticker_depths"]

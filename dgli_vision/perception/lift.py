@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
+from ..core.camera import Intrinsics
 from .detect import StickerDetections
 
 __all__ = ["Markers3D", "estimate_table_normal", "estimate_table_plane", "lift_stickers"]

@@ -20,8 +20,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..camera import Intrinsics
-from ..colour import linear_to_srgb, srgb_lut
+from ..core.camera import Intrinsics
+from ..core.colour import linear_to_srgb, srgb_lut
 
 __all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..layout import CORNER_STICKERS, NapkinLayout
+from ..core.layout import CORNER_STICKERS, NapkinLayout
 from .lift import Markers3D
 
 __all__ = ["NapkinRuler", "measure_napkin"]

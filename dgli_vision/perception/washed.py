@@ -15,7 +15,7 @@ from dataclasses import replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..layout import NapkinLayout
+from ..core.layout import NapkinLayout
 from .detections import DetectorParams, StickerDetections
 from .footprint import FootprintParams, cloth_cells
 from .labels import hue_lut

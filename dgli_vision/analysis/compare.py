@@ -1,0 +1,216 @@
+"""The paper's comparison of representations (Table 1) and its sequence analysis."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..classifier.classify import reference_distances
+from ..classifier.references import ReferenceSet
+from ..core.distance import davies_bouldin, pairwise_spearman
+from ..sim.database import StateRecords
+from .baselines import corner_distances, pairwise_curve_distances, segment_distances
+
+__all__ = [
+    "COMPARE_COLUMN_NOTES",
+    "REPRESENTATIONS",
+    "SequenceAnalysis",
+    "analyse_sequence",
+    "davies_bouldin_table",
+    "distance_matrices",
+]
+
+
+def _dgli_with_visibility(records: StateRecords) -> NDArray[np.float64]:
+    """The classifier's metric between samples: Spearman distance of the dGLI plus the
+    mean disagreement of which stickers are visible (see
+    :mod:`dgli_vision.classifier.classify`)."""
+    vis = records.visible.astype(float)
+    return pairwise_spearman(records.coordinates) + np.abs(vis[:, None] - vis[None]).mean(axis=2)
+
+
+#: What each column of ``dgli compare`` groups, and why.
+COMPARE_COLUMN_NOTES: dict[str, str] = {
+    "database": "the simulated states by class (12 groups; a class pools its corners or "
+    "sides, so a group holds shapes that differ by rotation of the fold)",
+    "I, II, III": "the frames of each folding sequence by their true class",
+    "database by variant": "by class and variant (44 groups); over and under mirror "
+    "images are separate groups although the dGLI cannot tell them apart",
+    "by variant, mirrors merged": "by class and variant with mirror images through the "
+    "table merged (02/03 by corner, 09/10 by side, 05 XY/X with XY/Y; 32 groups, derived "
+    "from the fold definitions): the dGLI of a mirror image is the same, so this is the "
+    "grouping comparable to the paper's corner-specific classes, whose database has no "
+    "fold under",
+}
+
+REPRESENTATIONS: dict[str, Callable[[StateRecords], NDArray[np.float64]]] = {
+    "dgli": lambda r: pairwise_spearman(r.coordinates),
+    "dgli+visibility": _dgli_with_visibility,
+    "edges": lambda r: pairwise_spearman(
+        segment_distances(r.sticker_points.reshape(len(r), -1, 2, 3))
+    ),
+    "corners": lambda r: pairwise_spearman(corner_distances(r.corner_points)),
+    "frechet": lambda r: pairwise_curve_distances(r.boundary, "frechet"),
+    "hausdorff": lambda r: pairwise_curve_distances(r.boundary, "hausdorff"),
+}
+
+
+def distance_matrices(
+    records: StateRecords, names: tuple[str, ...] = tuple(REPRESENTATIONS)
+) -> dict[str, NDArray[np.float64]]:
+    """Distance matrix (n, n) of ``records`` under each representation."""
+    return {name: REPRESENTATIONS[name](records) for name in names}
+
+
+def davies_bouldin_table(
+    datasets: dict[str, StateRecords], names: tuple[str, ...] = tuple(REPRESENTATIONS)
+) -> dict[str, object]:
+    """Davies-Bouldin index (lower is better) of each representation on each data set.
+
+    Parameters
+    ----------
+    datasets : dict of str to StateRecords
+        Column name -> samples labelled by class (``records.classes``).
+    names : tuple of str
+        Representations (rows).
+
+    Returns
+    -------
+    dict
+        ``{"columns": [...], "rows": {name: [index per column]}}``.
+    """
+    rows: dict[str, list[float]] = {n: [] for n in names}
+    for records in datasets.values():
+        mats = distance_matrices(records, names)
+        for n in names:
+            rows[n].append(round(davies_bouldin(mats[n], np.asarray(records.classes)), 4))
+    return {"columns": list(datasets), "rows": rows}
+
+
+@dataclass(frozen=True)
+class SequenceAnalysis:
+    """Frame-by-frame analysis of a folding sequence.
+
+    Attributes
+    ----------
+    distances : ndarray, shape (n, n)
+        Spearman distances between the frames' dGLI coordinates.
+    truth : tuple of str
+        True class of every frame.
+    predicted : tuple of str
+        Each frame's own nearest class.
+    smoothed : tuple of str
+        The classes after smoothing over time (:mod:`dgli_vision.analysis.track`).
+    true_changes, detected_changes : tuple of int
+        Frames where the true / smoothed class differs from the previous frame's.
+    """
+
+    distances: NDArray[np.float64]
+    truth: tuple[str, ...]
+    predicted: tuple[str, ...]
+    smoothed: tuple[str, ...]
+    true_changes: tuple[int, ...]
+    detected_changes: tuple[int, ...]
+
+    @property
+    def frame_accuracy(self) -> float:
+        """Fraction of frames whose own predicted class is the true one."""
+        return float(np.mean([t == p for t, p in zip(self.truth, self.predicted)]))
+
+    @property
+    def smoothed_accuracy(self) -> float:
+        """Fraction of frames whose smoothed class is the true one."""
+        return float(np.mean([t == p for t, p in zip(self.truth, self.smoothed)]))
+
+
+def analyse_sequence(records: StateRecords, references: ReferenceSet) -> SequenceAnalysis:
+    """Distance matrix of the frames, and the frames where the state changes.
+
+    Each frame is compared with ``references`` as a camera straight above would see it
+    (stickers hidden by cloth as evidence, coordinates of their segments removed, those
+    on a flap held up unknown); the per-frame distances are smoothed over time with the
+    tracker's hidden Markov model, and a change is a frame whose smoothed class differs
+    from the previous frame's.
+    """
+    from .track import change_frames, smooth
+
+    coords = records.hidden_coordinates()
+    back = records.seen_back_faces()
+    spread = records.seen_spreads_mm()
+    dist = np.array(
+        [
+            reference_distances(
+                coords[k],
+                references,
+                records.visible[k],
+                records.unknown[k],
+                np.where(
+                    records.visible[k] | records.unknown[k], records.lifted[k], np.nan
+                ),
+                np.where(  # held up out of sight: the height its flap gives it
+                    records.visible[k] | records.unknown[k],
+                    records.sticker_points[k, :, 2] * 1e3,
+                    np.nan,
+                ),
+                np.where(records.unknown[k], float(records.past_vertical[k]), np.nan),
+                back[k],
+                spread[k],
+            )
+            for k in range(len(records))
+        ]
+    )
+    predicted = tuple(references.references[int(np.argmin(d))].class_id for d in dist)
+    smoothed = tuple(c for c, _ in smooth(dist, references)[0])
+    return SequenceAnalysis(
+        distances=pairwise_spearman(records.coordinates),
+        truth=records.classes,
+        predicted=predicted,
+        smoothed=smoothed,
+        true_changes=tuple(change_frames(records.classes)),
+        detected_changes=tuple(change_frames(smoothed)),
+    )
+
+
+def sequence_records(name: str) -> StateRecords:
+    """The simulator's frames of folding sequence ``name`` (I, II or III) as records
+    named ``{name}_000``, ``{name}_001``, ..."""
+    from ..sim.cloth.sequences import folding_sequence
+    from ..sim.database import records_from_states
+
+    frames = folding_sequence(name)
+    return records_from_states([(f"{name}_{k:03d}", s) for k, s in enumerate(frames)])
+
+
+def folded_by_class(records: StateRecords) -> StateRecords:
+    """The paper's states of a database (every fold laid flat), sorted by class, then
+    variant (stable)."""
+    records = records.subset(records.folded)
+    keys = [f"{c}/{v or ''}" for c, v in zip(records.classes, records.variants)]
+    order = np.argsort(np.asarray(keys), kind="stable")
+    return records.subset(order)
+
+
+def compare_datasets(records: StateRecords) -> dict[str, StateRecords]:
+    """The columns of ``dgli compare``: the database ``records`` (see
+    :func:`folded_by_class`) labelled by class, the three folding sequences, the database
+    labelled by class and variant, and by class and variant with mirror images merged."""
+    import dataclasses
+
+    from ..core.fold_graph import mirror_group
+
+    by_variant = dataclasses.replace(
+        records, classes=tuple(f"{c}/{v}" for c, v in zip(records.classes, records.variants))
+    )
+    mirrored = dataclasses.replace(
+        records,
+        classes=tuple(mirror_group(k) for k in zip(records.classes, records.variants)),
+    )
+    return {
+        "database": records,
+        **{n: sequence_records(n) for n in ("I", "II", "III")},
+        "database by variant": by_variant,
+        "by variant, mirrors merged": mirrored,
+    }

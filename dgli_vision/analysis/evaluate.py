@@ -1,0 +1,493 @@
+"""Batch evaluation of labelled folders: parallel, streaming, and robust to bad pairs.
+
+Each pair is read and classified in a worker process; only a small record comes back
+(no images), so memory stays flat in the number of pairs. A pair that cannot be read is
+recorded as a failure with its one-line error and the run goes on.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..classifier.references import ReferenceSet
+from ..core.classes import VARIANTS
+from ..core.errors import DgliError
+from ..sources.labelled import LabelledPair
+
+__all__ = [
+    "EvaluationResult",
+    "PairOutcome",
+    "coordinate_matrix",
+    "evaluate_pairs",
+    "json_ready",
+    "outcome_from_dict",
+    "outcome_to_dict",
+    "summarise",
+    "timed_evaluation",
+]
+
+
+@dataclass(frozen=True)
+class PairOutcome:
+    """What happened to one pair.
+
+    ``error`` is set when it could not be read (a failure); ``predicted`` is None when
+    it was read but no class could be given (``reason``).
+    """
+
+    pair: LabelledPair
+    predicted: str | None = None
+    predicted_variant: str | None = None
+    distance: float | None = None
+    runner_up: str | None = None
+    runner_up_distance: float | None = None
+    coordinates: tuple[float, ...] = ()
+    centroids: tuple[tuple[float, float], ...] = ()
+    reason: str | None = None
+    error: str | None = None
+    confidence: float | None = None
+    distances: tuple[float, ...] = ()
+
+    @property
+    def correct(self) -> bool:
+        """Class predicted right."""
+        return self.predicted == self.pair.label
+
+    @property
+    def variant_correct(self) -> bool:
+        """Class and variant predicted right."""
+        return self.correct and self.predicted_variant == self.pair.variant
+
+
+_WORKER_REFS: ReferenceSet | None = None
+_WORKER_COLOURS: dict | None = None
+
+
+def _init_worker(refs: ReferenceSet, colours: dict | None = None) -> None:
+    """Each worker is one of ``jobs`` processes: keep it to one thread (no oversubscription).
+
+    Workers ignore Ctrl-C: the parent stops the batch and lets running pairs finish, so a
+    terminal's interrupt (sent to the whole process group) leaves no half-written state
+    and no worker tracebacks.
+    """
+    import signal
+
+    import cv2
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    global _WORKER_REFS, _WORKER_COLOURS
+    _WORKER_REFS = refs
+    _WORKER_COLOURS = colours
+    cv2.setNumThreads(1)
+
+
+def _classify_pair(
+    pair: LabelledPair,
+    refs: ReferenceSet | None = None,
+    colours: dict | None = None,
+    distances: bool = False,
+) -> PairOutcome:
+    from ..classifier.classify import reference_distances
+    from ..classifier.pipeline import classify_frame
+
+    if refs is None:
+        refs, colours = _WORKER_REFS, _WORKER_COLOURS
+    if refs is None:
+        raise RuntimeError("worker started without references (pool initializer not run)")
+    try:
+        frame = pair.load()  # one thread: one pair per core
+        result = classify_frame(frame, refs, colours=colours)
+    except DgliError as exc:
+        where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
+        return PairOutcome(pair.light(), error=f"{exc}{where}")
+    p = result.prediction
+    coords = tuple(float(v) for v in result.coordinates)
+    cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
+    dist: tuple[float, ...] = ()
+    if distances and result.best_guess is not None:  # to every reference, for tracking
+        obs = result.observation
+        d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
+        dist = tuple(round(float(v), 6) for v in d)
+    guess = result.best_guess
+    confidence = guess.confidence if guess is not None else None
+    if p is None:
+        return PairOutcome(
+            pair.light(),
+            coordinates=coords,
+            centroids=cents,
+            reason=result.reason,
+            confidence=confidence,
+            distances=dist,
+        )
+    return PairOutcome(
+        pair.light(),
+        p.class_id,
+        p.variant,
+        p.distance,
+        p.runner_up.class_id if p.runner_up else None,
+        p.runner_up.distance if p.runner_up else None,
+        coords,
+        cents,
+        confidence=confidence,
+        distances=dist,
+    )
+
+
+def evaluate_pairs(
+    pairs: Iterable[LabelledPair],
+    references: ReferenceSet,
+    *,
+    jobs: int = 1,
+    on_progress: Callable[[int], None] | None = None,
+    colours: dict | None = None,
+    distances: bool = False,
+) -> Iterator[PairOutcome]:
+    """Classify labelled pairs, in input order, with ``jobs`` worker processes.
+
+    Parameters
+    ----------
+    pairs : iterable of LabelledPair
+        Taken one at a time, as the work goes (a recording's frames are read as they are
+        classified, never all held).
+    references : ReferenceSet
+    jobs : int, keyword-only
+        Worker processes; 1 runs in this process.
+    on_progress : callable, keyword-only
+        Called with 1 after each pair (for a progress bar).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``).
+    distances : bool, keyword-only
+        Keep each pair's distance to every reference (``PairOutcome.distances``), the
+        evidence :mod:`dgli_vision.analysis.track` smooths over time.
+
+    Yields
+    ------
+    PairOutcome
+        One per pair, in the order of ``pairs``.
+    """
+    if jobs < 1:
+        raise ValueError(f"jobs must be at least 1, got {jobs}")
+    if jobs == 1:
+        for pair in pairs:
+            yield _classify_pair(pair, references, colours, distances)
+            if on_progress:
+                on_progress(1)
+        return
+    for outcome in _shared_work(pairs, references, jobs, colours, distances):
+        yield outcome
+        if on_progress:
+            on_progress(1)
+
+
+_POOL: tuple[tuple, ProcessPoolExecutor] | None = None
+
+
+def _worker_pool(
+    workers: int, references: ReferenceSet, colours: dict | None
+) -> ProcessPoolExecutor:
+    """The worker processes, kept between calls with the same references and colours
+    (a robustness run or a program classifying batch after batch starts them once)."""
+    global _POOL
+    # the set itself, not its id: compared by identity, and kept alive while in use
+    key = (workers, references, None if colours is None else tuple(sorted(colours.items())))
+    if _POOL is not None and _POOL[0] == key:
+        return _POOL[1]
+    _shutdown_pool()
+    import atexit
+    import multiprocessing as mp
+
+    # Spawned, not forked: the parent may hold OpenCV, Open3D or decoding threads, and a
+    # forked child inherits their locks.
+    pool = ProcessPoolExecutor(
+        workers,
+        mp_context=mp.get_context("spawn"),
+        initializer=_init_worker,
+        initargs=(references, colours),
+    )
+    if _POOL is None:
+        atexit.register(_shutdown_pool)
+    _POOL = (key, pool)
+    return pool
+
+
+def _shutdown_pool() -> None:
+    global _POOL
+    if _POOL is not None:
+        _POOL[1].shutdown(wait=True, cancel_futures=True)
+        _POOL = None
+
+
+def _shared_work(
+    pairs: Iterable[LabelledPair],
+    references: ReferenceSet,
+    jobs: int,
+    colours: dict | None,
+    distances: bool,
+) -> Iterator[PairOutcome]:
+    """Outcomes in input order from ``jobs - 1`` worker processes and this process.
+
+    This process classifies pairs too, from the first moment: the workers take a few
+    tenths of a second to start (spawn, imports, references), during which it is already
+    at work, and there is one process per core, not one more. The workers stay up for the
+    next call (:func:`_worker_pool`); each is kept a few pairs ahead so that it never
+    waits for this process.
+    """
+    from concurrent.futures import FIRST_COMPLETED, Future, wait
+
+    import cv2
+
+    pool = _worker_pool(jobs - 1, references, colours)
+    work = partial(_classify_pair, distances=distances)
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)  # one process per core, this one included
+    todo = iter(pairs)  # taken one at a time: a recording is read as it is classified
+    done: dict[int, PairOutcome] = {}
+    pending: dict[Future, int] = {}
+    mine: dict[int, LabelledPair] = {}  # handed to a worker, kept in case it is taken back
+    handed, given, more = 0, 0, True  # next index to hand out; next to yield
+    try:
+        while more or given < handed:
+            while more and len(pending) < 6 * (jobs - 1):
+                pair = next(todo, None)
+                if pair is None:
+                    more = False
+                    break
+                pending[pool.submit(work, pair)] = handed
+                mine[handed] = pair
+                handed += 1
+            for future in [f for f in pending if f.done()]:
+                index = pending.pop(future)
+                done[index] = future.result()
+                del mine[index]
+            while given in done:
+                yield done.pop(given)
+                given += 1
+            pair = next(todo, None) if more else None
+            if pair is not None:
+                done[handed] = _classify_pair(pair, references, colours, distances)
+                handed += 1
+                continue
+            more = False
+            if pending and given not in done:
+                stolen = _take_back(pending)
+                if stolen is None:
+                    wait(pending, return_when=FIRST_COMPLETED)
+                else:  # the tail: a waiting worker pair is done here rather than idling
+                    pair = mine.pop(stolen)
+                    done[stolen] = _classify_pair(pair, references, colours, distances)
+    finally:  # also on Ctrl-C or when the caller stops early: drop what has not started
+        cv2.setNumThreads(threads)
+        for future in pending:
+            future.cancel()
+        wait(pending)
+
+
+def _take_back(pending: dict) -> int | None:
+    """Cancel the last-handed pair no worker has started, and return its index (None if
+    every pending pair is already running): at the end of a batch this process takes the
+    queued pairs back instead of waiting for one worker to work through them alone."""
+    for future, index in sorted(pending.items(), key=lambda item: -item[1]):
+        if future.cancel():
+            del pending[future]
+            return index
+    return None
+
+
+@dataclass(frozen=True)
+class EvaluationResult:
+    """The summary of DESIGN.md's ``dgli evaluate --json`` plus the outcomes."""
+
+    n: int
+    classified: int
+    accuracy: float
+    variant_accuracy: float | None
+    labels: list[str]
+    confusion: list[list[int]]
+    per_class: dict[str, dict[str, float]]
+    failures: list[dict[str, str]]
+    seconds: float
+    outcomes: list[PairOutcome] = field(default_factory=list, repr=False)
+
+    def variant_accuracy_text(self) -> str:
+        """Variant accuracy as a percentage, or ``n/a`` when no variant is known."""
+        return "n/a" if self.variant_accuracy is None else f"{self.variant_accuracy:.2%}"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON object (outcomes left out)."""
+        return {
+            "n": self.n,
+            "classified": self.classified,
+            "accuracy": self.accuracy,
+            "variant_accuracy": self.variant_accuracy,
+            "labels": self.labels,
+            "confusion": self.confusion,
+            "per_class": self.per_class,
+            "failures": self.failures,
+            "seconds": self.seconds,
+        }
+
+
+NO_CLASS = "none"
+
+
+def json_ready(value: Any) -> Any:
+    """``value`` with every NaN or infinite float replaced by None (JSON's null), through
+    dicts, lists and tuples: ``json.dumps`` would write them as bare ``NaN``, which JSON
+    readers other than Python's refuse."""
+    if isinstance(value, float):
+        return value if np.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: json_ready(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [json_ready(v) for v in value]
+    return value
+
+
+def outcome_to_dict(outcome: PairOutcome) -> dict[str, Any]:
+    """JSON-ready form of an outcome (one line of ``results.jsonl``); a coordinate that
+    was not measured (NaN) is null."""
+    from dataclasses import asdict
+
+    return json_ready(asdict(outcome))
+
+
+def _float(v: Any) -> float:
+    return float("nan") if v is None else float(v)
+
+
+def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
+    """The outcome of :func:`outcome_to_dict`.
+
+    Raises
+    ------
+    ValueError, KeyError, TypeError
+        Malformed data.
+    """
+    pair = LabelledPair(**data["pair"])
+    return PairOutcome(
+        pair,
+        data.get("predicted"),
+        data.get("predicted_variant"),
+        data.get("distance"),
+        data.get("runner_up"),
+        data.get("runner_up_distance"),
+        tuple(_float(v) for v in data.get("coordinates") or ()),
+        tuple((_float(u), _float(v)) for u, v in data.get("centroids") or ()),
+        data.get("reason"),
+        data.get("error"),
+        data.get("confidence"),
+        tuple(_float(v) for v in data.get("distances") or ()),
+    )
+
+
+def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResult:
+    """Metrics of a set of outcomes.
+
+    Accuracy is over all pairs (a failure or a pair without a class counts as wrong).
+    Variant accuracy is over the pairs whose true variant is known: labelled with one, or
+    of a class without variants (class folders carry no variant); None if there are none.
+    The confusion matrix has true labels as rows and predictions as columns, over
+    ``labels`` (every class seen as truth or prediction, sorted) plus a last column
+    ``"none"`` for pairs that failed or got no class.
+    """
+    outs = list(outcomes)
+    n = len(outs)
+    with_variant = [o for o in outs if o.pair.variant or VARIANTS.get(o.pair.label) == (None,)]
+    labels = sorted({o.pair.label for o in outs} | {o.predicted for o in outs if o.predicted})
+    index = {c: k for k, c in enumerate(labels)}
+    conf = np.zeros((len(labels), len(labels) + 1), dtype=int)
+    for o in outs:
+        col = index[o.predicted] if o.predicted else len(labels)
+        conf[index[o.pair.label], col] += 1
+    per_class = {}
+    for c, k in index.items():
+        tp = int(conf[k, k])
+        predicted = int(conf[:, k].sum())
+        support = int(conf[k].sum())
+        precision = tp / predicted if predicted else 0.0
+        recall = tp / support if support else 0.0
+        f1 = 2 * precision * recall / (precision + recall) if precision + recall else 0.0
+        per_class[c] = {
+            "precision": round(precision, 4),
+            "recall": round(recall, 4),
+            "f1": round(f1, 4),
+            "support": support,
+        }
+    return EvaluationResult(
+        n=n,
+        classified=sum(o.predicted is not None for o in outs),
+        accuracy=round(sum(o.correct for o in outs) / n, 4) if n else 0.0,
+        variant_accuracy=(
+            round(sum(o.variant_correct for o in with_variant) / len(with_variant), 4)
+            if with_variant
+            else None
+        ),
+        labels=labels,
+        confusion=conf.tolist(),
+        per_class=per_class,
+        failures=[
+            {
+                "color": o.pair.color,
+                "depth": o.pair.depth,
+                "error": o.error or f"no class: {o.reason}",
+            }
+            for o in outs
+            if o.predicted is None
+        ],
+        seconds=round(seconds, 3),
+        outcomes=outs,
+    )
+
+
+def timed_evaluation(
+    pairs: list[LabelledPair],
+    references: ReferenceSet,
+    *,
+    jobs: int = 1,
+    on_progress: Callable[[int], None] | None = None,
+    colours: dict | None = None,
+) -> EvaluationResult:
+    """:func:`evaluate_pairs` and :func:`summarise`, timed."""
+    t0 = time.perf_counter()
+    outcomes = list(
+        evaluate_pairs(pairs, references, jobs=jobs, on_progress=on_progress, colours=colours)
+    )
+    return summarise(outcomes, time.perf_counter() - t0)
+
+
+def coordinate_matrix(outcomes: list[PairOutcome]) -> NDArray[np.float64]:
+    """Coordinates (n, 28) of the outcomes that have them (NaN rows otherwise)."""
+    return np.array(
+        [o.coordinates if o.coordinates else (np.nan,) * 28 for o in outcomes], dtype=float
+    )
+
+
+def pair_key(pair: Any) -> tuple[str, str]:
+    """A pair's colour and depth files by their real paths: the same pair however named."""
+    import os
+
+    # realpath, not Path.resolve: a symbolic link loop is the pair's read error, not a crash
+    return os.path.realpath(pair.color), os.path.realpath(pair.depth)
+
+
+def outcomes_of(items: list, pairs: list | None) -> dict[tuple[str, str], PairOutcome]:
+    """Outcomes of ``pairs`` (None: any) among the objects of a results.jsonl (others
+    left out), by pair (:func:`pair_key`)."""
+    wanted = None if pairs is None else {pair_key(p) for p in pairs}
+    done = {}
+    for item in items:
+        try:
+            outcome = outcome_from_dict(item)
+        except (KeyError, TypeError, ValueError):
+            continue
+        if wanted is None or pair_key(outcome.pair) in wanted:
+            done[pair_key(outcome.pair)] = outcome
+    return done

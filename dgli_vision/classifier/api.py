@@ -1,0 +1,182 @@
+"""One call from code: a colour + depth pair, from files or from a live camera, to a
+verdict."""
+
+from __future__ import annotations
+
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
+from ..core.errors import CalibrationError, DetectionError, InvalidInputError
+from ..sources.frames import (
+    RGBDFrame,
+    check_intrinsics,
+    read_color,
+    read_depth,
+    read_frame,
+    read_intrinsics,
+)
+from .classify import MIN_CONFIDENCE, Prediction
+from .references import ReferenceSet, load_references
+
+__all__ = ["classify_pair"]
+
+
+@lru_cache(maxsize=4)
+def _references(path: str | None) -> ReferenceSet:
+    return load_references(path)
+
+
+def _check_source(value: object, what: str) -> None:
+    """A path or an array; anything else is a mistake in the caller's code."""
+    if not isinstance(value, (str, Path, np.ndarray)) and not hasattr(value, "__array__"):
+        raise InvalidInputError(
+            f"{what} must be a file path or a numpy array; got {type(value).__name__}"
+        )
+
+
+def _color_array(color: NDArray) -> NDArray[np.uint8]:
+    a = np.asarray(color)
+    if a.ndim != 3 or a.shape[2] != 3:
+        raise InvalidInputError(f"colour array has shape {a.shape}; expected (H, W, 3) RGB")
+    if a.dtype == np.uint16:
+        a = ((a.astype(np.uint32) * 255 + 32767) // 65535).astype(np.uint8)
+    if a.dtype != np.uint8:
+        raise InvalidInputError(f"colour array is {a.dtype}; expected uint8 (or uint16) RGB")
+    return np.ascontiguousarray(a)
+
+
+def _depth_array(depth: NDArray) -> NDArray[np.uint16]:
+    a = np.asarray(depth)
+    if a.ndim == 3 and a.shape[2] == 1:
+        a = a[..., 0]
+    if a.ndim != 2 or a.dtype != np.uint16:
+        raise InvalidInputError(
+            f"depth array is {a.dtype} of shape {a.shape}; expected (H, W) uint16 in mm"
+        )
+    return np.ascontiguousarray(a)
+
+
+def classify_pair(
+    color: str | Path | NDArray,
+    depth: str | Path | NDArray,
+    intrinsics: Intrinsics | str | Path | None = None,
+    references: ReferenceSet | str | Path | None = None,
+    *,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> Prediction:
+    """Classify one registered colour + depth pair.
+
+    Parameters
+    ----------
+    color : path or ndarray
+        A colour image file, or an RGB array (H, W, 3) of uint8 (uint16 is scaled).
+    depth : path or ndarray
+        A 16-bit depth PNG, or a uint16 array (H, W) in mm registered to the colour
+        image (0 = no reading).
+    intrinsics : Intrinsics or path, optional
+        Default: ``intrinsics.json`` beside a colour image file, else the nominal
+        1280 x 720 Kinect camera.
+    references : ReferenceSet or path, optional
+        Default: the shipped reference set (loaded once and kept).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``).
+
+    Returns
+    -------
+    Prediction
+        The nearest state with its ``confidence``. Below
+        :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` (0.25) the command line says
+        "cannot tell": a robot should treat such an answer the same way.
+
+    Raises
+    ------
+    DgliError
+        Unreadable or invalid input (one line naming the file or array and the
+        problem), or too few stickers seen to rank the references
+        (:class:`~dgli_vision.core.errors.DetectionError`).
+    """
+    from .pipeline import classify_frame
+
+    _check_source(color, "color")
+    _check_source(depth, "depth")
+    if intrinsics is not None and not isinstance(intrinsics, (str, Path)):
+        intrinsics = check_intrinsics(intrinsics)
+    if isinstance(color, (str, Path)) and isinstance(depth, (str, Path)):
+        frame = read_frame(color, depth, intrinsics)
+    else:
+        frame = _frame_of(color, depth, intrinsics)
+    refs = _reference_set(references)
+    colours = _check_colours(colours)
+    result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+    if result.best_guess is None:
+        raise DetectionError(f"{frame.color_path}: {result.reason}")
+    return result.best_guess
+
+
+def _frame_of(
+    color: str | Path | NDArray,
+    depth: str | Path | NDArray,
+    intrinsics: Intrinsics | str | Path | None,
+) -> RGBDFrame:
+    """A frame of which at least one image is an array."""
+    color_path = str(color) if isinstance(color, (str, Path)) else "<array>"
+    depth_path = str(depth) if isinstance(depth, (str, Path)) else "<array>"
+    rgb = read_color(color) if isinstance(color, (str, Path)) else _color_array(color)
+    mm = read_depth(depth) if isinstance(depth, (str, Path)) else _depth_array(depth)
+    if rgb.shape[:2] != mm.shape:
+        raise InvalidInputError(
+            f"depth {depth_path} is {mm.shape[1]}x{mm.shape[0]} but colour {color_path} is "
+            f"{rgb.shape[1]}x{rgb.shape[0]}; expected registered images of the same size"
+        )
+    source = "given"
+    if isinstance(intrinsics, Intrinsics):
+        intr = intrinsics
+    elif intrinsics is not None:
+        intr, source = read_intrinsics(intrinsics), str(intrinsics)
+    elif color_path != "<array>" and (Path(color_path).parent / "intrinsics.json").is_file():
+        source = str(Path(color_path).parent / "intrinsics.json")
+        intr = read_intrinsics(source)
+    else:
+        intr, source = DEFAULT_INTRINSICS, "default"
+    if (intr.width, intr.height) != (mm.shape[1], mm.shape[0]):
+        raise CalibrationError(
+            f"intrinsics ({source}) are for {intr.width}x{intr.height} images but the pair "
+            f"is {mm.shape[1]}x{mm.shape[0]}"
+        )
+    return RGBDFrame(rgb, mm, intr, color_path, depth_path, source)
+
+
+def _reference_set(references: object) -> ReferenceSet:
+    if isinstance(references, ReferenceSet):
+        return references
+    if references is not None and not isinstance(references, (str, Path)):
+        raise InvalidInputError(
+            f"references must be a ReferenceSet or a file path; got {type(references).__name__}"
+        )
+    return _references(str(references) if references is not None else None)
+
+
+def _check_colours(colours: object) -> dict[str, tuple[int, int, int]] | None:
+    """Calibrated colours as :func:`~dgli_vision.sources.colours_file.read_colours` gives them."""
+    from ..core.layout import default_layout
+
+    if colours is None:
+        return None
+    names = set(default_layout().colours_srgb)
+    if not isinstance(colours, dict) or set(colours) != names:
+        raise InvalidInputError(
+            f"colours must be a dict of exactly the colours {', '.join(sorted(names))}"
+        )
+    out = {}
+    for name, rgb in colours.items():
+        values = tuple(rgb) if isinstance(rgb, (tuple, list, np.ndarray)) else ()
+        if len(values) != 3 or not all(
+            isinstance(v, (int, np.integer)) and 0 <= v <= 255 for v in values
+        ):
+            raise InvalidInputError(f"colours: {name!r} must be three integers 0-255")
+        out[name] = (int(values[0]), int(values[1]), int(values[2]))
+    return out

@@ -1,0 +1,395 @@
+"""From cloth coordinates (and which stickers were seen) to a named state.
+
+The distance to a reference is the Spearman distance over the coordinates known in the
+observation, plus a visibility term: the mean, over the 16 stickers, of how far the
+observation (seen / not seen) is from the reference's rate of being seen. A missing
+sticker is evidence: it says what lies on top.
+
+When visibility is given, coordinates of segments with an unseen sticker are ignored even
+if a value is supplied (as a simulator can): no camera could have measured them, and a
+sticker hidden by a flap lies within a cloth thickness of the flap's own segments, where
+the dGLI is near-singular and its sign follows millimetre-level noise.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from ..core.classes import LIFTED_MM
+from ..core.dgli import pair_indices
+from ..core.distance import pairwise_spearman
+from ..core.errors import DetectionError
+from .references import ReferenceSet
+
+__all__ = [
+    "FULL_COORDINATES",
+    "FULL_MARGIN",
+    "HEIGHT_WEIGHT",
+    "LIFTED_MM",
+    "LIFTED_WEIGHT",
+    "MIN_CONFIDENCE",
+    "MIN_COORDINATES",
+    "PAST_WEIGHT",
+    "VISIBILITY_WEIGHT",
+    "Prediction",
+    "RunnerUp",
+    "classify_coordinates",
+    "confidence_of",
+]
+
+#: Fewer known coordinates than this (3 complete segments give 3) cannot be ranked.
+MIN_COORDINATES = 3
+#: Known coordinates that earn full confidence (4 complete segments give 6): with fewer,
+#: the rank correlation is coarse and the confidence is scaled down in proportion.
+FULL_COORDINATES = 6
+#: Weight of the visibility term against the Spearman distance (both in [0, 2]).
+VISIBILITY_WEIGHT = 1.0
+#: Weight of the height term: the mean, over the stickers seen, of how far the
+#: observation (standing above the table or not) is from the reference's rate. A
+#: completed fold lies flat; a flap held up stands 20 mm and more above the table, which
+#: tells a fold in progress from a finished one whose stickers fall in similar places.
+LIFTED_WEIGHT = 1.0
+#: Weight of the height term: the mean, over the stickers seen, of how far each stands
+#: outside the reference's range of heights (beyond :data:`HEIGHT_SLACK_MM`), as a
+#: fraction of :data:`HEIGHT_SCALE_MM` (capped at 1). It tells a flap held up by how
+#: high it stands, so how wide the fold is: a strip and a half fold at the same angle
+#: have nearly the same cloth coordinates.
+HEIGHT_WEIGHT = 1.0
+#: Weight of the lean term: the mean, over the stickers held up whose flap's lean was
+#: measured, of how far the observation (turned past 90 degrees or not, see
+#: ``ClothObservation.past_vertical``) is from the reference's rate. SPEC's rule
+#: changes the class at 90 degrees, where a flap seen edge-on shows no sticker and the
+#: lean of the raised cloth is all there is to tell.
+PAST_WEIGHT = 1.0
+#: Weight of the face term: the mean, over the corners whose stickers tell which face
+#: they show (``perception.handedness``), of how far the observation (back face up or
+#: not) is from the reference's rate. Three stickers of a corner tell a corner folded
+#: over from one lying flat where a gripper or the flap's edge hides the fourth, which
+#: the dGLI coordinates of that corner's segments then cannot.
+FACE_WEIGHT = 1.0
+#: Weight of the spread term: the mean, over the pairs of stickers seen, of how far
+#: their 3D distance lies outside the reference's range (beyond
+#: :data:`SPREAD_SLACK_MM`), as a fraction of :data:`SPREAD_SCALE_MM` (capped at 1).
+#: The dGLI coordinates rank how segments wind round each other; with few of them known
+#: (a gripper over half the napkin) a flat napkin and one with corners folded to the
+#: centre can rank alike, but their stickers lie 300 mm apart in one and 50 mm in the
+#: other.
+SPREAD_WEIGHT = 1.0
+#: Distances within this of a reference's range agree with it (sticker centres to a few
+#: mm, wrinkles up to 10 mm, a range drawn from a few states).
+SPREAD_SLACK_MM = 20.0
+#: A pair this far outside the range (beyond the slack) disagrees in full.
+SPREAD_SCALE_MM = 60.0
+#: Heights within this of a reference's range agree with it (sensor noise, cloth
+#: layers, a range drawn from a few states).
+HEIGHT_SLACK_MM = 15.0
+#: A sticker this far outside the range (beyond the slack) disagrees in full.
+HEIGHT_SCALE_MM = 50.0
+#: Margin to the runner-up (distance units, Spearman + visibility) that earns full
+#: confidence. On fresh renders of every class under every capture condition
+#: (``dgli robustness``) right answers have a median margin near 0.3; the wrong ones
+#: that remain come with margins below 0.04.
+FULL_MARGIN = 0.2
+#: Below this confidence the answer is "cannot tell" (exit 1): a wrong answer is far
+#: worse for a robot than none. 0.25 asks for a margin of 0.05 with every sticker's
+#: state known (the closest right answers, two crossing flaps against two that do not
+#: cross, have about 0.07).
+MIN_CONFIDENCE = 0.25
+
+
+@dataclass(frozen=True)
+class RunnerUp:
+    """The best reference of another class."""
+
+    class_id: str
+    name: str
+    variant: str | None
+    distance: float
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """A verdict.
+
+    Attributes
+    ----------
+    class_id, name : str
+        ``"02"``, ``"corner-over"``.
+    variant : str or None
+        SPEC's variant string.
+    distance : float
+        Distance to the winning reference (Spearman + visibility term).
+    runner_up : RunnerUp or None
+        Best reference of any other class.
+    margin : float
+        ``runner_up.distance - distance`` (``inf`` without a runner-up).
+    confidence : float
+        In [0, 1], from the margin and the amount of evidence (:func:`confidence_of`).
+    """
+
+    class_id: str
+    name: str
+    variant: str | None
+    distance: float
+    runner_up: RunnerUp | None
+    margin: float
+    confidence: float = 1.0
+
+
+def confidence_of(
+    margin: float,
+    n_unknown_stickers: int = 0,
+    n_stickers: int = 16,
+    n_coordinates: int | None = None,
+) -> float:
+    """Confidence in [0, 1] of a verdict.
+
+    The margin to the best reference of another class, as a fraction of
+    :data:`FULL_MARGIN` (capped at 1), times the cube of the share of stickers whose
+    state is known: seen, or hidden by the cloth (which is evidence too). The cube:
+    references that differ only in unknown stickers tie on everything that is known, and
+    what separates them then is the spread of fold sizes within each class, not the
+    fold; with four stickers unknown a margin of 0.12 is needed. With
+    fewer than :data:`FULL_COORDINATES` known coordinates it is scaled down in proportion.
+
+    Parameters
+    ----------
+    margin : float
+        Runner-up distance minus winner distance (``inf`` without a runner-up).
+    n_unknown_stickers : int
+        Stickers whose state cannot be told (out of view, possibly under an object, in a
+        highlight).
+    n_stickers : int
+        All stickers (16).
+    n_coordinates : int, optional
+        Cloth coordinates the verdict rests on.
+    """
+    margin_part = 1.0 if not np.isfinite(margin) else float(np.clip(margin / FULL_MARGIN, 0, 1))
+    known = 1.0 - n_unknown_stickers / max(n_stickers, 1)
+    coords_part = 1.0 if n_coordinates is None else min(1.0, n_coordinates / FULL_COORDINATES)
+    return round(margin_part * max(known, 0.0) ** 3 * coords_part, 4)
+
+
+def _n_segments(n_coordinates: int) -> int:
+    """m such that m (m - 1) / 2 == n_coordinates."""
+    m = round((1 + float(np.sqrt(1 + 8 * n_coordinates))) / 2)
+    if m * (m - 1) // 2 != n_coordinates:
+        raise ValueError(f"{n_coordinates} is not a number of segment pairs")
+    return m
+
+
+def reference_distances(
+    coords: ArrayLike,
+    references: ReferenceSet,
+    visible: ArrayLike | None = None,
+    unknown: ArrayLike | None = None,
+    lifted: ArrayLike | None = None,
+    heights_mm: ArrayLike | None = None,
+    past: ArrayLike | None = None,
+    back: ArrayLike | None = None,
+    spread_mm: ArrayLike | None = None,
+) -> NDArray[np.float64]:
+    """Distance of one observation to every reference, shape (k,).
+
+    Parameters
+    ----------
+    coords : array_like, shape (28,)
+        dGLI coordinates, NaN where unknown.
+    references : ReferenceSet
+    visible : array_like of bool, shape (16,), optional
+        Which stickers were seen.
+    unknown : array_like of bool, shape (16,), optional
+        Stickers not seen for a reason other than cloth on top (out of view, under an
+        object, in a highlight): no evidence either way, left out of the visibility term.
+    lifted : array_like of float, shape (16,), optional
+        1 for a sticker standing more than :data:`LIFTED_MM` above the table, 0 for one
+        lying on it, NaN where that is not known: compared with the references' rates
+        (:data:`LIFTED_WEIGHT`).
+    heights_mm : array_like of float, shape (16,), optional
+        Height of each sticker seen above the table, mm, NaN where not seen: compared
+        with the references' ranges of heights (:data:`HEIGHT_WEIGHT`).
+    past : array_like of float, shape (16,), optional
+        For stickers on a flap held up: 1 where it has turned past 90 degrees, 0 where
+        not, NaN where not measured (:data:`PAST_WEIGHT`).
+    back : array_like of float, shape (4,), optional
+        For each corner A-D: 1 where its stickers show the back face, 0 the front, NaN
+        where they do not tell (:data:`FACE_WEIGHT`; references without back-face
+        rates are not judged on it).
+    spread_mm : array_like of float, shape (120,), optional
+        3D distance between the stickers of each pair (``references.sticker_pairs``),
+        mm, NaN where either was not seen (:data:`SPREAD_WEIGHT`).
+
+    Raises
+    ------
+    DetectionError
+        With fewer than :data:`MIN_COORDINATES` known coordinates.
+    """
+    x = np.asarray(coords, dtype=np.float64)
+    ref = references.matrix()
+    if x.shape != (ref.shape[1],):
+        raise ValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
+    known = ~np.isnan(x)
+    if visible is not None:
+        vis = np.asarray(visible, dtype=bool)
+        if vis.shape != (2 * _n_segments(len(x)),):
+            raise ValueError(
+                f"visible must have shape ({2 * _n_segments(len(x))},), got {vis.shape}"
+            )
+        seen_segment = vis.reshape(-1, 2).all(axis=1)
+        i, j = pair_indices(len(seen_segment))
+        known &= seen_segment[i] & seen_segment[j]
+    if known.sum() < MIN_COORDINATES:
+        raise DetectionError(
+            f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
+            f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
+        )
+    dist = pairwise_spearman(x[known][None, :], ref[:, known])[0]
+    if visible is not None:
+        rates = references.visible_rates()
+        use = np.ones(len(vis), dtype=bool)
+        if unknown is not None:
+            use &= ~np.asarray(unknown, dtype=bool)
+        if use.any():
+            gap = np.abs(vis[None, use] - rates[:, use]).mean(axis=1)
+            dist = dist + VISIBILITY_WEIGHT * gap
+    if lifted is not None:
+        dist = dist + LIFTED_WEIGHT * _rate_gap(lifted, references.lifted_rates())
+    if heights_mm is not None:
+        dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_ranges())
+    if past is not None:
+        dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
+    if back is not None:
+        dist = dist + FACE_WEIGHT * _face_gap(back, references.back_rates())
+    if spread_mm is not None:
+        dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_ranges())
+    return dist
+
+
+def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean ``|observed - rate|`` over the stickers told (finite), for each reference
+    (``rates`` shape (k, 16)); 0 when none is told."""
+    x = np.asarray(observed, dtype=np.float64)
+    told = np.isfinite(x)
+    if not told.any():
+        return np.zeros(len(rates))
+    return np.abs(x[None, told] - rates[:, told]).mean(axis=1)
+
+
+def _spread_gap(spread_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean disagreement in [0, 1] of the observed sticker-pair distances with each
+    reference's ranges (``ranges`` shape (k, 120, 2)); 0 where none is known."""
+    d = np.asarray(spread_mm, dtype=np.float64)
+    told = np.isfinite(d)
+    if not told.any() or not np.isfinite(ranges[:, told]).all():
+        return np.zeros(len(ranges))
+    r = ranges[:, told]
+    outside = np.maximum(r[..., 0] - d[None, told], d[None, told] - r[..., 1])
+    return np.clip((outside - SPREAD_SLACK_MM) / SPREAD_SCALE_MM, 0.0, 1.0).mean(axis=1)
+
+
+def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean ``|back - rate|`` over the corners told both in the observation and in each
+    reference (``rates`` shape (k, 4), NaN where not told); 0 when none is."""
+    x = np.asarray(back, dtype=np.float64)
+    both = np.isfinite(x)[None, :] & np.isfinite(rates)
+    diff = np.where(both, np.abs(np.nan_to_num(x)[None, :] - np.nan_to_num(rates)), 0.0)
+    return diff.sum(axis=1) / np.maximum(both.sum(axis=1), 1)
+
+
+def _height_gap(heights_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean disagreement in [0, 1] of the stickers' heights with each reference's ranges
+    (shape (k, 16, 2)); 0 where a reference keeps no ranges."""
+    h = np.asarray(heights_mm, dtype=np.float64)
+    told = np.isfinite(h)
+    if not told.any():
+        return np.zeros(len(ranges))
+    lo, hi = ranges[:, told, 0], ranges[:, told, 1]
+    outside = np.maximum(lo - h[told], h[told] - hi) - HEIGHT_SLACK_MM
+    gap = np.clip(outside / HEIGHT_SCALE_MM, 0.0, 1.0)
+    return np.where(np.isfinite(gap), gap, 0.0).mean(axis=1)
+
+
+def classify_coordinates(
+    coords: ArrayLike,
+    references: ReferenceSet,
+    visible: ArrayLike | None = None,
+    unknown: ArrayLike | None = None,
+    lifted: ArrayLike | None = None,
+    heights_mm: ArrayLike | None = None,
+    past: ArrayLike | None = None,
+    back: ArrayLike | None = None,
+    spread_mm: ArrayLike | None = None,
+    *,
+    distances: ArrayLike | None = None,
+    unsure: ArrayLike | None = None,
+) -> Prediction:
+    """Nearest reference of an observation (see :func:`reference_distances`).
+
+    Parameters
+    ----------
+    coords : array_like, shape (28,)
+        dGLI coordinates, NaN where a segment is missing.
+    references : ReferenceSet
+    visible : array_like of bool, shape (16,), optional
+        Which stickers were seen (SPEC order); improves the verdict when given.
+    unknown : array_like of bool, shape (16,), optional
+        Stickers that are neither seen nor evidence of a fold.
+    lifted : array_like of float, shape (16,), optional
+        1 where a sticker stands above the table, 0 where it lies on it, NaN where not
+        known (see :func:`reference_distances`).
+    heights_mm : array_like of float, shape (16,), optional
+        Heights of the stickers seen, mm (see :func:`reference_distances`).
+    past : array_like of float, shape (16,), optional
+        Whether the flap a sticker held up is on has turned past 90 degrees (see
+        :func:`reference_distances`). A sticker whose flap's lean was measured counts as
+        known for the confidence: it is on that flap, standing.
+    back : array_like of float, shape (4,), optional
+        Which face each corner shows (see :func:`reference_distances`).
+    spread_mm : array_like of float, shape (120,), optional
+        Distances between the stickers seen (see :func:`reference_distances`).
+    distances : array_like, shape (k,), keyword-only, optional
+        :func:`reference_distances` of these arguments, when already computed.
+    unsure : array_like of bool, shape (16,), keyword-only, optional
+        Stickers that count as unknown for the confidence whatever else is told of them
+        (held up where an object may cover them: the edge of an object over the napkin
+        reads as raised cloth too).
+
+    Returns
+    -------
+    Prediction
+    """
+    if distances is None:
+        dist = reference_distances(
+            coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm
+        )
+    else:
+        dist = np.asarray(distances, dtype=np.float64)
+    order = np.argsort(dist, kind="stable")
+    best = references.references[order[0]]
+    runner = None
+    for k in order[1:]:
+        r = references.references[k]
+        if r.class_id != best.class_id:
+            runner = RunnerUp(r.class_id, r.name, r.variant, float(dist[k]))
+            break
+    d = float(dist[order[0]])
+    margin = (runner.distance - d) if runner else float("inf")
+    n_unknown = 0
+    if unknown is not None:
+        still = np.asarray(unknown, dtype=bool)
+        if past is not None:
+            still = still & ~np.isfinite(np.asarray(past, dtype=np.float64))
+        if unsure is not None:
+            still = still | np.asarray(unsure, dtype=bool)
+        n_unknown = int(still.sum())
+    x = np.asarray(coords, dtype=np.float64)
+    n_known = int(np.isfinite(x).sum())
+    if visible is not None:  # coordinates of segments with an unseen sticker are not used
+        seen_segment = np.asarray(visible, dtype=bool).reshape(-1, 2).all(axis=1)
+        i, j = pair_indices(len(seen_segment))
+        n_known = int((np.isfinite(x) & seen_segment[i] & seen_segment[j]).sum())
+    confidence = confidence_of(margin, n_unknown, 2 * _n_segments(len(x)), n_known)
+    return Prediction(best.class_id, best.name, best.variant, d, runner, margin, confidence)

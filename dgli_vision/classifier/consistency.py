@@ -1,0 +1,300 @@
+"""Is this the napkin as SPEC defines it, the right size and the right way round?
+
+Two faults a lab makes every week turn into confident wrong states unless checked:
+
+* **Depth in the wrong units** (or wrong intrinsics) scales every 3D distance. The
+  stickers around a corner keep their distances in every state (folding never
+  stretches cloth), so :class:`~dgli_vision.perception.scale.NapkinRuler` measures the
+  napkin; off by more than :data:`SCALE_TOLERANCE`, no verdict is given.
+* **A mirrored layout.** A napkin lying back face up, or a camera that mirrors its image,
+  shows the corners running clockwise seen from above. The dGLI is a pseudo-scalar
+  (the Gauss linking integral changes sign in a mirror), so a mirrored observation has
+  the negated cloth coordinates of the real state. Both readings are ranked against the
+  references; where the mirrored one fits as well or better, the answer is "cannot
+  tell". A few states are mirror images of each other by their stickers alone (a strip
+  folded under and a half fold over show the same stickers the same way), so the
+  napkin's footprint on the table decides between such readings.
+
+What a front-up state means when the napkin is back face up: SPEC defines the states
+with the front face up, and "over" (towards the camera) would be "under" in the
+napkin's own frame. The tool does not guess which of the two faults it sees (a flat
+napkin looks the same under both): it says what it saw and how to fix it.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.layout import NapkinLayout
+from ..perception.detect import StickerDetections
+from ..perception.footprint import Footprint
+from ..perception.scale import NapkinRuler
+from .classify import reference_distances
+from .references import ReferenceSet
+
+__all__ = [
+    "CLEAR_MARGIN",
+    "FOOTPRINT_EXCESS",
+    "FOOTPRINT_SCALE",
+    "FOOTPRINT_SLACK",
+    "GOOD_FIT",
+    "MIRROR_MARGIN",
+    "RIGIDITY_TOLERANCE",
+    "SCALE_TOLERANCE",
+    "depth_scale_hint",
+    "footprint_penalty",
+    "footprint_problem",
+    "mirror_problem",
+    "rigidity_problem",
+    "scale_problem",
+]
+
+#: Largest relative error of the napkin's measured size that still gives a verdict.
+#: Sensor noise and sticker placement give under 1%; an uncorrected lens a few per cent
+#: near the border; a wrong depth-units setting 20% and more.
+SCALE_TOLERANCE = 0.08
+#: Largest relative difference between one corner's sticker distances and the napkin's
+#: overall scale that still gives a verdict. Renders give under 2% (wrinkles, a sticker
+#: on the crease of a diagonal fold); an uncorrected lens stretches a corner near the
+#: image border by 5% and more.
+RIGIDITY_TOLERANCE = 0.05
+#: Largest distance of a front-up reading that the footprint may pick over a mirrored
+#: reading the stickers prefer (a half fold's own references fit it 0.06-0.12 away).
+GOOD_FIT = 0.2
+#: How much better (distance units) one reading must fit once the footprint is counted.
+MIRROR_MARGIN = 0.05
+#: How much better (distance units) one reading must fit for the stickers alone to
+#: decide: a half fold seen front up fits a strip folded under seen mirrored 0.06 better
+#: than its own references (and the other way round); the footprint tells those apart.
+CLEAR_MARGIN = 0.1
+#: Footprint (fraction of the napkin's area) outside a reference's range that is still
+#: agreement: the measurement's error (2% on clean images, 5% in shadow or dim light).
+FOOTPRINT_SLACK = 0.05
+#: Footprint (fraction of the napkin's area) beyond a verdict's largest that rules it out.
+FOOTPRINT_EXCESS = 0.1
+#: Footprint disagreement beyond the slack that counts in full (one distance unit).
+FOOTPRINT_SCALE = 0.1
+
+
+def scale_problem(ruler: NapkinRuler | None, layout: NapkinLayout) -> str | None:
+    """The reason the napkin's measured size rules out a verdict, or None.
+
+    Parameters
+    ----------
+    ruler : NapkinRuler or None
+        The napkin's measured scale (None: too few stickers to tell, no objection).
+    layout : NapkinLayout
+        The napkin's true size.
+    """
+    if ruler is None or abs(ruler.scale - 1.0) <= SCALE_TOLERANCE:
+        return None
+    w, h = layout.width_mm, layout.height_mm
+    if w == h:
+        measured, expected = f"{ruler.scale * w:.0f} mm", f"{w:.0f}"
+    else:
+        measured = f"{ruler.scale * w:.0f} x {ruler.scale * h:.0f} mm"
+        expected = f"{w:.0f} x {h:.0f}"
+    return (
+        f"the napkin measures {measured}, expected {expected} (its stickers are "
+        f"{ruler.scale:.2f} times as far apart as printed: depth units? intrinsics? "
+        "another napkin size?)"
+    )
+
+
+def depth_scale_hint(detections: StickerDetections, depth_mm: NDArray[np.uint16]) -> str:
+    """What the depth image may have wrong when too few stickers were located: blobs of
+    the stickers' colours whose size disagrees with their depth by one common factor
+    (depth in other units), or a depth image stuck at its largest value. ``""`` when
+    neither is seen.
+
+    Parameters
+    ----------
+    detections : StickerDetections
+        The detector's result, with its rejected blobs.
+    depth_mm : ndarray of uint16, shape (H, W)
+    """
+    hints = []
+    valid = depth_mm > 0
+    if valid.any():
+        stuck = float((depth_mm[valid] == np.iinfo(np.uint16).max).mean())
+        if stuck > 0.5:
+            hints.append(f"the depth image reads 65535 at {100 * stuck:.0f}% of its pixels")
+    ratios = [
+        float(m.group(1))
+        for r in detections.rejected
+        if (m := re.search(r"\(([\d.]+) (?:discs|of a disc)", r.reason))
+        and r.reason.startswith(("too large", "too small"))
+    ]
+    if len(ratios) >= 4:
+        factor = float(np.median(ratios))
+        size = f"{factor:.0f} times" if factor >= 1 else f"1/{1 / max(factor, 1e-6):.0f} of"
+        hints.append(
+            f"{len(ratios)} blobs of the stickers' colours are {size} the area of a sticker "
+            "at the depth read there"
+        )
+    if not hints:
+        return ""
+    return "; ".join(hints) + " (depth units? a depth scale setting?)"
+
+
+def rigidity_problem(ruler: NapkinRuler | None, *, lens_known: bool) -> str | None:
+    """The reason the stickers of some corner do not keep their printed distances (a
+    corner stretched or shrunk beyond :data:`RIGIDITY_TOLERANCE` against the napkin's
+    overall scale), or None.
+
+    Cloth does not stretch, so a corner whose stickers lie farther apart or closer
+    together than printed is seen through something that bends the image: most often an
+    uncorrected lens near the image border. Missing and displaced stickers there would
+    otherwise turn into folds.
+
+    Parameters
+    ----------
+    ruler : NapkinRuler or None
+    lens_known : bool, keyword-only
+        Whether the intrinsics carry the lens's distortion (then the hint differs).
+    """
+    if ruler is None or ruler.worst_against_scale <= RIGIDITY_TOLERANCE:
+        return None
+    hint = (
+        "are the intrinsics and their distortion coefficients those of this camera?"
+        if lens_known
+        else "is the lens distortion corrected? give it with --intrinsics"
+    )
+    return (
+        f"the stickers do not fit the napkin's geometry (a corner's stickers lie "
+        f"{100 * ruler.worst_against_scale:.0f}% off their printed distances): {hint}"
+    )
+
+
+def footprint_problem(
+    footprint: Footprint | None,
+    references: ReferenceSet,
+    front: NDArray[np.float64],
+    napkin_area_mm2: float,
+) -> str | None:
+    """The reason the cloth covers too much table for the verdict, or None.
+
+    A shadow or an object can hide cloth from the footprint, but nothing adds cloth to
+    it: a napkin that covers more of the table than every reference nearly as near as
+    the best allows (by more than :data:`FOOTPRINT_EXCESS`) is not in that state. (A
+    napkin lying back face up with two corners tucked under shows the stickers of a
+    half fold, on three quarters of its area.)
+
+    Parameters
+    ----------
+    footprint : Footprint or None
+    references : ReferenceSet
+    front : ndarray, shape (k,)
+        Distances of the observation to the references.
+    napkin_area_mm2 : float
+    """
+    if footprint is None:
+        return None
+    ranges = references.footprint_ranges()
+    near = np.flatnonzero(front <= front.min() + MIRROR_MARGIN)
+    lo = footprint.fraction(napkin_area_mm2)[0]
+    excess = lo - ranges[near, 1]
+    if not np.isfinite(excess).all() or excess.min() <= FOOTPRINT_EXCESS:
+        return None
+    k = int(near[np.argmin(front[near])])
+    return (
+        f"the napkin covers {100 * lo:.0f}% of its area, more than "
+        f"{_describe(references, k)} can ({100 * ranges[k, 1]:.0f}% at most)"
+    )
+
+
+def footprint_penalty(
+    footprint: Footprint | None, references: ReferenceSet, napkin_area_mm2: float
+) -> NDArray[np.float64]:
+    """Disagreement in [0, 1] of the measured footprint with each reference's range,
+    shape (k,): 0 within :data:`FOOTPRINT_SLACK`, 1 beyond it by
+    :data:`FOOTPRINT_SCALE`; 0 where either is unknown."""
+    ranges = references.footprint_ranges()
+    if footprint is None:
+        return np.zeros(len(ranges))
+    lo, hi = footprint.fraction(napkin_area_mm2)
+    gap = np.maximum(ranges[:, 0] - hi, lo - ranges[:, 1])
+    pen = np.clip((gap - FOOTPRINT_SLACK) / FOOTPRINT_SCALE, 0.0, 1.0)
+    return np.where(np.isfinite(pen), pen, 0.0)
+
+
+def _describe(references: ReferenceSet, k: int) -> str:
+    r = references.references[k]
+    return f"{r.class_id} {r.name}" + (f" ({r.variant})" if r.variant else "")
+
+
+def mirror_problem(
+    coords: NDArray[np.float64],
+    references: ReferenceSet,
+    evidence: dict[str, NDArray | None],
+    footprint: Footprint | None,
+    napkin_area_mm2: float,
+    *,
+    front: NDArray[np.float64] | None = None,
+) -> str | None:
+    """The reason the observation may be a mirrored napkin, or None when it is not.
+
+    Parameters
+    ----------
+    coords : ndarray, shape (28,)
+        Cloth coordinates as measured (NaN where unknown).
+    references : ReferenceSet
+    evidence : dict
+        The keyword arguments of :func:`~dgli_vision.classifier.classify.reference_distances`
+        besides the coordinates (``visible``, ``unknown``, ``lifted``, ``heights_mm``,
+        ``past``, ``back``): a mirror changes none of them but ``back``, which it turns
+        round.
+    footprint : Footprint or None
+        The cloth's measured footprint.
+    napkin_area_mm2 : float
+    front : ndarray, shape (k,), keyword-only, optional
+        The front-up reading's distances to the references, when already computed.
+
+    Returns
+    -------
+    str or None
+        Starts with what was seen; the caller prefixes ``"cannot tell: "``.
+    """
+    if front is None:
+        front = reference_distances(coords, references, **evidence)
+    flipped = dict(evidence)
+    if flipped.get("back") is not None:  # a mirror turns every corner's stickers round
+        flipped["back"] = 1.0 - np.asarray(flipped["back"], dtype=float)
+    mirrored = reference_distances(-np.asarray(coords), references, **flipped)
+    pen = footprint_penalty(footprint, references, napkin_area_mm2)
+    i, j = int(np.argmin(front)), int(np.argmin(mirrored))
+    # The footprint speaks for a reading when it fits that reading's best reference and
+    # clearly not the other's; it only ever overrules the stickers in its favour when
+    # that reading fits well (measured wrong, a shadow's footprint must not).
+    # (judged on the references nearly as near as the best: a tie picks either)
+    pen_front = float(pen[front <= front[i] + MIRROR_MARGIN].min())
+    pen_mirror = float(pen[mirrored <= mirrored[j] + MIRROR_MARGIN].min())
+    for_front = pen_front == 0.0 and pen_mirror >= 0.5 and front[i] <= GOOD_FIT
+    for_mirror = pen_mirror == 0.0 and pen_front >= 0.5
+    fix = "turn the napkin front face up, or switch off the camera's mirroring"
+    better = mirrored[j] - front[i]  # > 0: the front-up reading fits better
+    if CLEAR_MARGIN <= better < 2 * CLEAR_MARGIN and for_mirror:
+        lo = footprint.fraction(napkin_area_mm2)[0] if footprint else np.nan
+        return (
+            f"the stickers fit {_describe(references, i)} front up, but the napkin covers "
+            f"{100 * lo:.0f}% of its area, as {_describe(references, j)} seen mirrored "
+            f"does: the napkin may lie back face up, or the image be mirrored; {fix}"
+        )
+    if better >= CLEAR_MARGIN or for_front:
+        return None
+    if for_mirror or better <= -MIRROR_MARGIN:
+        return (
+            f"the stickers run clockwise seen from above: the napkin lies back face up "
+            f"or the image is mirrored (mirrored, it reads as {_describe(references, j)} "
+            f"at {mirrored[j]:.3f}); {fix}"
+        )
+    if better >= MIRROR_MARGIN:
+        return None
+    return (
+        f"the stickers fit the napkin front face up ({_describe(references, i)}, "
+        f"{front[i]:.3f}) and mirrored ({_describe(references, j)}, {mirrored[j]:.3f}) "
+        f"nearly alike: the napkin may lie back face up, or the image be mirrored; {fix}"
+    )

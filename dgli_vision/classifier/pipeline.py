@@ -1,0 +1,329 @@
+"""The classification pipeline: an RGB-D frame -> stickers -> 3D -> dGLI -> a state.
+
+Each stage is one function of one module; this module chains them and keeps every
+intermediate result, which is what a person debugging a real image needs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.classes import LIFTED_MM, PAST_BAND_DEG
+from ..core.dgli import cloth_coordinates
+from ..core.errors import DetectionError
+from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
+from ..perception.detect import (
+    DetectorParams,
+    StickerDetections,
+    detect_stickers,
+    find_washed_out,
+)
+from ..perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
+from ..perception.flaps import flap_angles
+from ..perception.footprint import Footprint, measure_footprint
+from ..perception.handedness import back_face_up, image_turns
+from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
+from ..perception.napkin import find_napkin
+from ..perception.scale import NapkinRuler, measure_napkin
+from ..sources.frames import RGBDFrame
+from .classify import (
+    MIN_CONFIDENCE,
+    Prediction,
+    classify_coordinates,
+    reference_distances,
+)
+from .consistency import (
+    depth_scale_hint,
+    footprint_problem,
+    mirror_problem,
+    rigidity_problem,
+    scale_problem,
+)
+from .references import ReferenceSet
+
+__all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
+
+
+@dataclass(frozen=True, eq=False)
+class ClothObservation:
+    """The cloth as seen: segments in the camera frame and the table normal.
+
+    Attributes
+    ----------
+    segments : ndarray, shape (8, 2, 3)
+        Oriented segments (sticker 2i -> 2i + 1), metres; NaN rows where an end is missing.
+    visible : ndarray of bool, shape (16,)
+        Stickers located in 3D.
+    up : ndarray, shape (3,)
+        Table normal, towards the camera (the direction of the dGLI derivative).
+    evidence : StickerEvidence or None
+        Which missing stickers are hidden by cloth and which are unknown, and why.
+    heights_mm : ndarray, shape (16,), optional
+        Height of each located sticker above the table plane, mm (NaN where missing).
+    flap_deg : ndarray, shape (16,), optional
+        For a sticker possibly on a flap held up, how far that flap has turned from flat
+        (degrees, from the lean of the raised cloth); NaN where not measured.
+    flap_height_mm : ndarray, shape (16,), optional
+        For such a sticker, how high it stands on its flap (from the flap's fold line and
+        angle), mm; NaN where not measured.
+    ruler : NapkinRuler, optional
+        The napkin's measured scale and rigidity (distances of same-corner stickers,
+        before any sticker is dropped); None with too few stickers located.
+    footprint : Footprint, optional
+    points_m : ndarray, shape (16, 3), optional
+        The located stickers in the camera frame, metres (NaN where missing).
+    turns : ndarray, shape (4,), optional
+        Which face each corner A-D shows the camera: +1 front, -1 back, 0 not told
+        (:func:`~dgli_vision.perception.handedness.image_turns`).
+        The table area the cloth covers; None where it cannot be measured.
+    """
+
+    segments: NDArray[np.float64]
+    visible: NDArray[np.bool_]
+    up: NDArray[np.float64]
+    evidence: StickerEvidence | None = None
+    heights_mm: NDArray[np.float64] | None = None
+    flap_deg: NDArray[np.float64] | None = None
+    flap_height_mm: NDArray[np.float64] | None = None
+    ruler: NapkinRuler | None = None
+    footprint: Footprint | None = None
+    turns: NDArray[np.float64] | None = None
+    points_m: NDArray[np.float64] | None = None
+
+    @property
+    def spread_mm(self) -> NDArray[np.float64] | None:
+        """3D distance between the stickers of each pair seen, mm, shape (120,), taken
+        to the napkin's printed scale when its ruler measured one (NaN where either
+        sticker is not seen)."""
+        if self.points_m is None:
+            return None
+        scale = self.ruler.scale if self.ruler is not None else 1.0
+        seen = np.where(self.visible[:, None], self.points_m, np.nan)
+        return sticker_spreads_mm(seen * 1e3 / scale)
+
+    @property
+    def back(self) -> NDArray[np.float64] | None:
+        """1 for a corner showing its back face, 0 its front, NaN not told, shape (4,)."""
+        return None if self.turns is None else back_face_up(self.turns)
+
+    @property
+    def lifted(self) -> NDArray[np.float64] | None:
+        """1 for a sticker standing more than ``LIFTED_MM`` above the table, 0 for one on
+        it, NaN where not known, shape (16,). A missing sticker that may have gone up
+        with a flap held up steeply counts as standing, unless its place may also lie
+        under an object and its flap's lean was not measured (then the raised cloth may
+        be the object's doing)."""
+        if self.heights_mm is None:
+            return None
+        out = np.where(self.visible, (self.heights_mm > LIFTED_MM).astype(float), np.nan)
+        if self.evidence is not None:
+            held = np.array([why == HELD_UP for why in self.evidence.reasons]) & self.unknown
+            if self.flap_deg is not None:
+                told = ~self.evidence.near_object | np.isfinite(self.flap_deg)
+            else:
+                told = ~self.evidence.near_object
+            out[held & told] = 1.0
+        return out
+
+    @property
+    def matched_heights_mm(self) -> NDArray[np.float64] | None:
+        """Heights to compare with the references: those of the stickers seen, and for
+        stickers held up out of sight, the height their flap gives them (mm, NaN where
+        neither is known), shape (16,)."""
+        if self.heights_mm is None:
+            return None
+        if self.flap_height_mm is None:
+            return np.where(self.visible, self.heights_mm, np.nan)
+        return np.where(self.visible, self.heights_mm, self.flap_height_mm)
+
+    @property
+    def past_vertical(self) -> NDArray[np.float64] | None:
+        """For each sticker on a flap held up whose lean was measured: 1 when the flap
+        has turned past 90 degrees, 0 when not (in proportion within
+        ``PAST_BAND_DEG`` of vertical); NaN for the others, shape (16,)."""
+        if self.flap_deg is None:
+            return None
+        return np.clip(0.5 + (self.flap_deg - 90.0) / (2 * PAST_BAND_DEG), 0.0, 1.0)
+
+    @property
+    def unknown(self) -> NDArray[np.bool_]:
+        """Stickers neither seen nor evidence of a fold, shape (16,)."""
+        if self.evidence is None:
+            return np.zeros(len(self.visible), dtype=bool)
+        return self.evidence.unknown
+
+    def classifier_evidence(self) -> dict[str, NDArray | None]:
+        """The keyword arguments of :func:`~dgli_vision.classifier.classify.reference_distances`
+        besides the coordinates: what the classifier weighs beside them."""
+        return {
+            "visible": self.visible, "unknown": self.unknown, "lifted": self.lifted,
+            "heights_mm": self.matched_heights_mm, "past": self.past_vertical,
+            "back": self.back, "spread_mm": self.spread_mm,
+        }
+
+    @property
+    def segment_visible(self) -> NDArray[np.bool_]:
+        """Segments with both ends located, shape (8,)."""
+        return self.visible.reshape(-1, 2).all(axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class FrameResult:
+    """Everything the pipeline computed for one frame.
+
+    ``prediction`` is None when too little was seen or the best match is not clear
+    enough; ``reason`` then says why, and ``best_guess`` keeps what the nearest reference
+    was (for reports), if any.
+    """
+
+    detections: StickerDetections
+    markers: Markers3D
+    observation: ClothObservation
+    coordinates: NDArray[np.float64]
+    prediction: Prediction | None
+    reason: str | None = None
+    best_guess: Prediction | None = None
+
+
+def observe(
+    frame: RGBDFrame,
+    layout: NapkinLayout | None = None,
+    params: DetectorParams | None = None,
+    *,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> tuple[StickerDetections, Markers3D, ClothObservation]:
+    """Find the table and the napkin, detect the stickers, lift them to 3D, and judge
+    the missing ones (hidden by cloth or unknown)."""
+    layout = layout or default_layout()
+    try:
+        up, offset = estimate_table_plane(frame.depth_mm, frame.intrinsics)
+    except ValueError as exc:
+        raise DetectionError(f"'{frame.depth_path}': {exc}") from None
+    napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
+    detections = detect_stickers(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin,
+        colours=colours,
+    )
+    detections = find_washed_out(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, detections, params,
+        napkin=napkin, colours=colours,
+    )
+    lifted = lift_stickers(detections, frame.intrinsics)
+    ruler = measure_napkin(lifted, layout)
+    markers, dropped = drop_inconsistent(lifted, layout)
+    evidence = assess_stickers(
+        markers,
+        frame.intrinsics,
+        layout,
+        napkin.masks(),
+        dropped=dropped,
+        foreshortening=detections.foreshortening,
+        up=up,
+        pale_colours=detections.pale_colours,
+    )
+    visible = markers.found
+    segments = markers.points.reshape(-1, 2, 3).copy()
+    segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
+    heights = (markers.points @ up - offset) * 1e3
+    flap_deg, flap_height = flap_angles(
+        frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
+        evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
+    )
+    footprint = measure_footprint(
+        frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
+        layout.width_mm * layout.height_mm,
+    )
+    located = np.where(markers.found[:, None], detections.centroids, np.nan)
+    turns = image_turns(located, layout)
+    return detections, markers, ClothObservation(
+        segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
+        turns, markers.points,
+    )
+
+
+def classify_frame(
+    frame: RGBDFrame,
+    references: ReferenceSet,
+    *,
+    layout: NapkinLayout | None = None,
+    params: DetectorParams | None = None,
+    min_confidence: float = MIN_CONFIDENCE,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> FrameResult:
+    """Classify one RGB-D frame.
+
+    Parameters
+    ----------
+    frame : RGBDFrame
+    references : ReferenceSet
+    layout : NapkinLayout, keyword-only, optional
+        Default: the packaged layout at the napkin size the references were built for.
+    params : DetectorParams, keyword-only, optional
+    min_confidence : float, keyword-only
+        Below this confidence the answer is "cannot tell" (default
+        :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE`).
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours (``dgli calibrate``); default: the nominal ones.
+
+    Returns
+    -------
+    FrameResult
+        With ``prediction`` None and a ``reason`` when too few stickers were seen or
+        the confidence is below ``min_confidence``.
+    """
+    layout = layout or layout_of_size(references.napkin_mm)
+    detections, markers, obs = observe(frame, layout, params, colours=colours)
+    coords = cloth_coordinates(obs.segments, obs.up)
+    n = int(obs.visible.sum())
+    unknown = obs.evidence.summary() if obs.evidence is not None else ""
+    problem = scale_problem(obs.ruler, layout) or rigidity_problem(
+        obs.ruler, lens_known=frame.intrinsics.distorted
+    )
+    if problem is not None:
+        return FrameResult(detections, markers, obs, coords, None, f"cannot tell: {problem}")
+    evidence = obs.classifier_evidence()
+    try:
+        front = reference_distances(coords, references, **evidence)
+    except DetectionError as exc:
+        reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
+        if unknown:
+            reason += f" ({unknown})"
+        depth_hint = depth_scale_hint(detections, frame.depth_mm)
+        if depth_hint:
+            reason += f"; {depth_hint}"
+        return FrameResult(detections, markers, obs, coords, None, reason)
+    unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
+    guess = classify_coordinates(
+        coords, references, **evidence, distances=front, unsure=unsure
+    )
+    area = layout.width_mm * layout.height_mm
+    doubt = mirror_problem(
+        coords, references, evidence, obs.footprint, area, front=front
+    ) or footprint_problem(obs.footprint, references, front, area)
+    if doubt is not None:
+        # the nearest reference stays for reports, with no confidence in it
+        doubted = replace(guess, confidence=0.0)
+        return FrameResult(
+            detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted
+        )
+    if guess.confidence >= min_confidence:
+        return FrameResult(detections, markers, obs, coords, guess, None, guess)
+    ru = guess.runner_up
+    why = [f"confidence {guess.confidence:.2f} < {min_confidence:.2f}"]
+    if ru is not None:
+        why.append(
+            f"{guess.class_id} {guess.name} and {ru.class_id} {ru.name} are nearly as close "
+            f"({guess.distance:.3f} vs {ru.distance:.3f})"
+        )
+    if obs.evidence is not None and obs.evidence.occluded:
+        why.append("the napkin is partly covered by an object above it")
+    if unknown:
+        why.append(unknown)
+    if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():
+        why.append(f"a flap held up at about {np.nanmedian(obs.flap_deg):.0f} degrees")
+    why.append(f"{n} of {len(obs.visible)} stickers located")
+    reason = "cannot tell: " + "; ".join(why)
+    return FrameResult(detections, markers, obs, coords, None, reason, guess)

@@ -1,0 +1,473 @@
+"""Writing and reading files in general: text, JSON, JSON lines, PNG and PLY files, and the
+record of what the tool wrote (never replace a user's file).
+
+The readers of each file format live by what they read: :mod:`.frames` (RGB-D pairs and
+intrinsics), :mod:`.labelled` (labelled folders), :mod:`.database_files` (simulated
+databases), :mod:`.colours_file` (calibrated colours) and :mod:`.references` (reference sets).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import stat
+from collections.abc import Iterable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .errors import (
+    DgliError,
+    InvalidInputError,
+    OutputError,
+    OverwriteError,
+    UnreadableInputError,
+)
+
+__all__ = [
+    "JsonLinesWriter",
+    "check_input_file",
+    "csv_table",
+    "display_path",
+    "failed_part_way",
+    "file_sha256",
+    "guard_outputs",
+    "read_json",
+    "read_jsonl",
+    "read_mesh_ply",
+    "record_outputs",
+    "write_files",
+    "write_json",
+    "write_mesh_ply",
+    "write_outputs",
+    "write_png",
+    "write_text",
+]
+
+
+def display_path(path: str | Path, limit: int = 160) -> str:
+    """A path for a one-line message: a very long one keeps its start and its end."""
+    text = str(path)
+    return text if len(text) <= limit else f"{text[:80]}...{text[-60:]}"
+
+
+def _unwritable(p: Path, reason: str) -> OutputError:
+    return OutputError(f"cannot write '{display_path(p)}': {reason}")
+
+
+def _remove_partial(p: Path) -> None:
+    """Remove what a failed write left of a regular file (never a device such as
+    /dev/full, nor what a symbolic link points to)."""
+    try:
+        if p.is_file() and not p.is_symlink():
+            p.unlink()
+    except OSError:
+        pass
+
+
+def _write_bytes(p: Path, data: bytes) -> None:
+    """Write ``data`` to ``p``, creating parent folders; a failed write leaves no
+    truncated file behind.
+
+    Raises
+    ------
+    OutputError
+        Naming the file and the operating system's reason (no space left on device,
+        permission denied, file name too long...).
+    """
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(p, f"cannot make its folder ({exc.strerror or exc})") from None
+    try:
+        with p.open("wb") as fh:
+            fh.write(data)
+    except OSError as exc:
+        _remove_partial(p)
+        raise _unwritable(p, exc.strerror or str(exc)) from None
+
+
+def write_text(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` (UTF-8), creating parent folders.
+
+    Raises
+    ------
+    OutputError
+        If the file cannot be written (a truncated file is not left behind).
+    """
+    _write_bytes(Path(path), text.encode("utf-8"))
+
+
+def check_input_file(path: str | Path, what: str) -> os.stat_result:
+    """The status of an input file that must exist and be a regular file.
+
+    Raises
+    ------
+    UnreadableInputError
+        Missing; a directory; a FIFO, device or socket (reading it would block or never
+        end); or a path the system cannot look up (too long, a symbolic link loop, no
+        permission), each said so.
+    """
+    p = Path(path)
+    try:
+        st = p.stat()
+    except FileNotFoundError:
+        raise UnreadableInputError(f"{what} '{display_path(p)}' does not exist") from None
+    except OSError as exc:
+        raise UnreadableInputError(
+            f"{what} '{display_path(p)}' cannot be read: {exc.strerror or exc}"
+        ) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UnreadableInputError(f"{what} '{p}' is a directory; expected a file")
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a FIFO (named pipe)" if stat.S_ISFIFO(st.st_mode) else "a device or socket"
+        raise UnreadableInputError(f"{what} '{p}' is {kind}, not a regular file")
+    return st
+
+
+def read_json(path: str | Path, *, what: str = "JSON file") -> Any:
+    """Parse a JSON file.
+
+    Raises
+    ------
+    UnreadableInputError
+        Missing or unreadable file.
+    InvalidInputError
+        Not valid JSON (with the line and column).
+    """
+    p = Path(path)
+    check_input_file(p, what)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise UnreadableInputError(f"cannot read {what} '{p}': {exc.strerror or exc}") from None
+    except UnicodeDecodeError as exc:
+        raise UnreadableInputError(f"cannot read {what} '{p}': {exc}") from None
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise InvalidInputError(
+            f"{what} '{p}' is not valid JSON (line {exc.lineno}, column {exc.colno}: {exc.msg})"
+        ) from None
+
+
+def write_json(path: str | Path, data: Any) -> None:
+    """Write ``data`` as indented JSON (UTF-8), creating parent folders."""
+    write_text(path, json.dumps(data, indent=1) + "\n")
+
+
+def write_mesh_ply(path: str | Path, xyz: NDArray, triangles: NDArray) -> None:
+    """Write a triangle mesh (vertices in metres) as a binary PLY through Open3D."""
+    import open3d as o3d
+
+    mesh = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(np.asarray(xyz, dtype=np.float64)),
+        o3d.utility.Vector3iVector(np.asarray(triangles, dtype=np.int32)),
+    )
+    p = Path(path)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(p, f"cannot make its folder ({exc.strerror or exc})") from None
+    if not o3d.io.write_triangle_mesh(str(p), mesh, write_ascii=False, compressed=False):
+        _remove_partial(p)
+        raise _unwritable(p, _why_unwritable(p))
+
+
+def _why_unwritable(p: Path) -> str:
+    """The likely reason a writer that reports no error number (OpenCV, Open3D) failed."""
+    try:
+        if os.statvfs(p.parent).f_bavail == 0:
+            return "No space left on device"
+    except OSError as exc:
+        return exc.strerror or str(exc)
+    if not os.access(p.parent, os.W_OK):
+        return "Permission denied"
+    return "the writer failed"
+
+
+def read_mesh_ply(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
+    """Read a PLY triangle mesh: vertices (n, 3) and triangles (k, 3)."""
+    import open3d as o3d
+
+    p = Path(path)
+    if not p.is_file():
+        raise UnreadableInputError(f"mesh '{p}' does not exist")
+    mesh = o3d.io.read_triangle_mesh(str(p))
+    if len(mesh.vertices) == 0:
+        raise InvalidInputError(f"mesh '{p}' has no vertices (not a PLY mesh?)")
+    return np.asarray(mesh.vertices), np.asarray(mesh.triangles, dtype=np.int32)
+
+
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes, hex."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+# --- what the tool wrote: never replace a user's file ----------------------------------
+
+#: Each folder a command writes into keeps this record of the files the tool wrote there
+#: and their checksums; a file listed with the checksum it still has may be replaced.
+MANIFEST_NAME = ".dgli-outputs.json"
+MANIFEST_FORMAT = "dgli-outputs"
+
+
+def _manifest(folder: Path) -> dict[str, Any]:
+    path = folder / MANIFEST_NAME
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    if not isinstance(data, dict) or data.get("format") != MANIFEST_FORMAT:
+        return {}
+    files = data.get("files")
+    return files if isinstance(files, dict) else {}
+
+
+def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> None:
+    """Refuse to replace an existing file that dgli did not write, and make the folders
+    the files go to: a command calls this before its work, so that an output it could
+    never write stops it at once rather than after the work.
+
+    A file may be replaced when it does not exist, when ``overwrite`` is set, or when the
+    record of its folder (:data:`MANIFEST_NAME`, kept by :func:`record_outputs`) lists it
+    with the checksum it still has: the tool's own earlier output, untouched since.
+
+    Raises
+    ------
+    OverwriteError
+        Naming the first file that would be replaced.
+    OutputError
+        A folder that cannot be made or written into, or a path the system cannot look
+        up (too long...).
+    """
+    manifests: dict[Path, dict[str, Any]] = {}
+    folders: dict[Path, Path] = {}
+    for path in paths:
+        p = Path(path)
+        try:
+            is_dir, exists = p.is_dir(), p.exists()
+        except OSError as exc:
+            raise _unwritable(p, exc.strerror or str(exc)) from None
+        if is_dir:
+            raise OverwriteError(f"'{p}' is a directory; expected a file to write")
+        folders.setdefault(p.parent, p)
+        if overwrite or not exists:
+            continue
+        folder = p.parent
+        if folder not in manifests:
+            manifests[folder] = _manifest(folder)
+        entry = manifests[folder].get(p.name)
+        if isinstance(entry, dict) and entry.get("sha256") == file_sha256(p):
+            continue
+        raise OverwriteError(
+            f"refusing to replace '{p}': dgli did not write it (or it was changed since); "
+            "use --overwrite to replace it"
+        )
+    for folder, first in folders.items():
+        _make_writable_folder(folder, first)
+
+
+def _make_writable_folder(folder: Path, first: Path) -> None:
+    """Make ``folder`` (and its parents); ``first`` is a file to go there, for messages."""
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _unwritable(first, f"cannot make its folder ({exc.strerror or exc})") from None
+    if not os.access(folder, os.W_OK):
+        raise _unwritable(first, f"its folder '{display_path(folder)}' is not writable")
+
+
+def record_outputs(paths: Iterable[str | Path], command: str) -> None:
+    """Add written files, with their checksums and the command, to their folders' records."""
+    by_folder: dict[Path, list[Path]] = {}
+    for path in paths:
+        p = Path(path)
+        by_folder.setdefault(p.parent, []).append(p)
+    for folder, files in by_folder.items():
+        listed = _manifest(folder)
+        for p in files:
+            if p.is_file():
+                listed[p.name] = {"sha256": file_sha256(p), "command": command}
+        write_json(
+            folder / MANIFEST_NAME,
+            {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
+        )
+
+
+def _kept(written: list[Path]) -> str:
+    """``the 3 files written before it are kept: a, b, c`` (a few named, the rest counted)."""
+    if not written:
+        return "nothing was written before it"
+    names = ", ".join(f"'{p}'" for p in written[:3])
+    more = f" and {len(written) - 3} more" if len(written) > 3 else ""
+    if len(written) == 1:
+        return f"the file written before it is kept: {names}"
+    return f"the {len(written)} files written before it are kept: {names}{more}"
+
+
+def write_files(
+    files: Iterable[tuple[Path, str | dict | NDArray[np.uint8]]], *, command: str
+) -> list[Path]:
+    """Write files (text, JSON or a BGR image each) in order and record them
+    (:func:`record_outputs`); the caller has checked them with :func:`guard_outputs`.
+
+    Raises
+    ------
+    OutputError
+        On the first file that cannot be written, naming it, the reason and the files
+        written before it, which are kept and recorded as dgli's own (so that running
+        the command again replaces them without ``--overwrite``).
+    """
+    written: list[Path] = []
+    try:
+        for path, content in files:
+            p = Path(path)
+            if isinstance(content, str):
+                write_text(p, content)
+            elif isinstance(content, dict):
+                write_json(p, content)
+            else:
+                write_png(p, content)
+            written.append(p)
+    except OutputError as exc:
+        raise failed_part_way(exc, written, command) from None
+    try:
+        record_outputs(written, command)
+    except OutputError as exc:
+        raise OutputError(
+            f"{exc}; the {len(written)} files are written and kept, but a later run needs "
+            "--overwrite to replace them"
+        ) from None
+    return written
+
+
+def failed_part_way(exc: OutputError, written: list[Path], command: str) -> OutputError:
+    """The error of a set of files that failed part-way: ``exc`` naming the files written
+    before it, which are kept and recorded as dgli's own (so that running the command
+    again replaces them without ``--overwrite``)."""
+    try:
+        record_outputs(written, command)
+    except DgliError:
+        pass  # the disk that is full cannot take the record either
+    return OutputError(f"{exc}; {_kept(written)}")
+
+
+def write_outputs(
+    files: dict[Path, str | dict | NDArray[np.uint8]], *, overwrite: bool, command: str
+) -> None:
+    """Write a set of report files (text, JSON or a BGR image each), after checking with
+    :func:`guard_outputs` that none replaces a user's file, and record them.
+
+    Raises
+    ------
+    OverwriteError, OutputError
+        See :func:`write_files`.
+    """
+    guard_outputs(files, overwrite=overwrite)
+    write_files(files.items(), command=command)
+
+
+def read_jsonl(path: str | Path) -> list[Any]:
+    """The objects of a JSON-lines file; a line that is not valid JSON (the last one of
+    a file whose writer was killed) is left out."""
+    out = []
+    try:
+        with Path(path).open(encoding="utf-8") as fh:
+            for line in fh:
+                try:
+                    out.append(json.loads(line))
+                except ValueError:
+                    continue
+    except FileNotFoundError:
+        return []
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UnreadableInputError(f"cannot read '{path}': {exc}") from None
+    return out
+
+
+class JsonLinesWriter:
+    """Appends one JSON object per line and flushes each, so that whatever stops the
+    process (Ctrl-C, a kill, a full disk) keeps every line written before it."""
+
+    def __init__(self, path: str | Path, *, append: bool) -> None:
+        p = Path(path)
+        try:
+            p.parent.mkdir(parents=True, exist_ok=True)
+            self._fh = p.open("a" if append else "w", encoding="utf-8")
+        except OSError as exc:
+            raise _unwritable(p, exc.strerror or str(exc)) from None
+        self.path = p
+        self.lines = 0
+        self._failed = False
+
+    def write(self, obj: Any) -> None:
+        """Append ``obj`` as one line and flush it to the operating system.
+
+        Raises
+        ------
+        OutputError
+            Naming the file, the reason and how many lines before it are kept.
+        """
+        try:
+            self._fh.write(json.dumps(obj) + "\n")
+            self._fh.flush()
+        except OSError as exc:
+            self._failed = True
+            if self.lines == 0:
+                kept = "no line was written before it"
+            else:
+                lines = "1 line" if self.lines == 1 else f"{self.lines} lines"
+                kept = f"the {lines} written before it are kept"
+            raise _unwritable(self.path, f"{exc.strerror or exc}; {kept}") from None
+        self.lines += 1
+
+    def close(self) -> None:
+        """Close the file (after a failed write, quietly: that failure was reported)."""
+        try:
+            self._fh.close()
+        except OSError as exc:
+            if not self._failed:
+                raise _unwritable(self.path, exc.strerror or str(exc)) from None
+
+
+def write_png(path: str | Path, image_bgr: NDArray[np.uint8]) -> None:
+    """Write a BGR (or single-channel) image, PNG or JPEG by the file's extension,
+    creating parent folders.
+
+    Raises
+    ------
+    OutputError
+        An extension OpenCV has no writer for, an image it cannot encode, or a file that
+        cannot be written (with the operating system's reason).
+    """
+    import cv2
+
+    p = Path(path)
+    ext = p.suffix.lower()
+    if not ext or not cv2.haveImageWriter(f"x{ext}"):
+        raise _unwritable(
+            p, f"no image writer for '{ext or p.name}' files; name it *.png or *.jpg"
+        )
+    try:
+        ok, encoded = cv2.imencode(ext, image_bgr)
+    except cv2.error as exc:
+        raise _unwritable(p, f"OpenCV cannot encode the image ({exc.err})") from None
+    if not ok:
+        raise _unwritable(p, "OpenCV cannot encode the image")
+    _write_bytes(p, encoded.tobytes())
+
+
+def csv_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
+    """A CSV table (RFC 4180 quoting)."""
+    import csv
+    import io as _io
+
+    buf = _io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    writer.writerows(rows)
+    return buf.getvalue()

@@ -1,0 +1,417 @@
+"""The frames of a recording, in order: a folder of colour + depth pairs, a ROS 1 or
+ROS 2 bag, or a RealSense SDK recording.
+
+A folder holds ``<name>_color.png`` / ``<name>_depth.png`` pairs, in the order given by
+a ``frames.csv`` (``color,depth[,time]``, paths relative to the folder) or, without
+one, by name; a ``labels.csv`` (the labelled-folder format) labels the frames, so that
+a tracker can score itself. A bag's frames are read one at a time as they are
+classified (:func:`open_recording`); a labels file for it names frames by index or time.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
+from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
+from .frames import RGBDFrame
+from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
+from .ros_images import ImagePayload, decode_color, decode_depth
+
+__all__ = [
+    "RecordedPair",
+    "Recording",
+    "is_recording_file",
+    "open_recording",
+    "read_recording",
+    "select_frames",
+]
+
+
+@dataclass(frozen=True)
+class Recording:
+    """The frames of a recording.
+
+    Attributes
+    ----------
+    frames : iterable of LabelledPair
+        In order; ``label`` is ``""`` for an unlabelled frame, ``time`` in seconds from
+        the start where known. A bag's frames (:class:`RecordedPair`) can be iterated
+        once; a folder's are a tuple.
+    count : int
+        How many frames to expect (for a progress bar; exact for a folder).
+    labelled : bool
+        Every frame carries a label (for a bag: a labels file was given).
+    source : str
+        The folder or file.
+    kind : str
+        ``"folder"``, ``"ROS 1 bag"``, ``"ROS 2 bag"`` or ``"RealSense bag"``.
+    notes : list of str
+        What reading found worth saying: the topics read, a lens distortion left
+        uncorrected, depth frames no colour frame took (filled while the frames are read).
+    """
+
+    frames: Iterable[LabelledPair]
+    count: int
+    labelled: bool
+    source: str
+    kind: str = "folder"
+    notes: list[str] = field(default_factory=list)
+
+
+def _frames_csv(path: Path, root: Path) -> tuple[list[LabelledPair], list[float | None]]:
+    pairs: list[LabelledPair] = []
+    times: list[float | None] = []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
+            reader = csv.DictReader(fh)
+            missing = {"color", "depth"} - set(reader.fieldnames or [])
+            if missing:
+                raise InvalidInputError(
+                    f"frames file '{path}' lacks column(s) {', '.join(sorted(missing))}; "
+                    "expected color,depth[,time]"
+                )
+            for k, row in enumerate(reader, start=2):
+                if not row.get("color") or not row.get("depth"):
+                    raise InvalidInputError(f"frames file '{path}' line {k} is incomplete")
+                t = (row.get("time") or "").strip()
+                try:
+                    times.append(float(t) if t else None)
+                except ValueError:
+                    raise InvalidInputError(
+                        f"frames file '{path}' line {k}: time {t!r} is not a number"
+                    ) from None
+                pairs.append(LabelledPair(str(root / row["color"]), str(root / row["depth"]), ""))
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise UnreadableInputError(f"cannot read frames file '{path}': {exc}") from None
+    return pairs, times
+
+
+def read_recording(folder: str | Path) -> Recording:
+    """The frames of ``folder`` in order, labelled when it has a ``labels.csv``.
+
+    Raises
+    ------
+    UnreadableInputError, InvalidInputError
+        The folder is missing, a CSV file is malformed, or no frame is found.
+    """
+    root = Path(folder)
+    if not root.is_dir():
+        raise UnreadableInputError(f"folder '{root}' does not exist or is not a directory")
+    listing = root / "frames.csv"
+    if listing.is_file():
+        pairs, times = _frames_csv(listing, root)
+    else:
+        pairs = []
+        for color in sorted(root.rglob("*_color.png")):
+            depth = color.with_name(color.name[: -len("_color.png")] + "_depth.png")
+            pairs.append(LabelledPair(str(color), str(depth), ""))
+        times = [None] * len(pairs)
+    if not pairs:
+        raise InvalidInputError(
+            f"folder '{root}' holds no frames (no frames.csv and no <name>_color.png files)"
+        )
+    labelled = False
+    if (root / "labels.csv").is_file():
+        known, _ = find_labelled_pairs(root, lenient=True)
+        by_color = {os.path.realpath(p.color): p for p in known}
+        found = [by_color.get(os.path.realpath(p.color)) for p in pairs]
+        labelled = all(f is not None for f in found)
+        pairs = [
+            LabelledPair(p.color, p.depth, f.label, f.variant, f.line) if f else p
+            for p, f in zip(pairs, found)
+        ]
+    pairs = [
+        replace(p, time=t, intrinsics_file=folder_intrinsics(root, p.color))
+        for p, t in zip(pairs, times)
+    ]
+    return Recording(tuple(pairs), len(pairs), labelled, str(root))
+
+
+@dataclass(frozen=True)
+class RecordedPair(LabelledPair):
+    """A frame of a recorded episode: its colour and depth pixels, still encoded.
+
+    ``color`` and ``depth`` name the frame (recording, topic, frame number, time) for
+    messages and reports. ``problem`` says why the frame cannot be classified (a colour
+    image with no depth near it in time): it is then a gap, not a lost frame.
+    """
+
+    color_payload: ImagePayload | None = None
+    depth_payload: ImagePayload | None = None
+    intrinsics: Intrinsics | None = None
+    problem: str | None = None
+
+    def load(self) -> RGBDFrame:
+        """The decoded, validated frame.
+
+        Raises
+        ------
+        InvalidInputError, CalibrationError
+        """
+        if self.problem or self.color_payload is None or self.depth_payload is None:
+            raise InvalidInputError(self.problem or f"{self.color}: no image")
+        color = decode_color(self.color_payload, self.color)
+        depth = decode_depth(self.depth_payload, self.depth)
+        if color.shape[:2] != depth.shape:
+            raise InvalidInputError(
+                f"{self.depth}: depth is {depth.shape[1]}x{depth.shape[0]} but colour is "
+                f"{color.shape[1]}x{color.shape[0]}: depth not aligned to colour (record "
+                "the driver's aligned_depth_to_color topic)"
+            )
+        intr, source = self.intrinsics, "camera_info"
+        if intr is None:
+            intr, source = DEFAULT_INTRINSICS, "default"
+        if (intr.width, intr.height) != (depth.shape[1], depth.shape[0]):
+            raise CalibrationError(
+                f"{self.color}: camera info is for {intr.width}x{intr.height} images but the "
+                f"frame is {depth.shape[1]}x{depth.shape[0]}"
+            )
+        return RGBDFrame(color, depth, intr, self.color, self.depth, source)
+
+    def light(self) -> LabelledPair:
+        """This frame as names only, without its pixels (what an outcome keeps)."""
+        return LabelledPair(self.color, self.depth, self.label, self.variant, self.line, self.time)
+
+
+def is_recording_file(path: str | Path) -> bool:
+    """A recorded episode (a bag) rather than a folder of PNG pairs."""
+    from .ros_bags import is_ros_bag
+
+    return is_ros_bag(Path(path))
+
+
+def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], list]:
+    """A recording's labels: ``frame`` (index from 0) or ``time`` (seconds from the
+    start), ``label`` and optionally ``variant``."""
+    from ..core.classes import CLASS_IDS, VARIANTS
+
+    by_frame: dict[int, tuple[str, str | None, int]] = {}
+    by_time: list[tuple[float, str, str | None, int]] = []
+    try:
+        with path.open(newline="", encoding="utf-8-sig") as fh:  # a BOM is dropped
+            reader = csv.DictReader(fh)
+            cols = set(reader.fieldnames or [])
+            if "label" not in cols or not cols & {"frame", "time"}:
+                raise InvalidInputError(
+                    f"labels file '{path}' needs columns frame or time, and label "
+                    "(optionally variant)"
+                )
+            for k, row in enumerate(reader, start=2):
+                label = (row.get("label") or "").strip().zfill(2)
+                variant = (row.get("variant") or "").strip() or None
+                if label not in CLASS_IDS or (variant and variant not in VARIANTS.get(label, ())):
+                    raise InvalidInputError(
+                        f"labels file '{path}' line {k}: unknown class or variant "
+                        f"{label!r} {variant or ''}".rstrip()
+                    )
+                try:
+                    if (row.get("frame") or "").strip():
+                        by_frame[int(row["frame"])] = (label, variant, k)
+                    else:
+                        by_time.append((float(row["time"]), label, variant, k))
+                except ValueError:
+                    raise InvalidInputError(
+                        f"labels file '{path}' line {k}: frame or time is not a number"
+                    ) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise UnreadableInputError(f"cannot read labels file '{path}': {exc}") from None
+    return by_frame, sorted(by_time)
+
+
+def _label_frames(
+    frames: Iterable[LabelledPair], path: Path, tolerance: float
+) -> Iterator[LabelledPair]:
+    import bisect
+
+    by_frame, by_time = _labels_file(path)
+    times = [t for t, *_ in by_time]
+    for index, pair in enumerate(frames):
+        found = by_frame.get(index)
+        if found is None and pair.time is not None and times:
+            k = bisect.bisect_left(times, pair.time)
+            near = [j for j in (k - 1, k) if 0 <= j < len(times)]
+            j = min(near, key=lambda j: abs(times[j] - pair.time))
+            if abs(times[j] - pair.time) <= tolerance:
+                found = by_time[j][1:]
+        yield replace(pair, label=found[0], variant=found[1], line=found[2]) if found else pair
+
+
+def select_frames(
+    frames: Iterable[LabelledPair],
+    *,
+    every: int = 1,
+    start: float | None = None,
+    end: float | None = None,
+) -> Iterator[tuple[int, LabelledPair]]:
+    """Every ``every``-th frame with its index, between ``start`` and ``end`` seconds
+    (frames of unknown time are kept); stops reading at ``end``."""
+    for index, pair in enumerate(frames):
+        t = pair.time
+        if end is not None and t is not None and t > end:
+            return
+        if (start is None or t is None or t >= start) and index % every == 0:
+            yield index, pair
+
+
+def open_recording(
+    path: str | Path,
+    *,
+    color_topic: str | None = None,
+    depth_topic: str | None = None,
+    info_topic: str | None = None,
+    tolerance: float = 0.020,
+    labels: str | Path | None = None,
+) -> Recording:
+    """Any recording: a folder of pairs (:func:`read_recording`), a ROS 1 ``.bag``, a
+    ROS 2 bag (``.db3``, ``.mcap`` or its folder), or a RealSense SDK ``.bag``.
+
+    Parameters
+    ----------
+    path : str or Path
+    color_topic, depth_topic, info_topic : str, keyword-only, optional
+        A ROS bag's topics, when the usual names do not find them.
+    tolerance : float, keyword-only
+        Largest time difference (seconds) between a colour image and its depth.
+    labels : str or Path, keyword-only, optional
+        A bag's labels file (``frame`` or ``time``, ``label``, ``variant``); a folder
+        has its own ``labels.csv``.
+
+    Raises
+    ------
+    UnreadableInputError, InvalidInputError
+        One line naming the recording and what is wrong (no image topic, an ambiguous
+        topic, a truncated file, the ``recordings`` extra missing...).
+    """
+    from .realsense_bags import is_realsense_bag
+
+    p = Path(path)
+    if not p.exists():
+        raise UnreadableInputError(f"recording '{p}' does not exist")
+    if is_realsense_bag(p):
+        recording = _realsense_recording(p)
+    elif is_recording_file(p):
+        recording = _bag_recording(p, color_topic, depth_topic, info_topic, tolerance)
+    else:
+        if labels is not None:
+            raise InvalidInputError(
+                f"--labels is for recorded episodes; folder '{p}' is labelled by its labels.csv"
+            )
+        return read_recording(p)
+    if labels is None:
+        return recording
+    labels_path = Path(labels)
+    _labels_file(labels_path)  # a malformed file stops the run before the work
+    return replace(
+        recording, frames=_label_frames(recording.frames, labels_path, tolerance), labelled=True
+    )
+
+
+def _realsense_recording(p: Path) -> Recording:
+    from .realsense_bags import read_realsense_bag
+
+    count, frames = read_realsense_bag(p)
+
+    def pairs() -> Iterator[RecordedPair]:
+        t0 = None
+        for index, f in enumerate(frames):
+            t0 = f.time if t0 is None else t0
+            name = f"{p} frame {index} ({f.time - t0:.3f} s)"
+            yield RecordedPair(
+                f"{name} colour", f"{name} depth", "", None, None, round(f.time - t0, 6),
+                f.color, f.depth, f.intrinsics,
+            )
+
+    return Recording(pairs(), count, False, str(p), "RealSense bag")
+
+
+def _bag_recording(
+    p: Path,
+    color_topic: str | None,
+    depth_topic: str | None,
+    info_topic: str | None,
+    tolerance: float,
+) -> Recording:
+    from .ros_bags import BagMessage, InfoMessage, RosBag, choose_topics, read_bag_messages
+
+    with RosBag(p) as bag:
+        topics = choose_topics(
+            bag.types, bag.counts, str(p), color=color_topic, depth=depth_topic, info=info_topic
+        )
+        kind = "ROS 2 bag" if bag.reader.is2 else "ROS 1 bag"
+    if topics.counts[topics.color] == 0 or topics.counts[topics.depth] == 0:
+        empty = topics.color if topics.counts[topics.color] == 0 else topics.depth
+        raise InvalidInputError(f"recording '{p}': topic {empty} holds no message")
+    notes = [
+        f"colour {topics.color}, depth {topics.depth}, camera info "
+        + (topics.info or "none (the nominal intrinsics are used)")
+    ]
+    ms = round(tolerance * 1000)
+
+    state: dict = {"intr": None, "t0": None}  # the latest camera info; the first stamp
+
+    def events() -> Iterator[tuple[str, float, object]]:
+        with RosBag(p) as bag:
+            for item in read_bag_messages(bag, topics):
+                if isinstance(item, InfoMessage):
+                    state["intr"] = item.intrinsics
+                    if item.note and item.note not in notes:
+                        notes.append(item.note)
+                    continue
+                assert isinstance(item, BagMessage)
+                if state["t0"] is None:
+                    state["t0"] = item.time
+                yield item.stream, item.time, (item.payload, state["intr"])
+
+    def frames_of(stream: Iterator[tuple[str, float, object]]) -> Iterator[RecordedPair]:
+        from .pairing import pair_by_time
+
+        index = 0
+        for paired in pair_by_time(stream, tolerance):
+            if paired.color is None:
+                notes.append(
+                    f"depth frame at {paired.depth_time - state['t0']:.3f} s on "
+                    f"{topics.depth}: no colour frame within {ms} ms (not used)"
+                )
+                continue
+            t = paired.color_time - state["t0"]
+            name = f"{p} frame {index} ({t:.3f} s)"
+            color_payload, intr = paired.color
+            depth_payload = paired.depth[0] if paired.depth else None
+            problem = None
+            if depth_payload is None:
+                problem = f"{name}: no depth frame within {ms} ms on {topics.depth}"
+            pair = RecordedPair(
+                f"{name} {topics.color}", f"{name} {topics.depth}", "", None, None,
+                round(t, 6), color_payload, depth_payload, intr, problem,
+            )
+            if index == 0 and problem is None:
+                _check_first(pair)
+            yield pair
+            index += 1
+
+    def pairs() -> Iterator[RecordedPair]:
+        stream = events()
+        try:
+            yield from frames_of(stream)
+        finally:  # the bag is closed even when the caller stops early
+            stream.close()
+
+    return Recording(pairs(), topics.counts[topics.color], False, str(p), kind, notes)
+
+
+def _check_first(pair: RecordedPair) -> None:
+    """Stop at the first frame when the whole recording cannot be used (depth not
+    aligned to colour, camera info for another image size): every frame would fail
+    alike. A first image that does not decode is only that frame's gap."""
+    assert pair.color_payload is not None and pair.depth_payload is not None
+    try:
+        decode_color(pair.color_payload, pair.color)
+        decode_depth(pair.depth_payload, pair.depth)
+    except InvalidInputError:
+        return
+    pair.load()
