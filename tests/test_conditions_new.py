@@ -305,8 +305,8 @@ def test_a_sequence_rendered_with_the_gripper_holds_the_corner_being_folded():
 def test_render_gripper_option_puts_the_grasp_in_a_sequence(tmp_path, monkeypatch):
     from click.testing import CliRunner
 
-    from dgli_vision.sim import dataset
     from dgli_vision.cli import main
+    from dgli_vision.sim import dataset
 
     small = partial(dataset.render_sequence, intrinsics=SMALL)  # fewer pixels, same scene
     monkeypatch.setattr(dataset, "render_sequence", small)

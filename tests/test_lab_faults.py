@@ -21,8 +21,8 @@ import pytest
 from click.testing import CliRunner
 
 import dgli_vision
-from dgli_vision.core import io as dio
 from dgli_vision.cli import main
+from dgli_vision.core import io as dio
 from dgli_vision.core.camera import Intrinsics
 from dgli_vision.core.errors import (
     CalibrationError,

@@ -60,3 +60,4 @@ def test_no_folder_imports_from_a_folder_above_it() -> None:
     climbs = [(a, b) for a in deps for b in deps[a] if floor[b] >= floor[a]]
     assert climbs == []
     assert floor["core"] == 0 and floor["cli"] == max(floor.values())
+

@@ -6,7 +6,8 @@ intermediate result, which is what a person debugging a real image needs.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+import time
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +24,7 @@ from ..perception.detect import (
 )
 from ..perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from ..perception.flaps import flap_angles
-from ..perception.footprint import Footprint, measure_footprint
+from ..perception.footprint import Footprint, cloth_regions, measure_footprint
 from ..perception.handedness import back_face_up, image_turns
 from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from ..perception.napkin import find_napkin
@@ -170,6 +171,24 @@ class ClothObservation:
         return self.visible.reshape(-1, 2).all(axis=1)
 
 
+class StageClock:
+    """The time each stage of the pipeline took, ms, in the order they ran.
+
+    ``lap(name)`` charges the time since the last lap (or since the clock was made) to
+    ``name``. ``time.perf_counter`` costs well under a microsecond.
+    """
+
+    def __init__(self) -> None:
+        self.ms: dict[str, float] = {}
+        self._last = time.perf_counter()
+
+    def lap(self, name: str) -> None:
+        """Charge the time since the last lap to stage ``name``."""
+        now = time.perf_counter()
+        self.ms[name] = self.ms.get(name, 0.0) + (now - self._last) * 1e3
+        self._last = now
+
+
 @dataclass(frozen=True, eq=False)
 class FrameResult:
     """Everything the pipeline computed for one frame.
@@ -186,6 +205,7 @@ class FrameResult:
     prediction: Prediction | None
     reason: str | None = None
     best_guess: Prediction | None = None
+    timings_ms: dict[str, float] = field(default_factory=dict)
 
 
 def observe(
@@ -194,26 +214,35 @@ def observe(
     params: DetectorParams | None = None,
     *,
     colours: dict[str, tuple[int, int, int]] | None = None,
+    clock: StageClock | None = None,
 ) -> tuple[StickerDetections, Markers3D, ClothObservation]:
     """Find the table and the napkin, detect the stickers, lift them to 3D, and judge
-    the missing ones (hidden by cloth or unknown)."""
+    the missing ones (hidden by cloth or unknown). ``clock`` keeps each stage's time."""
     layout = layout or default_layout()
+    clock = clock or StageClock()
     try:
         up, offset = estimate_table_plane(frame.depth_mm, frame.intrinsics)
     except ValueError as exc:
         raise DetectionError(f"'{frame.depth_path}': {exc}") from None
+    clock.lap("table plane")
     napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
+    clock.lap("napkin")
     detections = detect_stickers(
         frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin,
         colours=colours,
     )
+    clock.lap("search")
+    regions = cloth_regions(frame.color, napkin.white_rgb)
+    clock.lap("cloth regions")
     detections = find_washed_out(
         frame.color, frame.depth_mm, frame.intrinsics, layout, detections, params,
-        napkin=napkin, colours=colours,
+        napkin=napkin, colours=colours, regions=regions,
     )
+    clock.lap("second search")
     lifted = lift_stickers(detections, frame.intrinsics)
     ruler = measure_napkin(lifted, layout)
     markers, dropped = drop_inconsistent(lifted, layout)
+    clock.lap("lift")
     evidence = assess_stickers(
         markers,
         frame.intrinsics,
@@ -224,6 +253,7 @@ def observe(
         up=up,
         pale_colours=detections.pale_colours,
     )
+    clock.lap("evidence")
     visible = markers.found
     segments = markers.points.reshape(-1, 2, 3).copy()
     segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
@@ -232,12 +262,14 @@ def observe(
         frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
         evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
     )
+    clock.lap("flaps")
     footprint = measure_footprint(
         frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
-        layout.width_mm * layout.height_mm,
+        layout.width_mm * layout.height_mm, regions=regions,
     )
     located = np.where(markers.found[:, None], detections.centroids, np.nan)
     turns = image_turns(located, layout)
+    clock.lap("footprint, faces")
     return detections, markers, ClothObservation(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
         turns, markers.points,
@@ -275,7 +307,25 @@ def classify_frame(
         the confidence is below ``min_confidence``.
     """
     layout = layout or layout_of_size(references.napkin_mm)
-    detections, markers, obs = observe(frame, layout, params, colours=colours)
+    clock = StageClock()
+    detections, markers, obs = observe(frame, layout, params, colours=colours, clock=clock)
+    result = _judge(
+        frame, references, layout, (detections, markers, obs), min_confidence, clock
+    )
+    return replace(result, timings_ms=dict(clock.ms))
+
+
+def _judge(
+    frame: RGBDFrame,
+    references: ReferenceSet,
+    layout: NapkinLayout,
+    seen: tuple[StickerDetections, Markers3D, ClothObservation],
+    min_confidence: float,
+    clock: StageClock,
+) -> FrameResult:
+    """The verdict on an observed frame: the fault checks, the nearest reference and
+    its confidence, or "cannot tell" and why."""
+    detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
     unknown = obs.evidence.summary() if obs.evidence is not None else ""
@@ -299,10 +349,12 @@ def classify_frame(
     guess = classify_coordinates(
         coords, references, **evidence, distances=front, unsure=unsure
     )
+    clock.lap("classify")
     area = layout.width_mm * layout.height_mm
     doubt = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front
     ) or footprint_problem(obs.footprint, references, front, area)
+    clock.lap("checks")
     if doubt is not None:
         # the nearest reference stays for reports, with no confidence in it
         doubted = replace(guess, confidence=0.0)

@@ -32,8 +32,17 @@ def _format_figure(value: float, unit: str) -> str:
 )
 @click.option(
     "--only",
-    type=click.Choice(["dgli", "pipeline", "recording"]),
-    help="Run one group of benchmarks only.",
+    type=click.Choice(["dgli", "pipeline", "frames", "recording"]),
+    help="Run one group of benchmarks only. frames: every frame of a varied set it "
+    "renders (every capture condition, another camera, a fold held by a gripper), its "
+    "median, p90 and slowest frame and each stage's time.",
+)
+@click.option(
+    "--per-condition",
+    default=12,
+    show_default=True,
+    type=click.IntRange(1, 120),
+    help="Frames per capture condition in the frames group.",
 )
 @click.option(
     "--samples",
@@ -50,6 +59,7 @@ def bench(
     markdown: str | None,
     only: str | None,
     samples: str,
+    per_condition: int,
     overwrite: bool,
 ) -> None:
     """Measure the benchmark figures against their budgets (one core where a budget says so)."""
@@ -57,24 +67,24 @@ def bench(
     import shutil
     from pathlib import Path
 
-    from ..analysis.bench import (
-        run_dgli_benchmarks,
-        run_pipeline_benchmarks,
-        run_recording_benchmarks,
-    )
+    from ..analysis import bench as b
     from ..core.io import guard_outputs, write_outputs
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
     results = []
     if only in (None, "dgli"):
-        results += run_dgli_benchmarks(n_states=states, repeats=repeats)
+        results += b.run_dgli_benchmarks(n_states=states, repeats=repeats)
     if only in (None, "pipeline"):
         exe = Path(sys.executable).parent / "dgli-classify"
         exe_path = str(exe) if exe.exists() else shutil.which("dgli-classify")
-        results += run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
+        results += b.run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
+    if only in (None, "frames"):
+        results += b.run_frame_benchmarks(
+            per_condition=per_condition, sequence_frames=per_condition, repeats=repeats
+        )[0]
     if only in (None, "recording"):
-        results += run_recording_benchmarks(samples)
+        results += b.run_recording_benchmarks(samples)
     rows = []
     for r in results:
         value = _format_figure(r.value, r.unit)

@@ -35,6 +35,7 @@ from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blob
 from .detections import DetectorParams, Rejection, StickerDetections
+from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
 from .washed import merge_second_search, pale_samples, pastel_params, with_unread
@@ -59,6 +60,7 @@ def detect_stickers(
     *,
     napkin: NapkinView | None = None,
     colours: dict[str, tuple[int, int, int]] | None = None,
+    roi: NDArray[np.bool_] | None = None,
 ) -> StickerDetections:
     """Find the 16 stickers in an RGB image.
 
@@ -76,6 +78,8 @@ def detect_stickers(
         The napkin's white and highlights (default: :func:`.napkin.find_napkin`).
     colours : dict, keyword-only, optional
         Calibrated sticker colours (``dgli calibrate``), sRGB per colour name.
+    roi : ndarray of bool, keyword-only, optional
+        Where to look, on any grid over the image (scaled to it); default: everywhere.
 
     Returns
     -------
@@ -86,7 +90,9 @@ def detect_stickers(
     if napkin is None:
         napkin = find_napkin(color, depth_mm, intrinsics)
     lut, names = hue_lut(layout, params, colours)
-    image = search_image(color, depth_mm, intrinsics, layout, params, napkin, lut, len(names))
+    image = search_image(
+        color, depth_mm, intrinsics, layout, params, napkin, lut, len(names), roi
+    )
     candidates, rejected = candidate_blobs(image)
     full = None
     if image.halved:
@@ -116,12 +122,14 @@ def search_image(
     napkin: NapkinView,
     lut: NDArray[np.uint8],
     n_colours: int,
+    roi: NDArray[np.bool_] | None = None,
 ) -> SearchImage:
     """The image stickers are searched in, with its colour labels and washed-out pixels.
 
     It is the frame halved (pixel-area averaging) while a sticker at the median depth
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
-    ``lut`` is :func:`.labels.hue_lut`'s table.
+    ``lut`` is :func:`.labels.hue_lut`'s table. Outside ``roi`` (scaled to the search
+    image) no pixel is labelled.
     """
     import cv2
 
@@ -140,6 +148,9 @@ def search_image(
         intrinsics = _halved(intrinsics)
     norm = cv2.LUT(color, napkin.lut)  # the napkin neutral at a fixed level
     labels, hsv = colour_labels(norm, lut, params)
+    if roi is not None:
+        inside = cv2.resize(roi.astype(np.uint8), labels.shape[::-1], cv2.INTER_NEAREST)
+        labels = labels * inside
     blown = (
         cv2.bitwise_or(
             cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
@@ -353,6 +364,7 @@ def find_washed_out(
     *,
     napkin: NapkinView,
     colours: dict[str, tuple[int, int, int]] | None = None,
+    regions: ClothRegions | None = None,
 ) -> StickerDetections:
     """Search again, for the stickers not found, as a broad sheen leaves them: pastel.
 
@@ -369,6 +381,11 @@ def find_washed_out(
         As for :func:`detect_stickers`.
     found : StickerDetections
         The first search's result.
+    regions : ClothRegions, keyword-only, optional
+        The frame's white regions (:func:`.footprint.cloth_regions`), when already
+        found. The second search looks on the napkin's cells and
+        ``washed_margin_cells`` around them only (the table, balanced to the low level,
+        is pastel too), or everywhere when the napkin is not told from the table.
 
     Returns
     -------
@@ -380,13 +397,24 @@ def find_washed_out(
     if found.found.all():
         return found
     lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
-    if len(pale_samples(color, found, layout, params, lower, colours)[0]) < 2:
+    import cv2
+
+    cells = FootprintParams(cell_px=lower.stride)
+    if regions is None or regions.cell_px != cells.cell_px:
+        regions = cloth_regions(color, napkin.white_rgb, cells)
+    if len(pale_samples(color, found, layout, params, lower, colours, regions=regions)[0]) < 2:
         return found  # no pastel patch anywhere: nothing to search, nothing left unread
+    roi = None
+    cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
+    if found.found.any() and cloth is not None:
+        m = 2 * params.washed_margin_cells + 1
+        roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
     again = detect_stickers(
         color, depth_mm, intrinsics, layout, pastel_params(params), napkin=lower,
-        colours=colours,
+        colours=colours, roi=roi,
     )
-    return with_unread(color, merge_second_search(found, again), layout, params, lower, colours)
+    merged = merge_second_search(found, again)
+    return with_unread(color, merged, layout, params, lower, colours, regions=regions)
 
 
 def detect_all_stickers(

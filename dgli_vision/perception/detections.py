@@ -111,6 +111,12 @@ class DetectorParams:
     washed_surround : float
         ``min_surround`` of that search. Default 0.35: a semi-gloss sticker in the lobe
         of a large light reflects about twice what the matte cloth around it does.
+    washed_margin_cells : int
+        How far around the napkin's cells (the white regions holding the stickers found,
+        cells of the napkin's sampling stride) the second search looks, in cells.
+        Default 7 (56 px at stride 8): more than a sticker's width, so a washed sticker
+        on the napkin's edge or a flap beside it stays inside; the table beyond, pastel
+        too once balanced to the low level, is not searched.
     washed_level : int
         8-bit level the napkin's white is balanced to for that search. Default 150: a
         sticker under a sheen is brighter than the napkin, and at the usual 225 it would
@@ -147,6 +153,7 @@ class DetectorParams:
     washed_chroma: int = 20
     washed_level: int = 150
     washed_surround: float = 0.35
+    washed_margin_cells: int = 7
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,14 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from .napkin import NapkinParams, NapkinView
 
-__all__ = ["Footprint", "FootprintParams", "cloth_cells", "measure_footprint"]
+__all__ = [
+    "ClothRegions",
+    "Footprint",
+    "FootprintParams",
+    "cloth_cells",
+    "cloth_regions",
+    "measure_footprint",
+]
 
 
 @dataclass(frozen=True)
@@ -100,12 +107,70 @@ def _cell_areas_mm2(
     return np.linalg.norm(np.cross(ex, ey), axis=-1) * 1e6
 
 
+@dataclass(frozen=True, eq=False)
+class ClothRegions:
+    """The white regions of a frame: image cells of ``cell_px`` pixels (averaged) that
+    look like the napkin's cloth, with its stickers' holes closed, labelled by connected
+    region (0: not cloth), shape ``(H // cell_px, W // cell_px)``. Found once per frame
+    (:func:`cloth_regions`); the footprint and the second sticker search both read it."""
+
+    labels: NDArray[np.int32]
+    cell_px: int
+
+
+def cloth_regions(
+    color: NDArray[np.uint8],
+    white_rgb: NDArray[np.float64],
+    params: FootprintParams | None = None,
+    napkin_params: NapkinParams | None = None,
+) -> ClothRegions | None:
+    """The white regions of a frame (None for an image of fewer than 4 cells a side).
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+    white_rgb : ndarray, shape (3,)
+        The napkin's white, linear RGB (:attr:`.napkin.NapkinView.white_rgb`).
+    params, napkin_params : optional
+    """
+    import cv2
+
+    p = params or FootprintParams()
+    q = napkin_params or NapkinParams()
+    c = p.cell_px
+    h, w = color.shape[0] // c, color.shape[1] // c
+    if h < 4 or w < 4:
+        return None
+    small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
+    # The napkin's white; where the napkin is blown out the estimate falls on the next
+    # brightest surface (the table), so the level is at least that of the brightest
+    # few per cent of the cells, clipped ones included. (One channel at a time: the
+    # same arithmetic as reductions over the last axis, ten times cheaper.)
+    lut = srgb_lut()
+    r, g, b = (lut[small[..., k]] for k in range(3))
+    white = np.maximum(white_rgb, 1e-4)
+    level = np.quantile((r + g + b) / 3, 1.0 - q.bright_fraction)
+    white = white * max(1.0, level / float(white.mean()))
+    r, g, b = r / white[0], g / white[1], b / white[2]  # the napkin at 1
+    lum = (r + g + b) / 3
+    chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
+    # Most of the view is table: a table nearly as bright as the napkin raises the bar.
+    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
+    cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
+    kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
+    closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
+    _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    return ClothRegions(labels, c)
+
+
 def cloth_cells(
     color: NDArray[np.uint8],
     napkin: NapkinView,
     sticker_px: NDArray[np.float64],
     params: FootprintParams | None = None,
     napkin_params: NapkinParams | None = None,
+    *,
+    regions: ClothRegions | None = None,
 ) -> NDArray[np.bool_] | None:
     """The napkin's cells: image cells of ``params.cell_px`` pixels (averaged) that are
     its white cloth, with its stickers' holes filled, in the parts that hold located
@@ -120,32 +185,17 @@ def cloth_cells(
     sticker_px : ndarray, shape (n, 2)
         Pixels (x, y) of located stickers (NaN rows ignored).
     params, napkin_params : optional
+    regions : ClothRegions, keyword-only, optional
+        The frame's white regions (:func:`cloth_regions`) when already found (of the
+        same cell size).
     """
-    import cv2
-
     p = params or FootprintParams()
-    q = napkin_params or NapkinParams()
-    c = p.cell_px
-    h, w = color.shape[0] // c, color.shape[1] // c
-    if h < 4 or w < 4:
+    if regions is None or regions.cell_px != p.cell_px:
+        regions = cloth_regions(color, napkin.white_rgb, p, napkin_params)
+    if regions is None:
         return None
-    small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
-    # The napkin's white; where the napkin is blown out the estimate falls on the next
-    # brightest surface (the table), so the level is at least that of the brightest
-    # few per cent of the cells, clipped ones included.
-    lin = srgb_lut()[small]  # (h, w, 3) linear RGB
-    white = np.maximum(napkin.white_rgb, 1e-4)
-    level = np.quantile(lin.mean(axis=2), 1.0 - q.bright_fraction)
-    white = white * max(1.0, level / float(white.mean()))
-    lin = lin / white  # the napkin at 1
-    lum = lin.mean(axis=2)
-    chroma = lin.max(axis=2) - lin.min(axis=2)
-    # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
-    cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
-    kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
-    closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
-    _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    labels, c = regions.labels, regions.cell_px
+    h, w = labels.shape
     px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
     px = px[np.isfinite(px).all(axis=1)]
     cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])
@@ -169,6 +219,8 @@ def measure_footprint(
     napkin_area_mm2: float,
     params: FootprintParams | None = None,
     napkin_params: NapkinParams | None = None,
+    *,
+    regions: ClothRegions | None = None,
 ) -> Footprint | None:
     """The napkin's footprint on the table, or None when it cannot be measured.
 
@@ -202,7 +254,7 @@ def measure_footprint(
     h, w = color.shape[0] // c, color.shape[1] // c
     if float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
         return None
-    cloth = cloth_cells(color, napkin, sticker_px, p, q)
+    cloth = cloth_cells(color, napkin, sticker_px, p, q, regions=regions)
     if cloth is None:
         return None
     area = _cell_areas_mm2(intrinsics, (h, w), c, up, offset_m)

@@ -292,13 +292,18 @@ def _raised_cloth_pixels(
     xs = (bj[:, None] * s + dx.ravel()[None, :]).ravel()
     inside = (ys >= 0) & (ys < hh) & (xs >= 0) & (xs < ww)
     ys, xs = ys[inside], xs[inside]
+    # colour first (a gripper's or an arm's pixels go no further), one channel at a time
+    lut, wt = srgb_lut(), np.maximum(white, 1e-4)
+    px = color.reshape(-1, 3)[ys * ww + xs]  # (n, 3) uint8
+    r, g, b = (lut[px[:, k]] / wt[k] for k in range(3))
+    lum = (r + g + b) / 3
+    chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
+    cloth = ~_not_napkin(lum, chroma, p)
+    ys, xs = ys[cloth], xs[cloth]
     d = depth_mm[ys, xs]
     height = _height_above_table(intrinsics, normal, offset_m, xs, ys, d)
     up_high = (d > 0) & (height > p.raised_cloth_mm)
-    ys, xs, height = ys[up_high], xs[up_high], height[up_high]
-    lin = srgb_lut()[color[ys, xs]] / np.maximum(white, 1e-4)[None, :]  # (n, 3)
-    cloth = ~_not_napkin(lin.mean(axis=1), lin.max(axis=1) - lin.min(axis=1), p)
-    return np.column_stack([xs[cloth], ys[cloth]]), height[cloth]
+    return np.column_stack([xs[up_high], ys[up_high]]), height[up_high]
 
 
 def find_napkin(

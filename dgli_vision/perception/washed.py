@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 
 from ..core.layout import NapkinLayout
 from .detections import DetectorParams, StickerDetections
-from .footprint import FootprintParams, cloth_cells
+from .footprint import ClothRegions, FootprintParams, cloth_cells
 from .labels import hue_lut
 from .napkin import NapkinView
 
@@ -43,6 +43,7 @@ def pale_samples(
     colours: dict[str, tuple[int, int, int]] | None,
     *,
     edge_cells: int = 0,
+    regions: ClothRegions | None = None,
 ) -> tuple[NDArray[np.float64], tuple[str, ...]]:
     """Pixels (x, y), shape (k, 2), and colour names of pastel samples of a sticker hue
     away from the stickers found, on the napkin's sampling grid (``lower.stride``): a
@@ -53,7 +54,8 @@ def pale_samples(
     edge (cells across the edge mix white with the table, and a tinted or wood table is
     pale too); anywhere when the napkin is not told from the table. The rims of the
     stickers found are pastel too (their pixels mix with the cloth), so samples within
-    two disc radii of them do not count.
+    two disc radii of them do not count. ``regions``: the frame's white regions
+    (:func:`.footprint.cloth_regions`), when already found.
     """
     import cv2
 
@@ -61,7 +63,8 @@ def pale_samples(
     lut, names = hue_lut(layout, params, colours)
     pale, hsv = _pale_cells(color, lut, params, lower)
     if found.found.any() and pale.any():  # (with nothing found, look anywhere)
-        cloth = cloth_cells(color, lower, found.centroids, FootprintParams(cell_px=s))
+        cells = FootprintParams(cell_px=s)
+        cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
         if cloth is not None:  # (else the napkin is not told from the table: anywhere)
             edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
             pale &= cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
@@ -138,10 +141,14 @@ def with_unread(
     params: DetectorParams,
     lower: NapkinView,
     colours: dict[str, tuple[int, int, int]] | None,
+    *,
+    regions: ClothRegions | None = None,
 ) -> StickerDetections:
     """``found`` with the pastel patches on the napkin that no search could read
     (``pale_px``, ``pale_colours``)."""
-    left = pale_samples(color, found, layout, params, lower, colours, edge_cells=1)
+    left = pale_samples(
+        color, found, layout, params, lower, colours, edge_cells=1, regions=regions
+    )
     return _washed(found, left, lower.stride)
 
 

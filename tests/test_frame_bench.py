@@ -1,0 +1,38 @@
+"""The per-frame bench: each stage's time, and the summaries it reports."""
+
+from __future__ import annotations
+
+
+def test_every_frame_says_where_its_time_went() -> None:
+    """``FrameResult.timings_ms``: each stage's time, in the order the stages ran, adding
+    up to about the frame's time (what ``dgli bench --only frames`` reports)."""
+    import time
+    from pathlib import Path
+
+    from dgli_vision.analysis.frame_bench import FrameBench, FrameTime
+    from dgli_vision.classifier.pipeline import classify_frame
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.sources.frames import read_frame
+
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    frame = read_frame(samples / "03_000_color.png", samples / "03_000_depth.png")
+    refs = load_references(None)
+    t0 = time.perf_counter()
+    result = classify_frame(frame, refs)
+    total_ms = (time.perf_counter() - t0) * 1e3
+    stages = list(result.timings_ms)
+    assert stages[:3] == ["table plane", "napkin", "search"]
+    assert stages[-2:] == ["classify", "checks"]
+    assert 0.5 * total_ms <= sum(result.timings_ms.values()) <= total_ms
+    bench = FrameBench(
+        (
+            FrameTime("clean", "a", 10.0, {"search": 4.0}),
+            FrameTime("clean", "b", 30.0, {"search": 20.0}),
+            FrameTime("gripper", "c", 50.0, {"search": 6.0, "napkin": 30.0}),
+        )
+    )
+    assert bench.summary() == (30.0, 46.0, 50.0)
+    assert bench.summary("clean")[2] == 30.0
+    assert bench.conditions() == ["clean", "gripper"]
+    assert bench.stage_summary()["napkin"][0] == 0.0  # a stage a frame skips costs it 0
+    assert [f.name for f in bench.slowest(2)] == ["c", "b"]
