@@ -120,6 +120,16 @@ class ReferenceSet:
 
     references: tuple[Reference, ...]
     provenance: dict[str, Any] = field(default_factory=dict)
+    _stacks: dict[str, NDArray] = field(default_factory=dict, init=False, repr=False)
+
+    def _stacked(self, name: str) -> NDArray[np.float64]:
+        """The references' ``name`` stacked, shape (k, ...), read-only; built once (the
+        classifier reads them for every frame)."""
+        if name not in self._stacks:
+            a = np.stack([getattr(r, name) for r in self.references])
+            a.flags.writeable = False
+            self._stacks[name] = a
+        return self._stacks[name]
 
     def __len__(self) -> int:
         return len(self.references)
@@ -134,35 +144,35 @@ class ReferenceSet:
 
     def matrix(self) -> NDArray[np.float64]:
         """Coordinates of all references, shape (k, 28)."""
-        return np.stack([r.coordinates for r in self.references])
+        return self._stacked("coordinates")
 
     def visible_rates(self) -> NDArray[np.float64]:
         """Sticker visibility rates of all references, shape (k, 16)."""
-        return np.stack([r.visible_rate for r in self.references])
+        return self._stacked("visible_rate")
 
     def lifted_rates(self) -> NDArray[np.float64]:
         """Rates of each sticker standing above the table, shape (k, 16)."""
-        return np.stack([r.lifted_rate for r in self.references])
+        return self._stacked("lifted_rate")
 
     def past_rates(self) -> NDArray[np.float64]:
         """Rates of each sticker standing on a flap past vertical, shape (k, 16)."""
-        return np.stack([r.past_rate for r in self.references])
+        return self._stacked("past_rate")
 
     def height_ranges(self) -> NDArray[np.float64]:
         """Lowest and highest height of each sticker, mm, shape (k, 16, 2)."""
-        return np.stack([r.height_range_mm for r in self.references])
+        return self._stacked("height_range_mm")
 
     def footprint_ranges(self) -> NDArray[np.float64]:
         """Smallest and largest footprint (fraction of the napkin's area), shape (k, 2)."""
-        return np.stack([r.footprint_range for r in self.references])
+        return self._stacked("footprint_range")
 
     def spread_ranges(self) -> NDArray[np.float64]:
         """Shortest and longest distance of each sticker pair, mm, shape (k, 120, 2)."""
-        return np.stack([r.spread_range_mm for r in self.references])
+        return self._stacked("spread_range_mm")
 
     def back_rates(self) -> NDArray[np.float64]:
         """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""
-        return np.stack([r.back_rate for r in self.references])
+        return self._stacked("back_rate")
 
 
 def build_references(
