@@ -242,6 +242,8 @@ def observe(
     lifted = lift_stickers(detections, frame.intrinsics)
     ruler = measure_napkin(lifted, layout)
     markers, dropped = drop_inconsistent(lifted, layout)
+    located = np.where(markers.found[:, None], detections.centroids, np.nan)
+    turns = image_turns(located, layout)
     clock.lap("lift")
     evidence = assess_stickers(
         markers,
@@ -252,6 +254,7 @@ def observe(
         foreshortening=detections.foreshortening,
         up=up,
         pale_colours=detections.pale_colours,
+        turns=turns,
     )
     clock.lap("evidence")
     visible = markers.found
@@ -267,9 +270,7 @@ def observe(
         frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
         layout.width_mm * layout.height_mm, regions=regions,
     )
-    located = np.where(markers.found[:, None], detections.centroids, np.nan)
-    turns = image_turns(located, layout)
-    clock.lap("footprint, faces")
+    clock.lap("footprint")
     return detections, markers, ClothObservation(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
         turns, markers.points,

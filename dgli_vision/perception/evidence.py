@@ -76,6 +76,11 @@ class EvidenceParams:
         napkin throughout is not taken for a flap: at an object's edge the depth camera
         blends the object's depth with the cloth's (flying pixels), which reads as cloth
         standing up. Default 2 (16 px at the napkin masks' stride of 8).
+    flap_beyond_samples : int
+        Least number of mask samples of such cloth that lie beyond that band for it to be
+        a flap. Default 10 (about 640 mm^2 at 520 mm): a gripper's lit faces and the
+        blended depth along its edges make a few samples past the band; a flap it holds
+        reaches 13 and more.
     flap_reach_mm : float
         How far from its flat place a corner folded over lays its stickers, at most, for
         :attr:`min_corner_support`. Default 250 mm.
@@ -101,6 +106,7 @@ class EvidenceParams:
     min_corner_support: int = 3
     flap_reach_mm: float = 150.0
     object_band_samples: int = 2
+    flap_beyond_samples: int = 10
     held_up_reach: float = 0.5
     cover_mm: float = 12.0
     steep_foreshortening: float = 0.6
@@ -234,7 +240,10 @@ def _seen_stickers(
 
 
 def _predict_missing(
-    markers: Markers3D, layout: NapkinLayout, p: EvidenceParams
+    markers: Markers3D,
+    layout: NapkinLayout,
+    p: EvidenceParams,
+    turns: NDArray[np.float64] | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
     """Where each missing sticker would be if its part of the cloth lay as the rest
     (camera frame, (16, 3), NaN where that cannot be told), and how many stickers of its
@@ -242,7 +251,8 @@ def _predict_missing(
 
     A rigid fit of the stickers seen of its corner, where three or more lie as one;
     else of all the stickers seen, when they span corners (only a flat part that spans
-    corners says where another corner would lie).
+    corners says where another corner would lie), leaving out the corners whose
+    ``turns`` say they show their back face (on a flap).
     """
     n = len(markers.points)
     seen = markers.found
@@ -263,7 +273,10 @@ def _predict_missing(
                 pred3[group] = fit[0][group]
     todo = np.isnan(pred3[:, 0]) & ~seen
     if todo.any():
-        overall = rigid_prediction(uv_m, pts, seen, tol)
+        # a corner showing its back face lies on a flap: it says nothing of where the
+        # napkin's other corners lie flat
+        base = seen if turns is None else seen & (np.asarray(turns)[corner_of] >= 0)
+        overall = rigid_prediction(uv_m, pts, base, tol)
         if overall is not None and len(set(corner_of[overall[1]])) >= 2:
             pred3[todo] = overall[0][todo]
     return pred3, group_support
@@ -332,12 +345,12 @@ def _covered_from_above(
 
 
 def _steep_cloth(
-    masks: NapkinMasks, seen: _Seen, band: int = 0
+    masks: NapkinMasks, seen: _Seen, band: int = 0, min_beyond: int = 1
 ) -> NDArray[np.bool_] | None:
     """The samples of cloth held up steeply (None if none): the parts of ``raised``
     where a sticker is seen strongly foreshortened, or none is seen at all (a flap
-    edge-on shows none). Parts that lie within ``band`` samples of an object
-    throughout are left out."""
+    edge-on shows none). Parts with fewer than ``min_beyond`` samples farther than
+    ``band`` samples from an object are left out."""
     import cv2
 
     assert masks.raised is not None
@@ -345,13 +358,13 @@ def _steep_cloth(
     steep_parts = np.ones(n_parts, dtype=bool)
     steep_parts[0] = False
     if masks.occluder.any() and band > 0:
-        # raised "cloth" only along an object's outline is the depth of its edge blended
-        # with the cloth's (flying pixels), not a flap
+        # raised "cloth" along an object's outline is the depth of its edge blended with
+        # the cloth's (flying pixels), or the object's own lit faces, not a flap: a flap
+        # reaches well beyond the object that holds it
         k = np.ones((2 * band + 1, 2 * band + 1), np.uint8)
         rim = cv2.dilate(masks.occluder.astype(np.uint8), k).astype(bool)
-        beyond = np.unique(parts[~rim & (parts > 0)])
-        steep_parts[1:] = False
-        steep_parts[beyond] = True
+        beyond = np.bincount(parts[~rim].ravel(), minlength=n_parts)
+        steep_parts &= beyond >= min_beyond
     if len(seen.points):
         ij = np.rint(seen.pixels[:, ::-1] / masks.stride).astype(int)
         gentle = np.zeros(n_parts, dtype=bool)
@@ -425,7 +438,7 @@ def _held_up(
     out = np.zeros(len(where), dtype=bool)
     if masks is None or masks.raised is None or not masks.raised.any():
         return out
-    steep_mask = _steep_cloth(masks, seen, p.object_band_samples)
+    steep_mask = _steep_cloth(masks, seen, p.object_band_samples, p.flap_beyond_samples)
     if steep_mask is None:
         return out
     reach_px = p.held_up_reach * min(layout.width_mm, layout.height_mm) * 1e-3
@@ -499,6 +512,7 @@ def assess_stickers(
     foreshortening: NDArray[np.float64] | None = None,
     up: NDArray[np.float64] | None = None,
     pale_colours: tuple[str, ...] = (),
+    turns: NDArray[np.float64] | None = None,
 ) -> StickerEvidence:
     """Decide, for each sticker, seen, hidden by cloth, or unknown.
 
@@ -526,6 +540,9 @@ def assess_stickers(
         detector's ``pale_colours``): a missing sticker with such a disc colour may be
         washed out by a sheen, so it is unknown, not hidden, wherever the rigid
         prediction puts it (a flap moves its stickers).
+    turns : ndarray, shape (4,), keyword-only, optional
+        Which face each corner shows (:func:`.handedness.image_turns`): the stickers of
+        a corner showing its back face lie on a flap and do not place the others.
 
     Returns
     -------
@@ -539,7 +556,7 @@ def assess_stickers(
     predicted = np.full((n, 2), np.nan)
     if seen.all():
         return StickerEvidence(status, tuple(reasons), predicted)
-    pred3, support = _predict_missing(markers, layout, p)
+    pred3, support = _predict_missing(markers, layout, p, turns)
     ok = np.isfinite(pred3[:, 0]) & (pred3[:, 2] > 0)
     predicted[ok] = intrinsics.project(pred3[ok])
     located = _seen_stickers(markers, intrinsics, layout, p, foreshortening)
