@@ -203,10 +203,18 @@ class NapkinMasks:
         if not self.occluder.any() or not len(uv):
             return self
         hh, ww = self.occluder.shape
-        vs, us = np.mgrid[0:hh, 0:ww] * self.stride
+        s, reach = self.stride, radius_px + self.stride
         mine = np.zeros((hh, ww), dtype=bool)
-        for u, v in uv:
-            mine |= np.hypot(us - u, vs - v) <= radius_px + self.stride
+        for u, v in np.asarray(uv, dtype=np.float64):
+            if not (np.isfinite(u) and np.isfinite(v)):
+                continue
+            # only the samples within reach can be: a window, not the whole grid
+            i0, i1 = max(int(np.floor((v - reach) / s)), 0), min(int((v + reach) // s) + 2, hh)
+            j0, j1 = max(int(np.floor((u - reach) / s)), 0), min(int((u + reach) // s) + 2, ww)
+            if i0 >= i1 or j0 >= j1:
+                continue
+            us, vs = np.arange(j0, j1) * s, np.arange(i0, i1) * s
+            mine[i0:i1, j0:j1] |= np.hypot(us[None, :] - u, vs[:, None] - v) <= reach
         return replace(self, occluder=self.occluder & ~mine)
 
 
@@ -257,6 +265,28 @@ def _not_napkin(lum: NDArray, chroma: NDArray, p: NapkinParams) -> NDArray[np.bo
     )
 
 
+#: Raised blocks beyond which :func:`_raised_cloth_pixels` first drops those too dark to
+#: hold any napkin-coloured pixel (a bound that never drops one that does).
+_MANY_BLOCKS = 64
+
+
+def _brightest_in_blocks(
+    color: NDArray[np.uint8], bi: NDArray[np.intp], bj: NDArray[np.intp], s: int
+) -> NDArray[np.uint8]:
+    """Largest channel value over the pixels of each block (rows ``bi``, columns ``bj``
+    of the ``s``-pixel sampling grid; the same window as the depth erosion), computed on
+    the part of the image the blocks span."""
+    import cv2
+
+    h, w = color.shape[:2]
+    y0, y1 = max(int(bi.min()) * s - s, 0), min(int(bi.max()) * s + s, h)
+    x0, x1 = max(int(bj.min()) * s - s, 0), min(int(bj.max()) * s + s, w)
+    crop = color[y0:y1, x0:x1]
+    top = cv2.max(cv2.max(crop[..., 0], crop[..., 1]), crop[..., 2])
+    top = cv2.dilate(top, np.ones((s, s), np.uint8))
+    return top[bi * s - y0, bj * s - x0]
+
+
 def _raised_cloth_pixels(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
@@ -284,6 +314,10 @@ def _raised_cloth_pixels(
     # a block's slope varies by well under a millimetre of height: 2 mm of slack
     block_top = _height_above_table(intrinsics, normal, offset_m, gj * s, gi * s, nearest)
     bi, bj = np.nonzero((nearest < 65535) & (block_top > p.raised_cloth_mm - 2.0))
+    if len(bi) > _MANY_BLOCKS:  # an arm or a gripper: drop the blocks with no bright pixel
+        bright = _brightest_in_blocks(color, bi, bj, s)
+        keep = srgb_lut()[bright] >= p.occluder_darkness * float(np.min(white))
+        bi, bj = bi[keep], bj[keep]
     if not len(bi):
         empty = np.zeros((0, 2), dtype=np.intp)
         return empty, np.zeros(0, dtype=np.float32)
