@@ -56,6 +56,7 @@ def test_json_has_the_designed_fields(tmp_path):
         "confidence",
         "runner_up",
         "stickers",
+        "candidates",
         "coordinates",
     }
     assert 0.0 <= data["confidence"] <= 1.0
@@ -227,3 +228,27 @@ def test_jpeg_colour_is_accepted(tmp_path):
     result = run([str(color), str(SAMPLES / "07_000_depth.png"), "--json"])
     assert result.exit_code == 0, result.output
     assert json.loads(result.output)["class"] == "07"
+
+
+def test_an_abstention_is_said_once_and_names_its_candidates(tmp_path):
+    """"Cannot tell" is an answer: one line on stdout, exit 1, nothing on stderr; its
+    JSON keeps the nearest classes and the kind of reason."""
+    from dgli_vision.sim.dataset import render_sample
+    from dgli_vision.sources.labelled import write_labelled_folder
+
+    # a gripper over a flat napkin (seed 9090, sample 0): the corner under it may be
+    # folded or not
+    sample = render_sample("01", 0, 9090, conditions=("gripper",))
+    labels = write_labelled_folder(tmp_path / "set", [sample], {"command": "test"})
+    color, depth = (str(labels.parent / f"{sample.name}_{k}.png") for k in ("color", "depth"))
+    intr = str(labels.parent / "intrinsics.json")
+    runner = CliRunner()
+    plain = runner.invoke(main, ["classify", color, depth, "--intrinsics", intr])
+    assert plain.exit_code == 1
+    assert plain.stdout.startswith("no class: cannot tell") and plain.stderr == ""
+    as_json = runner.invoke(main, ["classify", "--json", color, depth, "--intrinsics", intr])
+    data = json.loads(as_json.stdout)
+    assert as_json.exit_code == 1 and data["class"] is None
+    assert data["why"]["kind"] == "too close to call"
+    assert data["why"]["classes"] == [c["class"] for c in data["candidates"][:2]]
+    assert data["candidates"][0]["distance"] <= data["candidates"][1]["distance"]

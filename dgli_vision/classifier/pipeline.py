@@ -195,7 +195,9 @@ class FrameResult:
 
     ``prediction`` is None when too little was seen or the best match is not clear
     enough; ``reason`` then says why, and ``best_guess`` keeps what the nearest reference
-    was (for reports), if any.
+    was (for reports), if any. ``why`` names the kind of reason (:data:`WHY_KINDS`) and
+    ``candidates`` the nearest states of the three nearest classes, as (class, variant,
+    distance), nearest first (empty when too few stickers were seen to rank any).
     """
 
     detections: StickerDetections
@@ -206,6 +208,29 @@ class FrameResult:
     reason: str | None = None
     best_guess: Prediction | None = None
     timings_ms: dict[str, float] = field(default_factory=dict)
+    why: str | None = None
+    candidates: tuple[tuple[str, str | None, float], ...] = ()
+
+
+#: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is
+#: wrong (depth scale, lens), too few stickers to rank the states, the layout reads
+#: mirrored or the cloth covers more table than the state allows, or the nearest states
+#: are too close to call for the evidence seen.
+WHY_KINDS = ("geometry", "too few stickers", "mirror or footprint", "too close to call")
+
+
+def _candidates(
+    distances: NDArray[np.float64], references: ReferenceSet, k: int = 3
+) -> tuple[tuple[str, str | None, float], ...]:
+    """The nearest reference of each of the ``k`` nearest classes, nearest first."""
+    out: list[tuple[str, str | None, float]] = []
+    for i in np.argsort(distances, kind="stable"):
+        r = references.references[i]
+        if all(r.class_id != c for c, _, _ in out):
+            out.append((r.class_id, r.variant, round(float(distances[i]), 6)))
+            if len(out) == k:
+                break
+    return tuple(out)
 
 
 def observe(
@@ -334,7 +359,9 @@ def _judge(
         obs.ruler, lens_known=frame.intrinsics.distorted
     )
     if problem is not None:
-        return FrameResult(detections, markers, obs, coords, None, f"cannot tell: {problem}")
+        return FrameResult(
+            detections, markers, obs, coords, None, f"cannot tell: {problem}", why=WHY_KINDS[0]
+        )
     evidence = obs.classifier_evidence()
     try:
         front = reference_distances(coords, references, **evidence)
@@ -345,7 +372,8 @@ def _judge(
         depth_hint = depth_scale_hint(detections, frame.depth_mm)
         if depth_hint:
             reason += f"; {depth_hint}"
-        return FrameResult(detections, markers, obs, coords, None, reason)
+        return FrameResult(detections, markers, obs, coords, None, reason, why=WHY_KINDS[1])
+    near = _candidates(front, references)
     unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
     guess = classify_coordinates(
         coords, references, **evidence, distances=front, unsure=unsure
@@ -360,10 +388,13 @@ def _judge(
         # the nearest reference stays for reports, with no confidence in it
         doubted = replace(guess, confidence=0.0)
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted
+            detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted,
+            why=WHY_KINDS[2], candidates=near,
         )
     if guess.confidence >= min_confidence:
-        return FrameResult(detections, markers, obs, coords, guess, None, guess)
+        return FrameResult(
+            detections, markers, obs, coords, guess, None, guess, candidates=near
+        )
     ru = guess.runner_up
     why = [f"confidence {guess.confidence:.2f} < {min_confidence:.2f}"]
     if ru is not None:
@@ -379,4 +410,6 @@ def _judge(
         why.append(f"a flap held up at about {np.nanmedian(obs.flap_deg):.0f} degrees")
     why.append(f"{n} of {len(obs.visible)} stickers located")
     reason = "cannot tell: " + "; ".join(why)
-    return FrameResult(detections, markers, obs, coords, None, reason, guess)
+    return FrameResult(
+        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near
+    )

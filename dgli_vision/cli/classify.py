@@ -68,6 +68,15 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
         if evidence is not None
         else {},
     }
+    out["candidates"] = [
+        {"class": c, "variant": v, "distance": d} for c, v, d in result.candidates
+    ]
+    if p is None:
+        out["why"] = {
+            "kind": result.why,
+            "classes": [c for c, _, _ in result.candidates[:2]],
+            "stickers": out["stickers"],
+        }
     out["coordinates"] = [
         None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
     ]
@@ -146,7 +155,5 @@ def classify_cmd(
         click.echo(json.dumps(result_to_json(result, color, depth)))
     else:
         click.echo(verdict_line(result))
-    if result.prediction is None:
-        if not as_json:
-            click.echo(f"error: '{color}': {result.reason}", err=True)
+    if result.prediction is None:  # said once, on stdout: an answer, not an error
         sys.exit(1)
