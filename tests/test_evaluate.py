@@ -203,3 +203,28 @@ def test_the_tail_of_a_batch_is_taken_back_from_a_busy_worker():
     assert _take_back(pending) == 4
     assert _take_back(pending) is None  # only the running pair is left
     assert pending == {running: 3} and not running.cancelled()
+
+
+def test_cannot_tell_is_counted_as_an_answer_apart_from_unreadable_pairs(tmp_path):
+    """Right, "cannot tell", wrong and unreadable are four counts (text, JSON, report);
+    coverage and the accuracy of the answers given follow from them."""
+    from dgli_vision.sim.dataset import render_sample
+    from dgli_vision.sources.labelled import write_labelled_folder
+
+    clean = render_sample("02", 0, 9090)
+    held = render_sample("01", 0, 9090, conditions=("gripper",))  # a corner under it
+    labels = write_labelled_folder(tmp_path / "set", [clean, held], {"command": "test"})
+    (labels.parent / "bad_depth.png").write_bytes(b"not a png")
+    with labels.open("a", newline="") as f:
+        csv.writer(f).writerow([f"{clean.name}_color.png", "bad_depth.png", "02", "A"])
+    report = tmp_path / "report"
+    as_json = run([str(labels.parent), "--json", "-j", "1", "--lenient"])
+    data = json.loads(as_json.output)
+    assert data["outcomes"] == {"right": 1, "cannot_tell": 1, "wrong": 0, "unreadable": 1}
+    assert data["coverage"] == 0.5 and data["accuracy_answered"] == 1.0
+    text = run([str(labels.parent), "-j", "1", "--lenient", "--report", str(report)])
+    assert "right 1, cannot tell 1, wrong 0, unreadable 1" in text.output
+    md = (report / "report.md").read_text()
+    told = md.split("## Cannot tell")[1].split("## Not read")
+    assert held.name in told[0] and "bad_depth.png" not in told[0]
+    assert "bad_depth.png" in told[1]

@@ -320,6 +320,45 @@ class EvaluationResult:
         """Variant accuracy as a percentage, or ``n/a`` when no variant is known."""
         return "n/a" if self.variant_accuracy is None else f"{self.variant_accuracy:.2%}"
 
+    @property
+    def outcome_counts(self) -> dict[str, int]:
+        """Pairs answered right, answered "cannot tell", answered wrong, and not read.
+
+        "Cannot tell" is an answer, not a failure: a robot acts on it by looking again.
+        """
+        outs = self.outcomes
+        return {
+            "right": sum(o.error is None and o.correct for o in outs),
+            "cannot_tell": sum(o.error is None and o.predicted is None for o in outs),
+            "wrong": sum(o.predicted is not None and not o.correct for o in outs),
+            "unreadable": sum(o.error is not None for o in outs),
+        }
+
+    @property
+    def coverage(self) -> float | None:
+        """Share of the pairs read that got a class (None when none was read)."""
+        c = self.outcome_counts
+        read = c["right"] + c["cannot_tell"] + c["wrong"]
+        return round((c["right"] + c["wrong"]) / read, 4) if read else None
+
+    @property
+    def accuracy_answered(self) -> float | None:
+        """Class accuracy over the pairs that got a class (None when none did)."""
+        c = self.outcome_counts
+        answered = c["right"] + c["wrong"]
+        return round(c["right"] / answered, 4) if answered else None
+
+    def outcomes_text(self) -> str:
+        """``"right 40, cannot tell 7, wrong 1, unreadable 0; ..."`` for people."""
+        c = self.outcome_counts
+        cov = "n/a" if self.coverage is None else f"{self.coverage:.0%}"
+        acc = "n/a" if self.accuracy_answered is None else f"{self.accuracy_answered:.2%}"
+        return (
+            f"right {c['right']}, cannot tell {c['cannot_tell']}, wrong {c['wrong']}, "
+            f"unreadable {c['unreadable']}; answered {cov} of the pairs read, "
+            f"{acc} of the answers right"
+        )
+
     def to_dict(self) -> dict[str, Any]:
         """The JSON object (outcomes left out)."""
         return {
@@ -332,6 +371,9 @@ class EvaluationResult:
             "per_class": self.per_class,
             "failures": self.failures,
             "seconds": self.seconds,
+            "outcomes": self.outcome_counts,
+            "coverage": self.coverage,
+            "accuracy_answered": self.accuracy_answered,
         }
 
 

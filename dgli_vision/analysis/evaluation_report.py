@@ -224,6 +224,7 @@ def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _T
         "",
         f"- pairs: **{result.n}**, classified: **{result.classified}**, "
         f"failures: **{len(result.failures)}**",
+        f"- answers: {result.outcomes_text()}",
         f"- class accuracy: **{result.accuracy:.2%}**; "
         f"variant accuracy: **{result.variant_accuracy_text()}**",
         f"- time: {result.seconds:.1f} s with {meta.get('jobs', 1)} worker(s)",
@@ -276,11 +277,20 @@ def _markdown_misclassified(wrong: list[Any]) -> list[str]:
 
 
 def _markdown_failures(result: EvaluationResult) -> list[str]:
-    """The section listing the pairs not read or given no class."""
-    md = ["## Failures (not read, or no class given)", ""]
-    if not result.failures:
+    """The sections listing the pairs answered "cannot tell" (an answer, with its
+    reason) and the pairs that could not be read."""
+    told = [o for o in result.outcomes if o.error is None and o.predicted is None]
+    unread = [o for o in result.outcomes if o.error is not None]
+    md = ["## Cannot tell", ""]
+    if told:
+        rows = [[o.pair.color, _name(o.pair.label), o.reason or ""] for o in told]
+        md += [markdown_table(["colour image", "true", "why"], rows)]
+    else:
+        md += ["None.\n"]
+    md += ["## Not read", ""]
+    if not unread:
         return [*md, "None.\n"]
-    rows = [[f["color"], f["depth"], f["error"]] for f in result.failures]
+    rows = [[o.pair.color, o.pair.depth, o.error or ""] for o in unread]
     return [*md, markdown_table(["colour image", "depth image", "error"], rows)]
 
 

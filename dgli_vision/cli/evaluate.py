@@ -234,6 +234,7 @@ class _EvaluationRun:
             f"{result.n} pairs, {result.classified} classified, "
             f"{len(result.failures)} failed or unclassified"
         )
+        click.echo(result.outcomes_text())
         click.echo(
             f"class accuracy {result.accuracy:.2%}, "
             f"variant accuracy {result.variant_accuracy_text()}, "
