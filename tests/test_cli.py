@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -43,9 +44,19 @@ def test_bench_reports_figures_and_writes_markdown(tmp_path):
     result = run(
         ["bench", "--states", "300", "--repeats", "1", "--only", "dgli", "--markdown", str(out)]
     )
-    assert result.exit_code == 0, result.output
+    # exit 1 exactly when a budget is missed (a busy machine may miss one), 0 otherwise
+    assert result.exit_code == (1 if "MISSED" in result.output else 0), result.output
     assert "pairs/s" in result.output and "numpy per-pair loop" in result.output
     assert out.read_text().startswith("| benchmark |")
+
+
+def test_bench_finds_the_shipped_samples_from_any_folder(tmp_path, monkeypatch):
+    from dgli_vision.cli.bench import _samples_folder
+
+    monkeypatch.chdir(tmp_path)
+    found = Path(_samples_folder(None))
+    assert (found / "labels.csv").is_file() and found.name == "sample_images"
+    assert _samples_folder("mine") == "mine"
 
 
 @pytest.mark.slow
