@@ -344,6 +344,8 @@ def test_the_robustness_command_scores_a_condition(tmp_path):
     assert res.exit_code == 0, res.output
     data = json.loads(res.output)
     (row,) = data["rows"]
-    assert row["condition"] == "cast" and row["pairs"] == "12"
-    assert row["wrong"] == "0%" and data["wrong"] == {"cast": []}
+    assert row["condition"] == "cast" and row["pairs"] == 12
+    assert row["wrong"] == 0 and row["fractions"]["wrong"] == 0.0
+    assert row["right"] + row["cannot_tell"] + row["wrong"] == 12
+    assert data["wrong"] == {"cast": []}
     assert "| cast | 12 |" in out.read_text()

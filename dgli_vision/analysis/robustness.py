@@ -64,6 +64,23 @@ class ConditionScore:
     guesses: tuple[tuple[float, bool], ...] = ()
     subset: bool = False
 
+    def to_json(self) -> dict[str, object]:
+        """The JSON row: counts, and each as a fraction of the pairs (numbers, not text)."""
+        counts = {
+            "right": self.right,
+            "cannot_tell": self.abstained,
+            "wrong": self.wrong,
+            "class_variant_right": self.variant_right,
+        }
+        return {
+            "condition": self.condition,
+            "pairs": self.n,
+            **counts,
+            "fractions": {
+                k: (round(v / self.n, 4) if self.n else None) for k, v in counts.items()
+            },
+        }
+
     def to_row(self) -> list[str]:
         """Markdown row: condition, n, right, cannot tell, wrong, variant right."""
 

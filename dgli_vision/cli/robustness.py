@@ -76,7 +76,7 @@ def robustness(
         *reliability_table(scores)
     )
     if as_json:
-        click.echo(json.dumps(_robustness_json(seed, per_class, header, rows, scores)))
+        click.echo(json.dumps(_robustness_json(seed, per_class, scores)))
     else:
         _print_robustness(table, reliability, scores)
     if markdown:
@@ -107,16 +107,14 @@ def _scores(
     return scores
 
 
-def _robustness_json(
-    seed: int, per_class: int, header: list, rows: list, scores: list
-) -> dict[str, Any]:
+def _robustness_json(seed: int, per_class: int, scores: list) -> dict[str, Any]:
     """The JSON object of ``dgli robustness --json``."""
     from ..analysis.robustness import reliability_rows
 
     return {
         "seed": seed,
         "per_class": per_class,
-        "rows": [dict(zip(header, r)) for r in rows],
+        "rows": [s.to_json() for s in scores],
         "wrong": {s.condition: list(s.wrong_cases) for s in scores},
         "reliability": reliability_rows(scores),
     }
