@@ -252,3 +252,27 @@ def test_an_abstention_is_said_once_and_names_its_candidates(tmp_path):
     assert data["why"]["kind"] == "too close to call"
     assert data["why"]["classes"] == [c["class"] for c in data["candidates"][:2]]
     assert data["candidates"][0]["distance"] <= data["candidates"][1]["distance"]
+
+
+def test_the_overlay_of_a_cannot_tell_shows_the_object_and_the_missing_stickers(tmp_path):
+    """The overlay outlines the object over the napkin (red), circles where the unknown
+    stickers would be (orange) and wraps the whole reason inside the image."""
+    from dgli_vision.analysis.report import _wrapped
+    from dgli_vision.sim.dataset import render_sample
+    from dgli_vision.sources.labelled import write_labelled_folder
+
+    sample = render_sample("01", 0, 9090, conditions=("gripper",))
+    labels = write_labelled_folder(tmp_path / "set", [sample], {"command": "test"})
+    color, depth = (str(labels.parent / f"{sample.name}_{k}.png") for k in ("color", "depth"))
+    out = tmp_path / "overlay.png"
+    args = [color, depth, "--intrinsics", str(labels.parent / "intrinsics.json")]
+    result = run([*args, "--overlay", str(out)])
+    assert result.exit_code == 1 and out.is_file()
+    img = cv2.imread(str(out))
+    red = (img[..., 2] > 200) & (img[..., 1] < 40) & (img[..., 0] < 40)
+    green = img[..., 1].astype(int)
+    orange = (img[..., 2] > 200) & (np.abs(green - 140) < 30) & (img[..., 0] < 40)
+    assert red.sum() > 200 and orange.sum() > 20
+    lines = _wrapped(result.output.strip(), 1256, 0.8, 2)
+    assert len(lines) >= 2
+    assert all(cv2.getTextSize(t, cv2.FONT_HERSHEY_SIMPLEX, 0.8, 4)[0][0] <= 1256 for t in lines)

@@ -203,9 +203,16 @@ def _misclassified(result: EvaluationResult) -> list[Any]:
 
 
 def _overlays(wrong: list[Any], read_color: Any) -> dict[str, NDArray[np.uint8]]:
-    """The overlay image of every misclassified pair, by report file name."""
+    """The overlay image of every misclassified pair and of every pair answered "cannot
+    tell" (with its reason), by report file name."""
     files = {}
     for o in wrong:
+        if o.predicted is None:
+            files[f"overlays/{_stem(o.pair.color)}_overlay.png"] = overlay_image(
+                read_color(o.pair.color), np.array(o.centroids), o.reason or "no class",
+                detail=f"true {_name(o.pair.label)}",
+            )
+            continue
         stem = _stem(o.pair.color)
         verdict = f"predicted {_name(o.predicted)} ({o.distance:.3f}); true {_name(o.pair.label)}"
         files[f"overlays/{stem}_overlay.png"] = overlay_image(
@@ -283,8 +290,14 @@ def _markdown_failures(result: EvaluationResult) -> list[str]:
     unread = [o for o in result.outcomes if o.error is not None]
     md = ["## Cannot tell", ""]
     if told:
-        rows = [[o.pair.color, _name(o.pair.label), o.reason or ""] for o in told]
-        md += [markdown_table(["colour image", "true", "why"], rows)]
+        rows = [
+            [
+                o.pair.color, _name(o.pair.label), o.reason or "",
+                f"[overlay](overlays/{_stem(o.pair.color)}_overlay.png)",
+            ]
+            for o in told
+        ]
+        md += [markdown_table(["colour image", "true", "why", "overlay"], rows)]
     else:
         md += ["None.\n"]
     md += ["## Not read", ""]
@@ -350,7 +363,8 @@ def build_report(
     if heatmap.image is not None:
         files["distances.png"] = heatmap.image
     wrong = _misclassified(result)
-    files.update(_overlays(wrong, read_color))
+    told = [o for o in result.outcomes if o.error is None and o.predicted is None]
+    files.update(_overlays(wrong + told, read_color))
     md = [
         *_markdown_summary(result, meta, tables),
         *_markdown_misclassified(wrong),

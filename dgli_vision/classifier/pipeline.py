@@ -74,6 +74,9 @@ class ClothObservation:
         The napkin's measured scale and rigidity (distances of same-corner stickers,
         before any sticker is dropped); None with too few stickers located.
     footprint : Footprint, optional
+    objects : ndarray of bool, optional
+        Objects above the table (not napkin), on a grid of ``objects_stride`` pixels.
+    objects_stride : int
     points_m : ndarray, shape (16, 3), optional
         The located stickers in the camera frame, metres (NaN where missing).
     turns : ndarray, shape (4,), optional
@@ -93,6 +96,8 @@ class ClothObservation:
     footprint: Footprint | None = None
     turns: NDArray[np.float64] | None = None
     points_m: NDArray[np.float64] | None = None
+    objects: NDArray[np.bool_] | None = None
+    objects_stride: int = 8
 
     @property
     def spread_mm(self) -> NDArray[np.float64] | None:
@@ -298,7 +303,7 @@ def observe(
     clock.lap("footprint")
     return detections, markers, ClothObservation(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
-        turns, markers.points,
+        turns, markers.points, napkin.occluder, napkin.stride,
     )
 
 

@@ -83,6 +83,33 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
     return out
 
 
+def overlay_of(frame: Any, result: Any) -> Any:
+    """The overlay picture of a classified frame: the stickers found, where the missing
+    ones would be (hidden or unknown, and why), the objects over the napkin, the
+    verdict."""
+    import numpy as np
+
+    from ..analysis.report import OverlayEvidence, overlay_image
+    from ..perception.evidence import HIDDEN
+
+    obs = result.observation
+    ev = obs.evidence
+    evidence = None
+    if ev is not None:
+        evidence = OverlayEvidence(
+            ev.predicted_px,
+            np.asarray(ev.status) == HIDDEN,
+            tuple(r if u else None for r, u in zip(ev.reasons, ev.unknown)),
+            obs.objects,
+            obs.objects_stride,
+        )
+    detail = f"{int(obs.visible.sum())}/16 stickers found"
+    return overlay_image(
+        frame.color, result.detections.centroids, verdict_line(result), detail=detail,
+        evidence=evidence,
+    )
+
+
 def verdict_line(result: Any) -> str:
     """One readable line for a classified pair."""
     p = result.prediction
@@ -144,13 +171,10 @@ def classify_cmd(
     colours = read_colours(colours_path) if colours_path else None
     result = classify_frame(frame, refs, colours=colours)
     if overlay:
-        from ..analysis.report import overlay_image
-
-        detail = f"{int(result.observation.visible.sum())}/16 stickers"
-        image = overlay_image(
-            frame.color, result.detections.centroids, verdict_line(result), detail=detail
+        write_outputs(
+            {Path(overlay): overlay_of(frame, result)}, overwrite=overwrite,
+            command=command_line(),
         )
-        write_outputs({Path(overlay): image}, overwrite=overwrite, command=command_line())
     if as_json:
         click.echo(json.dumps(result_to_json(result, color, depth)))
     else:
