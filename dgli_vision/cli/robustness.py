@@ -16,7 +16,7 @@ from .options import (
     per_class_option,
     references_option,
 )
-from .output import command_line
+from .output import command_line, progress_bar
 
 
 @click.command()
@@ -91,19 +91,28 @@ def robustness(
 def _scores(
     names: tuple[str, ...], refs: Any, per_class: int, seed: int, jobs: int, *, quiet: bool
 ) -> list:
-    """The scores of the conditions ``names``, each told on stderr as it comes (unless
-    ``quiet``)."""
-    from ..analysis.robustness import score_condition
+    """The scores of the conditions ``names``: on a terminal a progress bar with the time
+    left, else each condition told on stderr as it comes (neither when ``quiet``)."""
+    import sys
 
+    from ..analysis.robustness import score_condition
+    from ..core.classes import CLASS_IDS
+
+    live = sys.stderr.isatty() and not quiet
+    total = len(names) * per_class * len(CLASS_IDS)
     scores = []
-    for name in names:
-        for score in score_condition(name, refs, per_class=per_class, seed=seed, jobs=jobs):
-            scores.append(score)
-            if not quiet:
-                click.echo(
-                    f"{score.condition}: {score.right}/{score.n} right, {score.wrong} wrong",
-                    err=True,
-                )
+    with progress_bar(total, "scoring the conditions", quiet=not live) as bar:
+        for name in names:
+            for score in score_condition(
+                name, refs, per_class=per_class, seed=seed, jobs=jobs, on_progress=bar.update
+            ):
+                scores.append(score)
+                if not quiet and not live:
+                    click.echo(
+                        f"{score.condition}: {score.right}/{score.n} right, "
+                        f"{score.wrong} wrong",
+                        err=True,
+                    )
     return scores
 
 
