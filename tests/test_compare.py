@@ -212,3 +212,26 @@ def test_mirror_images_are_derived_from_the_fold_definitions():
     )
     assert len({mirror_group(k) for k in state_keys()}) == 32
     assert mirror_group(("12", "B")) == "12/B"
+
+
+def test_curve_distances_for_a_whole_row_equal_those_pair_by_pair():
+    """The Frechet and Hausdorff baselines, computed a row at a time, are the pair-by-
+    pair definitions (to rounding)."""
+    from dgli_vision.analysis.baselines import (
+        align,
+        discrete_frechet,
+        hausdorff,
+        pairwise_curve_distances,
+    )
+
+    rng = np.random.default_rng(3)
+    curves = rng.normal(size=(7, 12, 3))
+    centred = curves - curves.mean(axis=1, keepdims=True)
+    for metric, fn in (("frechet", discrete_frechet), ("hausdorff", hausdorff)):
+        got = pairwise_curve_distances(curves, metric)
+        for a in range(7):
+            for b in range(a + 1, 7):
+                want = fn(align(centred[a], centred[b]), centred[b])
+                assert got[a, b] == pytest.approx(want, rel=1e-12, abs=1e-12)
+                assert got[b, a] == got[a, b]
+        assert np.all(np.diag(got) == 0)

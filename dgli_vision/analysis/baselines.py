@@ -92,8 +92,41 @@ def hausdorff(p: NDArray[np.float64], q: NDArray[np.float64]) -> float:
     return float(max(directed_hausdorff(p, q)[0], directed_hausdorff(q, p)[0]))
 
 
+def _align_many(curves: NDArray[np.float64], target: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`align` of each centred curve of ``curves`` (B, n, 3) onto centred ``target``
+    (n, 3), all at once."""
+    u, _, vt = np.linalg.svd(np.swapaxes(curves, 1, 2) @ target)
+    d = np.sign(np.linalg.det(u @ vt))
+    u = u.copy()
+    u[..., :, 2] *= d[:, None]  # u @ diag(1, 1, d)
+    return curves @ (u @ vt)
+
+
+def _frechet_many(dist: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`discrete_frechet` of a stack of point distance tables (B, n, k)."""
+    b, n, k = dist.shape
+    ca = np.full((b, n, k), np.inf)
+    ca[:, 0, 0] = dist[:, 0, 0]
+    ca[:, 0, 1:] = np.maximum.accumulate(
+        np.maximum(dist[:, 0, 1:], dist[:, 0, :1]), axis=1
+    )
+    ca[:, 1:, 0] = np.maximum.accumulate(
+        np.maximum(dist[:, 1:, 0], dist[:, :1, 0]), axis=1
+    )
+    for s in range(2, n + k - 1):
+        i = np.arange(max(1, s - k + 1), min(n - 1, s - 1) + 1)
+        j = s - i
+        best = np.minimum(np.minimum(ca[:, i - 1, j], ca[:, i, j - 1]), ca[:, i - 1, j - 1])
+        ca[:, i, j] = np.maximum(best, dist[:, i, j])
+    return ca[:, -1, -1]
+
+
 def pairwise_curve_distances(curves: NDArray[np.float64], metric: str) -> NDArray[np.float64]:
     """Distance matrix between boundary polylines (n, m, 3) after alignment.
+
+    Each row is computed for all its pairs at once (stacked rotations and distance
+    tables, in blocks), with the same arithmetic as :func:`align` and
+    :func:`discrete_frechet` / :func:`hausdorff` pair by pair.
 
     Parameters
     ----------
@@ -105,13 +138,22 @@ def pairwise_curve_distances(curves: NDArray[np.float64], metric: str) -> NDArra
     -------
     ndarray, shape (n, n)
     """
-    fn = {"frechet": discrete_frechet, "hausdorff": hausdorff}.get(metric)
-    if fn is None:
+    if metric not in ("frechet", "hausdorff"):
         raise ValueError(f"metric must be 'frechet' or 'hausdorff', got {metric!r}")
     n = len(curves)
     centred = curves - curves.mean(axis=1, keepdims=True)
     out = np.zeros((n, n))
+    block = 128
     for a in range(n):
-        for b in range(a + 1, n):
-            out[a, b] = out[b, a] = fn(align(centred[a], centred[b]), centred[b])
+        for b0 in range(a + 1, n, block):
+            others = centred[b0 : b0 + block]
+            moved = _align_many(np.broadcast_to(centred[a], others.shape).copy(), others)
+            # moved[t] is curve a rotated onto others[t]
+            dist = np.linalg.norm(moved[:, :, None, :] - others[:, None, :, :], axis=-1)
+            if metric == "frechet":
+                d = _frechet_many(dist)
+            else:
+                d = np.maximum(dist.min(axis=2).max(axis=1), dist.min(axis=1).max(axis=1))
+            out[a, b0 : b0 + len(others)] = d
+            out[b0 : b0 + len(others), a] = d
     return out
