@@ -45,10 +45,28 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     table = davies_bouldin_table(compare_datasets(records))
     table["column_notes"] = COMPARE_COLUMN_NOTES
     columns = ["representation", *table["columns"]]
-    rows = [[name, *vals] for name, vals in table["rows"].items()]
+    rows = [[name, *map(_index_text, vals)] for name, vals in table["rows"].items()]
+    # JSON: null where two groups are not separated (no finite index to give)
+    table["rows"] = {
+        name: [v if v < _NO_SEPARATION else None for v in vals]
+        for name, vals in table["rows"].items()
+    }
     _print_compare_table(table, columns, rows, as_json)
     if report_dir:
         _write_compare_report(Path(report_dir), table, columns, rows, records, overwrite)
+
+
+#: Above this a Davies-Bouldin index says two groups' centres coincide (the ratio's
+#: denominator is rounding noise): shown as such, not as a number.
+_NO_SEPARATION = 1e6
+
+
+def _index_text(value: float) -> str:
+    """A Davies-Bouldin index in one format: three significant digits, or "no
+    separation" where two groups' centres coincide."""
+    if not value < _NO_SEPARATION:  # inf and NaN too
+        return "no separation"
+    return f"{value:.3g}"
 
 
 def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_json: bool) -> None:
@@ -62,6 +80,29 @@ def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_js
         click.echo("Davies-Bouldin index (lower is better)")
         click.echo(markdown_table(columns, rows), nl=False)
         click.echo("columns: " + "; ".join(f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()))
+        click.echo(_NO_SEPARATION_NOTE)
+
+
+_NO_SEPARATION_NOTE = (
+    "no separation: two groups whose centres coincide under that representation (the "
+    "index divides by their distance: 0). The corners cannot tell a corner folded over "
+    "from the same corner folded under, nor the states of a sequence that move no corner."
+)
+
+#: What each heatmap's distance is.
+_DISTANCE_CAPTIONS = {
+    "dgli": "Spearman distance between the states' 28 dGLI coordinates alone. The "
+    "classifier adds which stickers are visible and more (see dgli+visibility): with "
+    "the dGLI alone a corner folded over and under look alike.",
+    "dgli+visibility": "Spearman distance of the dGLI plus the mean disagreement of "
+    "which stickers are visible from above.",
+    "edges": "Spearman distance between the 28 minimal distances of segment pairs.",
+    "corners": "Spearman distance between the 6 distances of the four corners.",
+    "frechet": "Discrete Frechet distance between the boundary polylines, after "
+    "centring and the best rotation, metres.",
+    "hausdorff": "Hausdorff distance between the boundary polylines, after centring and "
+    "the best rotation, metres.",
+}
 
 
 def _write_compare_report(
@@ -74,13 +115,21 @@ def _write_compare_report(
     from ..core.io import csv_table, write_outputs
 
     notes = "\n".join(f"- **{k}**: {v}" for k, v in COMPARE_COLUMN_NOTES.items())
+    pictures = "\n".join(
+        f"### {name}\n\n{_DISTANCE_CAPTIONS.get(name, '')}\n\n"
+        f"![{name} distances](distances_{name}.png)\n"
+        for name in table["rows"]
+    )
     files: dict[Any, Any] = {
         out / "table.json": table,
         out / "table.md": "# Davies-Bouldin index (lower is better)\n\n"
         + markdown_table(columns, rows)
-        + "\n## What each column groups\n\n"
+        + "\n"
+        + _NO_SEPARATION_NOTE
+        + "\n\n## What each column groups\n\n"
         + notes
-        + "\n",
+        + "\n\n## Distances between the database's states, by class\n\n"
+        + pictures,
         out / "table.csv": csv_table(columns, rows),
     }
     for name, mat in distance_matrices(records).items():
