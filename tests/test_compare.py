@@ -114,6 +114,11 @@ def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
     assert json.loads(result.output.splitlines()[0]) == table
     md = (report / "table.md").read_text()
     assert "| dgli |" in md
+    # strict JSON (no Infinity): a number, or null where two groups are not separated
+    assert "Infinity" not in (report / "table.json").read_text()
+    assert all(v is None or v >= 0 for vals in table["rows"].values() for v in vals)
+    for name in table["rows"]:  # every heatmap shown, with what its distance is
+        assert f"(distances_{name}.png)" in md
     img = cv2.imread(str(report / "distances_dgli.png"))
     assert img is not None and img.shape[0] > 300
     assert img.std() > 20  # a real picture, not a blank
