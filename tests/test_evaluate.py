@@ -228,3 +228,42 @@ def test_cannot_tell_is_counted_as_an_answer_apart_from_unreadable_pairs(tmp_pat
     told = md.split("## Cannot tell")[1].split("## Not read")
     assert held.name in told[0] and "bad_depth.png" not in told[0]
     assert "bad_depth.png" in told[1]
+
+
+def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
+    """report.html: well-formed, the outcome counts, and every image it shows (the
+    confusion, the overlays of the wrong and "cannot tell" pairs) is in the folder."""
+    from html.parser import HTMLParser
+
+    from dgli_vision.sim.dataset import render_sample
+    from dgli_vision.sources.labelled import write_labelled_folder
+
+    samples = [render_sample("02", 0, 9090), render_sample("01", 0, 9090, conditions=("gripper",))]
+    labels = write_labelled_folder(tmp_path / "set", samples, {"command": "test"})
+    report = tmp_path / "report"
+    assert run([str(labels.parent), "-j", "1", "--report", str(report)]).exit_code == 0
+    page = (report / "report.html").read_text()
+
+    class Page(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.images: list[str] = []
+            self.open: list[str] = []
+
+        def handle_starttag(self, tag, attrs):
+            if tag == "img":
+                self.images.append(dict(attrs)["src"])
+            elif tag not in {"meta", "br", "line", "rect", "polyline", "text"}:
+                self.open.append(tag)
+
+        def handle_endtag(self, tag):
+            if tag in {"line", "rect", "polyline", "text"}:
+                return
+            assert self.open and self.open.pop() == tag, tag
+
+    parser = Page()
+    parser.feed(page)
+    assert parser.open == []  # every element closed, in order
+    assert "confusion.png" in parser.images and len(parser.images) == 2
+    assert all((report / src).is_file() for src in parser.images)
+    assert "right 1, cannot tell 1, wrong 0, unreadable 0" in page

@@ -18,6 +18,7 @@ from ..core.classes import CLASS_NAMES
 from ..core.distance import average_ranks
 from ..core.io import csv_table
 from .evaluate import EvaluationResult, coordinate_matrix
+from .html_report import evaluation_html
 from .report import confusion_image, heatmap_image, markdown_table, overlay_image
 
 __all__ = [
@@ -32,6 +33,7 @@ __all__ = [
 #: misclassified pairs, named after them).
 REPORT_FILES = (
     "report.md",
+    "report.html",
     "summary.json",
     "confusion.csv",
     "per_class.csv",
@@ -373,4 +375,7 @@ def build_report(
         *_markdown_distances(heatmap),
     ]
     files["report.md"] = "\n".join(md)
+    files["report.html"] = evaluation_html(
+        result, meta, lambda o: f"overlays/{_stem(o.pair.color)}_overlay.png", _name
+    )
     return files
