@@ -8,72 +8,20 @@ way. Three stickers of one corner in the image tell which, with neither depth no
 cloth coordinate: the dGLI coordinates need both stickers of two segments, so a corner
 half covered by a gripper still says whether it lies folded over.
 
-The same turn computed from a simulated state seen from above gives each reference's
-rate of showing the back face at each corner (``Reference.back_rate``).
+The turn itself is napkin geometry (:mod:`dgli_vision.core.handedness`): computed from a
+simulated state seen from above, it gives each reference's rate of showing the back face
+at each corner (``Reference.back_rate``).
 """
 
 from __future__ import annotations
 
-from itertools import combinations
-
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.layout import CORNER_STICKERS, NapkinLayout
+from ..core.handedness import back_face_up, corner_turns
+from ..core.layout import NapkinLayout
 
-__all__ = ["MIN_SHAPE", "back_face_up", "corner_turns", "image_turns"]
-
-#: Smallest twice-signed area of a corner's sticker triangle, as a share of the squared
-#: longest side, that counts: below it the triangle is seen nearly edge on (a flap near
-#: vertical) and its turn is left to noise.
-MIN_SHAPE = 0.08
-
-
-def _turns(points: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Twice the signed area of triangles (..., 3, 2) over their squared longest side
-    (x right, y up: counter-clockwise positive); 0 for a degenerate triangle."""
-    a, b, c = points[..., 0, :], points[..., 1, :], points[..., 2, :]
-    cross = (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (
-        c[..., 0] - a[..., 0]
-    )
-    sides = np.stack([((p - q) ** 2).sum(axis=-1) for p, q in ((a, b), (b, c), (c, a))])
-    longest = sides.max(axis=0)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        return np.where(longest > 0, cross / longest, 0.0)
-
-
-def _triangles(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
-    """Sticker ids of every triangle of three stickers around one corner, shape
-    (4, 4, 3), and the printed turn of each, shape (4, 4)."""
-    ids = np.array([list(combinations(c, 3)) for c in CORNER_STICKERS])
-    return ids, _turns(np.asarray(layout.sticker_uv, dtype=float)[ids])
-
-
-def corner_turns(points_xy: NDArray[np.float64], layout: NapkinLayout) -> NDArray[np.float64]:
-    """Which way round each corner's stickers run, seen from the viewer's side.
-
-    Parameters
-    ----------
-    points_xy : ndarray, shape (..., 16, 2)
-        Sticker positions in a plane seen by the viewer with x right and y up (NaN where
-        not located): pixels with y negated, or a state's x, y seen from above.
-    layout : NapkinLayout
-        The printed positions (front face towards the viewer).
-
-    Returns
-    -------
-    ndarray, shape (..., 4)
-        Per corner A-D: +1 when its stickers run as printed (front face towards the
-        viewer), -1 the other way round (back face, or a mirror), 0 when fewer than three
-        of its stickers are located, the triangles are seen edge on, or they disagree
-        evenly.
-    """
-    ids, printed = _triangles(layout)
-    pts = np.asarray(points_xy, dtype=float)[..., ids, :]  # (..., 4, 4, 3, 2)
-    turn = _turns(pts)
-    counts = np.isfinite(turn) & (np.abs(turn) >= MIN_SHAPE) & (np.abs(printed) >= MIN_SHAPE)
-    votes = np.where(counts, np.sign(np.nan_to_num(turn)) * np.sign(printed), 0.0).sum(axis=-1)
-    return np.sign(votes)
+__all__ = ["back_face_up", "corner_turns", "image_turns"]
 
 
 def image_turns(centroids_px: NDArray[np.float64], layout: NapkinLayout) -> NDArray[np.float64]:
@@ -91,10 +39,3 @@ def image_turns(centroids_px: NDArray[np.float64], layout: NapkinLayout) -> NDAr
         +1 front face towards the camera, -1 back face (or a mirrored image), 0 not told.
     """
     return corner_turns(np.asarray(centroids_px, dtype=float) * np.array([1.0, -1.0]), layout)
-
-
-def back_face_up(turns: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Turns as the share of a corner's stickers showing the back face: 1 for -1, 0 for
-    +1, NaN where not told (0)."""
-    t = np.asarray(turns, dtype=float)
-    return np.where(t == 0, np.nan, (t < 0).astype(float))

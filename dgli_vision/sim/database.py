@@ -14,8 +14,8 @@ from numpy.typing import NDArray
 from ..core.classes import LIFTED_MM
 from ..core.dgli import cloth_coordinates
 from ..core.fold_graph import fold_edges
+from ..core.handedness import back_face_up, corner_turns
 from ..core.layout import default_layout, sticker_spreads_mm
-from ..perception.handedness import back_face_up, corner_turns
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 
 __all__ = [
