@@ -264,7 +264,7 @@ def reference_distances(
     if back is not None:
         dist = dist + FACE_WEIGHT * _face_gap(back, references.back_rates())
     if spread_mm is not None:
-        dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_ranges())
+        dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_bounds())
     return dist
 
 
@@ -278,16 +278,23 @@ def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.flo
     return np.abs(x[None, told] - rates[:, told]).mean(axis=1)
 
 
-def _spread_gap(spread_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+def _spread_gap(
+    spread_mm: ArrayLike,
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]],
+) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the observed sticker-pair distances with each
-    reference's ranges (``ranges`` shape (k, 120, 2)); 0 where none is known."""
+    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`); 0 where none is
+    known, or where some reference keeps no range of a pair told."""
+    lo, hi, kept = bounds
     d = np.asarray(spread_mm, dtype=np.float64)
-    told = np.isfinite(d)
-    if not told.any() or not np.isfinite(ranges[:, told]).all():
-        return np.zeros(len(ranges))
-    r = ranges[:, told]
-    outside = np.maximum(r[..., 0] - d[None, told], d[None, told] - r[..., 1])
-    return np.clip((outside - SPREAD_SLACK_MM) / SPREAD_SCALE_MM, 0.0, 1.0).mean(axis=1)
+    idx = np.flatnonzero(np.isfinite(d))
+    if not len(idx) or not kept[idx].all():
+        return np.zeros(len(lo))
+    x = d[idx]
+    outside = np.maximum(lo.take(idx, axis=1) - x, x - hi.take(idx, axis=1))
+    outside -= SPREAD_SLACK_MM
+    outside /= SPREAD_SCALE_MM
+    return np.clip(outside, 0.0, 1.0, out=outside).mean(axis=1)
 
 
 def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:

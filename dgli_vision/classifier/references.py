@@ -170,6 +170,21 @@ class ReferenceSet:
         """Shortest and longest distance of each sticker pair, mm, shape (k, 120, 2)."""
         return self._stacked("spread_range_mm")
 
+    def spread_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """The sticker-pair ranges split for the classifier's per-frame use: lows and
+        highs, shape (k, 120) each (contiguous), and which pairs every reference keeps a
+        range of, shape (120,); built once."""
+        if "spread_lo" not in self._stacks:
+            r = self.spread_ranges()
+            for name, a in (
+                ("spread_lo", np.ascontiguousarray(r[..., 0])),
+                ("spread_hi", np.ascontiguousarray(r[..., 1])),
+                ("spread_kept", np.isfinite(r).all(axis=(0, 2))),
+            ):
+                a.flags.writeable = False
+                self._stacks[name] = a
+        return self._stacks["spread_lo"], self._stacks["spread_hi"], self._stacks["spread_kept"]
+
     def back_rates(self) -> NDArray[np.float64]:
         """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""
         return self._stacked("back_rate")
