@@ -86,12 +86,34 @@ class Footprint:
         return self.low_mm2 / napkin_area_mm2, self.high_mm2 / napkin_area_mm2
 
 
+def _table_area_mm2(
+    intrinsics: Intrinsics, cells: NDArray[np.bool_], cell: int, up: NDArray, offset_m: float
+) -> float:
+    """Area on the table plane (mm^2) of the image ``cells`` (a mask on the grid of
+    ``cell``-pixel cells).
+
+    A pixel's ray ``d = ((u - cx) / fx, (v - cy) / fy, 1)`` meets the plane
+    ``up . x = offset`` at ``offset d / (up . d)``, and the area that maps to an image
+    area ``dA`` there is ``offset^2 dA / (fx fy |up . d|^3)`` (the Jacobian of the
+    central projection onto a plane): evaluated at each cell's centre, only for the
+    cells asked. Through a lens's distortion, each cell's corners are traced instead.
+    """
+    if intrinsics.distorted:
+        return float(_cell_areas_mm2(intrinsics, cells.shape, cell, up, offset_m)[cells].sum())
+    yy, xx = np.nonzero(cells)
+    dx = (xx * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
+    dy = (yy * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
+    cos = np.abs(up[0] * dx + up[1] * dy + up[2])
+    scale = offset_m**2 * cell * cell / (intrinsics.fx * intrinsics.fy) * 1e6
+    return float(scale * np.sum(cos**-3.0))
+
+
 def _cell_areas_mm2(
     intrinsics: Intrinsics, shape: tuple[int, int], cell: int, up: NDArray, offset_m: float
 ) -> NDArray[np.float64]:
-    """Area on the table plane (mm^2) of every image cell, shape ``shape``: the corners
-    of each cell's rays meet the plane ``up . x = offset`` at ``offset d / (up . d)``
-    (through the lens's distortion, when the intrinsics carry it)."""
+    """Area on the table plane (mm^2) of every image cell, shape ``shape``, from the
+    points where the rays through each cell's corners meet the plane (through the
+    lens's distortion, when the intrinsics carry it)."""
     h, w = shape
     ys, xs = np.mgrid[0 : h + 1, 0 : w + 1] * cell - 0.5
     if intrinsics.distorted:  # the rays of the pixels as the lens bent them
@@ -264,8 +286,7 @@ def measure_footprint(
     cloth = cloth_cells(color, napkin, sticker_px, p, q, regions=regions)
     if cloth is None:
         return None
-    area = _cell_areas_mm2(intrinsics, (h, w), c, up, offset_m)
-    low = float(area[cloth].sum())
+    low = _table_area_mm2(intrinsics, cloth, c, up, offset_m)
     if low > p.max_fraction * napkin_area_mm2:
         return None
     high = low
@@ -276,5 +297,6 @@ def measure_footprint(
         over = occ.astype(bool) & ~cloth
         _, olab, _, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), 8)
         touching = np.unique(olab[near & over])
-        high += float(area[np.isin(olab, touching[touching > 0])].sum())
+        hidden = np.isin(olab, touching[touching > 0])
+        high += _table_area_mm2(intrinsics, hidden, c, up, offset_m)
     return Footprint(low, min(high, napkin_area_mm2 * p.max_fraction))
