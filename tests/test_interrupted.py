@@ -166,3 +166,24 @@ def test_interrupted_track_keeps_its_frames_and_resumes(recording, tmp_path, sig
     assert lines(results) == FRAMES  # the frames done before were not classified again
     whole = json.loads((report / "timeline.json").read_text())
     assert whole["n_frames"] == FRAMES and "interrupted" not in whole
+
+
+def test_a_stop_signal_never_cuts_a_kept_result_in_two():
+    # The journal line and the count of a result are kept together: a Ctrl-C (or
+    # SIGTERM) that comes between them interrupts only once both are done.
+    import os
+
+    from dgli_vision.cli.runs import stop_signals
+
+    for sig, code in ((signal.SIGINT, 130), (signal.SIGTERM, 143)):
+        kept = []
+        with stop_signals() as stop:
+            with pytest.raises(KeyboardInterrupt):
+                with stop.holding():
+                    kept.append("journal")
+                    os.kill(os.getpid(), sig)
+                    for _ in range(1000):  # the handler runs at the next bytecodes
+                        pass
+                    kept.append("count")
+        assert kept == ["journal", "count"]
+        assert stop.stopped and stop.exit_code == code

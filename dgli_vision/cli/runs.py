@@ -37,19 +37,50 @@ STOP_EXIT_CODES = {2: 130, 15: 143}  # SIGINT, SIGTERM
 
 
 class Stop:
-    """Whether a stop signal came, and which (Ctrl-C unless SIGTERM came)."""
+    """Whether a stop signal came, and which (Ctrl-C unless SIGTERM came).
+
+    Inside :meth:`holding`, a stop waits for the block to end: what the block keeps (a
+    result written to the journal and counted) is kept whole or not at all.
+    """
 
     stopped = False
     signum = 2
+    _holding = False
+    _pending = False
 
     @property
     def exit_code(self) -> int:
         return STOP_EXIT_CODES.get(self.signum, 128 + self.signum)
 
+    def on_signal(self, signum: int, frame: Any) -> None:
+        """Signal handler: note the stop, and interrupt the work unless it is held."""
+        self.signum, self.stopped = signum, True
+        if self._holding:
+            self._pending = True
+            return
+        raise KeyboardInterrupt
+
+    def holding(self):
+        """A block that a stop signal does not cut in two (it interrupts after it)."""
+        from contextlib import contextmanager
+
+        @contextmanager
+        def context():
+            self._holding = True
+            try:
+                yield
+            finally:
+                self._holding = False
+            if self._pending:
+                self._pending = False
+                raise KeyboardInterrupt
+
+        return context()
+
 
 def stop_signals():
-    """A context in which SIGTERM stops the work as Ctrl-C does (a KeyboardInterrupt),
-    yielding a :class:`Stop` that says which of the two came."""
+    """A context in which Ctrl-C and SIGTERM stop the work (a KeyboardInterrupt, never
+    inside :meth:`Stop.holding`), yielding a :class:`Stop` that says which came."""
     import signal
     import threading
     from contextlib import contextmanager
@@ -57,19 +88,15 @@ def stop_signals():
     @contextmanager
     def context():
         stop = Stop()
-
-        def on_term(signum: int, frame: Any) -> None:
-            stop.signum, stop.stopped = signum, True
-            raise KeyboardInterrupt
-
         if threading.current_thread() is not threading.main_thread():
             yield stop
             return
-        before = signal.signal(signal.SIGTERM, on_term)
+        before = {s: signal.signal(s, stop.on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
         try:
             yield stop
         finally:
-            signal.signal(signal.SIGTERM, before)
+            for s, handler in before.items():
+                signal.signal(s, handler)
 
     return context()
 
@@ -150,9 +177,10 @@ def classify_into(
             for outcome in evaluate_pairs(
                 todo, run.refs, jobs=run.jobs, on_progress=bar.update, **options
             ):
-                if writer:  # flushed at once: an interrupted run keeps its work
-                    writer.write(outcome_to_dict(outcome))
-                done[pair_key(outcome.pair)] = outcome
+                with stop.holding():  # in the journal and counted, or neither
+                    if writer:  # flushed at once: an interrupted run keeps its work
+                        writer.write(outcome_to_dict(outcome))
+                    done[pair_key(outcome.pair)] = outcome
     except KeyboardInterrupt:
         stop.stopped = True
     except BrokenProcessPool:  # a stop sent to the whole group ended the workers
