@@ -99,6 +99,23 @@ def test_the_ruler_reads_a_true_napkin_as_true_to_size_and_a_scaled_one_as_scale
 # --- the footprint ---------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("class_id", ["02", "11"])
+def test_the_mirrored_reading_is_the_distance_of_the_mirror_image(class_id):
+    # Derived from the front reading's terms, the mirrored distances must be those of the
+    # observation negated, with every corner's stickers turned round, computed afresh.
+    from dgli_vision.classifier.classify import reference_distances, reference_terms
+    from dgli_vision.core.dgli import cloth_coordinates
+
+    _, _, obs = observe(frame(small(class_id)), LAYOUT)
+    coords = cloth_coordinates(obs.segments, obs.up)
+    evidence = obs.classifier_evidence()
+    assert evidence["back"] is not None and np.isfinite(evidence["back"]).any()
+    flipped = dict(evidence, back=1.0 - np.asarray(evidence["back"], dtype=float))
+    fresh = reference_distances(-coords, REFS, **flipped)
+    derived = reference_terms(coords, REFS, **evidence).mirrored().total()
+    np.testing.assert_allclose(derived, fresh, atol=1e-12)
+
+
 @pytest.mark.parametrize(("class_id", "fraction"), [("01", 1.0), ("11", 0.5), ("08", 0.55)])
 def test_the_simulated_footprint_is_the_table_area_the_cloth_covers(class_id, fraction):
     state = sample_state(class_id, None if class_id in ("01", "08") else "AB", 3)

@@ -227,6 +227,53 @@ def reference_distances(
     DetectionError
         With fewer than :data:`MIN_COORDINATES` known coordinates.
     """
+    return reference_terms(
+        coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm
+    ).total()
+
+
+@dataclass(frozen=True)
+class DistanceTerms:
+    """The parts of an observation's distance to every reference, shape (k,) each: the
+    Spearman distance of the dGLI coordinates, the sum of the weighted evidence terms but
+    the corners' faces, and the faces' mean disagreement (unweighted; zeros without
+    ``back``). :meth:`mirrored` gives the terms of the same observation seen in a mirror
+    without computing anything again."""
+
+    dgli: NDArray[np.float64]
+    evidence: NDArray[np.float64]
+    face: NDArray[np.float64]
+    back: NDArray[np.float64] | None
+    back_rates: NDArray[np.float64] | None
+
+    def total(self) -> NDArray[np.float64]:
+        """The distance to every reference, shape (k,)."""
+        return self.dgli + self.evidence + FACE_WEIGHT * self.face
+
+    def mirrored(self) -> DistanceTerms:
+        """The terms of the mirror image: every dGLI coordinate changes sign, so each
+        Spearman correlation does (``d -> 2 - d``), and every corner's stickers turn round
+        (``back -> 1 - back``); nothing else changes."""
+        face, back = self.face, self.back
+        if back is not None and self.back_rates is not None:
+            back = 1.0 - back
+            face = _face_gap(back, self.back_rates)
+        dgli = np.clip(2.0 - self.dgli, 0.0, 2.0)
+        return DistanceTerms(dgli, self.evidence, face, back, self.back_rates)
+
+
+def reference_terms(
+    coords: ArrayLike,
+    references: ReferenceSet,
+    visible: ArrayLike | None = None,
+    unknown: ArrayLike | None = None,
+    lifted: ArrayLike | None = None,
+    heights_mm: ArrayLike | None = None,
+    past: ArrayLike | None = None,
+    back: ArrayLike | None = None,
+    spread_mm: ArrayLike | None = None,
+) -> DistanceTerms:
+    """:func:`reference_distances` in its parts (same arguments, same errors)."""
     x = np.asarray(coords, dtype=np.float64)
     ref = references.matrix()
     if x.shape != (ref.shape[1],):
@@ -246,7 +293,8 @@ def reference_distances(
             f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
             f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
-    dist = pairwise_spearman(x[known][None, :], ref[:, known])[0]
+    dgli = pairwise_spearman(x[known][None, :], ref[:, known])[0]
+    dist = np.zeros_like(dgli)
     if visible is not None:
         rates = references.visible_rates()
         use = np.ones(len(vis), dtype=bool)
@@ -261,11 +309,14 @@ def reference_distances(
         dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_ranges())
     if past is not None:
         dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
+    face, back_x = np.zeros_like(dgli), None
     if back is not None:
-        dist = dist + FACE_WEIGHT * _face_gap(back, references.back_rates())
+        back_x = np.asarray(back, dtype=np.float64)
+        face = _face_gap(back_x, references.back_rates())
     if spread_mm is not None:
         dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_bounds())
-    return dist
+    rates = references.back_rates() if back is not None else None
+    return DistanceTerms(dgli, dist, face, back_x, rates)
 
 
 def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:

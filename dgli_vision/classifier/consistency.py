@@ -32,7 +32,7 @@ from ..core.layout import NapkinLayout
 from ..perception.detect import StickerDetections
 from ..perception.footprint import Footprint
 from ..perception.scale import NapkinRuler
-from .classify import reference_distances
+from .classify import DistanceTerms, reference_terms
 from .references import ReferenceSet
 
 __all__ = [
@@ -234,6 +234,7 @@ def mirror_problem(
     napkin_area_mm2: float,
     *,
     front: NDArray[np.float64] | None = None,
+    terms: DistanceTerms | None = None,
 ) -> str | None:
     """The reason the observation may be a mirrored napkin, or None when it is not.
 
@@ -252,18 +253,20 @@ def mirror_problem(
     napkin_area_mm2 : float
     front : ndarray, shape (k,), keyword-only, optional
         The front-up reading's distances to the references, when already computed.
+    terms : DistanceTerms, keyword-only, optional
+        The front-up reading's :func:`~dgli_vision.classifier.classify.reference_terms`,
+        when already computed: the mirrored reading is derived from them.
 
     Returns
     -------
     str or None
         Starts with what was seen; the caller prefixes ``"cannot tell: "``.
     """
+    if terms is None:
+        terms = reference_terms(coords, references, **evidence)
     if front is None:
-        front = reference_distances(coords, references, **evidence)
-    flipped = dict(evidence)
-    if flipped.get("back") is not None:  # a mirror turns every corner's stickers round
-        flipped["back"] = 1.0 - np.asarray(flipped["back"], dtype=float)
-    mirrored = reference_distances(-np.asarray(coords), references, **flipped)
+        front = terms.total()
+    mirrored = terms.mirrored().total()  # a mirror turns every corner's stickers round too
     pen = footprint_penalty(footprint, references, napkin_area_mm2)
     i, j = int(np.argmin(front)), int(np.argmin(mirrored))
     # The footprint speaks for a reading when it fits that reading's best reference and

@@ -34,7 +34,7 @@ from .classify import (
     MIN_CONFIDENCE,
     Prediction,
     classify_coordinates,
-    reference_distances,
+    reference_terms,
 )
 from .consistency import (
     depth_scale_hint,
@@ -369,7 +369,7 @@ def _judge(
         )
     evidence = obs.classifier_evidence()
     try:
-        front = reference_distances(coords, references, **evidence)
+        terms = reference_terms(coords, references, **evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         if unknown:
@@ -378,6 +378,7 @@ def _judge(
         if depth_hint:
             reason += f"; {depth_hint}"
         return FrameResult(detections, markers, obs, coords, None, reason, why=WHY_KINDS[1])
+    front = terms.total()
     near = _candidates(front, references)
     unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
     guess = classify_coordinates(
@@ -386,7 +387,7 @@ def _judge(
     clock.lap("classify")
     area = layout.width_mm * layout.height_mm
     doubt = mirror_problem(
-        coords, references, evidence, obs.footprint, area, front=front
+        coords, references, evidence, obs.footprint, area, front=front, terms=terms
     ) or footprint_problem(obs.footprint, references, front, area)
     clock.lap("checks")
     if doubt is not None:
