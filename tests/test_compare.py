@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from html_pages import check_page
 
 from dgli_vision.analysis.baselines import (
     align,
@@ -127,10 +128,20 @@ def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
 def test_sequence_command_reports_changes(tmp_path):
     result = run(["sequence", "III", "--json", "--report", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    data = json.loads(result.output)
+    data = json.loads(result.stdout)
     assert data["true_changes"] == [7]
     assert data["frame_accuracy"] > 0.5
-    assert (tmp_path / "sequence_III.png").exists()
+    # the report is what `dgli track --report` writes: the same files, the same timeline
+    from dgli_vision.analysis.track_report import TRACK_REPORT_FILES
+
+    assert all((tmp_path / name).is_file() for name in TRACK_REPORT_FILES)
+    timeline = json.loads((tmp_path / "timeline.json").read_text())
+    assert [c["frame"] for c in timeline["changes"]] == data["detected_changes"]
+    assert [f["smoothed_class"] for f in timeline["frames"]] == data["smoothed"]
+    assert [f["label"] for f in timeline["frames"]] == data["truth"]
+    assert timeline["outcomes"]["right"] == round(data["frame_accuracy"] * data["frames"])
+    images, _ = check_page(tmp_path / "report.html")
+    assert {"timeline.png", "distances.png"} <= set(images)
 
 
 def test_references_build_from_database(small_db, tmp_path):

@@ -21,6 +21,7 @@ __all__ = [
     "analyse_sequence",
     "davies_bouldin_table",
     "distance_matrices",
+    "sequence_outcomes",
 ]
 
 
@@ -113,6 +114,8 @@ class SequenceAnalysis:
         The classes after smoothing over time (:mod:`dgli_vision.analysis.track`).
     true_changes, detected_changes : tuple of int
         Frames where the true / smoothed class differs from the previous frame's.
+    reference_distances : ndarray, shape (n, K), optional
+        Each frame's distance to every reference (what the smoothing weighs).
     """
 
     distances: NDArray[np.float64]
@@ -121,6 +124,7 @@ class SequenceAnalysis:
     smoothed: tuple[str, ...]
     true_changes: tuple[int, ...]
     detected_changes: tuple[int, ...]
+    reference_distances: NDArray[np.float64] | None = None
 
     @property
     def frame_accuracy(self) -> float:
@@ -178,7 +182,40 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
         smoothed=smoothed,
         true_changes=tuple(change_frames(records.classes)),
         detected_changes=tuple(change_frames(smoothed)),
+        reference_distances=dist,
     )
+
+
+def sequence_outcomes(
+    name: str, records: StateRecords, analysis: SequenceAnalysis, references: ReferenceSet
+) -> list:
+    """The frames of a sequence as a recording's per-frame outcomes (named
+    ``{name}_000``, ..., labelled with their true state, answered with their nearest
+    reference, with their coordinates and distances): what
+    :func:`~dgli_vision.analysis.track.track_outcomes` smooths into the timeline that
+    ``dgli track`` reports."""
+    from ..sources.labelled import LabelledPair
+    from .evaluate import PairOutcome
+
+    dist = analysis.reference_distances
+    if dist is None:
+        raise ValueError("the analysis keeps no distances to the references")
+    outs = []
+    for k in range(len(records)):
+        best = int(np.argmin(dist[k]))
+        ref = references.references[best]
+        pair = LabelledPair(f"{name}_{k:03d}", "", records.classes[k], records.variants[k])
+        outs.append(
+            PairOutcome(
+                pair,
+                ref.class_id,
+                ref.variant,
+                float(dist[k, best]),
+                coordinates=tuple(float(v) for v in records.coordinates[k]),
+                distances=tuple(float(v) for v in dist[k]),
+            )
+        )
+    return outs
 
 
 def sequence_records(name: str) -> StateRecords:

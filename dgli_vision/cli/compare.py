@@ -165,12 +165,12 @@ def sequence(
     from pathlib import Path
 
     from ..analysis.compare import analyse_sequence, sequence_records
-    from ..analysis.report import heatmap_image
+    from ..analysis.track_report import TRACK_REPORT_FILES
     from ..classifier.references import load_references
-    from ..core.io import guard_outputs, write_outputs
+    from ..core.io import guard_outputs
 
     if report_dir:  # fail before the work, not after it
-        guard_outputs([Path(report_dir) / f"sequence_{name}.json"], overwrite=overwrite)
+        guard_outputs([Path(report_dir) / f for f in TRACK_REPORT_FILES], overwrite=overwrite)
     refs = load_references(references_path)
     records = sequence_records(name)
     result = analyse_sequence(records, refs)
@@ -180,18 +180,32 @@ def sequence(
     else:
         _print_sequence(summary, result)
     if report_dir:
-        out = Path(report_dir)
-        img = heatmap_image(
-            result.distances,
-            title=f"sequence {name}: Spearman distance of dGLI",
-            groups=result.truth,
-            value_label="1 - rho",
-        )
-        write_outputs(
-            {out / f"sequence_{name}.json": summary, out / f"sequence_{name}.png": img},
-            overwrite=overwrite,
-            command=command_line(),
-        )
+        _write_sequence_report(report_dir, name, records, result, refs, summary, overwrite)
+
+
+def _write_sequence_report(
+    report_dir: str, name: str, records: Any, result: Any, refs: Any, summary: dict,
+    overwrite: bool,
+) -> None:
+    """The report ``dgli track --report`` writes, of the sequence's frames."""
+    from ..analysis.compare import sequence_outcomes
+    from ..analysis.evaluate import json_ready
+    from ..analysis.track import timeline_to_dict, track_outcomes
+    from ..analysis.track_report import timeline_outcome_fields
+    from .track import write_timeline_report
+
+    outcomes = sequence_outcomes(name, records, result, refs)
+    timeline = track_outcomes(outcomes, refs, labelled=True)
+    data = {
+        "sequence": summary,
+        "n_frames": len(outcomes),
+        **json_ready(timeline_to_dict(timeline)),
+        **timeline_outcome_fields(outcomes, True),
+    }
+    write_timeline_report(
+        report_dir, timeline, outcomes, data, title=f"sequence {name}", labelled=True,
+        overwrite=overwrite,
+    )
 
 
 def _sequence_summary(name: str, n_frames: int, result: Any) -> dict[str, Any]:
