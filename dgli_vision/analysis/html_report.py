@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "cannot_tell_text",
     "evaluation_html",
     "html_gallery",
     "html_image",
@@ -35,6 +36,13 @@ _STYLE = (
     "td,th{border:1px solid #ccc;padding:3px 8px;text-align:left}"
     "img.wide{max-width:100%}p.note{font-size:13px;color:#555}"
 )
+
+
+def cannot_tell_text(reason: str | None) -> str:
+    """``"cannot tell: <why>"``, without saying "cannot tell" twice when the reason
+    already starts with it."""
+    text = reason or "no reason given"
+    return text if text.startswith("cannot tell") else f"cannot tell: {text}"
 
 
 def html_page(title: str, body: Sequence[str]) -> str:

@@ -16,7 +16,11 @@ from numpy.typing import NDArray
 __all__ = [
     "OverlayEvidence",
     "confusion_image",
-    "heatmap_image", "markdown_table", "overlay_image"]
+    "heatmap_image",
+    "markdown_table",
+    "overlay_evidence",
+    "overlay_image",
+]
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
@@ -181,6 +185,31 @@ class OverlayEvidence:
     reasons: tuple[str | None, ...]
     objects: NDArray[np.bool_] | None = None
     stride: int = 8
+
+
+def overlay_evidence(result: object) -> OverlayEvidence | None:
+    """What an overlay shows of a classified frame's missing stickers and objects: each
+    missing sticker hidden (by cloth) or unknown (with its reason), the objects over the
+    napkin (None when the frame kept no sticker evidence).
+
+    Parameters
+    ----------
+    result : FrameResult
+        :func:`~dgli_vision.classifier.pipeline.classify_frame`'s result.
+    """
+    from ..perception.evidence import HIDDEN
+
+    obs = result.observation  # type: ignore[attr-defined]
+    ev = obs.evidence
+    if ev is None:
+        return None
+    return OverlayEvidence(
+        ev.predicted_px,
+        np.asarray(ev.status) == HIDDEN,
+        tuple(r if u else None for r, u in zip(ev.reasons, ev.unknown)),
+        obs.objects,
+        obs.objects_stride,
+    )
 
 
 def _wrapped(text: str, width_px: int, scale: float, weight: int) -> list[str]:

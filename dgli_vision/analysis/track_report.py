@@ -20,7 +20,14 @@ from ..core.classes import CLASS_IDS, CLASS_NAMES
 from ..core.io import csv_table
 from .evaluate import coordinate_matrix, outcome_counts, outcome_fields, outcomes_text
 from .evaluation_report import heatmap_sample, overlay_name, pair_overlays, sample_distance_matrix
-from .html_report import html_gallery, html_image, html_list, html_page, outcomes_html
+from .html_report import (
+    cannot_tell_text,
+    html_gallery,
+    html_image,
+    html_list,
+    html_page,
+    outcomes_html,
+)
 from .report import heatmap_image, markdown_table, timeline_image
 from .track import TIMELINE_COLUMNS, Timeline, timeline_rows
 
@@ -112,7 +119,7 @@ def _summary_lines(data: dict[str, Any], timeline: Timeline, labelled: bool) -> 
 def _caption(o: Any, index: int) -> str:
     truth = f"true {_name(o.pair.label)}; " if o.pair.label else ""
     if o.predicted is None:
-        return f"frame {index} ({o.pair.color}): {truth}cannot tell: {o.reason}"
+        return f"frame {index} ({o.pair.color}): {truth}{cannot_tell_text(o.reason)}"
     return f"frame {index} ({o.pair.color}): {truth}answered {_name(o.predicted)}"
 
 

@@ -29,6 +29,8 @@ def command_line() -> str:
             )
         ):
             flag = max(param.opts, key=len)
+            if isinstance(value, (tuple, list)):  # a parsed list (--conditions a,b)
+                value = ",".join(map(str, value))
             words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
     return " ".join(words)
 
