@@ -344,8 +344,9 @@ def _markdown_distances(heatmap: _Heatmap) -> list[str]:
     return [
         "## Distances between evaluated samples",
         "",
-        f"Spearman distance of the dGLI coordinates between {heatmap.note}, "
-        "ordered by true class.",
+        f"Spearman distance of the dGLI coordinates alone between {heatmap.note}, "
+        "ordered by true class (not the classifier's distance, which also weighs the "
+        "stickers seen, their height and the napkin's footprint).",
         "",
         "![distance matrix](distances.png)",
         "",
@@ -391,5 +392,12 @@ def build_report(
         *_markdown_distances(heatmap),
     ]
     files["report.md"] = "\n".join(md)
-    files["report.html"] = evaluation_html(result, meta, overlay_name, _name)
+    note = None
+    if heatmap.image is not None:
+        note = (
+            f"Spearman distance (1 - rho) of the dGLI coordinates alone between "
+            f"{heatmap.note}, ordered by true class; not the classifier's distance, which "
+            "also weighs the stickers seen, their height and the napkin's footprint."
+        )
+    files["report.html"] = evaluation_html(result, meta, overlay_name, _name, note)
     return files

@@ -159,7 +159,11 @@ def _curve_svg(points: list[tuple[float, float, float]]) -> str:
 
 
 def evaluation_html(
-    result: Any, meta: dict[str, Any], overlay_of: Callable[[Any], str], name: Callable
+    result: Any,
+    meta: dict[str, Any],
+    overlay_of: Callable[[Any], str],
+    name: Callable,
+    distances_note: str | None = None,
 ) -> str:
     """The HTML page of an evaluation report.
 
@@ -172,6 +176,8 @@ def evaluation_html(
         ``overlay_of(outcome)`` -> the overlay's path relative to the report folder.
     name : callable
         ``name(class_id)`` -> ``"02 corner-over"``.
+    distances_note : str, optional
+        What ``distances.png`` shows (None: there is none).
     """
     outs = result.outcomes
     wrong = [o for o in outs if o.predicted is not None and not o.correct]
@@ -212,5 +218,10 @@ def evaluation_html(
             f"<h2>Not read ({len(unread)})</h2>",
             html_list([f"{o.pair.color}: {o.error or ''}" for o in unread]) if unread
             else "<p>None.</p>",
+            *(
+                ["<h2>Distances between the evaluated samples</h2>",
+                 html_image("distances.png", "distance matrix", distances_note)]
+                if distances_note else []
+            ),
         ],
     )
