@@ -44,3 +44,15 @@ def test_renders_on_two_workers_are_those_of_one():
 def test_ordered_map_refuses_no_workers():
     with pytest.raises(ValueError, match="at least 1"):
         list(ordered_map(abs, [1], jobs=0))
+
+
+def test_robustness_on_two_workers_scores_as_one():
+    from dgli_vision.analysis.robustness import score_condition
+    from dgli_vision.classifier.references import load_references
+
+    refs = load_references()
+    kw = {"per_class": 1, "seed": 77, "classes": ("02", "09")}
+    one = score_condition("vga", refs, jobs=1, **kw)
+    two = score_condition("vga", refs, jobs=2, **kw)
+    assert one == two and one[0].n == 2
+    assert [s.guesses for s in one] == [s.guesses for s in two]

@@ -246,6 +246,7 @@ def score_condition(
     jobs: int = 1,
     on_progress: Callable[[int], None] | None = None,
     overlays: bool = False,
+    classes: tuple[str, ...] = CLASS_IDS,
 ) -> list[ConditionScore]:
     """Render ``per_class`` pairs of every class under ``condition`` and classify them.
 
@@ -264,6 +265,8 @@ def score_condition(
     overlays : bool, keyword-only
         Keep the pairs answered wrong or "cannot tell" with their overlays
         (``ConditionScore.shown``).
+    classes : tuple of str, keyword-only
+        The classes rendered (default all twelve).
 
     Returns
     -------
@@ -271,7 +274,7 @@ def score_condition(
         One; for ``"combo"`` also the pairs whose three conditions include the gripper
         and those whose do not.
     """
-    tasks = [(condition, seed, k, c) for c in CLASS_IDS for k in range(per_class)]
+    tasks = [(condition, seed, k, c) for c in classes for k in range(per_class)]
     if jobs > 1:
         import multiprocessing
 
