@@ -10,7 +10,7 @@ import click
 from ..sim.condition_names import CONDITION_HELP
 from .errors import handle_errors
 from .options import (
-    jobs_option,
+    make_jobs_option,
     overwrite_option,
     parse_conditions,
     per_class_option,
@@ -66,7 +66,7 @@ from .runs import Stop, folder_lock, stop_signals
     "pairs and render the rest (refused when the set differs).",
 )
 @size_option
-@jobs_option
+@make_jobs_option
 @overwrite_option
 @handle_errors
 def render_cmd(
@@ -81,7 +81,7 @@ def render_cmd(
     gripper: bool,
     resume: bool,
     size_mm: tuple[float, float] | None,
-    jobs: int | None,
+    jobs: int,
     overwrite: bool,
 ) -> None:
     """Render a labelled RGB-D folder of simulated states to OUT (the labelled-folder
@@ -94,7 +94,6 @@ def render_cmd(
     """
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
-    import os
 
     from ..core.io import guard_outputs
     from ..core.layout import layout_of_size
@@ -120,7 +119,7 @@ def render_cmd(
     with folder_lock(out):
         _render_set(
             out, names, cases, provenance, options, resume=resume, overwrite=overwrite,
-            jobs=jobs or os.cpu_count() or 1,
+            jobs=jobs,
         )
 
 

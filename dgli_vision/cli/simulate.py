@@ -7,7 +7,7 @@ from typing import Any
 import click
 
 from .errors import handle_errors
-from .options import jobs_option, overwrite_option, per_class_option, size_option
+from .options import make_jobs_option, overwrite_option, per_class_option, size_option
 from .output import command_line, napkin_provenance, package_version, progress
 
 #: The most cloth ``dgli simulate`` holds, counted in states of the nominal 400 mm napkin
@@ -46,7 +46,7 @@ def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> Non
     help="States with a fold in progress, per fold and angle bin (0: none; at most 20).",
 )
 @size_option
-@jobs_option
+@make_jobs_option
 @overwrite_option
 @handle_errors
 def simulate(
@@ -56,7 +56,7 @@ def simulate(
     no_wrinkles: bool,
     in_progress: int,
     size_mm: tuple[float, float] | None,
-    jobs: int | None,
+    jobs: int,
     overwrite: bool,
 ) -> None:
     """Write a simulated database of cloth states to OUT (meshes, truth, index).
@@ -66,7 +66,6 @@ def simulate(
     degrees), labelled by the 90-degree rule; `dgli compare` leaves them out. -j spreads
     the classes over processes (the same database as one).
     """
-    import os
 
     from ..core.layout import layout_of_size
     from ..core.parallel import ordered_map
@@ -81,7 +80,7 @@ def simulate(
         tasks.append((in_progress, seed, None, kw))  # the folds in progress, last
     states = []
     with progress(tasks, "simulating") as bar:
-        for part, _ in zip(ordered_map(_simulate_part, tasks, jobs=jobs or os.cpu_count() or 1),
+        for part, _ in zip(ordered_map(_simulate_part, tasks, jobs=jobs),
                            bar):
             states += part
     provenance = {
