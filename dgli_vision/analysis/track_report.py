@@ -31,7 +31,11 @@ from .html_report import (
 from .report import heatmap_image, markdown_table, timeline_image
 from .track import TIMELINE_COLUMNS, Timeline, timeline_rows
 
-__all__ = ["TRACK_REPORT_FILES", "timeline_outcome_fields", "track_report"]
+__all__ = ["GALLERY_MAX", "TRACK_REPORT_FILES", "timeline_outcome_fields", "track_report"]
+
+#: Most frames of each kind (wrong, "cannot tell") drawn as overlays, evenly spread in
+#: time: a long recording's report stays a bounded size (the others are listed).
+GALLERY_MAX = 48
 
 #: The files of every timeline report (besides the overlays and a track's results.jsonl).
 TRACK_REPORT_FILES = (
@@ -168,7 +172,10 @@ def _html(
         body.append(html_gallery(section, shown))
         rest = [_caption(o, k) for k, o in items if overlay_name(o) not in overlays]
         if rest:
-            body.append("<p>Without an overlay (image not readable again):</p>" + html_list(rest))
+            body.append(
+                f"<p>Without an overlay (beyond the {GALLERY_MAX} drawn, evenly spread in "
+                "time, or an image that cannot be read again):</p>" + html_list(rest)
+            )
     if heat:
         body += ["<h2>Distances between the frames</h2>", html_image("distances.png",
                                                                      "distances", heat)]
@@ -221,7 +228,9 @@ def track_report(
     files["timeline.json"] = data
     wrong, told = _not_right(outcomes, labelled)
     index = {id(o): k for k, o in enumerate(outcomes)}
-    overlays = pair_overlays(wrong + told, read_color) if read_color else {}
+    drawn = [group[k] for group in (wrong, told)
+             for k in heatmap_sample(["frames"] * len(group), GALLERY_MAX)]
+    overlays = pair_overlays(drawn, read_color) if read_color else {}
     files.update(overlays)
     galleries = {
         "Wrong": [(index[id(o)], o) for o in wrong],
