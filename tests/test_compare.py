@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from html_pages import check_page
 
 from dgli_vision.analysis.baselines import (
     align,
@@ -91,7 +92,7 @@ def test_simulate_is_deterministic(small_db, tmp_path):
 
 def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
     report = tmp_path / "report"
-    result = run(["compare", str(small_db), "--report", str(report), "--json"])
+    result = run(["compare", str(small_db), "--report", str(report), "--json", "-j", "1"])
     assert result.exit_code == 0, result.output
     table = json.loads((report / "table.json").read_text())
     assert table["columns"] == [
@@ -122,15 +123,47 @@ def test_compare_writes_table_and_heatmaps(small_db, tmp_path):
     img = cv2.imread(str(report / "distances_dgli.png"))
     assert img is not None and img.shape[0] > 300
     assert img.std() > 20  # a real picture, not a blank
+    # the paper's values beside ours, none invented: its dGLI on the database and III
+    assert table["paper"]["columns"] == ["paper: database", "paper: III"]
+    assert table["paper"]["rows"]["dgli"] == [0.73, 0.21]
+    assert table["paper"]["rows"]["dgli+visibility"] == [None, None]
+    assert "| dgli |" in md and "| 0.73 | 0.21 |" in md
+    images, text = check_page(report / "report.html")
+    assert images == [f"distances_{name}.png" for name in table["rows"]]
+    assert "not the classifier's distance" in text and "paper: database" in text
+
+
+def test_compare_distances_on_two_workers_are_those_of_one():
+    from dgli_vision.analysis.compare import dataset_matrices, sequence_records
+
+    datasets = {"II": sequence_records("II"), "III": sequence_records("III")}
+    names = ("dgli", "frechet")
+    one = dataset_matrices(datasets, names, jobs=1)
+    ticks = []
+    two = dataset_matrices(datasets, names, jobs=2, on_progress=ticks.append)
+    assert len(ticks) == 4
+    for column in datasets:
+        for name in names:
+            np.testing.assert_array_equal(one[column][name], two[column][name])
 
 
 def test_sequence_command_reports_changes(tmp_path):
     result = run(["sequence", "III", "--json", "--report", str(tmp_path)])
     assert result.exit_code == 0, result.output
-    data = json.loads(result.output)
+    data = json.loads(result.stdout)
     assert data["true_changes"] == [7]
     assert data["frame_accuracy"] > 0.5
-    assert (tmp_path / "sequence_III.png").exists()
+    # the report is what `dgli track --report` writes: the same files, the same timeline
+    from dgli_vision.analysis.track_report import TRACK_REPORT_FILES
+
+    assert all((tmp_path / name).is_file() for name in TRACK_REPORT_FILES)
+    timeline = json.loads((tmp_path / "timeline.json").read_text())
+    assert [c["frame"] for c in timeline["changes"]] == data["detected_changes"]
+    assert [f["smoothed_class"] for f in timeline["frames"]] == data["smoothed"]
+    assert [f["label"] for f in timeline["frames"]] == data["truth"]
+    assert timeline["outcomes"]["right"] == round(data["frame_accuracy"] * data["frames"])
+    images, _ = check_page(tmp_path / "report.html")
+    assert {"timeline.png", "distances.png"} <= set(images)
 
 
 def test_references_build_from_database(small_db, tmp_path):

@@ -264,6 +264,6 @@ def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
     parser = Page()
     parser.feed(page)
     assert parser.open == []  # every element closed, in order
-    assert "confusion.png" in parser.images and len(parser.images) == 2
+    assert "confusion.png" in parser.images and len(parser.images) == 3
     assert all((report / src).is_file() for src in parser.images)
     assert "right 1, cannot tell 1, wrong 0, unreadable 0" in page

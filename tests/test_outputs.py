@@ -37,7 +37,7 @@ def user_folder(tmp_path: Path) -> Path:
         "colours.json",  # calibrate -o
         "report.md",  # evaluate --report
         "table.json",  # compare --report
-        "sequence_I.json",  # sequence --report
+        "timeline.json",  # sequence --report (what track --report writes)
         "overlay.png",  # classify --overlay
         "bench.md",  # bench --markdown
         "robustness.md",  # robustness --markdown
@@ -66,7 +66,7 @@ def test_no_writing_command_replaces_a_users_file(user_folder, database):
         (main, ["calibrate", color, depth, "-o", f + "/colours.json"], "colours.json"),
         (main, ["evaluate", str(SAMPLES), "--report", f, "-j", "1"], "report.md"),
         (main, ["compare", str(database), "--report", f], "table.json"),
-        (main, ["sequence", "I", "--report", f], "sequence_I.json"),
+        (main, ["sequence", "I", "--report", f], "timeline.json"),
         (classify_cmd, [color, depth, "--overlay", f + "/overlay.png"], "overlay.png"),
         (main, ["bench", "--only", "dgli", "--markdown", f + "/bench.md"], "bench.md"),
         (

@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from html_pages import check_page
 
 from dgli_vision.analysis.compare import analyse_sequence
 from dgli_vision.analysis.track import (
@@ -170,14 +171,24 @@ def test_track_smooths_a_folding_recording_into_the_true_timeline(half_fold, tmp
     report = tmp_path / "report"
     r = CliRunner().invoke(main, ["track", str(half_fold), "-j", "1", "--report", str(report)])
     assert r.exit_code == 0, r.output
-    assert "-> 11 half-fold AB" in r.output
+    assert "-> 11 half-fold AB" in r.output and "frames' own answers: right " in r.output
     data = json.loads((report / "timeline.json").read_text())
     score = data["score"]
     assert score["smoothed_accuracy"] >= 0.85  # one fold, 17 frames 11 degrees apart
     assert score["recall"] == 1.0 and score["precision"] == 1.0
     assert [c["to"]["class"] for c in data["changes"]] == ["11"]
-    for name in ("timeline.csv", "timeline.png", "distances.png"):
+    for name in ("timeline.csv", "timeline.png", "distances.png", "report.md"):
         assert (report / name).stat().st_size > 0
+    # the three outcomes of the frames' own answers, in the JSON and the pages
+    counts = data["outcomes"]
+    assert sum(counts.values()) == 17 and counts["unreadable"] == 0
+    assert data["coverage"] == round((counts["right"] + counts["wrong"]) / 17, 4)
+    images, text = check_page(report / "report.html")
+    assert {"timeline.png", "distances.png"} <= set(images)
+    told = [f for f in data["frames"] if f["raw_class"] is None]
+    assert len([i for i in images if i.startswith("overlays/")]) == len(told) + counts["wrong"]
+    assert f"Cannot tell ({len(told)})" in text and "11 half-fold" in text
+    assert f"cannot tell {counts['cannot_tell']}" in (report / "report.md").read_text()
 
 
 def test_a_frame_that_cannot_be_read_is_a_gap_and_the_run_goes_on(half_fold, tmp_path):

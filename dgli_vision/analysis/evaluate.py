@@ -25,11 +25,16 @@ from ..sources.labelled import LabelledPair
 __all__ = [
     "EvaluationResult",
     "PairOutcome",
+    "accuracy_answered",
     "coordinate_matrix",
+    "coverage",
     "evaluate_pairs",
     "json_ready",
+    "outcome_counts",
+    "outcome_fields",
     "outcome_from_dict",
     "outcome_to_dict",
+    "outcomes_text",
     "summarise",
     "timed_evaluation",
 ]
@@ -322,42 +327,23 @@ class EvaluationResult:
 
     @property
     def outcome_counts(self) -> dict[str, int]:
-        """Pairs answered right, answered "cannot tell", answered wrong, and not read.
-
-        "Cannot tell" is an answer, not a failure: a robot acts on it by looking again.
-        """
-        outs = self.outcomes
-        return {
-            "right": sum(o.error is None and o.correct for o in outs),
-            "cannot_tell": sum(o.error is None and o.predicted is None for o in outs),
-            "wrong": sum(o.predicted is not None and not o.correct for o in outs),
-            "unreadable": sum(o.error is not None for o in outs),
-        }
+        """Pairs answered right, answered "cannot tell", answered wrong, and not read
+        (:func:`outcome_counts`)."""
+        return outcome_counts(self.outcomes)
 
     @property
     def coverage(self) -> float | None:
         """Share of the pairs read that got a class (None when none was read)."""
-        c = self.outcome_counts
-        read = c["right"] + c["cannot_tell"] + c["wrong"]
-        return round((c["right"] + c["wrong"]) / read, 4) if read else None
+        return coverage(self.outcome_counts)
 
     @property
     def accuracy_answered(self) -> float | None:
         """Class accuracy over the pairs that got a class (None when none did)."""
-        c = self.outcome_counts
-        answered = c["right"] + c["wrong"]
-        return round(c["right"] / answered, 4) if answered else None
+        return accuracy_answered(self.outcome_counts)
 
     def outcomes_text(self) -> str:
         """``"right 40, cannot tell 7, wrong 1, unreadable 0; ..."`` for people."""
-        c = self.outcome_counts
-        cov = "n/a" if self.coverage is None else f"{self.coverage:.0%}"
-        acc = "n/a" if self.accuracy_answered is None else f"{self.accuracy_answered:.2%}"
-        return (
-            f"right {c['right']}, cannot tell {c['cannot_tell']}, wrong {c['wrong']}, "
-            f"unreadable {c['unreadable']}; answered {cov} of the pairs read, "
-            f"{acc} of the answers right"
-        )
+        return outcomes_text(self.outcome_counts)
 
     def to_dict(self) -> dict[str, Any]:
         """The JSON object (outcomes left out)."""
@@ -371,10 +357,60 @@ class EvaluationResult:
             "per_class": self.per_class,
             "failures": self.failures,
             "seconds": self.seconds,
-            "outcomes": self.outcome_counts,
-            "coverage": self.coverage,
-            "accuracy_answered": self.accuracy_answered,
+            **outcome_fields(self.outcome_counts),
         }
+
+
+def outcome_counts(outcomes: Iterable[PairOutcome]) -> dict[str, int]:
+    """Pairs answered right, answered "cannot tell", answered wrong, and not read.
+
+    "Cannot tell" is an answer, not a failure: a robot acts on it by looking again.
+    The pairs' labels are the truth (every pair must have one).
+    """
+    outs = list(outcomes)
+    return {
+        "right": sum(o.error is None and o.correct for o in outs),
+        "cannot_tell": sum(o.error is None and o.predicted is None for o in outs),
+        "wrong": sum(o.predicted is not None and not o.correct for o in outs),
+        "unreadable": sum(o.error is not None for o in outs),
+    }
+
+
+def coverage(counts: dict[str, int]) -> float | None:
+    """Share of the pairs read that got a class, of :func:`outcome_counts` (None when
+    none was read), to four decimals."""
+    read = counts["right"] + counts["cannot_tell"] + counts["wrong"]
+    return round((counts["right"] + counts["wrong"]) / read, 4) if read else None
+
+
+def accuracy_answered(counts: dict[str, int]) -> float | None:
+    """Class accuracy over the pairs that got a class, of :func:`outcome_counts` (None
+    when none did), to four decimals."""
+    answered = counts["right"] + counts["wrong"]
+    return round(counts["right"] / answered, 4) if answered else None
+
+
+def outcome_fields(counts: dict[str, int]) -> dict[str, Any]:
+    """The JSON fields of the three outcomes: ``"outcomes"`` (right, cannot_tell, wrong,
+    unreadable), ``"coverage"`` and ``"accuracy_answered"``."""
+    return {
+        "outcomes": dict(counts),
+        "coverage": coverage(counts),
+        "accuracy_answered": accuracy_answered(counts),
+    }
+
+
+def outcomes_text(counts: dict[str, int]) -> str:
+    """``"right 40, cannot tell 7, wrong 1, unreadable 0; answered 98% of the pairs
+    read, 97.92% of the answers right"`` for people."""
+    cov, acc = coverage(counts), accuracy_answered(counts)
+    cov_text = "n/a" if cov is None else f"{cov:.0%}"
+    acc_text = "n/a" if acc is None else f"{acc:.2%}"
+    return (
+        f"right {counts['right']}, cannot tell {counts['cannot_tell']}, wrong "
+        f"{counts['wrong']}, unreadable {counts.get('unreadable', 0)}; answered {cov_text} "
+        f"of the pairs read, {acc_text} of the answers right"
+    )
 
 
 NO_CLASS = "none"

@@ -26,6 +26,8 @@ __all__ = [
     "REPORT_FILES",
     "build_report",
     "heatmap_sample",
+    "overlay_name",
+    "pair_overlays",
     "sample_distance_matrix",
 ]
 
@@ -204,21 +206,35 @@ def _misclassified(result: EvaluationResult) -> list[Any]:
     return [o for o in result.outcomes if o.predicted is not None and not o.correct]
 
 
-def _overlays(wrong: list[Any], read_color: Any) -> dict[str, NDArray[np.uint8]]:
-    """The overlay image of every misclassified pair and of every pair answered "cannot
-    tell" (with its reason), by report file name."""
+def overlay_name(outcome: Any) -> str:
+    """The report file name of a pair's overlay: ``overlays/<stem>_overlay.png``."""
+    return f"overlays/{_stem(outcome.pair.color)}_overlay.png"
+
+
+def pair_overlays(outcomes: list[Any], read_color: Any) -> dict[str, NDArray[np.uint8]]:
+    """The overlay image of every pair given (a wrong class: the verdict and the
+    runner-up; "cannot tell": the reason), by report file name (:func:`overlay_name`).
+
+    A pair whose colour image cannot be read again (a frame of a bag, a file gone since)
+    gets none.
+    """
+    from ..core.errors import DgliError
+
     files = {}
-    for o in wrong:
+    for o in outcomes:
+        try:
+            color = read_color(o.pair.color)
+        except (DgliError, OSError):
+            continue
         if o.predicted is None:
-            files[f"overlays/{_stem(o.pair.color)}_overlay.png"] = overlay_image(
-                read_color(o.pair.color), np.array(o.centroids), o.reason or "no class",
-                detail=f"true {_name(o.pair.label)}",
+            files[overlay_name(o)] = overlay_image(
+                color, np.array(o.centroids), o.reason or "no class",
+                detail=f"true {_name(o.pair.label)}" if o.pair.label else "",
             )
             continue
-        stem = _stem(o.pair.color)
         verdict = f"predicted {_name(o.predicted)} ({o.distance:.3f}); true {_name(o.pair.label)}"
-        files[f"overlays/{stem}_overlay.png"] = overlay_image(
-            read_color(o.pair.color),
+        files[overlay_name(o)] = overlay_image(
+            color,
             np.array(o.centroids),
             verdict,
             detail=f"runner-up {_name(o.runner_up)} ({o.runner_up_distance or float('nan'):.3f})",
@@ -328,8 +344,9 @@ def _markdown_distances(heatmap: _Heatmap) -> list[str]:
     return [
         "## Distances between evaluated samples",
         "",
-        f"Spearman distance of the dGLI coordinates between {heatmap.note}, "
-        "ordered by true class.",
+        f"Spearman distance of the dGLI coordinates alone between {heatmap.note}, "
+        "ordered by true class (not the classifier's distance, which also weighs the "
+        "stickers seen, their height and the napkin's footprint).",
         "",
         "![distance matrix](distances.png)",
         "",
@@ -366,7 +383,7 @@ def build_report(
         files["distances.png"] = heatmap.image
     wrong = _misclassified(result)
     told = [o for o in result.outcomes if o.error is None and o.predicted is None]
-    files.update(_overlays(wrong + told, read_color))
+    files.update(pair_overlays(wrong + told, read_color))
     md = [
         *_markdown_summary(result, meta, tables),
         *_markdown_misclassified(wrong),
@@ -375,7 +392,12 @@ def build_report(
         *_markdown_distances(heatmap),
     ]
     files["report.md"] = "\n".join(md)
-    files["report.html"] = evaluation_html(
-        result, meta, lambda o: f"overlays/{_stem(o.pair.color)}_overlay.png", _name
-    )
+    note = None
+    if heatmap.image is not None:
+        note = (
+            f"Spearman distance (1 - rho) of the dGLI coordinates alone between "
+            f"{heatmap.note}, ordered by true class; not the classifier's distance, which "
+            "also weighs the stickers seen, their height and the napkin's footprint."
+        )
+    files["report.html"] = evaluation_html(result, meta, overlay_name, _name, note)
     return files

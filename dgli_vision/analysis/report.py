@@ -16,7 +16,11 @@ from numpy.typing import NDArray
 __all__ = [
     "OverlayEvidence",
     "confusion_image",
-    "heatmap_image", "markdown_table", "overlay_image"]
+    "heatmap_image",
+    "markdown_table",
+    "overlay_evidence",
+    "overlay_image",
+]
 
 
 def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:
@@ -44,6 +48,8 @@ def heatmap_image(
     groups: Sequence[str] | None = None,
     size_px: int = 600,
     value_label: str = "",
+    ticks: Sequence[object] | None = None,
+    tick_label: str = "frame",
 ) -> NDArray[np.uint8]:
     """Render a matrix as a BGR heatmap image with title, group labels and colour bar.
 
@@ -59,6 +65,10 @@ def heatmap_image(
         Size of the matrix area.
     value_label : str, keyword-only
         What the colour means, shown by the colour bar.
+    ticks : sequence, optional, keyword-only
+        What every column is (e.g. its frame number): about ten of them are marked on a
+        tick axis under the matrix, named ``tick_label``.
+    tick_label : str, keyword-only
 
     Returns
     -------
@@ -82,7 +92,7 @@ def heatmap_image(
         interpolation=cv2.INTER_NEAREST,
     ).astype(bool)
     colour[nan_mask] = (160, 160, 160)
-    left, top, right, bottom = 70, 50, 110, 40
+    left, top, right, bottom = 70, 50, 110, 40 if ticks is None else 75
     h, w = colour.shape[:2]
     img = np.full((h + top + bottom, w + left + right, 3), 255, np.uint8)
     img[top : top + h, left : left + w] = colour
@@ -99,6 +109,8 @@ def heatmap_image(
                 x0, x1 = left + s * cell_w, left + e * cell_w
                 cv2.line(img, (x0, top), (x0, top + h - 1), (255, 255, 255), 1)
                 _text(img, str(labels[s]), ((x0 + x1) // 2 - 8, top + h + 18), 0.4)
+    if ticks is not None:
+        _ticks(img, list(ticks), (left, top + h), cell_w, tick_label)
     # Colour bar.
     bar = np.linspace(255, 0, h).astype(np.uint8)[:, None].repeat(18, axis=1)
     x = left + w + 15
@@ -108,6 +120,30 @@ def heatmap_image(
     if value_label:
         _text(img, value_label, (x - 10, top + h + 30), 0.4)
     return img
+
+
+def _ticks(img: NDArray, ticks: list, origin: tuple[int, int], cell_w: int, name: str) -> None:
+    """About ten tick marks with their values under a matrix whose bottom-left corner is
+    ``origin``, and the axis name."""
+    import cv2
+
+    x0, y0 = origin
+    step = max(1, int(np.ceil(len(ticks) / 10)))
+    for k in range(0, len(ticks), step):
+        x = x0 + k * cell_w + cell_w // 2
+        cv2.line(img, (x, y0 + 22), (x, y0 + 28), (20, 20, 20), 1)
+        _text(img, str(ticks[k]), (x - 6, y0 + 42), 0.4)
+    _text(img, name, (x0 + len(ticks) * cell_w // 2 - 20, y0 + 62), 0.45)
+
+
+def _label_width(labels: Sequence[str], scale: float) -> int:
+    """Pixels the widest of ``labels`` takes at ``scale`` (the left margin that shows
+    every class name whole)."""
+    import cv2
+
+    return max(
+        (cv2.getTextSize(t, cv2.FONT_HERSHEY_SIMPLEX, scale, 1)[0][0] for t in labels), default=0
+    )
 
 
 def _outlined_text(
@@ -149,6 +185,31 @@ class OverlayEvidence:
     reasons: tuple[str | None, ...]
     objects: NDArray[np.bool_] | None = None
     stride: int = 8
+
+
+def overlay_evidence(result: object) -> OverlayEvidence | None:
+    """What an overlay shows of a classified frame's missing stickers and objects: each
+    missing sticker hidden (by cloth) or unknown (with its reason), the objects over the
+    napkin (None when the frame kept no sticker evidence).
+
+    Parameters
+    ----------
+    result : FrameResult
+        :func:`~dgli_vision.classifier.pipeline.classify_frame`'s result.
+    """
+    from ..perception.evidence import HIDDEN
+
+    obs = result.observation  # type: ignore[attr-defined]
+    ev = obs.evidence
+    if ev is None:
+        return None
+    return OverlayEvidence(
+        ev.predicted_px,
+        np.asarray(ev.status) == HIDDEN,
+        tuple(r if u else None for r, u in zip(ev.reasons, ev.unknown)),
+        obs.objects,
+        obs.objects_stride,
+    )
 
 
 def _wrapped(text: str, width_px: int, scale: float, weight: int) -> list[str]:
@@ -298,7 +359,8 @@ def confusion_image(
     rows_sum = conf.sum(axis=1, keepdims=True)
     norm = np.divide(conf, rows_sum, out=np.zeros_like(conf), where=rows_sum > 0)
     cell = max(28, min(48, 560 // (k + 1)))
-    left = 250 if names else 60
+    row_names = [f"{lab} {names.get(lab, '')}" if names else lab for lab in labels]
+    left = max(60, _label_width(row_names, 0.42) + 16)
     top, bottom = 70, 90
     panels = []
     for values, sub, fmt in ((conf, "counts", "{:.0f}"), (norm, "row-normalised", "{:.2f}")):
@@ -324,9 +386,8 @@ def confusion_image(
                         1,
                         cv2.LINE_AA,
                     )
-        for r, lab in enumerate(labels):
-            text = f"{lab} {names.get(lab, '')}" if names else lab
-            _text(img, text[:30], (6, top + r * cell + cell // 2 + 4), 0.42)
+        for r, text in enumerate(row_names):
+            _text(img, text, (6, top + r * cell + cell // 2 + 4), 0.42)
         for c, lab in enumerate(cols):
             _text(img, lab, (left + c * cell + 4, top + k * cell + 18), 0.4)
         _text(img, "predicted", (left + (k + 1) * cell // 2 - 30, top + k * cell + 45), 0.5)
@@ -374,17 +435,22 @@ def timeline_image(
     row_of = {c: k for k, c in enumerate(classes)}
     cell_w = max(4, min(24, 1000 // max(n, 1)))
     row_h = 26
-    left, top, bottom = 230 if names else 50, 50, 50
-    w, h = left + cell_w * n + 20, top + row_h * len(classes) + bottom
+    row_names = [f"{c} {names.get(c, '')}" if names else c for c in classes]
+    left, top, bottom = max(50, _label_width(row_names, 0.42) + 16), 50, 50
+    legend = "line: smoothed   dot: frame's own verdict   ring: none"
+    if truth is not None:
+        legend += "   green: true state"
+    w = left + max(cell_w * n, _label_width([legend, title], 0.6)) + 20
+    h = top + row_h * len(classes) + bottom
     img = np.full((h, w, 3), 255, np.uint8)
 
     def y_of(c: str) -> int:
         return top + row_of[c] * row_h + row_h // 2
 
-    for k, c in enumerate(classes):
+    for k in range(len(classes)):
         y = top + k * row_h
         cv2.line(img, (left, y), (w - 20, y), (235, 235, 235), 1)
-        _text(img, f"{c} {names.get(c, '')}"[:28] if names else c, (6, y + row_h // 2 + 5), 0.42)
+        _text(img, row_names[k], (6, y + row_h // 2 + 5), 0.42)
     if truth is not None:
         for t, c in enumerate(truth):
             if c in row_of:
@@ -404,9 +470,6 @@ def timeline_image(
     for t in range(0, n, max(1, n // 10)):
         _text(img, str(t), (left + t * cell_w, h - bottom + 20), 0.4)
     _text(img, "frame", (left + cell_w * n // 2 - 20, h - 10), 0.45)
-    legend = "line: smoothed   dot: frame's own verdict   ring: none"
-    if truth is not None:
-        legend += "   green: true state"
     _text(img, title, (left, 22), 0.6)
     _text(img, legend, (left, 42), 0.4)
     return img

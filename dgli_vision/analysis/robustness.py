@@ -11,15 +11,21 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from itertools import pairwise
+
+import numpy as np
+from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
 from ..core.classes import CLASS_IDS
+from .evaluate import outcome_fields
 
 __all__ = [
+    "OVERLAY_WIDTH",
     "RELIABILITY_BINS",
     "ConditionScore",
+    "ShownPair",
     "reliability_rows",
     "reliability_table",
     "robustness_table",
@@ -29,6 +35,44 @@ __all__ = [
 #: Lower edges of the confidence bins of the reliability table (the last bin ends at 1,
 #: inclusive); 0.25 is the threshold below which the answer is "cannot tell".
 RELIABILITY_BINS: tuple[float, ...] = (0.0, 0.1, 0.25, 0.5, 0.75)
+
+
+#: Width in pixels of the overlays a robustness report keeps (a report of hundreds of
+#: pairs stays a few tens of megabytes).
+OVERLAY_WIDTH = 640
+
+
+@dataclass(frozen=True, eq=False)
+class ShownPair:
+    """A pair a robustness report shows: answered wrong or "cannot tell".
+
+    Attributes
+    ----------
+    name : str
+        The sample's name (``02_003``).
+    drawn : tuple of str
+        The conditions drawn for it.
+    truth : str
+        ``class/variant``.
+    answer : str or None
+        ``class/variant`` answered (None: cannot tell).
+    reason : str or None
+        Why it could not tell.
+    overlay : ndarray of uint8, shape (h, OVERLAY_WIDTH, 3), optional
+        BGR overlay of the pair with its verdict.
+    """
+
+    name: str
+    drawn: tuple[str, ...]
+    truth: str
+    answer: str | None
+    reason: str | None = None
+    overlay: NDArray[np.uint8] | None = field(default=None, repr=False)
+
+    @property
+    def kind(self) -> str:
+        """``"wrong"`` or ``"cannot tell"``."""
+        return "cannot tell" if self.answer is None else "wrong"
 
 
 @dataclass(frozen=True)
@@ -52,6 +96,9 @@ class ConditionScore:
         (too few stickers) are left out.
     subset : bool
         The row is a part of another condition's pairs (``combo with gripper``).
+    shown : tuple of ShownPair
+        The pairs answered wrong or "cannot tell", with their overlays, when asked for
+        (:func:`score_condition` with ``overlays``).
     """
 
     condition: str
@@ -63,9 +110,22 @@ class ConditionScore:
     wrong_cases: tuple[str, ...] = ()
     guesses: tuple[tuple[float, bool], ...] = ()
     subset: bool = False
+    shown: tuple[ShownPair, ...] = field(default=(), compare=False, repr=False)
+
+    @property
+    def outcome_counts(self) -> dict[str, int]:
+        """Right, "cannot tell", wrong and unreadable (a render is always read)."""
+        return {
+            "right": self.right,
+            "cannot_tell": self.abstained,
+            "wrong": self.wrong,
+            "unreadable": 0,
+        }
 
     def to_json(self) -> dict[str, object]:
-        """The JSON row: counts, and each as a fraction of the pairs (numbers, not text)."""
+        """The JSON row: counts, and each as a fraction of the pairs (numbers, not text),
+        and the three outcomes as every command gives them (``"outcomes"``,
+        ``"coverage"``, ``"accuracy_answered"``)."""
         counts = {
             "right": self.right,
             "cannot_tell": self.abstained,
@@ -79,14 +139,18 @@ class ConditionScore:
             "fractions": {
                 k: (round(v / self.n, 4) if self.n else None) for k, v in counts.items()
             },
+            **outcome_fields(self.outcome_counts),
         }
 
     def to_row(self) -> list[str]:
-        """Markdown row: condition, n, right, cannot tell, wrong, variant right."""
+        """Markdown row: condition, n, right, cannot tell, wrong, variant right, answered
+        (coverage), right of the answers."""
 
         def pct(k: int) -> str:
             return f"{100 * k / self.n:.0f}%" if self.n else "-"
 
+        fields = outcome_fields(self.outcome_counts)
+        cov, acc = fields["coverage"], fields["accuracy_answered"]
         return [
             self.condition,
             str(self.n),
@@ -94,26 +158,61 @@ class ConditionScore:
             pct(self.abstained),
             pct(self.wrong),
             pct(self.variant_right),
+            "-" if cov is None else f"{100 * cov:.0f}%",
+            "-" if acc is None else f"{100 * acc:.0f}%",
         ]
 
 
 _REFS: ReferenceSet | None = None
+_OVERLAYS = False
 
 
-def _init(refs: ReferenceSet) -> None:
+def _init(refs: ReferenceSet, overlays: bool = False) -> None:
     import cv2
 
-    global _REFS
+    global _REFS, _OVERLAYS
     _REFS = refs
+    _OVERLAYS = overlays
     cv2.setNumThreads(1)
 
 
-def _one(
-    args: tuple[str, int, int, str],
-) -> tuple[str, str, str | None, str | None, tuple[str, ...], tuple[str, float] | None]:
+def _shown_extra(frame: object, result: object, truth: str) -> dict[str, object] | None:
+    """The reason and the overlay (:data:`OVERLAY_WIDTH` wide) of a pair answered wrong
+    or "cannot tell"; None for a right answer."""
+    import cv2
+
+    from .html_report import cannot_tell_text
+    from .report import overlay_evidence, overlay_image
+
+    p = result.prediction  # type: ignore[attr-defined]
+    true_cls = truth.split("/", 1)[0]
+    if p is not None and p.class_id == true_cls:
+        return None
+    verdict = (
+        cannot_tell_text(result.reason)  # type: ignore[attr-defined]
+        if p is None
+        else f"wrong: {p.class_id} {p.variant or ''} (distance {p.distance:.3f})"
+    )
+    image = overlay_image(
+        frame.color,  # type: ignore[attr-defined]
+        result.detections.centroids,  # type: ignore[attr-defined]
+        verdict,
+        detail=f"true {truth}",
+        evidence=overlay_evidence(result),
+    )
+    h, w = image.shape[:2]
+    size = (OVERLAY_WIDTH, max(1, round(h * OVERLAY_WIDTH / w)))
+    return {
+        "reason": None if p is not None else result.reason,  # type: ignore[attr-defined]
+        "overlay": cv2.resize(image, size, interpolation=cv2.INTER_AREA),
+    }
+
+
+def _one(args: tuple[str, int, int, str]) -> tuple:
     """Render sample ``k`` of a class under a condition and classify it: name, truth
     (``class/variant``), predicted class and variant (None: cannot tell), the conditions
-    drawn, and the best guess's class and confidence (None: no guess)."""
+    drawn, and the best guess's class and confidence (None: no guess); when the worker
+    keeps overlays, a seventh item: :func:`_shown_extra`."""
     from ..classifier.pipeline import classify_frame
     from ..sim.dataset import render_sample
     from ..sources.frames import RGBDFrame
@@ -131,9 +230,11 @@ def _one(
     drawn = sample.conditions.names
     g = result.best_guess
     guess = None if g is None else (g.class_id, float(g.confidence))
-    if p is None:
-        return sample.name, truth, None, None, drawn, guess
-    return sample.name, truth, p.class_id, p.variant, drawn, guess
+    out = (
+        sample.name, truth, None if p is None else p.class_id,
+        None if p is None else p.variant, drawn, guess,
+    )
+    return (*out, _shown_extra(frame, result, truth)) if _OVERLAYS else out
 
 
 def score_condition(
@@ -144,6 +245,8 @@ def score_condition(
     seed: int,
     jobs: int = 1,
     on_progress: Callable[[int], None] | None = None,
+    overlays: bool = False,
+    classes: tuple[str, ...] = CLASS_IDS,
 ) -> list[ConditionScore]:
     """Render ``per_class`` pairs of every class under ``condition`` and classify them.
 
@@ -156,7 +259,14 @@ def score_condition(
     per_class : int, keyword-only
     seed : int, keyword-only
     jobs : int, keyword-only
-        Worker processes.
+        Worker processes (the scores do not depend on it).
+    on_progress : callable, keyword-only, optional
+        Called with 1 after each pair.
+    overlays : bool, keyword-only
+        Keep the pairs answered wrong or "cannot tell" with their overlays
+        (``ConditionScore.shown``).
+    classes : tuple of str, keyword-only
+        The classes rendered (default all twelve).
 
     Returns
     -------
@@ -164,13 +274,13 @@ def score_condition(
         One; for ``"combo"`` also the pairs whose three conditions include the gripper
         and those whose do not.
     """
-    tasks = [(condition, seed, k, c) for c in CLASS_IDS for k in range(per_class)]
+    tasks = [(condition, seed, k, c) for c in classes for k in range(per_class)]
     if jobs > 1:
         import multiprocessing
 
         ctx = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(
-            jobs, mp_context=ctx, initializer=_init, initargs=(references,)
+            jobs, mp_context=ctx, initializer=_init, initargs=(references, overlays)
         ) as pool:
             outcomes = []
             for out in pool.map(_one, tasks, chunksize=2):
@@ -178,7 +288,7 @@ def score_condition(
                 if on_progress:
                     on_progress(1)
     else:
-        _init(references)
+        _init(references, overlays)
         outcomes = []
         for t in tasks:
             outcomes.append(_one(t))
@@ -197,7 +307,15 @@ def _tally(label: str, outcomes: list, *, subset: bool = False) -> ConditionScor
     right = abstained = wrong = variant_right = 0
     cases = []
     guesses = []
-    for name, truth, cls, variant, drawn, guess in outcomes:
+    shown = []
+    for out in outcomes:
+        name, truth, cls, variant, drawn, guess = out[:6]
+        extra = out[6] if len(out) > 6 else None
+        if extra is not None:
+            answer = None if cls is None else f"{cls}/{variant}"
+            shown.append(
+                ShownPair(name, tuple(drawn), truth, answer, extra["reason"], extra["overlay"])
+            )
         true_cls, true_var = truth.split("/", 1)
         if guess is not None:
             guesses.append((guess[1], guess[0] == true_cls))
@@ -219,12 +337,22 @@ def _tally(label: str, outcomes: list, *, subset: bool = False) -> ConditionScor
         tuple(cases),
         tuple(guesses),
         subset,
+        tuple(shown),
     )
 
 
 def robustness_table(scores: list[ConditionScore]) -> tuple[list[str], list[list[str]]]:
     """Header and rows of the robustness table."""
-    header = ["condition", "pairs", "right", "cannot tell", "wrong", "class + variant right"]
+    header = [
+        "condition",
+        "pairs",
+        "right",
+        "cannot tell",
+        "wrong",
+        "class + variant right",
+        "answered",
+        "right of answers",
+    ]
     return header, [s.to_row() for s in scores]
 
 

@@ -3,6 +3,7 @@ verdict."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
 
@@ -19,7 +20,7 @@ from ..sources.frames import (
     read_frame,
     read_intrinsics,
 )
-from .classify import MIN_CONFIDENCE, Prediction
+from .classify import MIN_CONFIDENCE, Prediction, StickerIds
 from .references import ReferenceSet, load_references
 
 __all__ = ["classify_pair"]
@@ -89,8 +90,11 @@ def classify_pair(
     -------
     Prediction
         The nearest state with its ``confidence``. Below
-        :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` (0.25) the command line says
-        "cannot tell": a robot should treat such an answer the same way.
+        :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` (0.25), or when a check
+        of the frame fails, the command line says "cannot tell": a robot should treat
+        such an answer the same way; ``reason`` then says why (``why``: its kind), and is
+        None otherwise. ``stickers`` lists the stickers found, hidden by cloth and
+        unknown (with why).
 
     Raises
     ------
@@ -114,7 +118,27 @@ def classify_pair(
     result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
     if result.best_guess is None:
         raise DetectionError(f"{frame.color_path}: {result.reason}")
-    return result.best_guess
+    told = result.prediction is None
+    return replace(
+        result.best_guess,
+        reason=result.reason if told else None,
+        why=result.why if told else None,
+        stickers=_sticker_ids(result),
+    )
+
+
+def _sticker_ids(result: object) -> StickerIds:
+    """The stickers found, hidden by cloth and unknown of a classified frame."""
+    from ..perception.evidence import HIDDEN
+
+    obs = result.observation  # type: ignore[attr-defined]
+    found = tuple(int(i) for i in np.flatnonzero(obs.visible))
+    ev = obs.evidence
+    if ev is None:
+        return StickerIds(found)
+    hidden = tuple(int(i) for i in np.flatnonzero(np.asarray(ev.status) == HIDDEN))
+    unknown = tuple(int(i) for i in np.flatnonzero(obs.unknown))
+    return StickerIds(found, hidden, unknown, tuple(str(ev.reasons[i]) for i in unknown))
 
 
 def _frame_of(

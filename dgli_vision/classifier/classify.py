@@ -111,6 +111,28 @@ class RunnerUp:
 
 
 @dataclass(frozen=True)
+class StickerIds:
+    """The stickers a verdict rests on, by id (0-15).
+
+    Attributes
+    ----------
+    found : tuple of int
+        Seen in the image.
+    hidden : tuple of int
+        Not seen because cloth lies on them: evidence of a fold.
+    unknown : tuple of int
+        Not seen, and that tells nothing (out of view, possibly under an object, in a
+        highlight); ``reasons`` says why, in the same order.
+    reasons : tuple of str
+    """
+
+    found: tuple[int, ...] = ()
+    hidden: tuple[int, ...] = ()
+    unknown: tuple[int, ...] = ()
+    reasons: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
 class Prediction:
     """A verdict.
 
@@ -128,6 +150,13 @@ class Prediction:
         ``runner_up.distance - distance`` (``inf`` without a runner-up).
     confidence : float
         In [0, 1], from the margin and the amount of evidence (:func:`confidence_of`).
+    reason : str or None
+        Why the command line would say "cannot tell" of this answer (None when it would
+        not): :func:`~dgli_vision.classifier.api.classify_pair` fills it.
+    why : str or None
+        The kind of that reason (``FrameResult.why``).
+    stickers : StickerIds or None
+        The stickers found, hidden and unknown (``classify_pair`` fills it).
     """
 
     class_id: str
@@ -137,6 +166,9 @@ class Prediction:
     runner_up: RunnerUp | None
     margin: float
     confidence: float = 1.0
+    reason: str | None = None
+    why: str | None = None
+    stickers: StickerIds | None = None
 
 
 def confidence_of(

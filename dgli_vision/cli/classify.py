@@ -87,22 +87,10 @@ def overlay_of(frame: Any, result: Any) -> Any:
     """The overlay picture of a classified frame: the stickers found, where the missing
     ones would be (hidden or unknown, and why), the objects over the napkin, the
     verdict."""
-    import numpy as np
-
-    from ..analysis.report import OverlayEvidence, overlay_image
-    from ..perception.evidence import HIDDEN
+    from ..analysis.report import overlay_evidence, overlay_image
 
     obs = result.observation
-    ev = obs.evidence
-    evidence = None
-    if ev is not None:
-        evidence = OverlayEvidence(
-            ev.predicted_px,
-            np.asarray(ev.status) == HIDDEN,
-            tuple(r if u else None for r, u in zip(ev.reasons, ev.unknown)),
-            obs.objects,
-            obs.objects_stride,
-        )
+    evidence = overlay_evidence(result)
     detail = f"{int(obs.visible.sum())}/16 stickers found"
     return overlay_image(
         frame.color, result.detections.centroids, verdict_line(result), detail=detail,

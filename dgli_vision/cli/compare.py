@@ -9,43 +9,66 @@ from typing import Any
 import click
 
 from .errors import handle_errors
-from .options import json_option, overwrite_option, references_option, report_option
-from .output import command_line
+from .options import jobs_option, json_option, overwrite_option, references_option, report_option
+from .output import command_line, progress_bar
 
 
 @click.command()
 @click.argument("db", type=click.Path())
-@report_option("Write the table and heatmaps here.")
+@report_option("Write the table (Markdown, CSV, JSON), report.html and the heatmaps here.")
 @json_option("Print the table as JSON.")
+@jobs_option
 @overwrite_option
 @handle_errors
-def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> None:
+def compare(
+    db: str, report_dir: str | None, as_json: bool, jobs: int | None, overwrite: bool
+) -> None:
     """Davies-Bouldin index of dGLI and the baselines on DB and the three sequences.
 
     Columns: the database labelled by class, the three folding sequences labelled by
     their frames' true class, the database labelled by class and variant, and by class
     and variant with mirror images merged (the grouping comparable to the paper's
-    corner-specific classes; see the report).
+    corner-specific classes; see the report). The paper's values, where known, stand in
+    the last columns.
     """
+    import os
     from pathlib import Path
 
     from ..analysis.compare import (
         COMPARE_COLUMN_NOTES,
+        REPRESENTATIONS,
         compare_datasets,
+        dataset_matrices,
         davies_bouldin_table,
         folded_by_class,
+        matrix_count,
+        paper_columns,
     )
     from ..core.io import guard_outputs
     from ..sim.database_files import read_database
 
     if report_dir:  # fail before the work, not after it
-        guard_outputs([Path(report_dir) / "table.json"], overwrite=overwrite)
+        guard_outputs(
+            [Path(report_dir) / f for f in ("table.json", "table.md", "report.html")],
+            overwrite=overwrite,
+        )
     records, _ = read_database(db)
     records = folded_by_class(records)  # the paper's states: every fold laid flat
-    table = davies_bouldin_table(compare_datasets(records))
+    datasets = compare_datasets(records)
+    names = tuple(REPRESENTATIONS)
+    with progress_bar(matrix_count(datasets, names), "distances", quiet=as_json) as bar:
+        matrices = dataset_matrices(
+            datasets, names, jobs=jobs or os.cpu_count() or 1, on_progress=bar.update
+        )
+    table = davies_bouldin_table(datasets, names, matrices=matrices)
     table["column_notes"] = COMPARE_COLUMN_NOTES
-    columns = ["representation", *table["columns"]]
-    rows = [[name, *map(_index_text, vals)] for name, vals in table["rows"].items()]
+    paper = paper_columns(names)
+    table["paper"] = paper
+    columns = ["representation", *table["columns"], *paper["columns"]]
+    rows = [
+        [name, *map(_index_text, vals), *map(_paper_text, paper["rows"][name])]
+        for name, vals in table["rows"].items()
+    ]
     # JSON: null where two groups are not separated (no finite index to give)
     table["rows"] = {
         name: [v if v < _NO_SEPARATION else None for v in vals]
@@ -53,7 +76,9 @@ def compare(db: str, report_dir: str | None, as_json: bool, overwrite: bool) -> 
     }
     _print_compare_table(table, columns, rows, as_json)
     if report_dir:
-        _write_compare_report(Path(report_dir), table, columns, rows, records, overwrite)
+        _write_compare_report(
+            Path(report_dir), table, columns, rows, records, matrices["database"], overwrite
+        )
 
 
 #: Above this a Davies-Bouldin index says two groups' centres coincide (the ratio's
@@ -69,6 +94,11 @@ def _index_text(value: float) -> str:
     return f"{value:.3g}"
 
 
+def _paper_text(value: float | None) -> str:
+    """A value of the paper in the same format ("-" where it is not known)."""
+    return "-" if value is None else _index_text(value)
+
+
 def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_json: bool) -> None:
     """The Davies-Bouldin table on stdout: JSON, or Markdown and the column notes."""
     from ..analysis.compare import COMPARE_COLUMN_NOTES
@@ -81,7 +111,14 @@ def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_js
         click.echo(markdown_table(columns, rows), nl=False)
         click.echo("columns: " + "; ".join(f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()))
         click.echo(_NO_SEPARATION_NOTE)
+        click.echo(_PAPER_NOTE)
 
+
+_PAPER_NOTE = (
+    "paper: the paper's Table 1 values kept in docs/table1.md and docs/tracking.md (its "
+    "database column groups corner-specific classes: compare with 'by variant, mirrors "
+    "merged'); '-' where it gives none or none is recorded."
+)
 
 _NO_SEPARATION_NOTE = (
     "no separation: two groups whose centres coincide under that representation (the "
@@ -91,9 +128,10 @@ _NO_SEPARATION_NOTE = (
 
 #: What each heatmap's distance is.
 _DISTANCE_CAPTIONS = {
-    "dgli": "Spearman distance between the states' 28 dGLI coordinates alone. The "
-    "classifier adds which stickers are visible and more (see dgli+visibility): with "
-    "the dGLI alone a corner folded over and under look alike.",
+    "dgli": "Spearman distance between the states' 28 dGLI coordinates alone, not the "
+    "classifier's distance: the classifier adds which stickers are visible, their height "
+    "and the napkin's footprint (see dgli+visibility). With the dGLI alone a corner "
+    "folded over and under look alike (01, 03 and 10 nearly so).",
     "dgli+visibility": "Spearman distance of the dGLI plus the mean disagreement of "
     "which stickers are visible from above.",
     "edges": "Spearman distance between the 28 minimal distances of segment pairs.",
@@ -106,11 +144,18 @@ _DISTANCE_CAPTIONS = {
 
 
 def _write_compare_report(
-    out: Any, table: dict[str, Any], columns: list, rows: list, records: Any, overwrite: bool
+    out: Any,
+    table: dict[str, Any],
+    columns: list,
+    rows: list,
+    records: Any,
+    matrices: dict[str, Any],
+    overwrite: bool,
 ) -> None:
-    """The table (JSON, Markdown with the column notes, CSV) and a heatmap of the
-    distances of each representation into the folder ``out``."""
-    from ..analysis.compare import COMPARE_COLUMN_NOTES, distance_matrices
+    """The table (JSON, Markdown with the column notes, CSV), report.html and a heatmap
+    of the database's distances under each representation into the folder ``out``."""
+    from ..analysis.compare import COMPARE_COLUMN_NOTES
+    from ..analysis.html_report import html_image, html_list, html_page, html_table
     from ..analysis.report import heatmap_image, markdown_table
     from ..core.io import csv_table, write_outputs
 
@@ -120,27 +165,53 @@ def _write_compare_report(
         f"![{name} distances](distances_{name}.png)\n"
         for name in table["rows"]
     )
+    command = command_line()
+    page = html_page(
+        "Davies-Bouldin index (lower is better)",
+        [
+            html_table(columns, rows),
+            f"<p>{_NO_SEPARATION_NOTE}</p><p>{_PAPER_NOTE}</p>",
+            "<h2>What each column groups</h2>",
+            html_list([f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()]),
+            "<h2>Distances between the database's states, by class</h2>",
+            *[
+                f"<h3>{name}</h3>" + html_image(f"distances_{name}.png", f"{name} distances",
+                                                _DISTANCE_CAPTIONS.get(name, ""))
+                for name in table["rows"]
+            ],
+            f"<p class=\"note\">command: <code>{_escape(command)}</code></p>",
+        ],
+    )
     files: dict[Any, Any] = {
         out / "table.json": table,
         out / "table.md": "# Davies-Bouldin index (lower is better)\n\n"
         + markdown_table(columns, rows)
         + "\n"
         + _NO_SEPARATION_NOTE
+        + "\n\n"
+        + _PAPER_NOTE
         + "\n\n## What each column groups\n\n"
         + notes
         + "\n\n## Distances between the database's states, by class\n\n"
         + pictures,
         out / "table.csv": csv_table(columns, rows),
+        out / "report.html": page,
     }
-    for name, mat in distance_matrices(records).items():
+    for name, mat in matrices.items():
         files[out / f"distances_{name}.png"] = heatmap_image(
             mat,
-            title=f"{name}: distances, samples by class",
+            title=f"{name}: distances, states by class",
             groups=records.classes,
             value_label="distance",
         )
-    write_outputs(files, overwrite=overwrite, command=command_line())
-    click.echo(f"report written to {out}", err=True)
+    write_outputs(files, overwrite=overwrite, command=command)
+    click.echo(f"report written to {out / 'report.html'}", err=True)
+
+
+def _escape(text: str) -> str:
+    from html import escape
+
+    return escape(text)
 
 
 @click.command()
@@ -165,12 +236,12 @@ def sequence(
     from pathlib import Path
 
     from ..analysis.compare import analyse_sequence, sequence_records
-    from ..analysis.report import heatmap_image
+    from ..analysis.track_report import TRACK_REPORT_FILES
     from ..classifier.references import load_references
-    from ..core.io import guard_outputs, write_outputs
+    from ..core.io import guard_outputs
 
     if report_dir:  # fail before the work, not after it
-        guard_outputs([Path(report_dir) / f"sequence_{name}.json"], overwrite=overwrite)
+        guard_outputs([Path(report_dir) / f for f in TRACK_REPORT_FILES], overwrite=overwrite)
     refs = load_references(references_path)
     records = sequence_records(name)
     result = analyse_sequence(records, refs)
@@ -180,18 +251,32 @@ def sequence(
     else:
         _print_sequence(summary, result)
     if report_dir:
-        out = Path(report_dir)
-        img = heatmap_image(
-            result.distances,
-            title=f"sequence {name}: Spearman distance of dGLI",
-            groups=result.truth,
-            value_label="1 - rho",
-        )
-        write_outputs(
-            {out / f"sequence_{name}.json": summary, out / f"sequence_{name}.png": img},
-            overwrite=overwrite,
-            command=command_line(),
-        )
+        _write_sequence_report(report_dir, name, records, result, refs, summary, overwrite)
+
+
+def _write_sequence_report(
+    report_dir: str, name: str, records: Any, result: Any, refs: Any, summary: dict,
+    overwrite: bool,
+) -> None:
+    """The report ``dgli track --report`` writes, of the sequence's frames."""
+    from ..analysis.compare import sequence_outcomes
+    from ..analysis.evaluate import json_ready
+    from ..analysis.track import timeline_to_dict, track_outcomes
+    from ..analysis.track_report import timeline_outcome_fields
+    from .track import write_timeline_report
+
+    outcomes = sequence_outcomes(name, records, result, refs)
+    timeline = track_outcomes(outcomes, refs, labelled=True)
+    data = {
+        "sequence": summary,
+        "n_frames": len(outcomes),
+        **json_ready(timeline_to_dict(timeline)),
+        **timeline_outcome_fields(outcomes, True),
+    }
+    write_timeline_report(
+        report_dir, timeline, outcomes, data, title=f"sequence {name}", labelled=True,
+        overwrite=overwrite,
+    )
 
 
 def _sequence_summary(name: str, n_frames: int, result: Any) -> dict[str, Any]:

@@ -99,6 +99,17 @@ jobs_option = click.option(
     help="Worker processes [default: all cores].",
 )
 
+#: ``-j N`` of the commands that make data (``render``, ``simulate``): one process unless
+#: asked, since every worker's results (images, meshes) travel back whole to this one.
+make_jobs_option = click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1),
+    default=1,
+    show_default=True,
+    help="Worker processes (the same results as one).",
+)
+
 
 def report_option(help_text: str) -> Callable[[F], F]:
     """``--report DIR``: a folder to write a report into."""

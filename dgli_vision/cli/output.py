@@ -29,6 +29,8 @@ def command_line() -> str:
             )
         ):
             flag = max(param.opts, key=len)
+            if isinstance(value, (tuple, list)):  # a parsed list (--conditions a,b)
+                value = ",".join(map(str, value))
             words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
     return " ".join(words)
 
@@ -48,10 +50,17 @@ def napkin_provenance(layout: Any) -> dict[str, Any]:
     return {} if layout.is_nominal else {"napkin_mm": [layout.width_mm, layout.height_mm]}
 
 
+def _live(quiet: bool) -> bool:
+    """Progress is drawn on a terminal only: not into a pipe or a file, and never with
+    --json (``quiet``)."""
+    return sys.stderr.isatty() and not quiet
+
+
 def progress_bar(length: int, label: str, *, quiet: bool = False):
-    """A progress bar on a terminal; an object that ignores updates otherwise."""
-    if sys.stderr.isatty() and not quiet:
-        return click.progressbar(length=length, label=label, file=sys.stderr)
+    """A progress bar with the time left on a terminal (``bar.update(n)`` after each
+    ``n`` items done); an object that ignores updates otherwise."""
+    if _live(quiet):
+        return click.progressbar(length=length, label=label, file=sys.stderr, show_eta=True)
     from contextlib import nullcontext
 
     class _Silent:
@@ -61,10 +70,11 @@ def progress_bar(length: int, label: str, *, quiet: bool = False):
     return nullcontext(_Silent())
 
 
-def progress(items: list, label: str):
-    """A progress bar on a terminal; the plain iterable otherwise."""
-    if sys.stderr.isatty():
-        return click.progressbar(items, label=label, file=sys.stderr)
+def progress(items: list, label: str, *, quiet: bool = False):
+    """``items`` with a progress bar and the time left on a terminal; the plain list
+    otherwise."""
+    if _live(quiet):
+        return click.progressbar(items, label=label, file=sys.stderr, show_eta=True)
     from contextlib import nullcontext
 
     return nullcontext(items)

@@ -9,7 +9,13 @@ import click
 
 from ..sim.condition_names import CONDITION_HELP
 from .errors import handle_errors
-from .options import overwrite_option, parse_conditions, per_class_option, size_option
+from .options import (
+    make_jobs_option,
+    overwrite_option,
+    parse_conditions,
+    per_class_option,
+    size_option,
+)
 from .output import command_line, napkin_provenance, package_version, progress
 from .runs import Stop, folder_lock, stop_signals
 
@@ -60,6 +66,7 @@ from .runs import Stop, folder_lock, stop_signals
     "pairs and render the rest (refused when the set differs).",
 )
 @size_option
+@make_jobs_option
 @overwrite_option
 @handle_errors
 def render_cmd(
@@ -74,6 +81,7 @@ def render_cmd(
     gripper: bool,
     resume: bool,
     size_mm: tuple[float, float] | None,
+    jobs: int,
     overwrite: bool,
 ) -> None:
     """Render a labelled RGB-D folder of simulated states to OUT (the labelled-folder
@@ -81,10 +89,12 @@ def render_cmd(
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
     Ctrl-C or SIGTERM writes the pairs rendered so far with their labels.csv and exits
-    130 (143); --resume renders the rest.
+    130 (143); --resume renders the rest. -j spreads the pairs over processes (the same
+    pairs as one; a sequence's frames render in one).
     """
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
+
     from ..core.io import guard_outputs
     from ..core.layout import layout_of_size
     from ..sim.dataset import render_plan
@@ -107,7 +117,10 @@ def render_cmd(
     }
     options = {"nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout}
     with folder_lock(out):
-        _render_set(out, names, cases, provenance, options, resume=resume, overwrite=overwrite)
+        _render_set(
+            out, names, cases, provenance, options, resume=resume, overwrite=overwrite,
+            jobs=jobs,
+        )
 
 
 def _render_set(
@@ -119,6 +132,7 @@ def _render_set(
     *,
     resume: bool,
     overwrite: bool,
+    jobs: int = 1,
 ) -> None:
     """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
     kept from an interrupted run (``resume``), write them (all, or those done when a stop
@@ -127,7 +141,6 @@ def _render_set(
         SEQUENCE_FRAME_SECONDS,
         kept_pairs,
         merge_kept_pairs,
-        render_sample,
         render_sequence,
     )
     from ..sources.labelled import write_labelled_folder
@@ -146,7 +159,9 @@ def _render_set(
             **options,
         )
     else:
-        stream = (render_sample(*cases[k], seed, **options) for k in todo)
+        from ..core.parallel import ordered_map
+
+        stream = ordered_map(_render_case, [(cases[k], seed, options) for k in todo], jobs=jobs)
     samples, stop = _rendered(stream, todo)
     index = {n: k for k, n in enumerate(names)}
     times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
@@ -164,6 +179,14 @@ def _render_set(
         )
         sys.exit(stop.exit_code)
     click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
+
+
+def _render_case(task: tuple[tuple[str, int], int, dict[str, Any]]) -> Any:
+    """One pair of a set: ``((class, number), seed, options)`` (a worker's task)."""
+    from ..sim.dataset import render_sample
+
+    (class_id, k), seed, options = task
+    return render_sample(class_id, k, seed, **options)
 
 
 def _rendered(stream: Any, todo: list[int]) -> tuple[list, Stop]:

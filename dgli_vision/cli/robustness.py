@@ -15,6 +15,7 @@ from .options import (
     parse_conditions,
     per_class_option,
     references_option,
+    report_option,
 )
 from .output import command_line, progress_bar
 
@@ -35,6 +36,10 @@ from .output import command_line, progress_bar
     type=click.Path(),
     help="Also write the table as Markdown to this file.",
 )
+@report_option(
+    "Write report.md and report.html here: the tables, and per condition a gallery of "
+    "the pairs answered wrong or 'cannot tell' with their overlays and reasons."
+)
 @references_option
 @json_option("Print the table as JSON.")
 @overwrite_option
@@ -45,6 +50,7 @@ def robustness(
     conditions: tuple[str, ...],
     jobs: int | None,
     markdown: str | None,
+    report_dir: str | None,
     references_path: str | None,
     as_json: bool,
     overwrite: bool,
@@ -60,23 +66,31 @@ def robustness(
 
     from ..analysis.report import markdown_table
     from ..analysis.robustness import reliability_table, robustness_table
+    from ..analysis.robustness_report import ROBUSTNESS_REPORT_FILES
     from ..classifier.references import load_references
     from ..core.io import guard_outputs, write_outputs
     from ..sim.condition_names import CONDITION_NAMES
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
+    if report_dir:  # fail before the work, not after it
+        guard_outputs(
+            [Path(report_dir) / name for name in ROBUSTNESS_REPORT_FILES], overwrite=overwrite
+        )
     refs = load_references(references_path)
     names = conditions or ("clean", *CONDITION_NAMES)
     jobs = jobs or os.cpu_count() or 1
-    scores = _scores(names, refs, per_class, seed, jobs, quiet=as_json)
+    scores = _scores(
+        names, refs, per_class, seed, jobs, quiet=as_json, overlays=bool(report_dir)
+    )
     header, rows = robustness_table(scores)
     table = markdown_table(header, rows)
     reliability = "Reliability (best guesses over all conditions):\n\n" + markdown_table(
         *reliability_table(scores)
     )
+    data = _robustness_json(seed, per_class, scores)
     if as_json:
-        click.echo(json.dumps(_robustness_json(seed, per_class, scores)))
+        click.echo(json.dumps(data))
     else:
         _print_robustness(table, reliability, scores)
     if markdown:
@@ -86,10 +100,30 @@ def robustness(
             overwrite=overwrite,
             command=command,
         )
+    if report_dir:
+        _write_report(Path(report_dir), scores, data, overwrite)
+
+
+def _write_report(out: Any, scores: list, data: dict[str, Any], overwrite: bool) -> None:
+    """report.md, report.html, robustness.json and the overlays into ``out``."""
+    from ..analysis.robustness_report import robustness_report
+    from ..core.io import write_outputs
+
+    command = command_line()
+    files = robustness_report(scores, data, command=command)
+    write_outputs({out / k: v for k, v in files.items()}, overwrite=overwrite, command=command)
+    click.echo(f"report written to {out / 'report.html'}", err=True)
 
 
 def _scores(
-    names: tuple[str, ...], refs: Any, per_class: int, seed: int, jobs: int, *, quiet: bool
+    names: tuple[str, ...],
+    refs: Any,
+    per_class: int,
+    seed: int,
+    jobs: int,
+    *,
+    quiet: bool,
+    overlays: bool = False,
 ) -> list:
     """The scores of the conditions ``names``: on a terminal a progress bar with the time
     left, else each condition told on stderr as it comes (neither when ``quiet``)."""
@@ -104,7 +138,8 @@ def _scores(
     with progress_bar(total, "scoring the conditions", quiet=not live) as bar:
         for name in names:
             for score in score_condition(
-                name, refs, per_class=per_class, seed=seed, jobs=jobs, on_progress=bar.update
+                name, refs, per_class=per_class, seed=seed, jobs=jobs,
+                on_progress=bar.update, overlays=overlays,
             ):
                 scores.append(score)
                 if not quiet and not live:
@@ -119,10 +154,12 @@ def _scores(
 def _robustness_json(seed: int, per_class: int, scores: list) -> dict[str, Any]:
     """The JSON object of ``dgli robustness --json``."""
     from ..analysis.robustness import reliability_rows
+    from ..analysis.robustness_report import total_outcomes
 
     return {
         "seed": seed,
         "per_class": per_class,
+        **total_outcomes(scores),
         "rows": [s.to_json() for s in scores],
         "wrong": {s.condition: list(s.wrong_cases) for s in scores},
         "reliability": reliability_rows(scores),
@@ -131,7 +168,11 @@ def _robustness_json(seed: int, per_class: int, scores: list) -> dict[str, Any]:
 
 def _print_robustness(table: str, reliability: str, scores: list) -> None:
     """The robustness table, the wrong answers and the reliability table on stdout."""
+    from ..analysis.evaluate import outcomes_text
+    from ..analysis.robustness_report import total_outcomes
+
     click.echo(table, nl=False)
+    click.echo("all conditions: " + outcomes_text(total_outcomes(scores)["outcomes"]))
     for s in scores:
         for case in s.wrong_cases:
             click.echo(f"wrong under {s.condition}: {case}")

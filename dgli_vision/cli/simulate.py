@@ -7,7 +7,7 @@ from typing import Any
 import click
 
 from .errors import handle_errors
-from .options import overwrite_option, per_class_option, size_option
+from .options import make_jobs_option, overwrite_option, per_class_option, size_option
 from .output import command_line, napkin_provenance, package_version, progress
 
 #: The most cloth ``dgli simulate`` holds, counted in states of the nominal 400 mm napkin
@@ -46,6 +46,7 @@ def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> Non
     help="States with a fold in progress, per fold and angle bin (0: none; at most 20).",
 )
 @size_option
+@make_jobs_option
 @overwrite_option
 @handle_errors
 def simulate(
@@ -55,28 +56,33 @@ def simulate(
     no_wrinkles: bool,
     in_progress: int,
     size_mm: tuple[float, float] | None,
+    jobs: int,
     overwrite: bool,
 ) -> None:
     """Write a simulated database of cloth states to OUT (meshes, truth, index).
 
     Besides PER-CLASS states of every class with its folds laid flat, the database holds
     states with one fold in progress (every fold a robot can make, turned 10-170
-    degrees), labelled by the 90-degree rule; `dgli compare` leaves them out.
+    degrees), labelled by the 90-degree rule; `dgli compare` leaves them out. -j spreads
+    the classes over processes (the same database as one).
     """
+
     from ..core.layout import layout_of_size
+    from ..core.parallel import ordered_map
     from ..sim.cloth.states import CLASS_IDS
-    from ..sim.database import simulate_folds_in_progress, simulate_states
     from ..sim.database_files import write_database
 
     layout = layout_of_size(size_mm)
     _check_simulation_size(per_class, in_progress, layout)
     kw = {"wrinkles": not no_wrinkles, "layout": layout}
-    states = []
-    with progress(list(CLASS_IDS), "simulating") as classes:
-        for class_id in classes:
-            states += simulate_states(per_class, seed, classes=(class_id,), **kw)
+    tasks = [(per_class, seed, c, kw) for c in CLASS_IDS]
     if in_progress:
-        states += simulate_folds_in_progress(in_progress, seed, **kw)
+        tasks.append((in_progress, seed, None, kw))  # the folds in progress, last
+    states = []
+    with progress(tasks, "simulating") as bar:
+        for part, _ in zip(ordered_map(_simulate_part, tasks, jobs=jobs),
+                           bar):
+            states += part
     provenance = {
         "command": command_line(),
         "seed": seed,
@@ -88,3 +94,14 @@ def simulate(
     }
     index = write_database(out, states, provenance, overwrite=overwrite)
     click.echo(f"wrote {len(states)} states to {index}")
+
+
+def _simulate_part(task: tuple[int, int, str | None, dict[str, Any]]) -> list:
+    """The states of one class, or (class None) those with a fold in progress: a
+    worker's task ``(count, seed, class, options)``."""
+    from ..sim.database import simulate_folds_in_progress, simulate_states
+
+    count, seed, class_id, kw = task
+    if class_id is None:
+        return simulate_folds_in_progress(count, seed, **kw)
+    return simulate_states(count, seed, classes=(class_id,), **kw)

@@ -93,8 +93,15 @@ def track(
     run_journalled(run, report_dir, TRACK_FILES, header, resume=resume, overwrite=overwrite)
 
 
-#: The files of a ``dgli track`` report (besides its results.jsonl).
-TRACK_FILES = ("timeline.json", "timeline.csv", "timeline.png", "distances.png")
+#: The files of a ``dgli track`` report (besides its results.jsonl and overlays).
+TRACK_FILES = (
+    "timeline.json",
+    "timeline.csv",
+    "timeline.png",
+    "distances.png",
+    "report.md",
+    "report.html",
+)
 
 
 class _TrackRun:
@@ -143,6 +150,7 @@ class _TrackRun:
             "recording": {"kind": self.recording.kind, "notes": list(self.recording.notes)},
             "n_frames": len(outcomes),
             **_timeline_json(timeline),
+            **_outcome_fields(outcomes, labelled),
         }
         if stop.stopped:
             data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
@@ -206,6 +214,10 @@ class _TrackRun:
         for f in timeline.frames:
             if f.gap:
                 click.echo(f"gap: frame {f.index} ({f.color}): {f.note}")
+        if "outcomes" in data:
+            from ..analysis.evaluate import outcomes_text
+
+            click.echo("frames' own answers: " + outcomes_text(data["outcomes"]))
         sc = timeline.score
         if sc is not None:
             click.echo(
@@ -223,56 +235,59 @@ class _TrackRun:
         labelled: bool,
         overwrite: bool,
     ) -> None:
-        from pathlib import Path
-
-        from ..analysis.report import timeline_image
-        from ..analysis.track import TIMELINE_COLUMNS, timeline_rows
-        from ..core.classes import CLASS_IDS, CLASS_NAMES
-        from ..core.io import csv_table, record_outputs, write_outputs
-
-        out = Path(self.report_dir)
-        picture = timeline_image(
-            CLASS_IDS,
-            [f.smoothed_class for f in timeline.frames],
-            [f.raw_class for f in timeline.frames],
-            truth=[f.label or "" for f in timeline.frames] if labelled else None,
-            names=CLASS_NAMES,
+        write_timeline_report(
+            self.report_dir,
+            timeline,
+            outcomes,
+            data,
             title=f"timeline of {self.folder}",
+            labelled=labelled,
+            overwrite=overwrite,
+            journal=True,
         )
-        files: dict[Any, Any] = {
-            out / "timeline.json": {"command": command_line(), **data},
-            out / "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
-            out / "timeline.png": picture,
-        }
-        heatmap = _distances_heatmap(outcomes)
-        if heatmap is not None:
-            files[out / "distances.png"], files[out / "timeline.json"]["distances_png"] = heatmap
-        write_outputs(files, overwrite=overwrite, command=command_line())
-        record_outputs([out / "results.jsonl"], command_line())
-        click.echo(f"report written to {out}", err=True)
 
 
-def _distances_heatmap(outcomes: list) -> tuple[Any, dict[str, int]] | None:
-    """The heatmap of the frames' distances (a sample of frames evenly spread in time
-    when there are many) and what it shows; None without frames."""
-    from ..analysis.evaluate import coordinate_matrix
-    from ..analysis.evaluation_report import heatmap_sample, sample_distance_matrix
-    from ..analysis.report import heatmap_image
+def write_timeline_report(
+    report_dir: Any,
+    timeline: Any,
+    outcomes: list,
+    data: dict[str, Any],
+    *,
+    title: str,
+    labelled: bool,
+    overwrite: bool,
+    journal: bool = False,
+) -> None:
+    """The report of a timeline (:func:`~dgli_vision.analysis.track_report.track_report`)
+    written into ``report_dir``, with the provenance of the command (and of the run's
+    results.jsonl when ``journal``); ``dgli sequence --report`` writes the same."""
+    from pathlib import Path
 
-    shown = heatmap_sample(["frames"] * len(outcomes))  # evenly spread in time
-    if not shown:
-        return None
-    image = heatmap_image(
-        sample_distance_matrix(coordinate_matrix([outcomes[k] for k in shown])),
-        title="frames: Spearman distance of dGLI"
-        + (
-            ""
-            if len(shown) == len(outcomes)
-            else f" ({len(shown)} of {len(outcomes)} frames, evenly spread)"
-        ),
-        value_label="1 - rho",
+    from ..analysis.track_report import track_report
+    from ..core.io import record_outputs, write_outputs
+    from ..sources.frames import read_color
+
+    out = Path(report_dir)
+    command = command_line()
+    files = track_report(
+        timeline,
+        outcomes,
+        {"command": command, **data},
+        title=title,
+        labelled=labelled,
+        read_color=read_color,
     )
-    return image, {"frames_shown": len(shown), "frames": len(outcomes)}
+    write_outputs({out / k: v for k, v in files.items()}, overwrite=overwrite, command=command)
+    if journal:
+        record_outputs([out / "results.jsonl"], command)
+    click.echo(f"report written to {out / 'report.html'}", err=True)
+
+
+def _outcome_fields(outcomes: list, labelled: bool) -> dict[str, Any]:
+    """The three outcomes of the frames' own answers, when labelled."""
+    from ..analysis.track_report import timeline_outcome_fields
+
+    return timeline_outcome_fields(outcomes, labelled)
 
 
 def _timeline_json(timeline: Any) -> dict[str, Any]:
