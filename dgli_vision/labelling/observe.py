@@ -1,0 +1,195 @@
+"""What a camera above sees of the stickers on a simulated cloth, for many frames at once.
+
+The sixteen stickers are placed where the layout puts them for the cloth's size and
+interpolated on the mesh in every frame (13 points of each disc, as the simulator's
+references were made). A point of a disc is covered when the first cloth a ray cast
+straight down (along the up axis) meets above it lies far from it on the cloth (more
+than :data:`FAR_MM`): another layer. A sticker is seen when at least half of its disc
+is uncovered, as in :func:`dgli_vision.sim.cloth.states.sticker_visibility`. Rays are
+cast with Open3D's ``RaycastingScene`` on a coarse copy of the mesh (about 700
+vertices), :data:`BLOCK` frames side by side in one scene.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.classes import LIFTED_MM, PAST_BAND_DEG
+from ..core.dgli import cloth_coordinates
+from ..core.handedness import back_face_up, corner_turns
+from ..core.layout import NapkinLayout, layout_of_size, sticker_spreads_mm
+from ..sim.cloth.states import VISIBLE_FRACTION, disc_samples
+from .distances import FrameEvidence
+from .material import ClothMaterial, locate
+
+__all__ = ["BLOCK", "FAR_MM", "Placement", "observe_frames", "place_stickers"]
+
+#: Frames raycast together in one scene (and the unit every split of an episode is
+#: aligned to, so that any split gives the same numbers).
+BLOCK = 64
+#: A ray's first hit this far (mm, on the cloth) from the disc point it was cast at is
+#: another layer over it: the simulator's references use three 5 mm cells.
+FAR_MM = 15.0
+#: Frames of a block are laid out on a square of this many a side in the scene.
+_ACROSS = 8
+
+
+@dataclass(frozen=True, eq=False)
+class Placement:
+    """The stickers on one cloth: where their disc points lie on its triangles.
+
+    Attributes
+    ----------
+    layout : NapkinLayout
+        The layout for the cloth's size.
+    face : ndarray of int, shape (16 * 13,)
+        Triangle of each disc point (13 per sticker, the centre first).
+    weights : ndarray, shape (16 * 13, 3)
+        Its barycentric weights.
+    sample_uv : ndarray, shape (16 * 13, 2)
+        The disc points in material coordinates, mm.
+    metric_scale : float
+        Lengths (heights, distances between stickers) are multiplied by this before
+        they are compared with references made for another napkin size.
+    """
+
+    layout: NapkinLayout
+    face: NDArray[np.int64]
+    weights: NDArray[np.float64]
+    sample_uv: NDArray[np.float64]
+    metric_scale: float = 1.0
+
+
+def place_stickers(
+    material: ClothMaterial, reference_mm: tuple[float, float] | None = None
+) -> Placement:
+    """The sticker discs of the layout for the cloth's size, located on its mesh.
+
+    ``reference_mm``: the napkin size the references were made for (None: the layout's
+    nominal size); lengths are scaled to it when the cloth's size differs.
+    """
+    layout = layout_of_size(material.size_mm)
+    uv = (layout.sticker_uv[:, None, :] + disc_samples(layout)[None]).reshape(-1, 2)
+    face, weights = locate(material.uv, material.faces, uv)
+    ref = reference_mm or layout.nominal_mm
+    scale = float(np.sqrt(ref[0] * ref[1] / (material.size_mm[0] * material.size_mm[1])))
+    return Placement(layout, face, weights, uv, round(scale, 6))
+
+
+def _covered(
+    coarse: NDArray[np.float64],
+    faces: NDArray[np.int64],
+    coarse_uv: NDArray[np.float64],
+    samples: NDArray[np.float64],
+    sample_uv: NDArray[np.float64],
+    far_mm: float,
+) -> NDArray[np.bool_]:
+    """Which disc points (t, S) have another layer over them, for a block of frames
+    (``coarse`` (t, M, 3) the coarse mesh, ``samples`` (t, S, 3) the points)."""
+    import open3d as o3d
+
+    t = len(coarse)
+    centre = coarse[:, :, :2].mean(axis=1)  # (t, 2)
+    reach = float(np.abs(coarse[:, :, :2] - centre[:, None]).max()) + 0.05
+    pitch = 2.0 * reach
+    slot = np.arange(t)
+    offset = np.column_stack([slot % _ACROSS, slot // _ACROSS]) * pitch - centre  # (t, 2)
+    verts = coarse.copy()
+    verts[:, :, :2] += offset[:, None]
+    tris = faces[None] + (np.arange(t) * coarse.shape[1])[:, None, None]
+    scene = o3d.t.geometry.RaycastingScene()
+    scene.add_triangles(
+        o3d.core.Tensor(verts.reshape(-1, 3).astype(np.float32)),
+        o3d.core.Tensor(tris.reshape(-1, 3).astype(np.uint32)),
+    )
+    top = float(coarse[:, :, 2].max()) + 1.0
+    s = samples.shape[1]
+    rays = np.zeros((t, s, 6), np.float32)
+    rays[..., :2] = samples[..., :2] + offset[:, None]
+    rays[..., 2] = top
+    rays[..., 5] = -1.0
+    hit = scene.cast_rays(o3d.core.Tensor(rays.reshape(-1, 6)))
+    t_hit = hit["t_hit"].numpy().reshape(t, s)
+    prim = hit["primitive_ids"].numpy().reshape(t, s).astype(np.int64)
+    bary = hit["primitive_uvs"].numpy().reshape(t, s, 2).astype(np.float64)
+    found = np.isfinite(t_hit)
+    local = np.where(found, prim, 0) % len(faces)
+    corner = coarse_uv[faces[local]]  # (t, s, 3, 2)
+    w = np.stack([1.0 - bary.sum(axis=-1), bary[..., 0], bary[..., 1]], axis=-1)
+    hit_uv = np.einsum("tsk,tskc->tsc", w, corner)
+    far = np.linalg.norm(hit_uv - sample_uv[None], axis=-1) > far_mm
+    return found & far
+
+
+def _interpolate(pos: NDArray, faces: NDArray, face: NDArray, weights: NDArray) -> NDArray:
+    """Positions (t, k, 3) of material points on triangles ``face`` with ``weights``."""
+    corners = pos[:, faces[face]]  # (t, k, 3, 3)
+    return np.einsum("tkjc,kj->tkc", corners, weights)
+
+
+def _flap_degrees(pos: NDArray, faces: NDArray, face: NDArray) -> NDArray[np.float64]:
+    """How far the cloth at each sticker centre has turned from lying front face up,
+    degrees (t, 16): 0 flat, 90 standing, 180 turned over."""
+    a, b, c = (pos[:, faces[face, i]] for i in range(3))
+    n = np.cross(b - a, c - a)
+    norm = np.linalg.norm(n, axis=-1)
+    cos = np.divide(n[..., 2], norm, out=np.ones_like(norm), where=norm > 0)
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+
+
+def observe_frames(
+    positions: NDArray[np.float64], material: ClothMaterial, placement: Placement
+) -> FrameEvidence:
+    """The classifier's evidence for a block of frames as a camera above would see it.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (t, N, 3)
+        Metres, z up, already scaled by ``material.scale``.
+    material : ClothMaterial
+    placement : Placement
+
+    Returns
+    -------
+    FrameEvidence
+    """
+    layout = placement.layout
+    n_st = layout.n_stickers
+    samples = _interpolate(positions, material.faces, placement.face, placement.weights)
+    covered = _covered(
+        positions[:, material.coarse_ids],
+        material.coarse_faces,
+        material.uv[material.coarse_ids],
+        samples,
+        placement.sample_uv,
+        max(FAR_MM, material.spacing_mm),
+    )
+    t = len(positions)
+    seen_share = 1.0 - covered.reshape(t, n_st, -1).mean(axis=2)
+    visible = seen_share >= VISIBLE_FRACTION
+    centres = samples.reshape(t, n_st, -1, 3)[:, :, 0]  # (t, 16, 3)
+    table = positions[..., 2].min(axis=1)
+    heights = (centres[..., 2] - table[:, None]) * 1e3
+    standing = heights > LIFTED_MM
+    unknown = ~visible & standing
+    told = visible | unknown
+    centre_face = placement.face.reshape(n_st, -1)[:, 0]
+    deg = _flap_degrees(positions, material.faces, centre_face)
+    past = np.clip(0.5 + (deg - 90.0) / (2 * PAST_BAND_DEG), 0.0, 1.0)
+    segments = centres.reshape(t, -1, 2, 3).copy()
+    segments[~visible.reshape(t, -1, 2).all(axis=2)] = np.nan
+    seen_xyz = np.where(visible[..., None], centres, np.nan)
+    scale = placement.metric_scale
+    return FrameEvidence(
+        coords=cloth_coordinates(segments),
+        visible=visible,
+        unknown=unknown,
+        lifted=np.where(told, standing.astype(float), np.nan),
+        heights_mm=np.where(told, heights * scale, np.nan),
+        past=np.where(unknown, past, np.nan),
+        back=back_face_up(corner_turns(seen_xyz[..., :2], layout)),
+        spread_mm=sticker_spreads_mm(seen_xyz * 1e3) * scale,
+    )
