@@ -121,9 +121,11 @@ def _grid_material(ep: ClothEpisode, rest: NDArray) -> tuple[NDArray, NDArray, t
     g = rest.reshape(rows, cols, 3)
     du = float(np.linalg.norm(np.diff(g, axis=1), axis=-1).mean()) * 1e3
     dv = float(np.linalg.norm(np.diff(g, axis=0), axis=-1).mean()) * 1e3
-    along_row, along_col = g[0, -1] - g[0, 0], g[-1, 0] - g[0, 0]
+    # which way the grid runs seen from above: the sign of its cells' summed area (a
+    # flap folded over turns its cells round, but it is never most of the cloth)
+    e_row, e_col = g[:-1, 1:] - g[:-1, :-1], g[1:, :-1] - g[:-1, :-1]
+    ccw = (e_row[..., 0] * e_col[..., 1] - e_row[..., 1] * e_col[..., 0]).sum() > 0
     r, c = np.divmod(np.arange(rows * cols), cols)
-    ccw = np.cross(along_row, along_col)[2] > 0
     if ccw:  # u along the first row, v along the first column
         uv = np.column_stack([c * du, r * dv])
         corners = np.array([0, cols - 1, rows * cols - 1, (rows - 1) * cols])

@@ -33,6 +33,11 @@ BLOCK = 64
 #: A ray's first hit this far (mm, on the cloth) from the disc point it was cast at is
 #: another layer over it: the simulator's references use three 5 mm cells.
 FAR_MM = 15.0
+#: A disc point on cloth this steep (its normal's cosine with the up axis below this) is
+#: not seen either: the simulator's references hide it (cloth 15 mm further along a flap
+#: steeper than 70.5 degrees lies within their 5 mm of it, across), as the detector
+#: does (it reads ellipses down to an axis ratio of 0.25).
+STEEP_COS = 1.0 / 3.0
 #: Frames of a block are laid out on a square of this many a side in the scene.
 _ACROSS = 8
 
@@ -130,14 +135,13 @@ def _interpolate(pos: NDArray, faces: NDArray, face: NDArray, weights: NDArray) 
     return np.einsum("tkjc,kj->tkc", corners, weights)
 
 
-def _flap_degrees(pos: NDArray, faces: NDArray, face: NDArray) -> NDArray[np.float64]:
-    """How far the cloth at each sticker centre has turned from lying front face up,
-    degrees (t, 16): 0 flat, 90 standing, 180 turned over."""
+def _up_cosine(pos: NDArray, faces: NDArray, face: NDArray) -> NDArray[np.float64]:
+    """Cosine between the front face's normal and the up axis at points on triangles
+    ``face``, shape (t, k): 1 lying front face up, 0 standing, -1 turned over."""
     a, b, c = (pos[:, faces[face, i]] for i in range(3))
     n = np.cross(b - a, c - a)
     norm = np.linalg.norm(n, axis=-1)
-    cos = np.divide(n[..., 2], norm, out=np.ones_like(norm), where=norm > 0)
-    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
+    return np.clip(np.divide(n[..., 2], norm, out=np.ones_like(norm), where=norm > 0), -1, 1)
 
 
 def observe_frames(
@@ -167,6 +171,8 @@ def observe_frames(
         placement.sample_uv,
         max(FAR_MM, material.spacing_mm),
     )
+    cos = _up_cosine(positions, material.faces, placement.face)  # (t, 16 * 13)
+    covered |= np.abs(cos) < STEEP_COS
     t = len(positions)
     seen_share = 1.0 - covered.reshape(t, n_st, -1).mean(axis=2)
     visible = seen_share >= VISIBLE_FRACTION
@@ -176,8 +182,8 @@ def observe_frames(
     standing = heights > LIFTED_MM
     unknown = ~visible & standing
     told = visible | unknown
-    centre_face = placement.face.reshape(n_st, -1)[:, 0]
-    deg = _flap_degrees(positions, material.faces, centre_face)
+    # how far the cloth at each sticker centre has turned from flat, degrees
+    deg = np.degrees(np.arccos(cos.reshape(t, n_st, -1)[:, :, 0]))
     past = np.clip(0.5 + (deg - 90.0) / (2 * PAST_BAND_DEG), 0.0, 1.0)
     segments = centres.reshape(t, -1, 2, 3).copy()
     segments[~visible.reshape(t, -1, 2).all(axis=2)] = np.nan
