@@ -72,25 +72,40 @@ class ClothEpisode:
     path : str
         The file or folder it was read from.
     positions : ndarray, shape (T, N, 3)
-        Vertex positions, metres, z up (rotated from the simulator's up axis).
+        Vertex positions as stored (the simulator's units and axes, its dtype);
+        :meth:`frames` gives them in metres, z up.
     faces : ndarray of int, shape (F, 3)
         Triangles (from the file, from the grid, or empty for a CloSE file without them).
     grid : tuple of int or None
         (rows, cols) of a particle grid, row-major.
     border : ndarray of int, shape (E, 2), optional
         Border edges given by the file (CloSE's ``Eb``, 0-based); None: from the faces.
+    transform : ndarray, shape (3, 3), optional
+        Takes a stored position to metres, z up (None: it already is).
     """
 
     path: str
-    positions: NDArray[np.float64]
+    positions: NDArray
     faces: NDArray[np.int64]
     grid: tuple[int, int] | None = None
     border: NDArray[np.int64] | None = None
+    transform: NDArray[np.float64] | None = None
 
     @property
     def n_frames(self) -> int:
         """Number of frames T."""
         return int(self.positions.shape[0])
+
+    @property
+    def n_vertices(self) -> int:
+        """Number of vertices N."""
+        return int(self.positions.shape[1])
+
+    def frames(self, start: int, stop: int) -> NDArray[np.float64]:
+        """Frames ``start..stop`` in metres, z up, shape (stop - start, N, 3) (converted
+        here, a block at a time, so that a long episode is held once, as stored)."""
+        pos = np.asarray(self.positions[start:stop], dtype=np.float64)
+        return pos if self.transform is None else pos @ self.transform.T
 
 
 def parse_up_axis(text: str) -> NDArray[np.float64]:
@@ -138,9 +153,11 @@ def detect_format(path: str | Path, given: str | None = None) -> str:
     )
 
 
-def _check_positions(path: str, pos: NDArray, first: int = 0) -> NDArray[np.float64]:
-    """Positions (T, N, 3) as float64, refusing NaN or infinite values (naming the frame)."""
-    pos = np.asarray(pos, dtype=np.float64)
+def _check_positions(path: str, pos: NDArray, first: int = 0) -> NDArray:
+    """Positions (T, N, 3) as floats, refusing NaN or infinite values (naming the frame)."""
+    pos = np.asarray(pos)
+    if not np.issubdtype(pos.dtype, np.floating):
+        pos = pos.astype(np.float64)
     if pos.shape[0] == 0:
         raise InvalidInputError(f"'{path}': the episode has no frames")
     bad = ~np.isfinite(pos).all(axis=(1, 2))
@@ -312,7 +329,9 @@ def read_episode(path: str | Path, options: ReadOptions = ReadOptions()) -> Clot
         raise InvalidInputError(f"units {options.units!r} are not one of {', '.join(UNITS)}")
     raw = read_raw(path, options.format)
     rot = up_rotation(parse_up_axis(options.up_axis)) * UNITS[options.units]
-    return ClothEpisode(raw.path, raw.positions @ rot.T, raw.faces, raw.grid, raw.border)
+    same = np.array_equal(rot, np.eye(3))
+    transform = None if same else rot
+    return ClothEpisode(raw.path, raw.positions, raw.faces, raw.grid, raw.border, transform)
 
 
 def read_rest(options: ReadOptions) -> NDArray[np.float64] | None:
@@ -320,4 +339,4 @@ def read_rest(options: ReadOptions) -> NDArray[np.float64] | None:
     if options.rest is None:
         return None
     ep = read_episode(options.rest, ReadOptions(None, options.up_axis, options.units))
-    return ep.positions[0]
+    return ep.frames(0, 1)[0]

@@ -100,14 +100,15 @@ def write_npz(
     grid: tuple[int, int] | None = None,
     faces: NDArray | None = None,
     softgym: bool = False,
+    compress: bool = True,
 ) -> None:
-    """An NPZ episode: ``positions`` (with SoftGym's inverse-mass column when
-    ``softgym``) and ``grid`` or ``faces``."""
+    """An NPZ episode: ``positions`` (float32, with SoftGym's inverse-mass column when
+    ``softgym``) and ``grid`` or ``faces``, zip-compressed or not."""
     pos = np.asarray(positions, dtype=np.float32)
     if softgym:
         pos = np.concatenate([pos, np.ones((*pos.shape[:-1], 1), np.float32)], axis=-1)
     extra = {"grid": np.array(grid)} if grid is not None else {"faces": np.asarray(faces)}
-    np.savez_compressed(path, positions=pos, **extra)
+    (np.savez_compressed if compress else np.savez)(path, positions=pos, **extra)
 
 
 def write_mat(path: str | Path, positions: NDArray[np.float64], border: NDArray) -> None:

@@ -105,14 +105,14 @@ def label_part(
     dist, n_unknown, n_known = [], [], []
     for a in range(start, stop, BLOCK):
         b = min(a + BLOCK, stop)
-        ev = observe_frames(episode.positions[a:b] * material.scale, material, placement)
+        ev = observe_frames(episode.frames(a, b) * material.scale, material, placement)
         dist.append(frame_distances(ev, refs))
         n_unknown.append((ev.unknown & ~np.isfinite(ev.past)).sum(axis=1))
         n_known.append(ev.known_coordinates().sum(axis=1))
     k = len(refs)
     info = {
         "frames": episode.n_frames,
-        "vertices": int(episode.positions.shape[1]),
+        "vertices": episode.n_vertices,
         "grid": list(episode.grid) if episode.grid else None,
         "size_mm": list(material.size_mm),
     }

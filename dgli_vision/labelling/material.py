@@ -102,15 +102,23 @@ def locate(
     inv = np.zeros_like(m)
     inv[ok, 0, 0], inv[ok, 1, 1] = m[ok, 1, 1] / det[ok], m[ok, 0, 0] / det[ok]
     inv[ok, 0, 1], inv[ok, 1, 0] = -m[ok, 0, 1] / det[ok], -m[ok, 1, 0] / det[ok]
-    face = np.empty(len(points), np.int64)
-    weights = np.empty((len(points), 3))
-    for k, q in enumerate(np.asarray(points, dtype=np.float64)):
-        lam = np.einsum("fij,fj->fi", inv, q - a)  # (F, 2)
-        bary = np.column_stack([1 - lam.sum(axis=1), lam])
-        worst = np.where(ok, bary.min(axis=1), -np.inf)
-        f = int(np.argmax(worst))
-        face[k] = f
-        w = np.clip(bary[f], 0.0, None)
+    pts = np.asarray(points, dtype=np.float64)
+    # candidates: the faces whose centres are nearest each point (all of them for small
+    # meshes); a point inside none of them (or with no candidates) tries every face
+    near = min(len(faces), 24)
+    cand = cKDTree((a + b + c) / 3).query(pts, k=near)[1].reshape(len(pts), near)
+    face = np.empty(len(pts), np.int64)
+    weights = np.empty((len(pts), 3))
+    for k, q in enumerate(pts):
+        for ids in (cand[k], np.arange(len(faces))):
+            lam = np.einsum("fij,fj->fi", inv[ids], q - a[ids])  # (f, 2)
+            bary = np.column_stack([1 - lam.sum(axis=1), lam])
+            worst = np.where(ok[ids], bary.min(axis=1), -np.inf)
+            best = int(np.argmax(worst))
+            if worst[best] >= -1e-9:
+                break
+        face[k] = ids[best]
+        w = np.clip(bary[best], 0.0, None)
         weights[k] = w / w.sum()
     return face, weights
 
@@ -333,11 +341,11 @@ def cloth_material(
         The rest frame does not match the mesh, is not flat, the mesh is open or
         non-manifold, or the cloth is not rectangular.
     """
-    rest = episode.positions[0] if rest is None else np.asarray(rest, dtype=np.float64)
-    if rest.shape != episode.positions.shape[1:]:
+    rest = episode.frames(0, 1)[0] if rest is None else np.asarray(rest, dtype=np.float64)
+    if rest.shape != (episode.n_vertices, 3):
         raise InvalidInputError(
             f"'{episode.path}': the rest frame has {len(rest)} vertices, the episode "
-            f"{episode.positions.shape[1]}"
+            f"{episode.n_vertices}"
         )
     if episode.grid is not None:
         uv, corners, size = _grid_material(episode, rest)

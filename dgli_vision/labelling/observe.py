@@ -84,6 +84,37 @@ def place_stickers(
     return Placement(layout, face, weights, uv, round(scale, 6))
 
 
+def _reachable(
+    tri_xy: NDArray[np.float64], samples_xy: NDArray[np.float64], n_discs: int
+) -> NDArray[np.bool_]:
+    """Triangles (t, F) whose box in the table plane meets the box of a sticker's disc
+    points: no other can be the first hit of a ray cast down at one of them (most of
+    the cloth carries no sticker, and the scene's build time grows with its triangles).
+
+    On a grid of cells at least as large as every box, two boxes that meet share a cell
+    that holds a corner of each: the test is a look-up per triangle corner."""
+    t = len(tri_xy)
+    lo, hi = tri_xy.min(axis=2), tri_xy.max(axis=2)  # (t, F, 2)
+    discs = samples_xy.reshape(t, n_discs, -1, 2)
+    d_lo, d_hi = discs.min(axis=2), discs.max(axis=2)  # (t, 16, 2)
+    cell = float(max((hi - lo).max(), (d_hi - d_lo).max())) * 1.001 + 1e-9
+    origin = np.minimum(lo.min(axis=1), d_lo.min(axis=1))[:, None, :]  # (t, 1, 2)
+
+    def cells(x: NDArray) -> NDArray[np.intp]:
+        return ((x - origin) / cell).astype(np.intp)  # non-negative: floor
+
+    (dl, dh), (tl, th) = (cells(d_lo), cells(d_hi)), (cells(lo), cells(hi))
+    size = int(max(dh.max(), th.max())) + 1
+    marked = np.zeros((t, size, size), dtype=bool)
+    f = np.arange(t)[:, None]
+    for a, b in ((dl, dl), (dh, dh), (dl, dh), (dh, dl)):
+        marked[f, a[..., 0], b[..., 1]] = True
+    keep = marked[f, tl[..., 0], tl[..., 1]]
+    for a, b in ((th, th), (tl, th), (th, tl)):
+        keep |= marked[f, a[..., 0], b[..., 1]]
+    return keep
+
+
 def _covered(
     coarse: NDArray[np.float64],
     faces: NDArray[np.int64],
@@ -91,38 +122,38 @@ def _covered(
     samples: NDArray[np.float64],
     sample_uv: NDArray[np.float64],
     far_mm: float,
+    n_discs: int,
 ) -> NDArray[np.bool_]:
     """Which disc points (t, S) have another layer over them, for a block of frames
     (``coarse`` (t, M, 3) the coarse mesh, ``samples`` (t, S, 3) the points)."""
     import open3d as o3d
 
-    t = len(coarse)
+    t, s = len(coarse), samples.shape[1]
     centre = coarse[:, :, :2].mean(axis=1)  # (t, 2)
     reach = float(np.abs(coarse[:, :, :2] - centre[:, None]).max()) + 0.05
-    pitch = 2.0 * reach
     slot = np.arange(t)
-    offset = np.column_stack([slot % _ACROSS, slot // _ACROSS]) * pitch - centre  # (t, 2)
+    offset = np.column_stack([slot % _ACROSS, slot // _ACROSS]) * 2 * reach - centre
     verts = coarse.copy()
     verts[:, :, :2] += offset[:, None]
-    tris = faces[None] + (np.arange(t) * coarse.shape[1])[:, None, None]
+    keep = _reachable(coarse[:, faces, :2], samples[..., :2], n_discs)  # (t, F)
+    frame, local = np.nonzero(keep)
+    covered = np.zeros((t, s), dtype=bool)
+    if not len(frame):
+        return covered
     scene = o3d.t.geometry.RaycastingScene()
     scene.add_triangles(
         o3d.core.Tensor(verts.reshape(-1, 3).astype(np.float32)),
-        o3d.core.Tensor(tris.reshape(-1, 3).astype(np.uint32)),
+        o3d.core.Tensor((faces[local] + (frame * coarse.shape[1])[:, None]).astype(np.uint32)),
     )
-    top = float(coarse[:, :, 2].max()) + 1.0
-    s = samples.shape[1]
     rays = np.zeros((t, s, 6), np.float32)
     rays[..., :2] = samples[..., :2] + offset[:, None]
-    rays[..., 2] = top
+    rays[..., 2] = float(coarse[:, :, 2].max()) + 1.0
     rays[..., 5] = -1.0
     hit = scene.cast_rays(o3d.core.Tensor(rays.reshape(-1, 6)))
-    t_hit = hit["t_hit"].numpy().reshape(t, s)
-    prim = hit["primitive_ids"].numpy().reshape(t, s).astype(np.int64)
+    found = np.isfinite(hit["t_hit"].numpy().reshape(t, s))
+    prim = np.where(found, hit["primitive_ids"].numpy().reshape(t, s).astype(np.int64), 0)
     bary = hit["primitive_uvs"].numpy().reshape(t, s, 2).astype(np.float64)
-    found = np.isfinite(t_hit)
-    local = np.where(found, prim, 0) % len(faces)
-    corner = coarse_uv[faces[local]]  # (t, s, 3, 2)
+    corner = coarse_uv[faces[local[prim]]]  # (t, s, 3, 2)
     w = np.stack([1.0 - bary.sum(axis=-1), bary[..., 0], bary[..., 1]], axis=-1)
     hit_uv = np.einsum("tsk,tskc->tsc", w, corner)
     far = np.linalg.norm(hit_uv - sample_uv[None], axis=-1) > far_mm
@@ -170,6 +201,7 @@ def observe_frames(
         samples,
         placement.sample_uv,
         max(FAR_MM, material.spacing_mm),
+        layout.n_stickers,
     )
     cos = _up_cosine(positions, material.faces, placement.face)  # (t, 16 * 13)
     covered |= np.abs(cos) < STEEP_COS
