@@ -1,7 +1,8 @@
 """How right `dgli label` is on the project's own simulator exported as other simulators
 write their cloth (the figures of docs/simulation.md).
 
-Usage: python benchmarks/label_accuracy.py [SEED] [--per-variant N] [--frames N] [--picture OUT.png]
+Usage: python benchmarks/label_accuracy.py [SEED] [--per-variant N] [--frames N]
+       [--picture OUT.png]
 
 For a seed: finished states of every class and variant (N of each), one episode per
 input format (NPZ grid, SoftGym's (T, N, 4), NPZ remeshed, CloSE .mat, OBJ and PLY
