@@ -162,6 +162,9 @@ def test_dask_cluster_and_local_processes_give_the_results_of_one_process(finish
         far = [r.to_dict() for r in label_episodes(job)]
     assert far == one
     assert isinstance(one[0], dict) and one[0]["frames"]
+    # two local processes: each episode split in two parts, put together in order
+    (split,) = label_episodes(LabelJob(paths[1:], options, jobs=2))
+    assert split.to_dict() == one[1]
 
 
 def _write_bad(tmp_path: Path) -> dict[str, str]:

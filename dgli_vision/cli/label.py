@@ -151,15 +151,14 @@ def _finish(results: list, out: Path | None, as_json: bool, overwrite: bool) -> 
         episodes = [r.to_dict() for r in results if isinstance(r, EpisodeLabels)]
         click.echo(json.dumps(json_ready({"episodes": episodes, "summary": summary})))
     else:
+        failed = len(summary["failed"])
         click.echo(
             f"{summary['labelled']} of {summary['episodes']} episodes labelled, "
             f"{summary['frames']} frames, {summary['changes']} state changes"
+            + (f"; {failed} failed (above)" if failed else "")
             + (f"; written to {out}" if out else "")
         )
     if summary["failed"]:
-        if not as_json:
-            for f in summary["failed"]:
-                click.echo(f"failed: {f['path']}", err=True)
         sys.exit(2)
     if summary["frames"] and not summary["frames_with_class"]:
         sys.exit(1)

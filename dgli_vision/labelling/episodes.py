@@ -147,6 +147,8 @@ def detect_format(path: str | Path, given: str | None = None) -> str:
     suffix = p.suffix.lower()
     if suffix in (".npz", ".mat"):
         return suffix[1:]
+    if suffix in MESH_SUFFIXES:  # one mesh: an episode of one frame (or a rest frame)
+        return "meshes"
     raise InvalidInputError(
         f"'{path}': cannot tell the format from its name; expected .npz, .mat or a folder "
         "of .obj/.ply meshes (or give --format)"
@@ -249,6 +251,8 @@ def _read_mat(path: str) -> ClothEpisode:
 
 
 def _mesh_files(path: str) -> list[Path]:
+    if Path(path).is_file():
+        return [Path(path)]
     files = sorted(p for p in Path(path).iterdir() if p.suffix.lower() in MESH_SUFFIXES)
     if not files:
         raise InvalidInputError(f"'{path}': no .obj or .ply meshes in the folder")
