@@ -111,7 +111,7 @@ def label_part(
         n_known.append(ev.known_coordinates().sum(axis=1))
     k = len(refs)
     info = {
-        "frames": episode.n_frames,
+        "n_frames": episode.n_frames,
         "vertices": episode.n_vertices,
         "grid": list(episode.grid) if episode.grid else None,
         "size_mm": list(material.size_mm),
