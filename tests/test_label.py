@@ -93,6 +93,12 @@ def test_finished_states_right_by_class_and_variant_in_every_format(finished):
         assert got == truth, path
         assert all(f.progress is None for f in ep.frames), path
         assert ep.info["size_mm"] == pytest.approx([400, 400], abs=2), path
+        # OmniGibson's predicates on the same frames: the flat cloth is Unfolded, a
+        # half fold Folded, a diagonal fold (its hull's diagonal unchanged) not Folded
+        og = {t: f.omnigibson for f, t in zip(ep.frames, truth)}
+        assert og[("01", None)] == (False, True), path
+        assert og[next(t for t in truth if t[0] == "11")] == (True, False), path
+        assert og[next(t for t in truth if t[0] == "12")][0] is False, path
 
 
 def _sequence(name: str, n_frames: int, rng: np.random.Generator):
@@ -152,7 +158,7 @@ def test_batched_distances_and_verdicts_equal_the_classifiers():
 def test_dask_cluster_and_local_processes_give_the_results_of_one_process(finished):
     import distributed  # the 'dask' extra, installed by scripts/setup.sh
     episodes, _, _ = finished
-    paths = (episodes[0][0], episodes[3][0])
+    paths = (episodes[0][0], episodes[5][0])  # both y up, in cm
     options = ReadOptions(up_axis="y", units="cm")
     one = [r.to_dict() for r in label_episodes(LabelJob(paths, options, jobs=1))]
     with distributed.LocalCluster(
@@ -170,7 +176,8 @@ def test_dask_cluster_and_local_processes_give_the_results_of_one_process(finish
 def _write_bad(tmp_path: Path) -> dict[str, str]:
     flat = flat_mesh(default_layout())
     ny, nx = flat.shape
-    pos = np.stack([flat.xyz, flat.xyz])
+    upright = np.stack([flat.xyz, flat.xyz]) * 100  # z up, cm
+    pos = to_simulator(np.stack([flat.xyz, flat.xyz]), "y", "cm")
     nan = pos.copy()
     nan[1, 5, 2] = np.nan
     paths = {}
@@ -191,6 +198,8 @@ def _write_bad(tmp_path: Path) -> dict[str, str]:
     inside = faces[disc[faces].all(axis=1)]
     np.savez(tmp_path / "round.npz", positions=pos[:, keep], faces=remap[inside])
     paths["round"] = "not rectangular"
+    np.savez(tmp_path / "upright.npz", positions=upright, grid=np.array([ny, nx]))
+    paths["upright"] = "is --up-axis right?"
     return paths
 
 

@@ -26,6 +26,7 @@ from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
 from .material import cloth_material
 from .observe import BLOCK, observe_frames, place_stickers
+from .predicates import hull_area_diagonal, predicates
 
 __all__ = [
     "EpisodeFailure",
@@ -53,6 +54,8 @@ class PartResult:
         Stickers not told (for the confidence) and coordinates used, per frame.
     info : dict
         The episode's frames, vertices, grid and size.
+    omnigibson : ndarray of bool, shape (stop - start, 2), optional
+        OmniGibson's ``Folded`` and ``Unfolded`` of each frame (:mod:`.predicates`).
     error : str or None
         The one-line error that stopped the episode.
     """
@@ -66,6 +69,7 @@ class PartResult:
     n_known: NDArray[np.intp] | None = None
     info: dict[str, Any] | None = None
     error: str | None = None
+    omnigibson: NDArray[np.bool_] | None = None
 
 
 @lru_cache(maxsize=4)
@@ -95,20 +99,27 @@ def label_part(
     try:
         refs = _references(references_path)
         episode = read_episode(path, options)
-        material = cloth_material(episode, read_rest(options), options.size_mm)
+        rest = read_rest(options)
+        material = cloth_material(episode, rest, options.size_mm)
         placement = place_stickers(material, refs.napkin_mm)
     except DgliError as exc:
         return PartResult(str(path), part, error=str(exc))
     except ValueError as exc:  # the layout refuses a cloth too small for the stickers
         return PartResult(str(path), part, error=f"'{path}': {exc}")
     start, stop = _blocks(episode.n_frames, part, n_parts)
-    dist, n_unknown, n_known = [], [], []
+    rest = episode.frames(0, 1)[0] if rest is None else rest
+    area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
+    flat = (float(area[0]), float(diagonal[0]))
+    dist, n_unknown, n_known, og = [], [], [], []
     for a in range(start, stop, BLOCK):
         b = min(a + BLOCK, stop)
-        ev = observe_frames(episode.frames(a, b) * material.scale, material, placement)
+        frames = episode.frames(a, b) * material.scale
+        ev = observe_frames(frames, material, placement)
         dist.append(frame_distances(ev, refs))
         n_unknown.append((ev.unknown & ~np.isfinite(ev.past)).sum(axis=1))
         n_known.append(ev.known_coordinates().sum(axis=1))
+        pred = predicates(frames[:, material.coarse_ids], material.coarse_faces, flat)
+        og.append(np.column_stack([pred.folded, pred.unfolded]))
     k = len(refs)
     info = {
         "n_frames": episode.n_frames,
@@ -125,6 +136,7 @@ def label_part(
         np.concatenate(n_unknown) if n_unknown else np.zeros(0, np.intp),
         np.concatenate(n_known) if n_known else np.zeros(0, np.intp),
         info,
+        omnigibson=np.concatenate(og) if og else np.zeros((0, 2), bool),
     )
 
 
@@ -162,6 +174,8 @@ class FrameLabel:
         The state after smoothing over the episode.
     note : str or None
         Why there is no verdict.
+    omnigibson : tuple of bool or None
+        OmniGibson's ``Folded`` and ``Unfolded`` on the same frame, for comparison.
     """
 
     index: int
@@ -173,6 +187,7 @@ class FrameLabel:
     smoothed_class: str
     smoothed_variant: str | None
     note: str | None = None
+    omnigibson: tuple[bool, bool] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """The frame's JSON object (the names of ``dgli label --json``)."""
@@ -185,6 +200,9 @@ class FrameLabel:
             "smoothed": {"class": self.smoothed_class, "variant": self.smoothed_variant},
             "distance": self.distance,
             "note": self.note,
+            "omnigibson": None
+            if self.omnigibson is None
+            else {"folded": self.omnigibson[0], "unfolded": self.omnigibson[1]},
         }
 
 
@@ -246,6 +264,7 @@ def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels
     dist = np.concatenate([p.distances for p in parts])
     n_unknown = np.concatenate([p.n_unknown for p in parts])
     n_known = np.concatenate([p.n_known for p in parts])
+    og = np.concatenate([p.omnigibson for p in parts])
     v = verdicts(dist, references, n_unknown, n_known)
     states, _ = smooth(dist, references)
     frames = []
@@ -265,6 +284,7 @@ def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels
                 smoothed_class=states[t][0],
                 smoothed_variant=states[t][1],
                 note=note,
+                omnigibson=(bool(og[t, 0]), bool(og[t, 1])),
             )
         )
     changes = tuple((t, states[t - 1], states[t]) for t in change_frames(states))

@@ -145,6 +145,19 @@ def _grid_material(ep: ClothEpisode, rest: NDArray) -> tuple[NDArray, NDArray, t
     return uv, corners, size
 
 
+def _check_up(path: str, rest: NDArray) -> None:
+    """Refuse a flat rest frame that does not lie on the table (a wrong up axis)."""
+    centred = rest - rest.mean(axis=0)
+    vt = np.linalg.svd(centred, full_matrices=False)[2]
+    flat = np.abs(centred @ vt[2]).max() <= FLAT_TOLERANCE * float(np.ptp(centred @ vt[0]))
+    if flat and abs(vt[2][2]) < np.cos(np.radians(60)):
+        raise InvalidInputError(
+            f"'{path}': the rest frame is flat but stands on its edge (its plane is "
+            f"{np.degrees(np.arccos(abs(vt[2][2]))):.0f} degrees from the table's): "
+            "is --up-axis right?"
+        )
+
+
 def _flatten(path: str, rest: NDArray) -> NDArray[np.float64]:
     """The rest frame projected on its best plane, 2D (N, 2) metres, seen from above."""
     centred = rest - rest.mean(axis=0)
@@ -347,6 +360,7 @@ def cloth_material(
             f"'{episode.path}': the rest frame has {len(rest)} vertices, the episode "
             f"{episode.n_vertices}"
         )
+    _check_up(episode.path, rest)
     if episode.grid is not None:
         uv, corners, size = _grid_material(episode, rest)
         faces = episode.faces

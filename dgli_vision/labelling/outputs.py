@@ -30,6 +30,8 @@ CSV_COLUMNS = (
     "smoothed_class",
     "smoothed_variant",
     "note",
+    "omnigibson_folded",
+    "omnigibson_unfolded",
 )
 
 
@@ -62,6 +64,8 @@ def _csv(ep: EpisodeLabels) -> str:
                 f.smoothed_class,
                 f.smoothed_variant,
                 f.note,
+                f.omnigibson[0] if f.omnigibson else None,
+                f.omnigibson[1] if f.omnigibson else None,
             )
         )
         for f in ep.frames
