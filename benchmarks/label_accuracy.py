@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from dgli_vision.analysis.track import score_timeline
-from dgli_vision.core.classes import VARIANTS
+from dgli_vision.core.classes import CLASS_NAMES, VARIANTS
 from dgli_vision.core.layout import default_layout
 from dgli_vision.labelling.episodes import ReadOptions
 from dgli_vision.labelling.export import (
@@ -94,9 +94,12 @@ def finished_states(seed: int, per_variant: int, out: Path) -> None:
     print("| format | up, units | right by class | right by variant | no answer |")
     print("|---|---|---|---|---|")
     totals = np.zeros(3)
+    og: dict[str, list] = {}
     for fmt in FORMATS:
         path, options = _write(out, "finished", meshes, rng, fmt)
         ep = _label(path, options)
+        for f, t in zip(ep.frames, truth):
+            og.setdefault(t[0], []).append(f.omnigibson)
         cls = np.mean([f.class_id == t[0] for f, t in zip(ep.frames, truth)])
         var = np.mean([(f.class_id, f.variant) == t for f, t in zip(ep.frames, truth)])
         none = sum(f.class_id is None for f in ep.frames)
@@ -104,6 +107,14 @@ def finished_states(seed: int, per_variant: int, out: Path) -> None:
         print(f"| {fmt[0]} | {fmt[1]}, {fmt[2]} | {cls:.1%} | {var:.1%} | {none} |")
     print(f"| all | | {totals[0] / len(FORMATS):.1%} | {totals[1] / len(FORMATS):.1%} | "
           f"{int(totals[2])} |")
+    print("\nOmniGibson's predicates on the same frames (all formats)")
+    print("| class | frames | Folded | Unfolded | neither |")
+    print("|---|---|---|---|---|")
+    for c, marks in og.items():
+        m = np.array(marks, dtype=bool)
+        neither = ~m[:, 0] & ~m[:, 1]
+        print(f"| {c} {CLASS_NAMES[c]} | {len(m)} | {m[:, 0].mean():.0%} | "
+              f"{m[:, 1].mean():.0%} | {neither.mean():.0%} |")
 
 
 def sequences(seed: int, n_frames: int, out: Path, picture: str | None) -> None:
