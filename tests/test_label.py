@@ -249,3 +249,23 @@ def test_a_single_frame_is_an_episode_of_one_frame(tmp_path):
     assert res.exit_code == 0, res.output
     (frame,) = json.loads(res.stdout)["episodes"][0]["frames"]
     assert (frame["class"], frame["variant"]) == ("06", "BD")
+
+
+def test_rest_file_and_size_for_a_remeshed_cloth_in_unknown_units(tmp_path):
+    """A folded frame alone cannot give the material coordinates of a remeshed cloth: the
+    flat rest comes from --rest, and --size scales positions in arbitrary units."""
+    rng = np.random.default_rng(SEED + 3)
+    state = sample_state("09", "CD", np.random.default_rng(SEED))
+    rm = remesh((400.0, 400.0), 600, rng)
+    flat, folded = rm.positions([flat_mesh(default_layout()), state.mesh]) * 3.7
+    write_meshes(tmp_path / "rest", flat[None], rm.faces)
+    write_meshes(tmp_path / "frame", folded[None], rm.faces, suffix=".ply")
+    args = ["label", str(tmp_path / "frame" / "frame_00000.ply"), "--json"]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2 and "--rest" in res.stderr  # its own first frame is folded
+    rest = str(tmp_path / "rest" / "frame_00000.obj")
+    res = CliRunner().invoke(main, [*args, "--rest", rest, "--size", "400"])
+    assert res.exit_code == 0, res.output
+    (ep,) = json.loads(res.stdout)["episodes"]
+    assert ep["size_mm"] == [400.0, 400.0]
+    assert (ep["frames"][0]["class"], ep["frames"][0]["variant"]) == ("09", "CD")

@@ -250,7 +250,8 @@ def _corners(path: str, p2: NDArray, loop: NDArray) -> NDArray[np.int64]:
     if len(picked) < 4 or bad:
         raise InvalidInputError(
             f"'{path}': the cloth is not rectangular (its border's four sharpest turns are "
-            f"{', '.join(f'{turn[k]:.0f}' for k in picked)} degrees, not 90)"
+            f"{', '.join(f'{turn[k]:.0f}' for k in picked)} degrees, not 90; the rest frame "
+            "must be the flat cloth: give it with --rest FILE)"
         )
     return np.array(picked, dtype=np.int64)
 
