@@ -16,7 +16,7 @@ from numpy.typing import NDArray
 from ..analysis.bench import BenchResult
 from ..core.layout import load_layout
 from ..sim.cloth.sequences import sequence_progress, sequence_state, sequence_steps
-from .episodes import ReadOptions, grid_faces
+from .episodes import ReadOptions
 from .export import remesh, write_npz
 from .label import label_part
 from .run import LabelJob, label_episodes
@@ -142,7 +142,3 @@ def _speed_up(paths: tuple[str, ...], n_frames: int) -> list[BenchResult]:
                     times[1] / warm, "x"),
     ]
 
-
-def grid_faces_of_softgym() -> NDArray[np.int64]:
-    """The triangles of SoftGym's default grid (for docs and scripts)."""
-    return grid_faces(*SOFTGYM_GRID)

@@ -34,6 +34,7 @@ __all__ = [
     "FrameLabel",
     "PartResult",
     "assemble",
+    "cached_references",
     "label_part",
     "progress_of",
 ]
@@ -73,7 +74,8 @@ class PartResult:
 
 
 @lru_cache(maxsize=4)
-def _references(path: str | None) -> ReferenceSet:
+def cached_references(path: str | None) -> ReferenceSet:
+    """The reference set of ``path`` (None: the shipped one), loaded once per process."""
     return load_references(path)
 
 
@@ -97,7 +99,7 @@ def label_part(
     on past a bad episode). The references are loaded once per process.
     """
     try:
-        refs = _references(references_path)
+        refs = cached_references(references_path)
         episode = read_episode(path, options)
         rest = read_rest(options)
         material = cloth_material(episode, rest, options.size_mm)

@@ -16,7 +16,7 @@ from typing import Any
 
 from ..core.errors import InvalidInputError
 from .episodes import ReadOptions
-from .label import EpisodeFailure, EpisodeLabels, _references, assemble, label_part
+from .label import EpisodeFailure, EpisodeLabels, assemble, cached_references, label_part
 
 __all__ = ["LabelJob", "label_episodes"]
 
@@ -57,7 +57,7 @@ def _in_order(
     job: LabelJob, tasks: list[tuple[int, int, int]], results: Sequence[Any], get: Any
 ) -> Iterator[EpisodeLabels | EpisodeFailure]:
     """Episodes in input order from the results of ``tasks`` (``get`` waits for one)."""
-    refs = _references(job.references_path)
+    refs = cached_references(job.references_path)
     by_episode: dict[int, list[int]] = {}
     for i, (e, _, _) in enumerate(tasks):
         by_episode.setdefault(e, []).append(i)
