@@ -10,8 +10,21 @@ from typing import Any
 import click
 
 from .errors import handle_errors
-from .options import json_option, overwrite_option, references_option, size_option
+from .options import json_option, overwrite_option, references_option
 from .output import command_line
+
+
+def _cloth_size(
+    ctx: click.Context, param: click.Parameter, value: str | None
+) -> tuple[float, float] | None:
+    from ..core.layout import parse_size
+
+    if value is None:
+        return None
+    try:
+        return parse_size(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc)) from None
 
 
 @click.command("label")
@@ -43,7 +56,14 @@ from .output import command_line
     show_default=True,
     help="Length unit of the positions.",
 )
-@size_option
+@click.option(
+    "--size",
+    "size_mm",
+    callback=_cloth_size,
+    metavar="W[xH]",
+    help="The cloth's real size in mm (positions are scaled to it) [default: measured on "
+    "the rest frame in --units].",
+)
 @click.option(
     "--rest",
     type=click.Path(),

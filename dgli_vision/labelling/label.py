@@ -107,7 +107,7 @@ def label_part(
     except DgliError as exc:
         return PartResult(str(path), part, error=str(exc))
     except ValueError as exc:  # the layout refuses a cloth too small for the stickers
-        return PartResult(str(path), part, error=f"'{path}': {exc}")
+        return PartResult(str(path), part, error=f"'{path}': {exc}; are --units right?")
     start, stop = _blocks(episode.n_frames, part, n_parts)
     rest = episode.frames(0, 1)[0] if rest is None else rest
     area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
