@@ -200,6 +200,8 @@ def _write_bad(tmp_path: Path) -> dict[str, str]:
     paths["round"] = "not rectangular"
     np.savez(tmp_path / "upright.npz", positions=upright, grid=np.array([ny, nx]))
     paths["upright"] = "is --up-axis right?"
+    np.savez(tmp_path / "units.npz", positions=pos * 1000, grid=np.array([ny, nx]))  # in 10 um
+    paths["units"] = "are --units right"
     return paths
 
 

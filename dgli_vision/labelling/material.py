@@ -22,6 +22,7 @@ from .episodes import ClothEpisode
 __all__ = [
     "CORNER_TURN_TOLERANCE_DEG",
     "FLAT_TOLERANCE",
+    "MAX_SIDE_MM",
     "RECTANGLE_TOLERANCE",
     "VISIBILITY_VERTICES",
     "ClothMaterial",
@@ -37,6 +38,9 @@ CORNER_TURN_TOLERANCE_DEG = 25.0
 #: The border may leave the quadrilateral of the corners by this share of the shorter
 #: side, and opposite sides may differ by this share, for the cloth to be a rectangle.
 RECTANGLE_TOLERANCE = 0.06
+#: A cloth measured longer than this (mm) on a side is taken for wrong units (a napkin
+#: in mm read as metres measures hundreds of metres).
+MAX_SIDE_MM = 10_000.0
 #: About this many vertices make the coarse mesh that is raycast for visibility: about
 #: 15 mm apart on a 400 mm napkin, half a sticker, and 0.3 ms a frame.
 VISIBILITY_VERTICES = 700
@@ -367,6 +371,11 @@ def cloth_material(
         faces = episode.faces
     else:
         uv, corners, size, faces = _mesh_material(episode, rest)
+    if size_mm is None and max(size) > MAX_SIDE_MM:
+        raise InvalidInputError(
+            f"'{episode.path}': the cloth measures {size[0]:.0f} x {size[1]:.0f} mm at rest; "
+            "are --units right (or give its real --size)?"
+        )
     scale = 1.0
     if size_mm is not None:
         scale = float(np.mean([size_mm[0] / size[0], size_mm[1] / size[1]]))
