@@ -18,6 +18,7 @@ from .compare import compare, sequence
 from .errors import guarded
 from .evaluate import evaluate
 from .extract import extract
+from .label import label_cmd
 from .napkin import coords, stickers
 from .references import references
 from .render import render_cmd
@@ -54,6 +55,7 @@ for _command in (
     stickers,
     coords,
     bench,
+    label_cmd,
 ):
     main.add_command(_command)
 

@@ -1,0 +1,394 @@
+"""Material coordinates of a simulated cloth: where each vertex lies on the flat napkin.
+
+With a particle grid, the grid gives them (its spacing measured on the rest frame). A
+mesh without a grid is flattened: its rest frame (the first frame, or another file's)
+is projected onto its best plane, the border is the edges used by one triangle only,
+and the corners are the four sharpest turns of the border. Corner A is the grid's first
+vertex (or the corner with the lowest vertex index); B, C and D follow
+counter-clockwise seen from above, so the face looking up at rest is the front.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+from scipy.spatial import Delaunay, cKDTree
+
+from ..core.errors import InvalidInputError
+from .episodes import ClothEpisode
+
+__all__ = [
+    "CORNER_TURN_TOLERANCE_DEG",
+    "FLAT_TOLERANCE",
+    "MAX_SIDE_MM",
+    "RECTANGLE_TOLERANCE",
+    "VISIBILITY_VERTICES",
+    "ClothMaterial",
+    "cloth_material",
+    "locate",
+]
+
+#: A rest frame whose points leave its best plane by more than this share of the
+#: cloth's longer side is not flat (wrinkles of a few mm on 400 mm pass).
+FLAT_TOLERANCE = 0.05
+#: Each of the four corners must turn the border by 90 degrees within this.
+CORNER_TURN_TOLERANCE_DEG = 25.0
+#: The border may leave the quadrilateral of the corners by this share of the shorter
+#: side, and opposite sides may differ by this share, for the cloth to be a rectangle.
+RECTANGLE_TOLERANCE = 0.06
+#: A cloth measured longer than this (mm) on a side is taken for wrong units (a napkin
+#: in mm read as metres measures hundreds of metres).
+MAX_SIDE_MM = 10_000.0
+#: About this many vertices make the coarse mesh that is raycast for visibility: about
+#: 15 mm apart on a 400 mm napkin, half a sticker, and 0.3 ms a frame.
+VISIBILITY_VERTICES = 700
+
+
+@dataclass(frozen=True, eq=False)
+class ClothMaterial:
+    """Where the vertices of a cloth lie on the flat napkin, and its coarse mesh.
+
+    Attributes
+    ----------
+    uv : ndarray, shape (N, 2)
+        Material coordinates, mm: A at (0, 0), u towards B, v towards D.
+    faces : ndarray of int, shape (F, 3)
+        Triangles, counter-clockwise in (u, v) (their normal is the front face's).
+    size_mm : tuple of float
+        The cloth's size (W, H), mm.
+    corners : ndarray of int, shape (4,)
+        Vertex ids of corners A, B, C, D.
+    scale : float
+        Factor the positions are multiplied by to measure ``size_mm`` (1 unless the size
+        was given).
+    coarse_ids : ndarray of int, shape (M,)
+        Vertices of the coarse mesh raycast for visibility.
+    coarse_faces : ndarray of int, shape (Fc, 3)
+        Its triangles, indices into ``coarse_ids``.
+    spacing_mm : float
+        The coarse mesh's vertex spacing, mm.
+    """
+
+    uv: NDArray[np.float64]
+    faces: NDArray[np.int64]
+    size_mm: tuple[float, float]
+    corners: NDArray[np.int64]
+    scale: float
+    coarse_ids: NDArray[np.int64]
+    coarse_faces: NDArray[np.int64]
+    spacing_mm: float
+
+
+def locate(
+    uv: NDArray[np.float64], faces: NDArray[np.int64], points: NDArray[np.float64]
+) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
+    """The triangle holding each material point and its barycentric weights.
+
+    Parameters
+    ----------
+    uv : ndarray, shape (N, 2)
+    faces : ndarray, shape (F, 3)
+    points : ndarray, shape (k, 2)
+
+    Returns
+    -------
+    face : ndarray of int, shape (k,)
+    weights : ndarray, shape (k, 3)
+        Of the face's three vertices, summing to 1 (a point just outside every face,
+        on the border, gets the nearest face's clipped weights).
+    """
+    a, b, c = (uv[faces[:, i]] for i in range(3))
+    m = np.stack([b - a, c - a], axis=-1)  # (F, 2, 2)
+    det = m[:, 0, 0] * m[:, 1, 1] - m[:, 0, 1] * m[:, 1, 0]
+    ok = np.abs(det) > 1e-12
+    inv = np.zeros_like(m)
+    inv[ok, 0, 0], inv[ok, 1, 1] = m[ok, 1, 1] / det[ok], m[ok, 0, 0] / det[ok]
+    inv[ok, 0, 1], inv[ok, 1, 0] = -m[ok, 0, 1] / det[ok], -m[ok, 1, 0] / det[ok]
+    pts = np.asarray(points, dtype=np.float64)
+    # candidates: the faces whose centres are nearest each point (all of them for small
+    # meshes); a point inside none of them (or with no candidates) tries every face
+    near = min(len(faces), 24)
+    cand = cKDTree((a + b + c) / 3).query(pts, k=near)[1].reshape(len(pts), near)
+    face = np.empty(len(pts), np.int64)
+    weights = np.empty((len(pts), 3))
+    for k, q in enumerate(pts):
+        for ids in (cand[k], np.arange(len(faces))):
+            lam = np.einsum("fij,fj->fi", inv[ids], q - a[ids])  # (f, 2)
+            bary = np.column_stack([1 - lam.sum(axis=1), lam])
+            worst = np.where(ok[ids], bary.min(axis=1), -np.inf)
+            best = int(np.argmax(worst))
+            if worst[best] >= -1e-9:
+                break
+        face[k] = ids[best]
+        w = np.clip(bary[best], 0.0, None)
+        weights[k] = w / w.sum()
+    return face, weights
+
+
+def _grid_material(ep: ClothEpisode, rest: NDArray) -> tuple[NDArray, NDArray, tuple]:
+    """uv (N, 2), corner ids and size from a particle grid and its rest frame."""
+    rows, cols = ep.grid
+    g = rest.reshape(rows, cols, 3)
+    du = float(np.linalg.norm(np.diff(g, axis=1), axis=-1).mean()) * 1e3
+    dv = float(np.linalg.norm(np.diff(g, axis=0), axis=-1).mean()) * 1e3
+    # which way the grid runs seen from above: the sign of its cells' summed area (a
+    # flap folded over turns its cells round, but it is never most of the cloth)
+    e_row, e_col = g[:-1, 1:] - g[:-1, :-1], g[1:, :-1] - g[:-1, :-1]
+    ccw = (e_row[..., 0] * e_col[..., 1] - e_row[..., 1] * e_col[..., 0]).sum() > 0
+    r, c = np.divmod(np.arange(rows * cols), cols)
+    if ccw:  # u along the first row, v along the first column
+        uv = np.column_stack([c * du, r * dv])
+        corners = np.array([0, cols - 1, rows * cols - 1, (rows - 1) * cols])
+        size = ((cols - 1) * du, (rows - 1) * dv)
+    else:
+        uv = np.column_stack([r * dv, c * du])
+        corners = np.array([0, (rows - 1) * cols, rows * cols - 1, cols - 1])
+        size = ((rows - 1) * dv, (cols - 1) * du)
+    return uv, corners, size
+
+
+def _check_up(path: str, rest: NDArray) -> None:
+    """Refuse a flat rest frame that does not lie on the table (a wrong up axis)."""
+    centred = rest - rest.mean(axis=0)
+    vt = np.linalg.svd(centred, full_matrices=False)[2]
+    flat = np.abs(centred @ vt[2]).max() <= FLAT_TOLERANCE * float(np.ptp(centred @ vt[0]))
+    if flat and abs(vt[2][2]) < np.cos(np.radians(60)):
+        raise InvalidInputError(
+            f"'{path}': the rest frame is flat but stands on its edge (its plane is "
+            f"{np.degrees(np.arccos(abs(vt[2][2]))):.0f} degrees from the table's): "
+            "is --up-axis right?"
+        )
+
+
+def _flatten(path: str, rest: NDArray) -> NDArray[np.float64]:
+    """The rest frame projected on its best plane, 2D (N, 2) metres, seen from above."""
+    centred = rest - rest.mean(axis=0)
+    vt = np.linalg.svd(centred, full_matrices=False)[2]
+    normal = vt[2] if vt[2][2] >= 0 else -vt[2]
+    e1 = vt[0]
+    e2 = np.cross(normal, e1)
+    off = np.abs(centred @ normal).max()
+    extent = float(np.ptp(centred @ e1))
+    if off > FLAT_TOLERANCE * extent:
+        raise InvalidInputError(
+            f"'{path}': the rest frame is not flat (points {off * 1e3:.0f} mm off its plane); "
+            "give the flat cloth with --rest FILE"
+        )
+    return np.column_stack([centred @ e1, centred @ e2])
+
+
+def _border_loop(path: str, faces: NDArray, border: NDArray | None, n: int) -> NDArray:
+    """The border's vertices in order round its single loop."""
+    if border is None:
+        e = np.sort(np.concatenate([faces[:, [0, 1]], faces[:, [1, 2]], faces[:, [2, 0]]]), 1)
+        edges, counts = np.unique(e, axis=0, return_counts=True)
+        if (counts > 2).any():
+            raise InvalidInputError(
+                f"'{path}': the mesh is non-manifold ({int((counts > 2).sum())} edges shared "
+                "by more than two triangles)"
+            )
+        border = edges[counts == 1]
+    if len(border) == 0:
+        raise InvalidInputError(f"'{path}': the mesh is closed: it has no border")
+    nbrs: dict[int, list[int]] = {}
+    for a, b in border:
+        nbrs.setdefault(int(a), []).append(int(b))
+        nbrs.setdefault(int(b), []).append(int(a))
+    if any(len(v) != 2 for v in nbrs.values()):
+        raise InvalidInputError(
+            f"'{path}': the mesh's border is not a simple loop (a non-manifold or open mesh)"
+        )
+    start = min(nbrs)
+    loop, prev, cur = [start], -1, start
+    while True:
+        nxt = nbrs[cur][0] if nbrs[cur][0] != prev else nbrs[cur][1]
+        if nxt == start:
+            break
+        loop.append(nxt)
+        prev, cur = cur, nxt
+    if len(loop) != len(nbrs):
+        raise InvalidInputError(
+            f"'{path}': the mesh's border has more than one loop (holes or pieces): "
+            "not one rectangular cloth"
+        )
+    return np.array(loop, dtype=np.int64)
+
+
+def _turns_deg(pts: NDArray) -> NDArray[np.float64]:
+    """How far the closed polyline ``pts`` (m, 2) turns at each point, degrees, measured
+    between points a fiftieth of its length before and after (left turns positive)."""
+    seg = np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    length = s[-1]
+    closed = np.vstack([pts, pts[:1]])
+    delta = length / 50
+
+    def at(x: NDArray) -> NDArray:
+        x = np.mod(x, length)
+        return np.column_stack([np.interp(x, s, closed[:, i]) for i in range(2)])
+
+    before, after = at(s[:-1] - delta), at(s[:-1] + delta)
+    a, b = pts - before, after - pts
+    cross = a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+    return np.degrees(np.arctan2(cross, (a * b).sum(axis=1)))
+
+
+def _corners(path: str, p2: NDArray, loop: NDArray) -> NDArray[np.int64]:
+    """Positions in ``loop`` of the four sharpest turns, in loop order."""
+    pts = p2[loop]
+    turn = _turns_deg(pts)
+    seg = np.linalg.norm(np.roll(pts, -1, axis=0) - pts, axis=1)
+    s = np.concatenate([[0.0], np.cumsum(seg)])[:-1]
+    length = seg.sum()
+    order, picked = np.argsort(-turn, kind="stable"), []
+    for k in order:
+        d = np.abs(s[k] - s[picked])
+        if not picked or (np.minimum(d, length - d) > length / 8).all():
+            picked.append(int(k))
+        if len(picked) == 4:
+            break
+    picked.sort()
+    bad = [turn[k] for k in picked if abs(turn[k] - 90) > CORNER_TURN_TOLERANCE_DEG]
+    if len(picked) < 4 or bad:
+        raise InvalidInputError(
+            f"'{path}': the cloth is not rectangular (its border's four sharpest turns are "
+            f"{', '.join(f'{turn[k]:.0f}' for k in picked)} degrees, not 90; the rest frame "
+            "must be the flat cloth: give it with --rest FILE)"
+        )
+    return np.array(picked, dtype=np.int64)
+
+
+def _check_rectangle(path: str, p2: NDArray, loop: NDArray, at: NDArray) -> tuple[float, float]:
+    """Side lengths (W, H) in metres of the quadrilateral of the corners, after checking
+    that the border follows it (``at``: the corners' positions in ``loop``)."""
+    q = p2[loop[at]]
+    sides = np.linalg.norm(np.roll(q, -1, axis=0) - q, axis=1)
+    worst = 0.0
+    for k in range(4):
+        i, j = at[k], at[(k + 1) % 4]
+        run = loop[i : j + 1] if j > i else np.concatenate([loop[i:], loop[: j + 1]])
+        a, b = q[k], q[(k + 1) % 4]
+        t = (b - a) / np.linalg.norm(b - a)
+        rel = p2[run] - a
+        worst = max(worst, float(np.abs(rel[:, 0] * t[1] - rel[:, 1] * t[0]).max()))
+    w, h = (sides[0] + sides[2]) / 2, (sides[1] + sides[3]) / 2
+    tol = RECTANGLE_TOLERANCE
+    if worst > tol * min(w, h) or abs(sides[0] - sides[2]) > tol * w or (
+        abs(sides[1] - sides[3]) > tol * h
+    ):
+        raise InvalidInputError(
+            f"'{path}': the cloth is not rectangular (sides "
+            f"{', '.join(f'{s * 1e3:.0f}' for s in sides)} mm; its border leaves the "
+            f"corners' quadrilateral by {worst * 1e3:.0f} mm)"
+        )
+    return float(w), float(h)
+
+
+def _triangulate(p2: NDArray) -> NDArray[np.int64]:
+    """Delaunay triangles of 2D points, every point a vertex (joggled: a regular grid
+    has points on the hull's edges that qhull would leave out)."""
+    return Delaunay(p2, qhull_options="QJ").simplices.astype(np.int64)
+
+
+def _mesh_material(ep: ClothEpisode, rest: NDArray) -> tuple[NDArray, NDArray, tuple, NDArray]:
+    """uv, corner ids, size and faces of a mesh without a grid, from its flat rest."""
+    p2 = _flatten(ep.path, rest)
+    faces = ep.faces if len(ep.faces) else _triangulate(p2)
+    loop = _border_loop(ep.path, faces, ep.border, len(rest))
+    ring, nxt = p2[loop], np.roll(p2[loop], -1, axis=0)
+    if (ring[:, 0] * nxt[:, 1] - nxt[:, 0] * ring[:, 1]).sum() < 0:  # clockwise: reverse
+        loop = loop[::-1].copy()
+    at = _corners(ep.path, p2, loop)
+    w, h = _check_rectangle(ep.path, p2, loop, at)
+    first = int(np.argmin(loop[at]))
+    at = np.roll(at, -first)
+    corners = loop[at]
+    target = np.array([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]) * 1e3
+    src = np.column_stack([p2[corners], np.ones(4)])
+    affine, *_ = np.linalg.lstsq(src, target, rcond=None)
+    uv = np.column_stack([p2, np.ones(len(p2))]) @ affine
+    return uv, corners, (w * 1e3, h * 1e3), faces
+
+
+def _coarse_mesh(uv: NDArray, size: tuple[float, float]) -> tuple[NDArray, NDArray, float]:
+    """Vertices nearest a lattice about :data:`VISIBILITY_VERTICES` strong, and their
+    Delaunay triangles in (u, v)."""
+    w, h = size
+    step = float(np.sqrt(w * h / VISIBILITY_VERTICES))
+    gu = np.linspace(0, w, max(2, round(w / step) + 1))
+    gv = np.linspace(0, h, max(2, round(h / step) + 1))
+    lattice = np.stack(np.meshgrid(gu, gv), -1).reshape(-1, 2)
+    ids = np.unique(cKDTree(uv).query(lattice)[1]).astype(np.int64)
+    tri = _triangulate(uv[ids])
+    a, b, c = (uv[ids][tri[:, i]] for i in range(3))
+    area = (b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0]
+    tri = tri[np.abs(area) > 1e-6 * step * step]
+    return ids, tri, step
+
+
+def _ccw(uv: NDArray, faces: NDArray) -> NDArray[np.int64]:
+    """Faces reordered to run counter-clockwise in (u, v)."""
+    a, b, c = (uv[faces[:, i]] for i in range(3))
+    area = (b - a)[:, 0] * (c - a)[:, 1] - (b - a)[:, 1] * (c - a)[:, 0]
+    out = faces.copy()
+    out[area < 0] = out[area < 0][:, [0, 2, 1]]
+    return out
+
+
+def cloth_material(
+    episode: ClothEpisode,
+    rest: NDArray[np.float64] | None = None,
+    size_mm: tuple[float, float] | None = None,
+) -> ClothMaterial:
+    """Material coordinates of an episode's cloth.
+
+    Parameters
+    ----------
+    episode : ClothEpisode
+    rest : ndarray, shape (N, 3), optional
+        The flat cloth at rest (metres, z up); default the episode's first frame.
+    size_mm : tuple of float, optional
+        The cloth's real size (W, H); default as measured on the rest frame. When given,
+        the positions are to be scaled by :attr:`ClothMaterial.scale`.
+
+    Raises
+    ------
+    InvalidInputError
+        The rest frame does not match the mesh, is not flat, the mesh is open or
+        non-manifold, or the cloth is not rectangular.
+    """
+    rest = episode.frames(0, 1)[0] if rest is None else np.asarray(rest, dtype=np.float64)
+    if rest.shape != (episode.n_vertices, 3):
+        raise InvalidInputError(
+            f"'{episode.path}': the rest frame has {len(rest)} vertices, the episode "
+            f"{episode.n_vertices}"
+        )
+    _check_up(episode.path, rest)
+    if episode.grid is not None:
+        uv, corners, size = _grid_material(episode, rest)
+        faces = episode.faces
+    else:
+        uv, corners, size, faces = _mesh_material(episode, rest)
+    if size_mm is None and max(size) > MAX_SIDE_MM:
+        raise InvalidInputError(
+            f"'{episode.path}': the cloth measures {size[0]:.0f} x {size[1]:.0f} mm at rest; "
+            "are --units right (or give its real --size)?"
+        )
+    scale = 1.0
+    if size_mm is not None:
+        scale = float(np.mean([size_mm[0] / size[0], size_mm[1] / size[1]]))
+        uv = uv * np.array([size_mm[0] / size[0], size_mm[1] / size[1]])
+        size = (float(size_mm[0]), float(size_mm[1]))
+    ids, tri, step = _coarse_mesh(uv, size)
+    return ClothMaterial(
+        uv=uv,
+        faces=_ccw(uv, faces),
+        size_mm=(round(float(size[0]), 1), round(float(size[1]), 1)),
+        corners=np.asarray(corners, dtype=np.int64),
+        scale=scale,
+        coarse_ids=ids,
+        coarse_faces=_ccw(uv[ids], tri),
+        spacing_mm=step,
+    )
