@@ -49,7 +49,7 @@ class Recording:
     source : str
         The folder or file.
     kind : str
-        ``"folder"``, ``"ROS 1 bag"``, ``"ROS 2 bag"`` or ``"RealSense bag"``.
+        ``"folder"``, ``"ROS 1 bag"``, ``"ROS 2 bag"`` or ``"RealSense recording"``.
     notes : list of str
         What reading found worth saying: the topics read, a lens distortion left
         uncorrected, depth frames no colour frame took (filled while the frames are read).
@@ -268,7 +268,8 @@ def open_recording(
     labels: str | Path | None = None,
 ) -> Recording:
     """Any recording: a folder of pairs (:func:`read_recording`), a ROS 1 ``.bag``, a
-    ROS 2 bag (``.db3``, ``.mcap`` or its folder), or a RealSense SDK ``.bag``.
+    ROS 2 bag (``.db3``, ``.mcap`` or its folder), or a RealSense SDK recording (``.db3``
+    or ``.bag`` with RealSense's own topics; needs the ``realsense`` extra).
 
     Parameters
     ----------
@@ -287,13 +288,13 @@ def open_recording(
         One line naming the recording and what is wrong (no image topic, an ambiguous
         topic, a truncated file, the ``recordings`` extra missing...).
     """
-    from .realsense_bags import is_realsense_bag
+    from .realsense import is_realsense_recording
 
     p = Path(path)
     if not p.exists():
         raise UnreadableInputError(f"recording '{p}' does not exist")
-    if is_realsense_bag(p):
-        recording = _realsense_recording(p)
+    if is_realsense_recording(p):
+        recording = _realsense_recording(p, tolerance)
     elif is_recording_file(p):
         recording = _bag_recording(p, color_topic, depth_topic, info_topic, tolerance)
     else:
@@ -311,22 +312,33 @@ def open_recording(
     )
 
 
-def _realsense_recording(p: Path) -> Recording:
-    from .realsense_bags import read_realsense_bag
+def _realsense_recording(p: Path, tolerance: float) -> Recording:
+    """A RealSense SDK recording, played through the SDK (:mod:`.realsense`): each frame's
+    colour and depth aligned to it, with the colour stream's intrinsics."""
+    from .realsense import RealSensePlayback
 
-    count, frames = read_realsense_bag(p)
+    playback = RealSensePlayback(p, tolerance=tolerance)
+    playback.__enter__()  # opened now: a file the SDK cannot read stops the run here
+    notes = playback.notes
 
     def pairs() -> Iterator[RecordedPair]:
         t0 = None
-        for index, f in enumerate(frames):
-            t0 = f.time if t0 is None else t0
-            name = f"{p} frame {index} ({f.time - t0:.3f} s)"
-            yield RecordedPair(
-                f"{name} colour", f"{name} depth", "", None, None, round(f.time - t0, 6),
-                f.color, f.depth, f.intrinsics,
-            )
+        try:
+            for f in playback.frames():
+                t0 = f.time if t0 is None else t0
+                t = round(f.time - t0, 6)
+                name = f"{p} frame {f.index} ({t:.3f} s)"
+                h, w = f.depth_mm.shape
+                yield RecordedPair(
+                    f"{name} colour", f"{name} depth", "", None, None, t,
+                    ImagePayload("rgb8", w, h, 3 * w, False, f.color.tobytes()),
+                    ImagePayload("16UC1", w, h, 2 * w, False, f.depth_mm.tobytes()),
+                    f.intrinsics,
+                )
+        finally:
+            playback.close()
 
-    return Recording(pairs(), count, False, str(p), "RealSense bag")
+    return Recording(pairs(), playback.count, False, str(p), "RealSense recording", notes)
 
 
 def _bag_recording(
