@@ -348,6 +348,9 @@ class RealSensePlayback:
                 except queue.Full:
                     if self.real_time:
                         return  # at the recorded pace a slow reader loses the frame
+        # paused while the sensors start: the first sensor started would otherwise set
+        # the playback going, and the other would miss its first frames
+        self.playback.pause()
         if c_sensor == d_sensor:
             c_sensor.open([c_profile, d_profile])
             c_sensor.start(on_frame)
@@ -358,6 +361,7 @@ class RealSensePlayback:
             d_sensor.start(on_frame)
             c_sensor.start(on_frame)
             self._started = [d_sensor, c_sensor]
+        self.playback.resume()
         align = _Aligner(rs)
         t0 = None
         index = 0
