@@ -16,9 +16,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from test_realsense import PATTERN_INTRINSICS, pattern_frames  # noqa: E402
+from test_realsense import PATTERN_INTRINSICS, pattern_frames
 
-from dgli_vision.sources.realsense_writer import write_realsense_recording  # noqa: E402
+from dgli_vision.sources.realsense_writer import write_realsense_recording
 
 if __name__ == "__main__":
     out = Path(__file__).resolve().parents[1] / "tests" / "data" / "realsense_sdk2.56.bag"
