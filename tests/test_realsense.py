@@ -192,3 +192,90 @@ def test_without_the_sdk_every_realsense_command_says_what_to_install(
     _one_line_error(["track", str(pattern_db3)], hint)
     _one_line_error(["extract", str(pattern_db3), str(tmp_path / "o")], hint)
     _one_line_error(["evaluate", str(pattern_db3), "--labels", str(tmp_path / "l.csv")], hint)
+    _one_line_error(["watch", "--bag", str(pattern_db3)], hint)
+    _one_line_error(["watch", "--realsense"], hint)
+    _one_line_error(["watch", "--realsense", "123456789"], hint)
+
+
+def _watch(*args: str) -> tuple[list[dict], dict]:
+    r = CliRunner().invoke(main, ["watch", *args, "--jsonl"])
+    assert r.exit_code == 0, r.output
+    lines = [json.loads(ln) for ln in r.stdout.splitlines()]
+    assert "summary" in lines[-1]
+    return lines[:-1], lines[-1]["summary"]
+
+
+def test_watch_plays_a_recording_through_the_live_path_with_the_states_of_track(episode):
+    _, db3 = episode
+    tracked = _track(db3)
+    frames, summary = _watch("--bag", str(db3), "--fast")
+    assert [f["frame"] for f in frames] == list(range(6))  # as fast as classified: none lost
+    assert summary["dropped"] == 0 and all(f["dropped"] == 0 for f in frames)
+    raw = [f["state"]["class"] if f["state"] else None for f in frames]
+    assert raw == [f["raw_class"] for f in tracked["frames"]]
+    # the whole path settled by all frames is track's timeline; the online state of the
+    # last frame is its last state
+    assert [(s["class"], s["variant"]) for s in summary["path"]] == [
+        (f["smoothed_class"], f["smoothed_variant"]) for f in tracked["frames"]
+    ]
+    last = tracked["frames"][-1]
+    assert frames[-1]["smoothed"] == {
+        "class": last["smoothed_class"], "variant": last["smoothed_variant"]
+    }
+    changed = [f["frame"] for f in frames if f["change"]]
+    assert changed and changed[-1] == tracked["changes"][-1]["frame"]
+    assert all(f["latency_ms"] > 0 and 0 <= f["confidence"] <= 1 for f in frames)
+
+
+def test_frames_that_come_while_one_is_classified_are_dropped_and_counted(episode, tmp_path):
+    """Played at its pace, a recording whose frames come 1 ms apart: the worker cannot
+    keep up, and frames are dropped (never queued), the newest always classified."""
+    from dgli_vision.sources.recording import read_recording
+
+    folder, _ = episode
+    fast = tmp_path / "fast"
+    fast.mkdir()
+    pairs = read_recording(folder).frames
+    rows = [f"{p.color},{p.depth},{k * 0.001:.3f}" for k, p in enumerate(pairs)]
+    (fast / "frames.csv").write_text("color,depth,time\n" + "\n".join(rows) + "\n")
+    frames, summary = _watch("--bag", str(fast), "--realtime")
+    done = [f["frame"] for f in frames]
+    assert summary["dropped"] >= 1 and frames[-1]["dropped"] == summary["dropped"]
+    assert summary["classified"] + summary["dropped"] == summary["arrived"] == 6
+    assert done == sorted(done) and done[0] == 0 and done[-1] == 5
+
+
+def test_watch_every_n_frames_with_overlays(episode, tmp_path):
+    _, db3 = episode
+    frames, summary = _watch("--bag", str(db3), "--fast", "--every", "2",
+                             "--overlay-dir", str(tmp_path / "ov"))
+    assert [f["frame"] for f in frames] == [0, 2, 4]
+    assert summary["skipped"] == 3 and summary["dropped"] == 0
+    assert sorted(p.name for p in (tmp_path / "ov").iterdir()) == [
+        "frame_000000.png", "frame_000002.png", "frame_000004.png"
+    ]
+
+
+def test_ctrl_c_stops_watch_cleanly_with_a_summary(episode, tmp_path):
+    import signal
+    import subprocess
+
+    folder, _ = episode
+    slow = tmp_path / "slow"  # a frame every 2 s: still watching when Ctrl-C comes
+    slow.mkdir()
+    from dgli_vision.sources.recording import read_recording
+
+    rows = [f"{p.color},{p.depth},{k * 2.0}" for k, p in enumerate(read_recording(folder).frames)]
+    (slow / "frames.csv").write_text("color,depth,time\n" + "\n".join(rows) + "\n")
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dgli_vision", "watch", "--bag", str(slow), "--jsonl"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+    )
+    first = proc.stdout.readline()  # the first frame's answer: watching
+    assert json.loads(first)["frame"] == 0
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 0, err
+    summary = json.loads(out.splitlines()[-1])["summary"]
+    assert summary["stopped"] is True and summary["classified"] < 6
+    assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("stopped: ")

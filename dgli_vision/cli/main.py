@@ -24,6 +24,7 @@ from .render import render_cmd
 from .robustness import robustness
 from .simulate import simulate
 from .track import track
+from .watch import watch
 
 
 class _Group(click.Group):
@@ -54,6 +55,7 @@ for _command in (
     stickers,
     coords,
     bench,
+    watch,
 ):
     main.add_command(_command)
 

@@ -35,6 +35,7 @@ __all__ = [
     "INSTALL_HINT",
     "RealSenseFrame",
     "RealSensePlayback",
+    "camera_pairs",
     "is_realsense_recording",
     "open_camera",
     "realsense_sdk",
@@ -489,3 +490,40 @@ def _camera_frames(rs: Any, pipeline: Any, profile: Any) -> Iterator[RealSenseFr
     finally:
         pipeline.stop()
 
+
+
+def camera_pairs(
+    serial: str | None = None, *, width: int = 1280, height: int = 720, fps: int = 30
+) -> Iterator[Any]:
+    """A connected camera's frames as a recording's frames
+    (:class:`~dgli_vision.sources.recording.RecordedPair`, times from the first frame),
+    for the live loop.
+
+    Raises
+    ------
+    UnreadableInputError
+        As :func:`open_camera`.
+    """
+    from .recording import RecordedPair
+    from .ros_images import ImagePayload
+
+    frames = open_camera(serial, width=width, height=height, fps=fps)
+    name = f"RealSense camera {serial}" if serial else "RealSense camera"
+
+    def pairs() -> Iterator[Any]:
+        t0 = None
+        try:
+            for f in frames:
+                t0 = f.time if t0 is None else t0
+                h, w = f.depth_mm.shape
+                where = f"{name} frame {f.index}"
+                yield RecordedPair(
+                    f"{where} colour", f"{where} depth", "", None, None, round(f.time - t0, 6),
+                    ImagePayload("rgb8", w, h, 3 * w, False, f.color.tobytes()),
+                    ImagePayload("16UC1", w, h, 2 * w, False, f.depth_mm.tobytes()),
+                    f.intrinsics,
+                )
+        finally:
+            frames.close()
+
+    return pairs()
