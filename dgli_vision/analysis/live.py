@@ -238,6 +238,9 @@ class LiveSummary:
         The stream numbers of the classified frames (``path`` is theirs).
     stopped : bool
         Stopped by the caller (Ctrl-C) rather than by the end of the source.
+    behind_s : float
+        A recording played at its pace: how far the reading fell behind that pace at
+        worst, seconds (0: every frame was offered on time).
     """
 
     arrived: int
@@ -250,6 +253,7 @@ class LiveSummary:
     path: list[StateKey] = field(default_factory=list)
     frames: list[int] = field(default_factory=list)
     stopped: bool = False
+    behind_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -321,6 +325,7 @@ def _capture(
                 wait = start_wall + (t - start_t) - time.perf_counter()
                 if wait > 0 and stop.wait(wait):
                     break
+                counts["behind"] = max(counts["behind"], -wait)  # reading slower than live
             if index % every:
                 counts["skipped"] += 1
                 continue
@@ -378,7 +383,9 @@ def watch(
     """
     stop = stop or threading.Event()
     slot = LatestFrame()
-    counts: dict[str, Any] = {"arrived": 0, "skipped": 0, "first": None, "error": None}
+    counts: dict[str, Any] = {
+        "arrived": 0, "skipped": 0, "first": None, "error": None, "behind": 0.0
+    }
     capture = threading.Thread(
         target=_capture,
         args=(frames, slot, counts),
@@ -436,4 +443,5 @@ def watch(
         path=smoother.path(),
         frames=classified,
         stopped=stopped,
+        behind_s=round(counts["behind"], 3),
     )

@@ -32,7 +32,7 @@ def _format_figure(value: float, unit: str) -> str:
 )
 @click.option(
     "--only",
-    type=click.Choice(["dgli", "pipeline", "frames", "recording"]),
+    type=click.Choice(["dgli", "pipeline", "frames", "recording", "watch"]),
     help="Run one group of benchmarks only. frames: every frame of a varied set it "
     "renders (every capture condition, another camera, a fold held by a gripper), its "
     "median, p90 and slowest frame and each stage's time.",
@@ -73,7 +73,7 @@ def bench(
     results = []
     if only in (None, "dgli"):
         results += b.run_dgli_benchmarks(n_states=states, repeats=repeats)
-    if only in (None, "pipeline", "recording"):
+    if only in (None, "pipeline", "recording", "watch"):
         samples = _samples_folder(samples)
     if only in (None, "pipeline"):
         exe = Path(sys.executable).parent / "dgli-classify"
@@ -85,6 +85,8 @@ def bench(
         )[0]
     if only in (None, "recording"):
         results += b.run_recording_benchmarks(samples)
+    if only in (None, "watch"):
+        results += b.run_watch_benchmarks(samples)
     rows = []
     for r in results:
         value = _format_figure(r.value, r.unit)

@@ -110,7 +110,7 @@ def _source(serial: str | None, bag: str | None, mode: str) -> tuple[Any, list[s
     from ..sources.recording import open_recording
 
     if bag is not None:
-        recording = open_recording(bag)
+        recording = open_recording(bag, live=True)
         return recording.frames, recording.notes
     try:
         size, fps = mode.split("@")

@@ -33,6 +33,7 @@ from ..core.errors import InvalidInputError, UnreadableInputError
 
 __all__ = [
     "INSTALL_HINT",
+    "LazyRealSenseFrame",
     "RealSenseFrame",
     "RealSensePlayback",
     "camera_pairs",
@@ -241,6 +242,40 @@ def _depth_scale(rs: Any, sensor: Any) -> float:
         return 0.001
 
 
+@dataclass(frozen=True)
+class LazyRealSenseFrame:
+    """A frame of a playback before its depth is aligned (:meth:`decode` does it).
+
+    Attributes
+    ----------
+    index : int
+    time : float
+        Seconds, the colour frame's timestamp.
+    color, depth : SDK frames
+    playback : RealSensePlayback
+    align : the playback's aligner
+    """
+
+    index: int
+    time: float
+    color: Any
+    depth: Any
+    playback: Any
+    align: Any
+
+    def decode(self) -> RealSenseFrame:
+        """The frame with depth aligned to colour, in mm, and the colour as RGB."""
+        rs, pb = self.playback.rs, self.playback
+        depth = self.align(self.color, self.depth)
+        return RealSenseFrame(
+            self.index,
+            self.time,
+            _colour_array(rs, self.color),
+            _depth_mm(depth, pb.depth_scale_m),
+            pb.intrinsics,
+        )
+
+
 class RealSensePlayback:
     """A RealSense recording played back through the SDK, frame by frame.
 
@@ -332,6 +367,24 @@ class RealSensePlayback:
         UnreadableInputError
             The playback stops with an error part-way.
         """
+        lazy = self.lazy_frames()
+        try:
+            for frame in lazy:
+                yield frame.decode()
+        finally:
+            lazy.close()
+
+    def lazy_frames(self) -> Iterator[LazyRealSenseFrame]:
+        """The frames of :meth:`frames`, each still the SDK's colour and depth frames:
+        aligned and converted only when :meth:`LazyRealSenseFrame.decode` is called, so
+        that a live reader pays for the frames it classifies, not those it drops. The
+        frames must be decoded one at a time (one aligner serves them all).
+
+        Raises
+        ------
+        UnreadableInputError
+            The playback stops with an error part-way.
+        """
         from .pairing import pair_by_time
 
         rs = self.rs
@@ -377,13 +430,8 @@ class RealSensePlayback:
                         f"within {round(self.tolerance * 1000)} ms (not used)"
                     )
                     continue
-                depth = align(paired.color, paired.depth)
-                yield RealSenseFrame(
-                    index,
-                    float(paired.color_time),
-                    _colour_array(rs, paired.color),
-                    _depth_mm(depth, self.depth_scale_m),
-                    self.intrinsics,
+                yield LazyRealSenseFrame(
+                    index, float(paired.color_time), paired.color, paired.depth, self, align
                 )
                 index += 1
         finally:

@@ -15,6 +15,7 @@ import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
@@ -23,6 +24,7 @@ from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
 from .ros_images import ImagePayload, decode_color, decode_depth
 
 __all__ = [
+    "LivePair",
     "RecordedPair",
     "Recording",
     "is_recording_file",
@@ -266,6 +268,7 @@ def open_recording(
     info_topic: str | None = None,
     tolerance: float = 0.020,
     labels: str | Path | None = None,
+    live: bool = False,
 ) -> Recording:
     """Any recording: a folder of pairs (:func:`read_recording`), a ROS 1 ``.bag``, a
     ROS 2 bag (``.db3``, ``.mcap`` or its folder), or a RealSense SDK recording (``.db3``
@@ -281,6 +284,9 @@ def open_recording(
     labels : str or Path, keyword-only, optional
         A bag's labels file (``frame`` or ``time``, ``label``, ``variant``); a folder
         has its own ``labels.csv``.
+    live : bool, keyword-only
+        For the live loop, in this process: a RealSense recording's frames are aligned
+        only when loaded (:class:`LivePair`).
 
     Raises
     ------
@@ -294,7 +300,7 @@ def open_recording(
     if not p.exists():
         raise UnreadableInputError(f"recording '{p}' does not exist")
     if is_realsense_recording(p):
-        recording = _realsense_recording(p, tolerance)
+        recording = _realsense_recording(p, tolerance, live)
     elif is_recording_file(p):
         recording = _bag_recording(p, color_topic, depth_topic, info_topic, tolerance)
     else:
@@ -312,14 +318,44 @@ def open_recording(
     )
 
 
-def _realsense_recording(p: Path, tolerance: float) -> Recording:
+@dataclass(frozen=True)
+class LivePair(LabelledPair):
+    """A frame of a RealSense recording played for the live loop: the SDK's frames, whose
+    depth is aligned only when the frame is loaded (a frame dropped costs nothing). Not
+    for other processes: it holds the playback."""
+
+    frame: Any = None
+
+    def load(self) -> RGBDFrame:
+        """The decoded frame, depth aligned to colour by the SDK."""
+        f = self.frame.decode()
+        return RGBDFrame(f.color, f.depth_mm, f.intrinsics, self.color, self.depth, "stream")
+
+    def light(self) -> LabelledPair:
+        """This frame as names only."""
+        return LabelledPair(self.color, self.depth, self.label, self.variant, self.line, self.time)
+
+
+def _realsense_recording(p: Path, tolerance: float, live: bool = False) -> Recording:
     """A RealSense SDK recording, played through the SDK (:mod:`.realsense`): each frame's
-    colour and depth aligned to it, with the colour stream's intrinsics."""
+    colour and depth aligned to it, with the colour stream's intrinsics; ``live``: as
+    :class:`LivePair` (aligned when loaded)."""
     from .realsense import RealSensePlayback
 
     playback = RealSensePlayback(p, tolerance=tolerance)
     playback.__enter__()  # opened now: a file the SDK cannot read stops the run here
     notes = playback.notes
+
+    def lazy_pairs() -> Iterator[LivePair]:
+        t0 = None
+        try:
+            for f in playback.lazy_frames():
+                t0 = f.time if t0 is None else t0
+                t = round(f.time - t0, 6)
+                name = f"{p} frame {f.index} ({t:.3f} s)"
+                yield LivePair(f"{name} colour", f"{name} depth", "", None, None, t, frame=f)
+        finally:
+            playback.close()
 
     def pairs() -> Iterator[RecordedPair]:
         t0 = None
@@ -338,7 +374,8 @@ def _realsense_recording(p: Path, tolerance: float) -> Recording:
         finally:
             playback.close()
 
-    return Recording(pairs(), playback.count, False, str(p), "RealSense recording", notes)
+    frames = lazy_pairs() if live else pairs()
+    return Recording(frames, playback.count, False, str(p), "RealSense recording", notes)
 
 
 def _bag_recording(
