@@ -66,7 +66,7 @@ def pattern_db3(rs, tmp_path_factory) -> Path:
     from dgli_vision.sources.realsense_writer import write_realsense_recording
 
     path = tmp_path_factory.mktemp("rs") / "pattern.db3"
-    return write_realsense_recording(path, pattern_frames(), PATTERN_INTRINSICS)
+    return write_realsense_recording(path, pattern_frames(), PATTERN_INTRINSICS, paced=True)
 
 
 def _check_pattern(frames) -> None:
@@ -279,3 +279,25 @@ def test_ctrl_c_stops_watch_cleanly_with_a_summary(episode, tmp_path):
     summary = json.loads(out.splitlines()[-1])["summary"]
     assert summary["stopped"] is True and summary["classified"] < 6
     assert "Traceback" not in err and err.strip().splitlines()[-1].startswith("stopped: ")
+
+
+def test_the_camera_path_gives_aligned_frames_in_mm_with_the_stream_intrinsics(pattern_db3):
+    """The pipeline a live camera streams through, fed from an SDK recording (the SDK
+    plays a file through the same pipeline API as a camera; recorded at the frames'
+    pace, it plays like one)."""
+    from dgli_vision.sources.realsense import _camera_frames
+
+    rs = pytest.importorskip("pyrealsense2")
+    config = rs.config()
+    config.enable_device_from_file(str(pattern_db3), repeat_playback=True)  # endless
+    pipeline = rs.pipeline()
+    frames = _camera_frames(rs, pipeline, pipeline.start(config))
+    got = [next(frames) for _ in range(2)]
+    frames.close()  # stops the pipeline
+    want = {rgb[0, 0, 2]: depth for _, rgb, depth in pattern_frames()}
+    for f in got:
+        _same_camera(f.intrinsics, PATTERN_INTRINSICS)
+        assert f.color.shape == (60, 80, 3) and f.color[0, 0, 2] in want
+        seen = f.depth_mm > 0
+        near = [np.abs(f.depth_mm[seen].astype(int) - d[seen]).max() for d in want.values()]
+        assert seen.mean() > 0.9 and min(near) <= 1  # in mm, aligned: one frame's depth

@@ -11,6 +11,7 @@ alignment and depth scale. Used by the tests and the benchmark (``realsense`` ex
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -82,6 +83,7 @@ def write_realsense_recording(
     fps: int = 30,
     compress: bool = True,
     serial: str = "000000000000",
+    paced: bool = False,
 ) -> Path:
     """Record ``frames`` (time in seconds, RGB uint8, depth uint16 in mm registered to
     colour) with the RealSense SDK's recorder.
@@ -103,6 +105,10 @@ def write_realsense_recording(
         The recorder's compression (the SDK's default).
     serial : str, keyword-only
         The serial number the device reports.
+    paced : bool, keyword-only
+        Push the frames at the pace of their times, as a camera gives them (the recorder
+        stamps each message with its arrival: a recording played at its recorded pace
+        then plays at the frames' pace); otherwise as fast as they come.
 
     Returns
     -------
@@ -146,8 +152,12 @@ def write_realsense_recording(
     c_sensor.start(queue)
     d_vs, c_vs = d_prof.as_video_stream_profile(), c_prof.as_video_stream_profile()
     per_mm = 0.001 / depth_scale_m
+    offset = None  # wall clock minus frame time, paced
     try:
         for n, (t, rgb, depth_mm) in enumerate(frames):
+            if paced:
+                offset = time.perf_counter() - t if offset is None else offset
+                time.sleep(max(0.0, offset + t - time.perf_counter()))
             sampled = depth_mm[::depth_step, ::depth_step].astype(np.float64) * per_mm
             raw = np.clip(np.rint(sampled), 0, 65535).astype(np.uint16)
             _push(rs, d_sensor, d_vs, raw, 2, t, n, depth_scale_m)
