@@ -301,3 +301,28 @@ def test_the_camera_path_gives_aligned_frames_in_mm_with_the_stream_intrinsics(p
         seen = f.depth_mm > 0
         near = [np.abs(f.depth_mm[seen].astype(int) - d[seen]).max() for d in want.values()]
         assert seen.mean() > 0.9 and min(near) <= 1  # in mm, aligned: one frame's depth
+
+
+def test_online_smoothing_is_tracks_smoothing_one_frame_at_a_time():
+    """After each frame the online state is the last state of track's path over the
+    frames so far; the kept path is track's path (with gaps)."""
+    from dgli_vision.analysis.live import OnlineSmoother
+    from dgli_vision.analysis.track import smooth
+    from dgli_vision.classifier.references import default_references_path, load_references
+
+    refs = load_references(default_references_path())
+    rng = np.random.default_rng(28)
+    owners = [(r.class_id, r.variant) for r in refs.references]
+    story = [("01", None)] * 6 + [("02", "A")] * 6 + [("06", "AC")] * 6
+    d = rng.uniform(0.3, 0.6, (len(story), len(refs)))
+    for t, key in enumerate(story):  # each frame near its state, one frame far off
+        d[t, [k for k, o in enumerate(owners) if o == key]] = rng.uniform(0.05, 0.2)
+    d[[4, 10]] = np.nan  # two gaps
+    d[8, :] = rng.uniform(0.3, 0.6, len(refs))
+    d[8, [k for k, o in enumerate(owners) if o == ("11", "AB")]] = 0.05
+    online = OnlineSmoother(refs)
+    for t in range(len(story)):
+        row = None if np.isnan(d[t]).all() else d[t]
+        assert online.update(row) == smooth(d[: t + 1], refs)[0][-1]
+    assert online.path() == smooth(d, refs)[0]
+    assert online.path()[8] == ("02", "A")  # the odd frame smoothed away
