@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import threading
 import time
+from collections import deque
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from typing import Any
@@ -55,15 +56,25 @@ class OnlineSmoother:
         The references the frames' distances are to.
     stay : float, keyword-only
         :data:`~dgli_vision.analysis.track.STAY_PROBABILITY`.
+    keep_path : bool, keyword-only
+        Keep the back-pointers that settle the whole path (:meth:`path`); without them
+        only the latest state is known (an endless stream).
     """
 
-    def __init__(self, references: ReferenceSet, *, stay: float = STAY_PROBABILITY) -> None:
+    def __init__(
+        self,
+        references: ReferenceSet,
+        *,
+        stay: float = STAY_PROBABILITY,
+        keep_path: bool = True,
+    ) -> None:
         self.references = references
         self.keys = state_keys()
         self.log_transition = transition_log_matrix(self.keys, stay=stay)
         self.prior = FOLD_PRIOR * np.array([len(folds_of(*k)) for k in self.keys])
         self.score: NDArray[np.float64] | None = None
         self.back: list[NDArray[np.int8]] = []
+        self.keep_path = keep_path
 
     def update(self, distances: tuple[float, ...] | NDArray | None) -> StateKey:
         """Take one frame's distances to every reference (None or empty: a gap, no
@@ -82,16 +93,19 @@ class OnlineSmoother:
         else:
             cand = self.score[:, None] + self.log_transition
             best = np.argmax(cand, axis=0)
-            self.back.append(best.astype(np.int8))
+            if self.keep_path:
+                self.back.append(best.astype(np.int8))
             self.score = cand[best, np.arange(n_s)] + emit
         self.score = self.score - self.score.max()  # keeps the numbers small for hours
         return self.keys[int(np.argmax(self.score))]
 
     def path(self) -> list[StateKey]:
         """The most likely states of every frame taken so far (what ``dgli track`` gives
-        the same frames)."""
+        the same frames); only the latest without ``keep_path``."""
         if self.score is None:
             return []
+        if not self.keep_path:
+            return [self.keys[int(np.argmax(self.score))]]
         state = int(np.argmax(self.score))
         out = [state]
         for back in reversed(self.back):
@@ -341,6 +355,71 @@ def _capture(
         slot.close()
 
 
+class _Worker:
+    """The worker's state: the smoother, the changes and the latencies so far."""
+
+    #: Latencies kept for the summary's percentiles (the last ones of a long run).
+    KEEP_LATENCIES = 100_000
+
+    def __init__(
+        self, references: ReferenceSet, colours: dict | None, keep_path: bool
+    ) -> None:
+        self.references, self.colours = references, colours
+        self.smoother = OnlineSmoother(references, keep_path=keep_path)
+        self.keep_path = keep_path
+        self.latencies: deque[float] = deque(maxlen=self.KEEP_LATENCIES)
+        self.max_latency = 0.0
+        self.changes: list[tuple[int, StateKey, StateKey]] = []
+        self.frames: list[int] = []
+        self.classified = 0
+        self.last: StateKey | None = None
+
+    def step(self, arrival: _Arrival, dropped: int) -> tuple[LiveUpdate, Any, Any]:
+        """Classify one frame and smooth: its update, frame and result."""
+        frame, result, state, conf, dist, note = classify_live(
+            arrival.pair, self.references, self.colours
+        )
+        smoothed = self.smoother.update(dist)
+        change = None
+        if self.last is not None and smoothed != self.last:
+            change = (self.last, smoothed)
+            self.changes.append((arrival.index, self.last, smoothed))
+        self.last = smoothed
+        self.classified += 1
+        if self.keep_path:
+            self.frames.append(arrival.index)
+        latency = (time.perf_counter() - arrival.at) * 1e3
+        self.latencies.append(latency)
+        self.max_latency = max(self.max_latency, latency)
+        t = getattr(arrival.pair, "time", None)
+        update = LiveUpdate(
+            arrival.index, t, state, smoothed, conf, change, dropped, latency, note
+        )
+        return update, frame, result
+
+    def summary(self, counts: dict[str, Any], dropped: int, stopped: bool) -> LiveSummary:
+        """What the run did."""
+        seconds = time.perf_counter() - counts["first"] if counts["first"] else 0.0
+        lat = np.array(self.latencies) if self.latencies else np.zeros(1)
+        return LiveSummary(
+            arrived=counts["arrived"],
+            skipped=counts["skipped"],
+            classified=self.classified,
+            dropped=dropped,
+            seconds=round(seconds, 3),
+            latency_ms={
+                "median": round(float(np.median(lat)), 2),
+                "p90": round(float(np.percentile(lat, 90)), 2),
+                "max": round(self.max_latency, 2),
+            },
+            changes=self.changes,
+            path=self.smoother.path() if self.keep_path else [],
+            frames=self.frames,
+            stopped=stopped,
+            behind_s=round(counts["behind"], 3),
+        )
+
+
 def watch(
     frames: Iterable[Any],
     references: ReferenceSet,
@@ -350,6 +429,7 @@ def watch(
     colours: dict | None = None,
     on_update: Callable[[LiveUpdate, Any, Any], None] | None = None,
     stop: threading.Event | None = None,
+    keep_path: bool = True,
 ) -> LiveSummary:
     """Classify the frames of a source as they come, smoothed online.
 
@@ -363,7 +443,7 @@ def watch(
         Offer only every ``every``-th frame to the worker.
     realtime : bool, keyword-only
         Offer a recording's frames at the pace of their times (as a camera would);
-        otherwise as fast as they are read.
+        otherwise each as soon as the one before is done.
     colours : dict, keyword-only, optional
         Calibrated sticker colours.
     on_update : callable, keyword-only, optional
@@ -371,6 +451,9 @@ def watch(
         ``RGBDFrame`` and the ``FrameResult`` (both None for an unreadable frame).
     stop : threading.Event, keyword-only, optional
         Set it to stop after the frame being classified (Ctrl-C).
+    keep_path : bool, keyword-only
+        Keep what settles the whole path (44 bytes a frame) for the summary; an endless
+        camera keeps only the latest state.
 
     Returns
     -------
@@ -393,11 +476,7 @@ def watch(
         name="dgli-capture",
         daemon=True,  # a camera blocked in its driver never holds the process
     )
-    smoother = OnlineSmoother(references)
-    latencies: list[float] = []
-    changes: list[tuple[int, StateKey, StateKey]] = []
-    classified: list[int] = []
-    last: StateKey | None = None
+    worker = _Worker(references, colours, keep_path)
     capture.start()
     while not stop.is_set():
         got, arrival = slot.take()
@@ -405,19 +484,7 @@ def watch(
             if slot.ended:
                 break
             continue
-        frame, result, state, conf, dist, note = classify_live(arrival.pair, references, colours)
-        smoothed = smoother.update(dist)
-        change = (last, smoothed) if last is not None and smoothed != last else None
-        if change is not None:
-            changes.append((arrival.index, last, smoothed))
-        last = smoothed
-        classified.append(arrival.index)
-        latency = (time.perf_counter() - arrival.at) * 1e3
-        latencies.append(latency)
-        t = getattr(arrival.pair, "time", None)
-        update = LiveUpdate(
-            arrival.index, t, state, smoothed, conf, change, slot.dropped, latency, note
-        )
+        update, frame, result = worker.step(arrival, slot.dropped)
         if on_update is not None:
             on_update(update, frame, result)
         slot.done()
@@ -426,22 +493,4 @@ def watch(
     capture.join(timeout=1.0)
     if isinstance(counts["error"], Exception) and not stopped:
         raise counts["error"]
-    seconds = time.perf_counter() - counts["first"] if counts["first"] else 0.0
-    lat = np.array(latencies) if latencies else np.zeros(1)
-    return LiveSummary(
-        arrived=counts["arrived"],
-        skipped=counts["skipped"],
-        classified=len(classified),
-        dropped=slot.dropped,
-        seconds=round(seconds, 3),
-        latency_ms={
-            "median": round(float(np.median(lat)), 2),
-            "p90": round(float(np.percentile(lat, 90)), 2),
-            "max": round(float(lat.max()), 2),
-        },
-        changes=changes,
-        path=smoother.path(),
-        frames=classified,
-        stopped=stopped,
-        behind_s=round(counts["behind"], 3),
-    )
+    return worker.summary(counts, slot.dropped, stopped)

@@ -4,6 +4,7 @@ one), as it comes."""
 from __future__ import annotations
 
 import json
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -97,9 +98,9 @@ def watch(
     for note in notes:
         click.echo(f"{bag}: {note}", err=True)
     out = _Printer(jsonl, overlays)
-    summary = _run(frames, refs, colours, every, realtime and bag is not None, out)
+    summary = _run(frames, refs, colours, every, realtime and bag is not None, out, bool(bag))
     out.done(summary)
-    if summary.classified and not summary.stopped and all(s is None for s in out.states):
+    if summary.classified and not summary.stopped and not out.answered:
         sys.exit(1)  # the source ended and no frame could be classified at all
 
 
@@ -141,7 +142,15 @@ def _overlay_folder(folder: str | None, overwrite: bool) -> Path | None:
     return root
 
 
-def _run(frames: Any, refs: Any, colours: Any, every: int, realtime: bool, out: Any) -> Any:
+def _run(
+    frames: Any,
+    refs: Any,
+    colours: Any,
+    every: int,
+    realtime: bool,
+    out: Any,
+    keep_path: bool,
+) -> Any:
     """The live loop with Ctrl-C and SIGTERM turned into a clean stop."""
     import signal
     import threading
@@ -163,6 +172,7 @@ def _run(frames: Any, refs: Any, colours: Any, every: int, realtime: bool, out: 
             colours=colours,
             on_update=out.update,
             stop=stop,
+            keep_path=keep_path,
         )
     finally:
         for s, handler in before.items():
@@ -183,12 +193,13 @@ class _Printer:
     def __init__(self, jsonl: bool, overlays: Path | None) -> None:
         self.jsonl, self.overlays = jsonl, overlays
         self.tty = sys.stderr.isatty()
-        self.states: list[Any] = []
+        self.answered = False  # some frame got a state
         self.status_shown = False
+        self.width = max(40, shutil.get_terminal_size().columns - 1)
 
     def update(self, update: Any, frame: Any, result: Any) -> None:
         """One classified frame (called by the worker)."""
-        self.states.append(update.state)
+        self.answered = self.answered or update.state is not None
         if self.overlays is not None and result is not None:
             from ..core.io import write_png
             from .classify import overlay_of
@@ -211,12 +222,12 @@ class _Printer:
                 f"{_state_text(update.state)}{conf}); {update.latency_ms:.0f} ms, "
                 f"{update.dropped} dropped"
             )
-            click.echo("\r" + line[:150].ljust(150), nl=False, err=True)
+            click.echo("\r" + line[: self.width].ljust(self.width), nl=False, err=True)
             self.status_shown = True
 
     def _clear(self) -> None:
         if self.status_shown:
-            click.echo("\r" + " " * 150 + "\r", nl=False, err=True)
+            click.echo("\r" + " " * self.width + "\r", nl=False, err=True)
             self.status_shown = False
 
     def done(self, summary: Any) -> None:

@@ -452,7 +452,10 @@ class RealSensePlayback:
 
 
 def _colour_count(path: Path) -> int | None:
-    """Colour frames in a ``.db3`` recording, from its index (None when not known)."""
+    """Colour frames in a recording, from its index (None when not known: a ROS 1
+    ``.bag`` without ``rosbags``)."""
+    if path.suffix == ".bag":
+        return _bag_colour_count(path)
     if path.suffix != ".db3":
         return None
     try:
@@ -467,6 +470,24 @@ def _colour_count(path: Path) -> int | None:
     except sqlite3.Error:
         return None
     return int(n) or None
+
+
+def _bag_colour_count(path: Path) -> int | None:
+    """Colour frames in a ROS 1 ``.bag`` recording, from its index through ``rosbags``."""
+    try:
+        from rosbags.rosbag1 import Reader
+    except ImportError:
+        return None
+    try:
+        with Reader(path) as reader:
+            n = sum(
+                c.msgcount
+                for c in reader.connections
+                if "/Color_" in c.topic and c.topic.endswith("/image/data")
+            )
+    except Exception:  # the SDK says what is wrong with the file
+        return None
+    return n or None
 
 
 def open_camera(
