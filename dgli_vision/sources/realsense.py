@@ -33,6 +33,7 @@ from ..core.errors import InvalidInputError, UnreadableInputError
 
 __all__ = [
     "INSTALL_HINT",
+    "CameraFrame",
     "LazyRealSenseFrame",
     "RealSenseFrame",
     "RealSensePlayback",
@@ -496,9 +497,10 @@ def open_camera(
     width: int = 1280,
     height: int = 720,
     fps: int = 30,
-) -> Iterator[RealSenseFrame]:
+) -> Iterator[CameraFrame]:
     """The frames of a connected RealSense camera, as they come: colour (RGB8) and Z16
-    depth aligned to colour by the SDK, for as long as the caller takes them.
+    depth, aligned to colour by the SDK when decoded (:meth:`CameraFrame.decode`), for as
+    long as the caller takes them.
 
     Parameters
     ----------
@@ -531,8 +533,46 @@ def open_camera(
     return _camera_frames(rs, pipeline, profile)
 
 
-def _camera_frames(rs: Any, pipeline: Any, profile: Any) -> Iterator[RealSenseFrame]:
-    """Frames of a started pipeline until the caller stops taking them."""
+@dataclass(frozen=True)
+class CameraFrame:
+    """A camera's frameset before its depth is aligned (:meth:`decode` does it, in the
+    thread that classifies it, so that a frame dropped costs no alignment).
+
+    Attributes
+    ----------
+    index : int
+    time : float
+        Seconds, the colour frame's timestamp.
+    frameset : the SDK's frameset (kept)
+    align : the aligner to colour (one per camera, used by one thread)
+    scale_m : float
+        Metres per depth unit.
+    intrinsics : Intrinsics
+    """
+
+    index: int
+    time: float
+    frameset: Any
+    align: Any
+    scale_m: float
+    intrinsics: Intrinsics
+
+    def decode(self) -> RealSenseFrame:
+        """The frame with depth aligned to colour, in mm, and the colour as RGB."""
+        rs = realsense_sdk()
+        aligned = self.align.process(self.frameset)
+        color, depth = aligned.get_color_frame(), aligned.get_depth_frame()
+        return RealSenseFrame(
+            self.index,
+            self.time,
+            _colour_array(rs, color),
+            _depth_mm(depth, self.scale_m),
+            self.intrinsics,
+        )
+
+
+def _camera_frames(rs: Any, pipeline: Any, profile: Any) -> Iterator[CameraFrame]:
+    """Framesets of a started pipeline until the caller stops taking them."""
     depth_sensor = profile.get_device().first_depth_sensor()
     scale = float(depth_sensor.get_depth_scale())
     intr, _ = colour_intrinsics(rs, profile.get_stream(rs.stream.color))
@@ -544,21 +584,14 @@ def _camera_frames(rs: Any, pipeline: Any, profile: Any) -> Iterator[RealSenseFr
                 frameset = pipeline.wait_for_frames(5000)
             except RuntimeError as exc:
                 raise UnreadableInputError(f"RealSense camera stopped: {exc}") from None
-            aligned = align.process(frameset)
-            color, depth = aligned.get_color_frame(), aligned.get_depth_frame()
-            if not color or not depth:
+            color = frameset.get_color_frame()
+            if not color or not frameset.get_depth_frame():
                 continue
-            yield RealSenseFrame(
-                index,
-                color.get_timestamp() * 1e-3,
-                _colour_array(rs, color),
-                _depth_mm(depth, scale),
-                intr,
-            )
+            frameset.keep()  # held past the next frameset, until it is classified or dropped
+            yield CameraFrame(index, color.get_timestamp() * 1e-3, frameset, align, scale, intr)
             index += 1
     finally:
         pipeline.stop()
-
 
 
 def camera_pairs(
@@ -573,8 +606,7 @@ def camera_pairs(
     UnreadableInputError
         As :func:`open_camera`.
     """
-    from .recording import RecordedPair
-    from .ros_images import ImagePayload
+    from .recording import LivePair
 
     frames = open_camera(serial, width=width, height=height, fps=fps)
     name = f"RealSense camera {serial}" if serial else "RealSense camera"
@@ -584,13 +616,10 @@ def camera_pairs(
         try:
             for f in frames:
                 t0 = f.time if t0 is None else t0
-                h, w = f.depth_mm.shape
                 where = f"{name} frame {f.index}"
-                yield RecordedPair(
+                yield LivePair(
                     f"{where} colour", f"{where} depth", "", None, None, round(f.time - t0, 6),
-                    ImagePayload("rgb8", w, h, 3 * w, False, f.color.tobytes()),
-                    ImagePayload("16UC1", w, h, 2 * w, False, f.depth_mm.tobytes()),
-                    f.intrinsics,
+                    frame=f,
                 )
         finally:
             frames.close()

@@ -320,9 +320,9 @@ def open_recording(
 
 @dataclass(frozen=True)
 class LivePair(LabelledPair):
-    """A frame of a RealSense recording played for the live loop: the SDK's frames, whose
-    depth is aligned only when the frame is loaded (a frame dropped costs nothing). Not
-    for other processes: it holds the playback."""
+    """A frame of a RealSense recording or camera for the live loop: the SDK's frames,
+    whose depth is aligned only when the frame is loaded (a frame dropped costs nothing).
+    Not for other processes: it holds the SDK's frames."""
 
     frame: Any = None
 
