@@ -327,3 +327,31 @@ def test_online_smoothing_is_tracks_smoothing_one_frame_at_a_time():
         assert online.update(row) == smooth(d[: t + 1], refs)[0][-1]
     assert online.path() == smooth(d, refs)[0]
     assert online.path()[8] == ("02", "A")  # the odd frame smoothed away
+
+
+def test_a_recording_of_colour_alone_is_one_line(rs, tmp_path):
+    """A camera recorded with its depth stream off: nothing to lift the stickers with."""
+    dev = rs.software_device()
+    sensor = dev.add_sensor("RGB Camera")
+    vs = rs.video_stream()
+    vs.type, vs.index, vs.uid, vs.fmt = rs.stream.color, 0, 1, rs.format.rgb8
+    vs.width, vs.height, vs.fps, vs.bpp = 64, 48, 30, 3
+    intr = rs.intrinsics()
+    intr.width, intr.height, intr.fx, intr.fy, intr.ppx, intr.ppy = 64, 48, 50, 50, 31.5, 23.5
+    vs.intrinsics = intr
+    profile = sensor.add_video_stream(vs).as_video_stream_profile()
+    path = tmp_path / "colour.db3"
+    recorder = rs.recorder(str(path), dev, False)
+    queue = rs.frame_queue(4)
+    sensor.open(profile)
+    sensor.start(queue)
+    for n in range(2):
+        frame = rs.software_video_frame()
+        frame.pixels, frame.bpp, frame.stride = np.zeros((48, 64, 3), np.uint8), 3, 192
+        frame.timestamp, frame.frame_number, frame.profile = n * 33.3, n, profile
+        frame.domain = rs.timestamp_domain.hardware_clock
+        sensor.on_video_frame(frame)
+    sensor.stop()
+    sensor.close()
+    del recorder
+    _one_line_error(["track", str(path)], str(path), "no Z16 depth stream")

@@ -226,8 +226,13 @@ def _stream_profiles(rs: Any, device: Any, where: str) -> tuple[Any, Any, Any, A
             elif depth is None and kind == rs.stream.depth and fmt == rs.format.z16:
                 depth = (sensor, profile)
     if color is None or depth is None:
-        missing = " and ".join(
-            w for w, s in (("a colour stream", color), ("a Z16 depth stream", depth)) if s is None
+        missing = " and no ".join(
+            w
+            for w, found in (
+                (f"colour stream in {', '.join(f.upper() for f in _COLOUR_FORMATS)}", color),
+                ("Z16 depth stream", depth),
+            )
+            if found is None
         )
         raise InvalidInputError(f"{where} has no {missing} (dgli needs colour and depth)")
     return color[0], color[1], depth[0], depth[1]
