@@ -20,7 +20,7 @@ from __future__ import annotations
 import queue
 import sqlite3
 import threading
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -394,7 +394,6 @@ class RealSensePlayback:
         from .pairing import pair_by_time
 
         rs = self.rs
-        c_sensor, c_profile, d_sensor, d_profile = self._sensors
         events: queue.Queue = queue.Queue(maxsize=_QUEUE_FRAMES)
         halt = threading.Event()
 
@@ -408,20 +407,7 @@ class RealSensePlayback:
                 except queue.Full:
                     if self.real_time:
                         return  # at the recorded pace a slow reader loses the frame
-        # paused while the sensors start: the first sensor started would otherwise set
-        # the playback going, and the other would miss its first frames
-        self.playback.pause()
-        if c_sensor == d_sensor:
-            c_sensor.open([c_profile, d_profile])
-            c_sensor.start(on_frame)
-            self._started = [c_sensor]
-        else:
-            d_sensor.open(d_profile)
-            c_sensor.open(c_profile)
-            d_sensor.start(on_frame)
-            c_sensor.start(on_frame)
-            self._started = [d_sensor, c_sensor]
-        self.playback.resume()
+        self._start(on_frame)
         align = _Aligner(rs)
         t0 = None
         index = 0
@@ -443,6 +429,24 @@ class RealSensePlayback:
         finally:
             halt.set()
             self.close()
+
+    def _start(self, on_frame: Callable[[Any], None]) -> None:
+        """Open the colour and depth streams and start them into ``on_frame``. The
+        playback is paused meanwhile: the first sensor started would otherwise set it
+        going, and the other would miss its first frames."""
+        c_sensor, c_profile, d_sensor, d_profile = self._sensors
+        self.playback.pause()
+        if c_sensor == d_sensor:
+            c_sensor.open([c_profile, d_profile])
+            c_sensor.start(on_frame)
+            self._started = [c_sensor]
+        else:
+            d_sensor.open(d_profile)
+            c_sensor.open(c_profile)
+            d_sensor.start(on_frame)
+            c_sensor.start(on_frame)
+            self._started = [d_sensor, c_sensor]
+        self.playback.resume()
 
     def _events(self, events: queue.Queue) -> Iterator[tuple[str, float, Any]]:
         """The frames the playback delivers, until it has stopped and none is left."""
