@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent set-up: system library for Open3D, a virtual environment in .venv/, the
-# package (editable) with its test extras, the recordings extra (ROS bags) and the dask
-# extra (dgli label --dask).
+# package (editable) with its test extras, the recordings extra (ROS bags), the dask
+# extra (dgli label --dask) and the realsense extra (the RealSense SDK).
 # Safe to run again; fast when nothing changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -30,6 +30,6 @@ stamp=.venv/.dgli-setup-stamp
 want=$(cat pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
-    .venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test,recordings,dask]'
+    .venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test,recordings,dask,realsense]'
     echo "$want" > "$stamp"
 fi

@@ -456,9 +456,10 @@ def test_lens_distortion_is_noted(episode, tmp_path):
 
 
 def test_a_file_that_is_not_a_realsense_recording_is_refused_in_one_line(tmp_path):
-    from dgli_vision.sources.realsense_bags import is_realsense_bag
+    from dgli_vision.sources.realsense import is_realsense_recording
 
+    pytest.importorskip("pyrealsense2")  # the 'realsense' extra; scripts/setup.sh installs it
     fake = tmp_path / "rs.bag"
     fake.write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 64 + b"/device_0/sensor_0/Depth_0" + b"\0" * 64)
-    assert is_realsense_bag(fake)
+    assert is_realsense_recording(fake)
     _one_line_error(["track", str(fake)], "RealSense recording", str(fake))

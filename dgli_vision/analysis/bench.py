@@ -29,6 +29,7 @@ __all__ = [
     "run_dgli_benchmarks",
     "run_frame_benchmarks",
     "run_pipeline_benchmarks",
+    "run_watch_benchmarks",
 ]
 
 #: The paper's forward-difference step for eq. 8.
@@ -501,6 +502,83 @@ def run_recording_benchmarks(
         BenchResult(name, fps, "frames/s", ">= 20 frames/s", fps >= 20),
         BenchResult("  peak memory of its largest process", peak, "MB", "< 500 MB", peak < 500),
     ]
+
+
+def run_watch_benchmarks(
+    samples_dir: str, *, n_frames: int = 300, fps: int = 30
+) -> list[BenchResult]:
+    """``dgli watch`` on a RealSense recording played at its recorded pace: does the
+    live path keep up with a camera at ``fps`` frames per second on this machine?
+
+    The recording is ``n_frames`` frames of the sample pairs in turn, written with the
+    RealSense SDK's recorder (1280 x 720 RGB8 colour, 640 x 360 Z16 depth in 0.1 mm
+    units, uncompressed as a camera gives them) into a temporary folder, and played by
+    ``dgli watch --bag --realtime --jsonl`` in a subprocess: the capture thread takes
+    each frame from the SDK at the recorded pace, the worker aligns and classifies the
+    newest one. Figures: answers per second, the share of frames dropped (they came
+    while one was classified), the latency from a frame's arrival to its answer (median
+    and p90), how far reading fell behind the recorded pace, and the processor time the
+    command used per second of video (in cores: at most two on a two-core machine).
+    Empty without the ``realsense`` extra.
+    """
+    import importlib.util
+    import json
+    import subprocess
+    import sys
+    import tempfile
+    from pathlib import Path
+
+    if importlib.util.find_spec("pyrealsense2") is None:
+        return []
+    from ..sources.frames import read_frame
+    from ..sources.labelled import find_pairs
+    from ..sources.realsense_writer import write_realsense_recording
+
+    frames = [read_frame(p.color, p.depth) for p in find_pairs(samples_dir)]
+
+    def episode():
+        for k in range(n_frames):
+            f = frames[k % len(frames)]
+            yield 100.0 + k / fps, f.color, f.depth_mm
+
+    with tempfile.TemporaryDirectory(prefix="dgli-bench-") as tmp:
+        rec = write_realsense_recording(
+            Path(tmp) / "episode.db3", episode(), frames[0].intrinsics, fps=fps, compress=False
+        )
+        size = rec.stat().st_size / 2**20
+        watch = [sys.executable, "-m", "dgli_vision", "watch", "--bag", str(rec), "--jsonl"]
+        before = _children_cpu()
+        out = subprocess.run(watch, check=True, capture_output=True, text=True).stdout
+        cores = (_children_cpu() - before) / (n_frames / fps)
+    summary = json.loads(out.splitlines()[-1])["summary"]
+    rate = summary["classified"] / summary["seconds"] if summary["seconds"] else 0.0
+    dropped = summary["dropped"] / max(summary["arrived"], 1)
+    lat = summary["latency_ms"]
+    behind = summary["behind_s"]
+    return [
+        BenchResult(
+            f"watch a {n_frames}-frame RealSense recording ({size:,.0f} MB .db3) at "
+            f"{fps} fps: answers",
+            rate,
+            "frames/s",
+        ),
+        BenchResult("  frames dropped (came while one was classified)", 100 * dropped, "%"),
+        BenchResult("  latency, frame to answer, median", lat["median"], "ms", "< 100 ms",
+                    lat["median"] < 100),
+        BenchResult("  latency, p90", lat["p90"], "ms"),
+        BenchResult(
+            "  reading behind the recorded pace, at worst", behind, "s", "< 0.5 s", behind < 0.5
+        ),
+        BenchResult("  processor time per second of video", cores, "cores", "< 2", cores < 2),
+    ]
+
+
+def _children_cpu() -> float:
+    """Processor seconds (user + system) of the finished child processes so far."""
+    import resource
+
+    use = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return use.ru_utime + use.ru_stime
 
 
 def run_frame_benchmarks(

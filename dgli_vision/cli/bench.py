@@ -32,7 +32,7 @@ def _format_figure(value: float, unit: str) -> str:
 )
 @click.option(
     "--only",
-    type=click.Choice(["dgli", "pipeline", "frames", "recording", "label"]),
+    type=click.Choice(["dgli", "pipeline", "frames", "recording", "label", "watch"]),
     help="Run one group of benchmarks only. frames: every frame of a varied set it "
     "renders (every capture condition, another camera, a fold held by a gripper), its "
     "median, p90 and slowest frame and each stage's time. label: dgli label's frames per "
@@ -74,7 +74,7 @@ def bench(
     results = []
     if only in (None, "dgli"):
         results += b.run_dgli_benchmarks(n_states=states, repeats=repeats)
-    if only in (None, "pipeline", "recording"):
+    if only in (None, "pipeline", "recording", "watch"):
         samples = _samples_folder(samples)
     if only in (None, "pipeline"):
         exe = Path(sys.executable).parent / "dgli-classify"
@@ -90,6 +90,8 @@ def bench(
         from ..labelling.bench import run_label_benchmarks
 
         results += run_label_benchmarks(repeats=repeats)
+    if only in (None, "watch"):
+        results += b.run_watch_benchmarks(samples)
     rows = []
     for r in results:
         value = _format_figure(r.value, r.unit)

@@ -25,6 +25,7 @@ from .render import render_cmd
 from .robustness import robustness
 from .simulate import simulate
 from .track import track
+from .watch import watch
 
 
 class _Group(click.Group):
@@ -56,6 +57,7 @@ for _command in (
     coords,
     bench,
     label_cmd,
+    watch,
 ):
     main.add_command(_command)
 

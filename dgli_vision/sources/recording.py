@@ -15,6 +15,7 @@ import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
@@ -23,6 +24,7 @@ from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
 from .ros_images import ImagePayload, decode_color, decode_depth
 
 __all__ = [
+    "LivePair",
     "RecordedPair",
     "Recording",
     "is_recording_file",
@@ -49,7 +51,7 @@ class Recording:
     source : str
         The folder or file.
     kind : str
-        ``"folder"``, ``"ROS 1 bag"``, ``"ROS 2 bag"`` or ``"RealSense bag"``.
+        ``"folder"``, ``"ROS 1 bag"``, ``"ROS 2 bag"`` or ``"RealSense recording"``.
     notes : list of str
         What reading found worth saying: the topics read, a lens distortion left
         uncorrected, depth frames no colour frame took (filled while the frames are read).
@@ -266,9 +268,11 @@ def open_recording(
     info_topic: str | None = None,
     tolerance: float = 0.020,
     labels: str | Path | None = None,
+    live: bool = False,
 ) -> Recording:
     """Any recording: a folder of pairs (:func:`read_recording`), a ROS 1 ``.bag``, a
-    ROS 2 bag (``.db3``, ``.mcap`` or its folder), or a RealSense SDK ``.bag``.
+    ROS 2 bag (``.db3``, ``.mcap`` or its folder), or a RealSense SDK recording (``.db3``
+    or ``.bag`` with RealSense's own topics; needs the ``realsense`` extra).
 
     Parameters
     ----------
@@ -280,6 +284,9 @@ def open_recording(
     labels : str or Path, keyword-only, optional
         A bag's labels file (``frame`` or ``time``, ``label``, ``variant``); a folder
         has its own ``labels.csv``.
+    live : bool, keyword-only
+        For the live loop, in this process: a RealSense recording's frames are aligned
+        only when loaded (:class:`LivePair`).
 
     Raises
     ------
@@ -287,13 +294,13 @@ def open_recording(
         One line naming the recording and what is wrong (no image topic, an ambiguous
         topic, a truncated file, the ``recordings`` extra missing...).
     """
-    from .realsense_bags import is_realsense_bag
+    from .realsense import is_realsense_recording
 
     p = Path(path)
     if not p.exists():
         raise UnreadableInputError(f"recording '{p}' does not exist")
-    if is_realsense_bag(p):
-        recording = _realsense_recording(p)
+    if is_realsense_recording(p):
+        recording = _realsense_recording(p, tolerance, live)
     elif is_recording_file(p):
         recording = _bag_recording(p, color_topic, depth_topic, info_topic, tolerance)
     else:
@@ -311,22 +318,64 @@ def open_recording(
     )
 
 
-def _realsense_recording(p: Path) -> Recording:
-    from .realsense_bags import read_realsense_bag
+@dataclass(frozen=True)
+class LivePair(LabelledPair):
+    """A frame of a RealSense recording or camera for the live loop: the SDK's frames,
+    whose depth is aligned only when the frame is loaded (a frame dropped costs nothing).
+    Not for other processes: it holds the SDK's frames."""
 
-    count, frames = read_realsense_bag(p)
+    frame: Any = None
+
+    def load(self) -> RGBDFrame:
+        """The decoded frame, depth aligned to colour by the SDK."""
+        f = self.frame.decode()
+        return RGBDFrame(f.color, f.depth_mm, f.intrinsics, self.color, self.depth, "stream")
+
+    def light(self) -> LabelledPair:
+        """This frame as names only."""
+        return LabelledPair(self.color, self.depth, self.label, self.variant, self.line, self.time)
+
+
+def _realsense_recording(p: Path, tolerance: float, live: bool = False) -> Recording:
+    """A RealSense SDK recording, played through the SDK (:mod:`.realsense`): each frame's
+    colour and depth aligned to it, with the colour stream's intrinsics; ``live``: as
+    :class:`LivePair` (aligned when loaded)."""
+    from .realsense import RealSensePlayback
+
+    playback = RealSensePlayback(p, tolerance=tolerance)
+    playback.__enter__()  # opened now: a file the SDK cannot read stops the run here
+    notes = playback.notes
+
+    def lazy_pairs() -> Iterator[LivePair]:
+        t0 = None
+        try:
+            for f in playback.lazy_frames():
+                t0 = f.time if t0 is None else t0
+                t = round(f.time - t0, 6)
+                name = f"{p} frame {f.index} ({t:.3f} s)"
+                yield LivePair(f"{name} colour", f"{name} depth", "", None, None, t, frame=f)
+        finally:
+            playback.close()
 
     def pairs() -> Iterator[RecordedPair]:
         t0 = None
-        for index, f in enumerate(frames):
-            t0 = f.time if t0 is None else t0
-            name = f"{p} frame {index} ({f.time - t0:.3f} s)"
-            yield RecordedPair(
-                f"{name} colour", f"{name} depth", "", None, None, round(f.time - t0, 6),
-                f.color, f.depth, f.intrinsics,
-            )
+        try:
+            for f in playback.frames():
+                t0 = f.time if t0 is None else t0
+                t = round(f.time - t0, 6)
+                name = f"{p} frame {f.index} ({t:.3f} s)"
+                h, w = f.depth_mm.shape
+                yield RecordedPair(
+                    f"{name} colour", f"{name} depth", "", None, None, t,
+                    ImagePayload("rgb8", w, h, 3 * w, False, f.color.tobytes()),
+                    ImagePayload("16UC1", w, h, 2 * w, False, f.depth_mm.tobytes()),
+                    f.intrinsics,
+                )
+        finally:
+            playback.close()
 
-    return Recording(pairs(), count, False, str(p), "RealSense bag")
+    frames = lazy_pairs() if live else pairs()
+    return Recording(frames, playback.count, False, str(p), "RealSense recording", notes)
 
 
 def _bag_recording(

@@ -1,0 +1,496 @@
+"""Classify frames as they come, smoothed over time: the live loop of ``dgli watch``.
+
+Two threads. The capture thread takes frames from a source (a camera, or a recording
+played at its recorded pace or as fast as it reads) and keeps only the newest one not yet
+taken; the worker takes it, classifies it, and smooths the state online. A frame that
+arrives while the worker is busy replaces the one waiting, which is *dropped* and counted:
+a live system must not fall behind the scene it watches.
+
+The smoothing is :mod:`~dgli_vision.analysis.track`'s hidden Markov model run forward
+(:class:`OnlineSmoother`): after each frame, the state at the end of the most likely
+path so far. That is the state ``dgli track`` gives the last frame of the same frames;
+earlier frames' states may still be revised by later evidence, which only the whole path
+(:meth:`OnlineSmoother.path`, kept as back-pointers, 44 bytes a frame) settles.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..classifier.references import ReferenceSet
+from ..core.errors import DgliError
+from ..core.fold_graph import StateKey, folds_of, state_keys
+from .track import (
+    EMISSION_SCALE,
+    FOLD_PRIOR,
+    STAY_PROBABILITY,
+    state_costs,
+    transition_log_matrix,
+)
+
+__all__ = [
+    "LatestFrame",
+    "LiveSummary",
+    "LiveUpdate",
+    "OnlineSmoother",
+    "classify_live",
+    "watch",
+]
+
+
+class OnlineSmoother:
+    """The forward pass of :func:`~dgli_vision.analysis.track.viterbi`, one frame at a
+    time.
+
+    Parameters
+    ----------
+    references : ReferenceSet
+        The references the frames' distances are to.
+    stay : float, keyword-only
+        :data:`~dgli_vision.analysis.track.STAY_PROBABILITY`.
+    keep_path : bool, keyword-only
+        Keep the back-pointers that settle the whole path (:meth:`path`); without them
+        only the latest state is known (an endless stream).
+    """
+
+    def __init__(
+        self,
+        references: ReferenceSet,
+        *,
+        stay: float = STAY_PROBABILITY,
+        keep_path: bool = True,
+    ) -> None:
+        self.references = references
+        self.keys = state_keys()
+        self.log_transition = transition_log_matrix(self.keys, stay=stay)
+        self.prior = FOLD_PRIOR * np.array([len(folds_of(*k)) for k in self.keys])
+        self.score: NDArray[np.float64] | None = None
+        self.back: list[NDArray[np.int8]] = []
+        self.keep_path = keep_path
+
+    def update(self, distances: tuple[float, ...] | NDArray | None) -> StateKey:
+        """Take one frame's distances to every reference (None or empty: a gap, no
+        evidence) and return the state at the end of the most likely path so far."""
+        n_s = len(self.keys)
+        row = np.full((1, len(self.references)), np.nan)
+        if distances is not None and len(distances) == len(self.references):
+            row[0] = distances
+        cost = state_costs(row, self.references, self.keys)[0] + self.prior
+        if np.isfinite(cost).any():
+            emit = np.where(np.isfinite(cost), -cost / EMISSION_SCALE, -1e6)
+        else:
+            emit = np.zeros(n_s)
+        if self.score is None:
+            self.score = emit - np.log(n_s)
+        else:
+            cand = self.score[:, None] + self.log_transition
+            best = np.argmax(cand, axis=0)
+            if self.keep_path:
+                self.back.append(best.astype(np.int8))
+            self.score = cand[best, np.arange(n_s)] + emit
+        self.score = self.score - self.score.max()  # keeps the numbers small for hours
+        return self.keys[int(np.argmax(self.score))]
+
+    def path(self) -> list[StateKey]:
+        """The most likely states of every frame taken so far (what ``dgli track`` gives
+        the same frames); only the latest without ``keep_path``."""
+        if self.score is None:
+            return []
+        if not self.keep_path:
+            return [self.keys[int(np.argmax(self.score))]]
+        state = int(np.argmax(self.score))
+        out = [state]
+        for back in reversed(self.back):
+            state = int(back[state])
+            out.append(state)
+        return [self.keys[s] for s in reversed(out)]
+
+
+class LatestFrame:
+    """A slot holding the newest frame not yet taken: ``put`` replaces a waiting frame
+    (counted in ``dropped``), ``take`` waits for one, ``done`` says the frame taken is
+    finished. Thread-safe."""
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._item: Any = None
+        self._full = False
+        self._closed = False
+        self._busy = False
+        self.dropped = 0
+
+    def put(self, item: Any, *, wait: bool = False) -> None:
+        """Offer ``item``; a frame still waiting is dropped. With ``wait``, first wait
+        until the frame taken last is done (a recording played as fast as it is
+        classified: nothing dropped, and no frame waits for another)."""
+        with self._cond:
+            while wait and (self._full or self._busy) and not self._closed:
+                self._cond.wait(0.1)
+            if self._full:
+                self.dropped += 1
+            self._item, self._full = item, True
+            self._cond.notify_all()
+
+    def close(self) -> None:
+        """No more frames will come."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+
+    def take(self, timeout: float = 0.1) -> tuple[bool, Any]:
+        """``(True, frame)``; ``(False, None)`` when none came within ``timeout`` or the
+        source has ended (then :attr:`ended`)."""
+        with self._cond:
+            if not self._full and not self._closed:
+                self._cond.wait(timeout)
+            if not self._full:
+                return False, None
+            item, self._item, self._full = self._item, None, False
+            self._busy = True
+            return True, item
+
+    def done(self) -> None:
+        """The frame taken last is done (a waiting ``put`` goes on)."""
+        with self._cond:
+            self._busy = False
+            self._cond.notify_all()
+
+    @property
+    def ended(self) -> bool:
+        """The source has ended and its last frame was taken."""
+        with self._cond:
+            return self._closed and not self._full
+
+
+@dataclass(frozen=True)
+class LiveUpdate:
+    """One classified frame of a live stream.
+
+    Attributes
+    ----------
+    frame : int
+        Its number in the stream (from 0, counting every frame that arrived).
+    time : float or None
+        Seconds from the first frame of the stream (the source's own clock).
+    state : (str, str or None) or None
+        The frame's own class and variant; None when it cannot tell (``note`` says why).
+    smoothed : (str, str or None)
+        The state at the end of the most likely path so far.
+    confidence : float or None
+    change : ((str, str or None), (str, str or None)) or None
+        The smoothed state before and after, when it changed at this frame.
+    dropped : int
+        Frames dropped so far (arrived while another was being classified).
+    latency_ms : float
+        From the frame's arrival to its answer.
+    note : str or None
+        Why there is no state (cannot tell, or the error that made the frame unreadable).
+    """
+
+    frame: int
+    time: float | None
+    state: StateKey | None
+    smoothed: StateKey
+    confidence: float | None
+    change: tuple[StateKey, StateKey] | None
+    dropped: int
+    latency_ms: float
+    note: str | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """The JSON line of the frame (docs/live.md)."""
+
+        def state(key: StateKey | None) -> dict[str, Any] | None:
+            return None if key is None else {"class": key[0], "variant": key[1]}
+
+        return {
+            "frame": self.frame,
+            "time": None if self.time is None else round(self.time, 6),
+            "state": state(self.state),
+            "smoothed": state(self.smoothed),
+            "confidence": None if self.confidence is None else round(self.confidence, 4),
+            "change": None
+            if self.change is None
+            else {"from": state(self.change[0]), "to": state(self.change[1])},
+            "dropped": self.dropped,
+            "latency_ms": round(self.latency_ms, 2),
+            "note": self.note,
+        }
+
+
+@dataclass(frozen=True)
+class LiveSummary:
+    """What a live run did.
+
+    Attributes
+    ----------
+    arrived : int
+        Frames the source gave.
+    skipped : int
+        Left out by ``every`` (not dropped: never offered).
+    classified : int
+    dropped : int
+        Offered while the worker was busy, and replaced by a newer frame.
+    seconds : float
+        Wall time from the first frame offered to the last answer.
+    latency_ms : dict of str to float
+        ``median``, ``p90`` and ``max`` of the classified frames' latencies.
+    changes : list of (int, StateKey, StateKey)
+        The online smoothed state's changes: frame, before, after.
+    path : list of StateKey
+        The most likely states of the classified frames, settled by all of them (what
+        ``dgli track`` gives the same frames).
+    frames : list of int
+        The stream numbers of the classified frames (``path`` is theirs).
+    stopped : bool
+        Stopped by the caller (Ctrl-C) rather than by the end of the source.
+    behind_s : float
+        A recording played at its pace: how far the reading fell behind that pace at
+        worst, seconds (0: every frame was offered on time).
+    """
+
+    arrived: int
+    skipped: int
+    classified: int
+    dropped: int
+    seconds: float
+    latency_ms: dict[str, float]
+    changes: list[tuple[int, StateKey, StateKey]] = field(default_factory=list)
+    path: list[StateKey] = field(default_factory=list)
+    frames: list[int] = field(default_factory=list)
+    stopped: bool = False
+    behind_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class _Arrival:
+    """A frame offered to the worker: its stream number, the frame (anything with
+    ``load()`` and ``time``) and when it arrived (``time.perf_counter``)."""
+
+    index: int
+    pair: Any
+    at: float
+
+
+def classify_live(
+    pair: Any, references: ReferenceSet, colours: dict | None = None
+) -> tuple[Any, Any, StateKey | None, float | None, tuple[float, ...], str | None]:
+    """Classify one frame as ``dgli track`` does.
+
+    Returns
+    -------
+    frame, result : RGBDFrame, FrameResult (None when unreadable)
+    state : (class, variant) or None
+    confidence : float or None
+    distances : tuple of float
+        To every reference; empty when the frame gives no evidence (a gap).
+    note : str or None
+        The reason there is no state, or the error.
+    """
+    from ..classifier.classify import reference_distances
+    from ..classifier.pipeline import classify_frame
+
+    try:
+        frame = pair.load()
+        result = classify_frame(frame, references, colours=colours)
+    except DgliError as exc:
+        return None, None, None, None, (), str(exc)
+    guess = result.best_guess
+    distances: tuple[float, ...] = ()
+    if guess is not None:
+        obs = result.observation
+        d = reference_distances(result.coordinates, references, **obs.classifier_evidence())
+        distances = tuple(round(float(v), 6) for v in d)
+    p = result.prediction
+    state = (p.class_id, p.variant) if p is not None else None
+    confidence = guess.confidence if guess is not None else None
+    return frame, result, state, confidence, distances, result.reason if p is None else None
+
+
+def _capture(
+    frames: Iterable[Any],
+    slot: LatestFrame,
+    counts: dict[str, Any],
+    *,
+    every: int,
+    realtime: bool,
+    stop: threading.Event,
+) -> None:
+    """The capture thread: offer every ``every``-th frame to ``slot`` as it comes (at
+    the recording's own pace with ``realtime``), until the source ends or ``stop``."""
+    start_wall = start_t = None
+    try:
+        for index, pair in enumerate(frames):
+            if stop.is_set():
+                break
+            counts["arrived"] = index + 1
+            t = getattr(pair, "time", None)
+            if realtime and t is not None:
+                if start_wall is None:
+                    start_wall, start_t = time.perf_counter(), t
+                wait = start_wall + (t - start_t) - time.perf_counter()
+                if wait > 0 and stop.wait(wait):
+                    break
+                counts["behind"] = max(counts["behind"], -wait)  # reading slower than live
+            if index % every:
+                counts["skipped"] += 1
+                continue
+            if counts["first"] is None:
+                counts["first"] = time.perf_counter()
+            slot.put(_Arrival(index, pair, time.perf_counter()), wait=not realtime)
+    except Exception as exc:  # the source failed part-way: the worker raises it
+        counts["error"] = exc
+    finally:
+        close = getattr(frames, "close", None)
+        if close is not None:  # a recording's reader lets its file go
+            close()
+        slot.close()
+
+
+class _Worker:
+    """The worker's state: the smoother, the changes and the latencies so far."""
+
+    #: Latencies kept for the summary's percentiles (the last ones of a long run).
+    KEEP_LATENCIES = 100_000
+
+    def __init__(
+        self, references: ReferenceSet, colours: dict | None, keep_path: bool
+    ) -> None:
+        self.references, self.colours = references, colours
+        self.smoother = OnlineSmoother(references, keep_path=keep_path)
+        self.keep_path = keep_path
+        self.latencies: deque[float] = deque(maxlen=self.KEEP_LATENCIES)
+        self.max_latency = 0.0
+        self.changes: list[tuple[int, StateKey, StateKey]] = []
+        self.frames: list[int] = []
+        self.classified = 0
+        self.last: StateKey | None = None
+
+    def step(self, arrival: _Arrival, dropped: int) -> tuple[LiveUpdate, Any, Any]:
+        """Classify one frame and smooth: its update, frame and result."""
+        frame, result, state, conf, dist, note = classify_live(
+            arrival.pair, self.references, self.colours
+        )
+        smoothed = self.smoother.update(dist)
+        change = None
+        if self.last is not None and smoothed != self.last:
+            change = (self.last, smoothed)
+            self.changes.append((arrival.index, self.last, smoothed))
+        self.last = smoothed
+        self.classified += 1
+        if self.keep_path:
+            self.frames.append(arrival.index)
+        latency = (time.perf_counter() - arrival.at) * 1e3
+        self.latencies.append(latency)
+        self.max_latency = max(self.max_latency, latency)
+        t = getattr(arrival.pair, "time", None)
+        update = LiveUpdate(
+            arrival.index, t, state, smoothed, conf, change, dropped, latency, note
+        )
+        return update, frame, result
+
+    def summary(self, counts: dict[str, Any], dropped: int, stopped: bool) -> LiveSummary:
+        """What the run did."""
+        seconds = time.perf_counter() - counts["first"] if counts["first"] else 0.0
+        lat = np.array(self.latencies) if self.latencies else np.zeros(1)
+        return LiveSummary(
+            arrived=counts["arrived"],
+            skipped=counts["skipped"],
+            classified=self.classified,
+            dropped=dropped,
+            seconds=round(seconds, 3),
+            latency_ms={
+                "median": round(float(np.median(lat)), 2),
+                "p90": round(float(np.percentile(lat, 90)), 2),
+                "max": round(self.max_latency, 2),
+            },
+            changes=self.changes,
+            path=self.smoother.path() if self.keep_path else [],
+            frames=self.frames,
+            stopped=stopped,
+            behind_s=round(counts["behind"], 3),
+        )
+
+
+def watch(
+    frames: Iterable[Any],
+    references: ReferenceSet,
+    *,
+    every: int = 1,
+    realtime: bool = False,
+    colours: dict | None = None,
+    on_update: Callable[[LiveUpdate, Any, Any], None] | None = None,
+    stop: threading.Event | None = None,
+    keep_path: bool = True,
+) -> LiveSummary:
+    """Classify the frames of a source as they come, smoothed online.
+
+    Parameters
+    ----------
+    frames : iterable
+        Frames with ``load()`` (an ``RGBDFrame``) and ``time`` (seconds or None): a
+        recording's frames, or a camera's (endless).
+    references : ReferenceSet
+    every : int, keyword-only
+        Offer only every ``every``-th frame to the worker.
+    realtime : bool, keyword-only
+        Offer a recording's frames at the pace of their times (as a camera would);
+        otherwise each as soon as the one before is done.
+    colours : dict, keyword-only, optional
+        Calibrated sticker colours.
+    on_update : callable, keyword-only, optional
+        Called in the worker after each frame with the :class:`LiveUpdate`, the
+        ``RGBDFrame`` and the ``FrameResult`` (both None for an unreadable frame).
+    stop : threading.Event, keyword-only, optional
+        Set it to stop after the frame being classified (Ctrl-C).
+    keep_path : bool, keyword-only
+        Keep what settles the whole path (44 bytes a frame) for the summary; an endless
+        camera keeps only the latest state.
+
+    Returns
+    -------
+    LiveSummary
+
+    Raises
+    ------
+    DgliError
+        The source failed part-way (after the frames before it were classified).
+    """
+    stop = stop or threading.Event()
+    slot = LatestFrame()
+    counts: dict[str, Any] = {
+        "arrived": 0, "skipped": 0, "first": None, "error": None, "behind": 0.0
+    }
+    capture = threading.Thread(
+        target=_capture,
+        args=(frames, slot, counts),
+        kwargs={"every": every, "realtime": realtime, "stop": stop},
+        name="dgli-capture",
+        daemon=True,  # a camera blocked in its driver never holds the process
+    )
+    worker = _Worker(references, colours, keep_path)
+    capture.start()
+    while not stop.is_set():
+        got, arrival = slot.take()
+        if not got:
+            if slot.ended:
+                break
+            continue
+        update, frame, result = worker.step(arrival, slot.dropped)
+        if on_update is not None:
+            on_update(update, frame, result)
+        slot.done()
+    stopped = stop.is_set()
+    stop.set()
+    capture.join(timeout=1.0)
+    if isinstance(counts["error"], Exception) and not stopped:
+        raise counts["error"]
+    return worker.summary(counts, slot.dropped, stopped)

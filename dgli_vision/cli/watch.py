@@ -1,0 +1,256 @@
+"""``dgli watch``: the state of every frame of a live camera (or a recording played like
+one), as it comes."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import sys
+from pathlib import Path
+from typing import Any
+
+import click
+
+from .errors import handle_errors
+from .options import colours_option, overwrite_option, references_option
+
+
+@click.command()
+@click.option(
+    "--realsense",
+    "serial",
+    is_flag=False,
+    flag_value="",
+    default=None,
+    metavar="[SERIAL]",
+    help="Watch a RealSense camera (this serial number, or the first one found); needs "
+    "the 'realsense' extra.",
+)
+@click.option(
+    "--bag",
+    "bag",
+    type=click.Path(),
+    help="Play a recording through the live path: a RealSense or ROS bag (or a folder of "
+    "pairs with times).",
+)
+@click.option(
+    "--every",
+    default=1,
+    show_default=True,
+    type=click.IntRange(1),
+    help="Classify only every N-th frame (the others are skipped, not dropped).",
+)
+@click.option("--jsonl", is_flag=True, help="One JSON object per frame on stdout.")
+@click.option(
+    "--overlay-dir",
+    type=click.Path(file_okay=False),
+    help="Write each classified frame's overlay here (frame_NNNNNN.png).",
+)
+@click.option(
+    "--realtime/--fast",
+    default=True,
+    show_default=True,
+    help="--bag: play at the recorded pace (frames that come while one is classified are "
+    "dropped, as from a camera) or as fast as frames are classified (none dropped).",
+)
+@click.option(
+    "--camera-mode",
+    default="1280x720@30",
+    show_default=True,
+    help="--realsense: the colour stream, WIDTHxHEIGHT@FPS.",
+)
+@references_option
+@colours_option
+@overwrite_option
+@handle_errors
+def watch(
+    serial: str | None,
+    bag: str | None,
+    every: int,
+    jsonl: bool,
+    overlay_dir: str | None,
+    realtime: bool,
+    camera_mode: str,
+    references_path: str | None,
+    colours_path: str | None,
+    overwrite: bool,
+) -> None:
+    """Classify the frames of a live camera as they come, smoothed over time.
+
+    The newest frame is classified as soon as the one before is done; frames that come
+    meanwhile are dropped (counted, never queued), so the answer is never late by more
+    than a frame. With --jsonl, one JSON object per frame on stdout: frame, time,
+    state, smoothed, confidence, change, dropped, latency_ms, note (docs/live.md); then a
+    last line {"summary": ...}. Otherwise the state changes, and on a terminal a live
+    status line. Ctrl-C (or SIGTERM) stops after the frame being classified, prints the
+    summary and exits 0.
+    """
+    from ..core.errors import InvalidInputError
+    from ..sources.colours_file import read_colours
+    from .runs import references_of
+
+    if (serial is None) == (bag is None):
+        raise InvalidInputError("dgli watch needs one source: --realsense [SERIAL] or --bag FILE")
+    refs, _ = references_of(references_path)
+    colours = read_colours(colours_path) if colours_path else None
+    overlays = _overlay_folder(overlay_dir, overwrite)
+    frames, notes = _source(serial, bag, camera_mode)
+    for note in notes:
+        click.echo(f"{bag}: {note}", err=True)
+    out = _Printer(jsonl, overlays)
+    summary = _run(frames, refs, colours, every, realtime and bag is not None, out, bool(bag))
+    out.done(summary)
+    if summary.classified and not summary.stopped and not out.answered:
+        sys.exit(1)  # the source ended and no frame could be classified at all
+
+
+def _source(serial: str | None, bag: str | None, mode: str) -> tuple[Any, list[str]]:
+    """The frames to watch and the notes on them."""
+    from ..core.errors import InvalidInputError
+    from ..sources.realsense import camera_pairs
+    from ..sources.recording import open_recording
+
+    if bag is not None:
+        recording = open_recording(bag, live=True)
+        return recording.frames, recording.notes
+    try:
+        size, fps = mode.split("@")
+        width, height = (int(v) for v in size.lower().split("x"))
+        rate = int(fps)
+    except ValueError:
+        raise InvalidInputError(
+            f"--camera-mode {mode!r} is not WIDTHxHEIGHT@FPS (e.g. 1280x720@30)"
+        ) from None
+    return camera_pairs(serial or None, width=width, height=height, fps=rate), []
+
+
+def _overlay_folder(folder: str | None, overwrite: bool) -> Path | None:
+    """The overlay folder, made now; one holding files stops the run unless --overwrite."""
+    from ..core.errors import OutputError, OverwriteError
+
+    if folder is None:
+        return None
+    root = Path(folder)
+    if root.is_dir() and any(root.iterdir()) and not overwrite:
+        raise OverwriteError(
+            f"overlay folder '{root}' is not empty; empty it or add --overwrite"
+        )
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise OutputError(f"cannot make overlay folder '{root}': {exc.strerror}") from None
+    return root
+
+
+def _run(
+    frames: Any,
+    refs: Any,
+    colours: Any,
+    every: int,
+    realtime: bool,
+    out: Any,
+    keep_path: bool,
+) -> Any:
+    """The live loop with Ctrl-C and SIGTERM turned into a clean stop."""
+    import signal
+    import threading
+
+    from ..analysis.live import watch as watch_frames
+
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: Any) -> None:
+        stop.set()
+
+    before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        return watch_frames(
+            frames,
+            refs,
+            every=every,
+            realtime=realtime,
+            colours=colours,
+            on_update=out.update,
+            stop=stop,
+            keep_path=keep_path,
+        )
+    finally:
+        for s, handler in before.items():
+            signal.signal(s, handler)
+
+
+def _state_text(key: Any) -> str:
+    from ..core.classes import CLASS_NAMES
+
+    if key is None:
+        return "cannot tell"
+    return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
+
+
+class _Printer:
+    """Writes each frame's answer: a JSON line, or the changes and a status line."""
+
+    def __init__(self, jsonl: bool, overlays: Path | None) -> None:
+        self.jsonl, self.overlays = jsonl, overlays
+        self.tty = sys.stderr.isatty()
+        self.answered = False  # some frame got a state
+        self.status_shown = False
+        self.width = max(40, shutil.get_terminal_size().columns - 1)
+
+    def update(self, update: Any, frame: Any, result: Any) -> None:
+        """One classified frame (called by the worker)."""
+        self.answered = self.answered or update.state is not None
+        if self.overlays is not None and result is not None:
+            from ..core.io import write_png
+            from .classify import overlay_of
+
+            write_png(self.overlays / f"frame_{update.frame:06d}.png", overlay_of(frame, result))
+        if self.jsonl:
+            click.echo(json.dumps(update.to_dict()))
+            sys.stdout.flush()
+        elif update.change is not None:
+            self._clear()
+            t = "" if update.time is None else f" ({update.time:.2f} s)"
+            click.echo(
+                f"frame {update.frame}{t}: {_state_text(update.change[0])} -> "
+                f"{_state_text(update.change[1])}"
+            )
+        if self.tty:
+            conf = "" if update.confidence is None else f" {update.confidence:.2f}"
+            line = (
+                f"frame {update.frame}: {_state_text(update.smoothed)} (frame says "
+                f"{_state_text(update.state)}{conf}); {update.latency_ms:.0f} ms, "
+                f"{update.dropped} dropped"
+            )
+            click.echo("\r" + line[: self.width].ljust(self.width), nl=False, err=True)
+            self.status_shown = True
+
+    def _clear(self) -> None:
+        if self.status_shown:
+            click.echo("\r" + " " * self.width + "\r", nl=False, err=True)
+            self.status_shown = False
+
+    def done(self, summary: Any) -> None:
+        """The summary: a last JSON line with --jsonl, and one line on stderr."""
+        from dataclasses import asdict
+
+        self._clear()
+        data = asdict(summary)
+        data["changes"] = [
+            {"frame": f, "from": {"class": a[0], "variant": a[1]},
+             "to": {"class": b[0], "variant": b[1]}}
+            for f, a, b in summary.changes
+        ]
+        data["path"] = [{"class": c, "variant": v} for c, v in summary.path]
+        if self.jsonl:
+            click.echo(json.dumps({"summary": data}))
+        rate = summary.classified / summary.seconds if summary.seconds else 0.0
+        last = summary.path[-1] if summary.path else None
+        click.echo(
+            ("stopped: " if summary.stopped else "")
+            + f"{summary.arrived} frames, {summary.classified} classified ({rate:.1f} per "
+            f"second), {summary.dropped} dropped, {summary.skipped} skipped by --every; "
+            f"latency median {summary.latency_ms['median']:.0f} ms, p90 "
+            f"{summary.latency_ms['p90']:.0f} ms; last state {_state_text(last)}",
+            err=True,
+        )
