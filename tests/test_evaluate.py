@@ -228,6 +228,10 @@ def test_cannot_tell_is_counted_as_an_answer_apart_from_unreadable_pairs(tmp_pat
     told = md.split("## Cannot tell")[1].split("## Not read")
     assert held.name in told[0] and "bad_depth.png" not in told[0]
     assert "bad_depth.png" in told[1]
+    # its overlay shows where the stickers under the gripper would be (orange: unknown)
+    (overlay,) = (report / "overlays").glob(f"{held.name}*.png")
+    drawn = cv2.imread(str(overlay))
+    assert np.all(drawn == (0, 140, 255), axis=2).sum() > 20
 
 
 def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):

@@ -211,25 +211,30 @@ def overlay_name(outcome: Any) -> str:
     return f"overlays/{_stem(outcome.pair.color)}_overlay.png"
 
 
-def pair_overlays(outcomes: list[Any], read_color: Any) -> dict[str, NDArray[np.uint8]]:
+def pair_overlays(
+    outcomes: list[Any], read_color: Any, *, classify: Any = None
+) -> dict[str, NDArray[np.uint8]]:
     """The overlay image of every pair given (a wrong class: the verdict and the
     runner-up; "cannot tell": the reason), by report file name (:func:`overlay_name`).
 
-    A pair whose colour image cannot be read again (a frame of a bag, a file gone since)
-    gets none.
+    With ``classify`` (``classify(frame) -> FrameResult``, the run's own classifier), each
+    pair is read whole and classified again, so that its overlay also shows where each
+    missing sticker would be, hidden by cloth or unknown with its reason, and the
+    objects over the napkin. A pair that cannot be read again that way (a frame of a
+    bag) is drawn from its colour image and its stickers found; one whose colour image
+    cannot be read either (a file gone since) gets none.
     """
-    from ..core.errors import DgliError
 
     files = {}
     for o in outcomes:
-        try:
-            color = read_color(o.pair.color)
-        except (DgliError, OSError):
+        color, evidence = _colour_and_evidence(o.pair, read_color, classify)
+        if color is None:
             continue
         if o.predicted is None:
             files[overlay_name(o)] = overlay_image(
                 color, np.array(o.centroids), o.reason or "no class",
                 detail=f"true {_name(o.pair.label)}" if o.pair.label else "",
+                evidence=evidence,
             )
             continue
         verdict = f"predicted {_name(o.predicted)} ({o.distance:.3f}); true {_name(o.pair.label)}"
@@ -238,8 +243,27 @@ def pair_overlays(outcomes: list[Any], read_color: Any) -> dict[str, NDArray[np.
             np.array(o.centroids),
             verdict,
             detail=f"runner-up {_name(o.runner_up)} ({o.runner_up_distance or float('nan'):.3f})",
+            evidence=evidence,
         )
     return files
+
+
+def _colour_and_evidence(pair: Any, read_color: Any, classify: Any) -> tuple[Any, Any]:
+    """A pair's colour image and, with ``classify``, its overlay evidence (None where
+    it cannot be had)."""
+    from ..core.errors import DgliError
+    from .report import overlay_evidence
+
+    if classify is not None and hasattr(pair, "load"):
+        try:
+            frame = pair.load()
+            return frame.color, overlay_evidence(classify(frame))
+        except (DgliError, OSError):
+            pass
+    try:
+        return read_color(pair.color), None
+    except (DgliError, OSError):
+        return None, None
 
 
 def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _Tables) -> list:
@@ -354,7 +378,7 @@ def _markdown_distances(heatmap: _Heatmap) -> list[str]:
 
 
 def build_report(
-    result: EvaluationResult, meta: dict[str, Any], read_color: Any
+    result: EvaluationResult, meta: dict[str, Any], read_color: Any, *, classify: Any = None
 ) -> dict[str, str | dict | NDArray[np.uint8]]:
     """All report files: name -> Markdown/CSV text, JSON-ready dict, or BGR image.
 
@@ -365,6 +389,9 @@ def build_report(
         ``command``, ``references``, ``references_sha256``, ``package_version``, ``jobs``.
     read_color : callable
         ``read_color(path) -> RGB array``, used for the overlays of misclassified pairs.
+    classify : callable, keyword-only, optional
+        ``classify(frame) -> FrameResult``: the overlays then show each missing sticker
+        and the objects over the napkin too (:func:`pair_overlays`).
 
     Returns
     -------
@@ -383,7 +410,7 @@ def build_report(
         files["distances.png"] = heatmap.image
     wrong = _misclassified(result)
     told = [o for o in result.outcomes if o.error is None and o.predicted is None]
-    files.update(pair_overlays(wrong + told, read_color))
+    files.update(pair_overlays(wrong + told, read_color, classify=classify))
     md = [
         *_markdown_summary(result, meta, tables),
         *_markdown_misclassified(wrong),

@@ -267,8 +267,15 @@ class _EvaluationRun:
             "jobs": self.jobs,
             "skipped": skipped,
         }
+        from ..classifier.pipeline import classify_frame
+        from ..sources.colours_file import read_colours
+
+        colours = read_colours(self.colours_path) if self.colours_path else None
         out = Path(self.report_dir)
-        files = build_report(result, meta, read_color)
+        files = build_report(
+            result, meta, read_color,
+            classify=lambda frame: classify_frame(frame, self.refs, colours=colours),
+        )
         write_outputs(
             {out / name: json_ready(c) if isinstance(c, dict) else c for name, c in files.items()},
             overwrite=overwrite,
