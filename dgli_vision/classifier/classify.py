@@ -128,6 +128,12 @@ class Prediction:
         ``runner_up.distance - distance`` (``inf`` without a runner-up).
     confidence : float
         In [0, 1], from the margin and the amount of evidence (:func:`confidence_of`).
+    corners : tuple of CornerAffordance
+        Corners A-D: point, pixel, state, graspable
+        (:class:`~dgli_vision.classifier.affordances.CornerAffordance`); empty when not
+        computed.
+    folds : tuple of SeenFold
+        The folds of the verdict as lines on the table.
     """
 
     class_id: str
@@ -137,6 +143,8 @@ class Prediction:
     runner_up: RunnerUp | None
     margin: float
     confidence: float = 1.0
+    corners: tuple = ()
+    folds: tuple = ()
 
 
 def confidence_of(
