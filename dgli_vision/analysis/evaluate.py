@@ -55,6 +55,7 @@ class PairOutcome:
     error: str | None = None
     confidence: float | None = None
     distances: tuple[float, ...] = ()
+    affordances: dict[str, Any] | None = None
 
     @property
     def correct(self) -> bool:
@@ -118,6 +119,7 @@ def _classify_pair(
         dist = tuple(round(float(v), 6) for v in d)
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None
+    aff = result.affordances.to_json() if result.affordances is not None else None
     if p is None:
         return PairOutcome(
             pair.light(),
@@ -126,6 +128,7 @@ def _classify_pair(
             reason=result.reason,
             confidence=confidence,
             distances=dist,
+            affordances=aff,
         )
     return PairOutcome(
         pair.light(),
@@ -138,6 +141,7 @@ def _classify_pair(
         cents,
         confidence=confidence,
         distances=dist,
+        affordances=aff,
     )
 
 
@@ -427,6 +431,7 @@ def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
         data.get("error"),
         data.get("confidence"),
         tuple(_float(v) for v in data.get("distances") or ()),
+        data.get("affordances"),
     )
 
 

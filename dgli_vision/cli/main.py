@@ -19,6 +19,7 @@ from .errors import guarded
 from .evaluate import evaluate
 from .extract import extract
 from .napkin import coords, stickers
+from .plan import plan_cmd
 from .references import references
 from .render import render_cmd
 from .robustness import robustness
@@ -54,6 +55,7 @@ for _command in (
     stickers,
     coords,
     bench,
+    plan_cmd,
 ):
     main.add_command(_command)
 
