@@ -31,6 +31,18 @@ CORNER_LEGS_MM: dict[str, float | tuple[float, float]] = {
     "07": 160.0,
     "08": 185.0,
 }
+#: The leg ranges of each corner class (mm on the 400 mm napkin): (along the edge shared
+#: with the other folded corner of the side, along the other edge); the same for both
+#: legs where the class has one range.
+CORNER_LEG_RANGES: dict[str, tuple[tuple[float, float], tuple[float, float]]] = {
+    "02": ((150.0, 200.0), (150.0, 200.0)),
+    "03": ((150.0, 200.0), (150.0, 200.0)),
+    "04": ((150.0, 160.0), (150.0, 180.0)),
+    "05": ((170.0, 195.0), (230.0, 260.0)),
+    "06": ((150.0, 200.0), (150.0, 200.0)),
+    "07": ((150.0, 170.0), (150.0, 170.0)),
+    "08": ((170.0, 200.0), (170.0, 200.0)),
+}
 #: Middle of the inset ranges of the side classes (mm on the 400 mm napkin).
 SIDE_INSET_MM: dict[str, float] = {"09": 132.5, "10": 132.5, "11": 204.0}
 
@@ -141,7 +153,11 @@ def _pt(p: NDArray) -> tuple[float, float]:
 
 
 def fold_for_word(
-    word: str, class_id: str, layout: NapkinLayout, side: str | None = None
+    word: str,
+    class_id: str,
+    layout: NapkinLayout,
+    side: str | None = None,
+    within: str | None = None,
 ) -> NominalFold:
     """The fold ``word`` at the middle of the sizes of class ``class_id``.
 
@@ -156,13 +172,17 @@ def fold_for_word(
     side : str, optional
         For the two corners of one side (04, 05): that side, whose edge takes the
         shared leg.
+    within : str, optional
+        A corner class whose leg ranges the legs are brought into (the nearest size in
+        range): a fold made towards one class that passes through another.
     """
     name, kind = word.split(" ", 1)
     if kind in ("over", "under") or kind.startswith("over crossing"):
         legs = CORNER_LEGS_MM.get(class_id, CORNER_LEGS_MM["02"])
-        if isinstance(legs, float):
-            return _corner(layout, name, (legs, legs), word)
-        shared, other = legs
+        shared, other = (legs, legs) if isinstance(legs, float) else legs
+        if within in CORNER_LEG_RANGES:
+            (s_lo, s_hi), (o_lo, o_hi) = CORNER_LEG_RANGES[within]
+            shared, other = min(max(shared, s_lo), s_hi), min(max(other, o_lo), o_hi)
         crossing = kind.startswith("over crossing")
         partner = kind.split()[-1] if crossing else None
         k = CORNERS.index(name)

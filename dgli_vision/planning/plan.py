@@ -86,11 +86,37 @@ def _moves(key: StateKey) -> list[tuple[str, str, StateKey]]:
     return out
 
 
+def _crossable(start: StateKey) -> frozenset[str]:
+    """The flaps of ``start`` that a crossing fold can lie over: the first flap of two
+    crossing ones (class 05) is folded with the crossing class's longer legs; a corner
+    of any other class is too small for a second flap to cross it."""
+    if start[0] != "05" or start[1] is None:
+        return frozenset()
+    side, top = start[1].split("/")
+    return frozenset(side.replace(top, ""))
+
+
+def _tips_would_cross(here: StateKey, corner: str, big: frozenset[str]) -> bool:
+    """Folding ``corner`` (not across another flap) next to a folded neighbour lays the
+    two tips across each other when either flap has the crossing class's size: the
+    state would not be the one of two flaps apart."""
+    k = CORNERS.index(corner)
+    folded = {w.split(" ")[0] for w in folds_of(*here) if " over" in w}
+    for n in (CORNERS[(k + 1) % 4], CORNERS[(k - 1) % 4]):
+        if n in folded and (n in big or corner in big):
+            return True
+    return False
+
+
 def shortest_path(start: StateKey, goal: StateKey) -> list[tuple[str, str, StateKey]]:
     """A shortest sequence of (action, fold word, state after) from ``start`` to
     ``goal`` (breadth-first over the fold graph; among equals, the first in state
     order). A goal given without its variant (None for a class that has variants) is
     the nearest state of that class.
+
+    A flap crosses another (class 05) only where that other flap has the crossing
+    class's size: folded by the plan towards a goal of class 05, or the first flap of a
+    05 start; a smaller flap is unfolded and folded again first.
 
     Raises
     ------
@@ -98,25 +124,41 @@ def shortest_path(start: StateKey, goal: StateKey) -> list[tuple[str, str, State
         When no sequence of single folds and unfolds reaches the goal.
     """
     any_variant = goal[1] is None and VARIANTS[goal[0]] != (None,)
+    big_folds = goal[0] == "05"
 
     def done(k: StateKey) -> bool:
         return k[0] == goal[0] if any_variant else k == goal
 
-    came: dict[StateKey, tuple[StateKey, str, str] | None] = {start: None}
-    queue = deque([start])
+    Node = tuple[StateKey, frozenset[str]]
+    first: Node = (start, _crossable(start))
+    came: dict[Node, tuple[Node, str, str] | None] = {first: None}
+    queue = deque([first])
     while queue:
-        here = queue.popleft()
+        node = queue.popleft()
+        here, big = node
         if done(here):
             path = []
-            while came[here] is not None:
-                prev, action, word = came[here]  # type: ignore[misc]
-                path.append((action, word, here))
-                here = prev
+            while came[node] is not None:
+                prev, action, word = came[node]  # type: ignore[misc]
+                path.append((action, word, node[0]))
+                node = prev
             return path[::-1]
         for action, word, nxt in _moves(here):
-            if nxt not in came:
-                came[nxt] = (here, action, word)
-                queue.append(nxt)
+            corner = word.split(" ")[0]
+            if action == "fold" and " crossing " in word and word.split()[-1] not in big:
+                continue
+            if action == "fold" and word.endswith(" over") and len(corner) == 1:
+                grown = big | {corner} if big_folds else big
+                if _tips_would_cross(here, corner, grown):
+                    continue
+            elif action == "unfold":
+                grown = big - {corner}
+            else:
+                grown = big
+            child = (nxt, grown)
+            if child not in came:
+                came[child] = (node, action, word)
+                queue.append(child)
     shown = f"{goal[0]}/{goal[1]}" if goal[1] else goal[0]
     raise PlanRefused(f"no sequence of single folds leads from {_name(start)} to {shown}")
 
@@ -206,12 +248,16 @@ class Plan:
 def _step_fold(action: str, word: str, before: StateKey, after: StateKey, goal: StateKey,
                layout: NapkinLayout, current: tuple[NominalFold, ...]) -> NominalFold:
     """The fold line of a step: an unfold undoes the fold as it is; a fold takes the
-    goal class's sizes when the goal keeps that fold, else those of the state after."""
+    goal class's sizes when the goal keeps that fold (brought into the range of the
+    state after the step, but for two crossing flaps, which need their own), else those
+    of the state after."""
     if action == "unfold":
         return next(f for f in current if f.word == word)
-    sized = goal if goal[1] is not None and word in folds_of(*goal) else after
+    kept = word in folds_of(*goal)
+    sized = goal if kept else after
     side = sized[1].split("/")[0] if sized[0] in ("04", "05") and sized[1] else None
-    return fold_for_word(word, sized[0], layout, side)
+    within = after[0] if kept and goal[0] != "05" else None
+    return fold_for_word(word, sized[0], layout, side, within)
 
 
 def plan_steps(
