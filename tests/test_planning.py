@@ -144,3 +144,25 @@ def test_python_plan_matches_the_command():
 def test_closed_loop_in_the_simulator(refs, start, goal):
     row = run_pair(start, goal, (99, 1), refs, intrinsics=SMALL)
     assert row.outcome == "right", row
+
+
+def test_track_frames_carry_corners_and_folds(refs):
+    from dgli_vision.analysis.evaluate import (
+        _classify_pair,
+        outcome_from_dict,
+        outcome_to_dict,
+    )
+    from dgli_vision.analysis.track import timeline_to_dict, track_outcomes
+    from dgli_vision.sources.labelled import LabelledPair
+
+    pairs = [
+        LabelledPair(str(SAMPLES / f"{n}_000_color.png"), str(SAMPLES / f"{n}_000_depth.png"), n)
+        for n in ("01", "02")
+    ]
+    outcomes = [_classify_pair(p, refs, distances=True) for p in pairs]
+    # a resumed run reads them back from results.jsonl
+    outcomes = [outcome_from_dict(json.loads(json.dumps(outcome_to_dict(o)))) for o in outcomes]
+    frames = timeline_to_dict(track_outcomes(outcomes, refs))["frames"]
+    assert frames[0]["corners"]["A"]["state"] == "flat" and frames[0]["folds"] == []
+    assert frames[1]["corners"]["C"]["state"] == "on a flap over"
+    assert [f["fold"] for f in frames[1]["folds"]] == ["C over"]
