@@ -124,6 +124,8 @@ class NapkinMaps:
     offset : float
         ``up @ x`` of the table plane, m.
     thickness_m : float
+    sticker_part : tuple of int
+        The part each sticker lies on (as :meth:`part_of` gives it).
     """
 
     folds: tuple[NominalFold, ...]
@@ -132,6 +134,7 @@ class NapkinMaps:
     up: NDArray[np.float64]
     offset: float
     thickness_m: float
+    sticker_part: tuple[int, ...] = ()
 
     def part_of(self, uv_mm: NDArray[np.float64]) -> int:
         """The part a material point (2,) lies on: -1 the napkin that stays, else the
@@ -202,7 +205,7 @@ def napkin_maps(
     lying = _lying(obs)
     part = np.full(len(uv), -1)
     for j, f in enumerate(folds):
-        part[f.on_flap(uv, ON_LINE_MM)] = j
+        part[f.on_flap(uv, ON_LINE_MM)] = j  # as part_of, for every sticker at once
     seen = np.where(lying[:, None], pts, np.nan)
     stay = fit_map(uv[part == -1], seen[part == -1], obs.up, +1)
     flaps = tuple(
@@ -210,7 +213,8 @@ def napkin_maps(
         for j, f in enumerate(folds)
     )
     return NapkinMaps(
-        folds, stay, flaps, obs.up, _table_offset(obs), layout.thickness_mm * 1e-3
+        folds, stay, flaps, obs.up, _table_offset(obs), layout.thickness_mm * 1e-3,
+        tuple(int(p) for p in part),
     )
 
 
@@ -311,6 +315,13 @@ def _held_up(obs: Any, ids: tuple[int, ...]) -> bool:
     return bool(np.any(np.nan_to_num(lifted[list(ids)], nan=0.0) >= 1.0))
 
 
+def _sticker_part(maps: NapkinMaps, i: int, layout: NapkinLayout) -> int:
+    """The part sticker ``i`` lies on (kept by :func:`napkin_maps`, else worked out)."""
+    if len(maps.sticker_part) == len(layout.sticker_uv):
+        return maps.sticker_part[i]
+    return maps.part_of(np.asarray(layout.sticker_uv[i], dtype=float))
+
+
 def _own_fit(
     obs: Any, k: int, layout: NapkinLayout, face: int, maps: NapkinMaps | None = None
 ) -> NDArray[np.float64] | None:
@@ -320,7 +331,7 @@ def _own_fit(
     ids = list(CORNER_STICKERS[k])
     if maps is not None:
         mine = maps.part_of(np.asarray(layout.corner_uv[k], dtype=float))
-        ids = [i for i in ids if maps.part_of(np.asarray(layout.sticker_uv[i])) == mine]
+        ids = [i for i in ids if _sticker_part(maps, i, layout) == mine]
     pts = obs.points_m[ids] if obs.points_m is not None else np.full((len(ids), 3), np.nan)
     pts = np.where(obs.visible[ids][:, None], pts, np.nan)
     uv = np.asarray(layout.sticker_uv, dtype=float)[ids]
@@ -345,7 +356,7 @@ def _on_line_fit(
     for j, f in enumerate(maps.folds):
         if f.under or abs(float(_signed_mm(corner_uv, f)[0])) > ON_LINE_MM:
             continue
-        ids = [i for i in CORNER_STICKERS[k] if maps.part_of(layout.sticker_uv[i]) == j]
+        ids = [i for i in CORNER_STICKERS[k] if _sticker_part(maps, i, layout) == j]
         pts = obs.points_m[ids] if obs.points_m is not None else None
         if pts is None:
             return None

@@ -10,6 +10,7 @@ tell which stickers lie on which flap; the planner uses them as the folds to mak
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -86,22 +87,25 @@ class NominalFold:
         return _signed(np.asarray(uv, dtype=float), self) > margin_mm
 
 
-def _signed(uv: NDArray[np.float64], f: NominalFold) -> NDArray[np.float64]:
-    """Distance (mm) of material points beyond the fold line, positive on the flap side."""
+@lru_cache(maxsize=256)
+def _frame(f: NominalFold) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """A point of the fold line and its unit normal towards the flap."""
     a, b, c = (np.asarray(x, dtype=float) for x in (f.p0, f.p1, f.flap))
     t = (b - a) / np.linalg.norm(b - a)
     n = np.array([-t[1], t[0]])
-    if (c - a) @ n < 0:
-        n = -n
+    return a, (n if (c - a) @ n >= 0 else -n)
+
+
+def _signed(uv: NDArray[np.float64], f: NominalFold) -> NDArray[np.float64]:
+    """Distance (mm) of material points beyond the fold line, positive on the flap side."""
+    a, n = _frame(f)
     return (np.atleast_2d(uv) - a) @ n
 
 
 def reflect_uv(uv: NDArray[np.float64], f: NominalFold) -> NDArray[np.float64]:
     """Material points (k, 2) mirrored across the fold line of ``f``: where a point of
     the flap lands on the flat napkin once it is folded, and back."""
-    a, b = (np.asarray(x, dtype=float) for x in (f.p0, f.p1))
-    t = (b - a) / np.linalg.norm(b - a)
-    n = np.array([-t[1], t[0]])
+    a, n = _frame(f)
     rel = np.atleast_2d(uv) - a
     return np.atleast_2d(uv) - 2.0 * (rel @ n)[:, None] * n
 
@@ -197,6 +201,7 @@ def fold_for_word(
     return _side(layout, name, inset, word)
 
 
+@lru_cache(maxsize=512)
 def nominal_folds(
     class_id: str, variant: str | None, layout: NapkinLayout
 ) -> tuple[NominalFold, ...]:

@@ -345,10 +345,11 @@ def _after(maps: NapkinMaps, action: str, f: NominalFold) -> NapkinMaps:
     """The maps once a step is made: a new flap lies where its mirror image is; an
     unfolded flap lies flat again."""
     if action == "fold":
-        return replace(maps, folds=(*maps.folds, f), flaps=(*maps.flaps, None))
+        return replace(maps, folds=(*maps.folds, f), flaps=(*maps.flaps, None), sticker_part=())
     keep = [k for k, g in enumerate(maps.folds) if g.word != f.word]
     return replace(
-        maps, folds=tuple(maps.folds[k] for k in keep), flaps=tuple(maps.flaps[k] for k in keep)
+        maps, folds=tuple(maps.folds[k] for k in keep), flaps=tuple(maps.flaps[k] for k in keep),
+        sticker_part=(),
     )
 
 
