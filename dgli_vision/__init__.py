@@ -8,10 +8,11 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
-__all__ = ["classify_pair"]
+__all__ = ["classify_pair", "plan"]
 
 if TYPE_CHECKING:
     from .classifier.api import classify_pair
+    from .planning.api import plan
 
 
 def __getattr__(name: str) -> Any:
@@ -20,4 +21,8 @@ def __getattr__(name: str) -> Any:
         from .classifier.api import classify_pair
 
         return classify_pair
+    if name == "plan":
+        from .planning.api import plan
+
+        return plan
     raise AttributeError(f"module 'dgli_vision' has no attribute {name!r}")

@@ -22,7 +22,7 @@ def test_every_frame_says_where_its_time_went() -> None:
     total_ms = (time.perf_counter() - t0) * 1e3
     stages = list(result.timings_ms)
     assert stages[:3] == ["table plane", "napkin", "search"]
-    assert stages[-2:] == ["classify", "checks"]
+    assert stages[-3:] == ["classify", "checks", "affordances"]
     assert 0.5 * total_ms <= sum(result.timings_ms.values()) <= total_ms
     bench = FrameBench(
         (

@@ -60,6 +60,7 @@ class PairOutcome:
     error: str | None = None
     confidence: float | None = None
     distances: tuple[float, ...] = ()
+    affordances: dict[str, Any] | None = None
 
     @property
     def correct(self) -> bool:
@@ -123,6 +124,7 @@ def _classify_pair(
         dist = tuple(round(float(v), 6) for v in d)
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None
+    aff = result.affordances.to_json() if result.affordances is not None else None
     if p is None:
         return PairOutcome(
             pair.light(),
@@ -131,6 +133,7 @@ def _classify_pair(
             reason=result.reason,
             confidence=confidence,
             distances=dist,
+            affordances=aff,
         )
     return PairOutcome(
         pair.light(),
@@ -143,6 +146,7 @@ def _classify_pair(
         cents,
         confidence=confidence,
         distances=dist,
+        affordances=aff,
     )
 
 
@@ -463,6 +467,7 @@ def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
         data.get("error"),
         data.get("confidence"),
         tuple(_float(v) for v in data.get("distances") or ()),
+        data.get("affordances"),
     )
 
 

@@ -276,6 +276,11 @@ class TimelineFrame:
         Why there is no raw verdict (cannot tell, or the error that made it a gap).
     label, label_variant : str or None
         The true state, when the recording is labelled.
+    corners : dict or None
+        The frame's corners A-D (point, pixel, state, graspable, placed_by), as
+        ``dgli-classify --json`` gives them.
+    folds : list or None
+        The folds seen in the frame.
     """
 
     index: int
@@ -291,6 +296,8 @@ class TimelineFrame:
     note: str | None
     label: str | None = None
     label_variant: str | None = None
+    corners: dict | None = None
+    folds: list | None = None
 
     @property
     def gap(self) -> bool:
@@ -375,6 +382,8 @@ def track_outcomes(
                 note=o.error or o.reason,
                 label=o.pair.label if labelled else None,
                 label_variant=o.pair.variant if labelled else None,
+                corners=(o.affordances or {}).get("corners"),
+                folds=(o.affordances or {}).get("folds"),
             )
         )
     changes = tuple(

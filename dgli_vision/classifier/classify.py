@@ -157,6 +157,12 @@ class Prediction:
         The kind of that reason (``FrameResult.why``).
     stickers : StickerIds or None
         The stickers found, hidden and unknown (``classify_pair`` fills it).
+    corners : tuple of CornerAffordance
+        Corners A-D: point, pixel, state, graspable
+        (:class:`~dgli_vision.classifier.affordances.CornerAffordance`); empty when not
+        computed.
+    folds : tuple of SeenFold
+        The folds of the verdict as lines on the table.
     """
 
     class_id: str
@@ -169,6 +175,8 @@ class Prediction:
     reason: str | None = None
     why: str | None = None
     stickers: StickerIds | None = None
+    corners: tuple = ()
+    folds: tuple = ()
 
 
 def confidence_of(

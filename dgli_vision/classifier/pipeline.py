@@ -30,6 +30,7 @@ from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from ..perception.napkin import find_napkin
 from ..perception.scale import NapkinRuler, measure_napkin
 from ..sources.frames import RGBDFrame
+from .affordances import Affordances, affordances_of
 from .classify import (
     MIN_CONFIDENCE,
     Prediction,
@@ -203,6 +204,8 @@ class FrameResult:
     was (for reports), if any. ``why`` names the kind of reason (:data:`WHY_KINDS`) and
     ``candidates`` the nearest states of the three nearest classes, as (class, variant,
     distance), nearest first (empty when too few stickers were seen to rank any).
+    ``affordances`` gives each corner's point, state and whether it can be grasped, and
+    the folds seen (:mod:`~dgli_vision.classifier.affordances`).
     """
 
     detections: StickerDetections
@@ -215,6 +218,7 @@ class FrameResult:
     timings_ms: dict[str, float] = field(default_factory=dict)
     why: str | None = None
     candidates: tuple[tuple[str, str | None, float], ...] = ()
+    affordances: Affordances | None = None
 
 
 #: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is
@@ -343,7 +347,25 @@ def classify_frame(
     result = _judge(
         frame, references, layout, (detections, markers, obs), min_confidence, clock
     )
+    result = _with_affordances(result, layout, frame)
+    clock.lap("affordances")
     return replace(result, timings_ms=dict(clock.ms))
+
+
+def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFrame) -> FrameResult:
+    """The result with its corners and folds, in the verdict and in the prediction."""
+    p = result.prediction
+    aff = affordances_of(
+        result.observation, p and p.class_id, p and p.variant, layout, frame.intrinsics
+    )
+    if p is None:
+        guess = result.best_guess
+        if guess is not None:
+            guess = replace(guess, corners=aff.corners)
+        return replace(result, best_guess=guess, affordances=aff)
+    p = replace(p, corners=aff.corners, folds=aff.folds)
+    guess = p if result.best_guess is result.prediction else result.best_guess
+    return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
 def _judge(

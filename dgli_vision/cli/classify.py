@@ -77,6 +77,8 @@ def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
             "classes": [c for c, _, _ in result.candidates[:2]],
             "stickers": out["stickers"],
         }
+    if getattr(result, "affordances", None) is not None:
+        out.update(result.affordances.to_json())
     out["coordinates"] = [
         None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
     ]
@@ -88,14 +90,16 @@ def overlay_of(frame: Any, result: Any) -> Any:
     ones would be (hidden or unknown, and why), the objects over the napkin, the
     verdict."""
     from ..analysis.report import overlay_evidence, overlay_image
+    from ..planning.overlay import draw_corners
 
     obs = result.observation
     evidence = overlay_evidence(result)
     detail = f"{int(obs.visible.sum())}/16 stickers found"
-    return overlay_image(
+    image = overlay_image(
         frame.color, result.detections.centroids, verdict_line(result), detail=detail,
         evidence=evidence,
     )
+    return draw_corners(image, result.affordances)
 
 
 def verdict_line(result: Any) -> str:

@@ -20,6 +20,7 @@ from .evaluate import evaluate
 from .extract import extract
 from .label import label_cmd
 from .napkin import coords, stickers
+from .plan import plan_cmd
 from .references import references
 from .render import render_cmd
 from .robustness import robustness
@@ -58,6 +59,7 @@ for _command in (
     bench,
     label_cmd,
     watch,
+    plan_cmd,
 ):
     main.add_command(_command)
 

@@ -1,0 +1,522 @@
+"""What a robot can grasp: where each corner is, what state it is in, and the folds seen.
+
+From a verdict and the evidence the pipeline already has (the stickers located in 3D,
+the table plane, which face each corner shows, which stickers stand above the table):
+
+- every state's folds are lines on the flat napkin (:mod:`dgli_vision.core.fold_lines`,
+  the middle of the class's sizes), so each sticker lies on the napkin that stays or on
+  one flap;
+- folding is isometric, so each part (the napkin that stays, each flap) is a rigid
+  map from the flat napkin to the camera frame, fitted to its stickers seen (with the
+  face it shows: a flap folded over shows its back); a part with no sticker seen is the
+  reflection, across its fold line, of the part it lies on;
+- a corner is placed by its own stickers (two or more seen), else by the rigid map of
+  its flap or of the napkin, and says which.
+
+A corner is graspable from above when it is free and on top: lying flat or on a flap
+folded over, with no flap lying over it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.camera import Intrinsics
+from ..core.classes import CORNERS, LIFTED_MM
+from ..core.fold_lines import NominalFold, nominal_folds, reflect_uv
+from ..core.layout import CORNER_STICKERS, NapkinLayout
+
+__all__ = [
+    "CORNER_STATES",
+    "Affordances",
+    "CornerAffordance",
+    "NapkinMaps",
+    "RigidMap",
+    "SeenFold",
+    "affordances_of",
+    "napkin_maps",
+]
+
+#: The state of a corner.
+CORNER_STATES = ("flat", "on a flap over", "on a flap under", "held up", "unknown")
+#: How a corner's point was found.
+PLACED_BY = ("stickers", "flap rigid map", "napkin rigid map")
+
+#: A sticker seen farther than this from its part's fitted rigid map (m) is left out of
+#: the fit (a misread sticker, or one on a wrinkle); the fit is made again without it.
+FIT_TOLERANCE_M = 0.015
+#: A point this near a fold line (mm on the flat napkin) counts as on the part that stays:
+#: the ends of a diagonal fold are corners on the line itself.
+ON_LINE_MM = 1.0
+#: A corner lies under a flap when the flap covers its place by more than this (mm,
+#: measured on the flat napkin): a corner on the fold line itself is not covered.
+COVER_MARGIN_MM = 5.0
+
+
+@dataclass(frozen=True, eq=False)
+class RigidMap:
+    """A rigid map from the flat napkin (material metres, z out of the front face) to
+    the camera frame: ``x = R @ [u, v, 0] + t``."""
+
+    rotation: NDArray[np.float64]
+    translation: NDArray[np.float64]
+
+    def __call__(self, uv_mm: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Camera-frame points (k, 3) of material points (k, 2) in mm."""
+        uv = np.atleast_2d(np.asarray(uv_mm, dtype=float)) * 1e-3
+        src = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+        return src @ self.rotation.T + self.translation
+
+
+def _kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
+    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    d = np.sign(np.linalg.det(u @ vt)) or 1.0
+    r = (u @ np.diag([1.0, 1.0, d]) @ vt).T
+    return r, cd - r @ cs
+
+
+def fit_map(
+    uv_mm: NDArray[np.float64], points: NDArray[np.float64], up: NDArray[np.float64], face: int
+) -> RigidMap | None:
+    """The rigid map of material points (k, 2) onto camera points (k, 3), with the
+    napkin's normal held to ``face * up`` (+1: front face up, -1: back face up), which
+    makes two points enough. None with fewer than two points."""
+    keep = np.isfinite(points).all(axis=1)
+    for _ in range(3):
+        if keep.sum() < 2:
+            return None
+        uv = np.asarray(uv_mm, dtype=float)[keep] * 1e-3
+        pts = points[keep]
+        lift = 0.05  # m: the virtual points along the normal
+        src = np.concatenate(
+            [np.c_[uv, np.zeros(len(uv))], np.c_[uv, np.full(len(uv), lift)]], axis=0
+        )
+        dst = np.concatenate([pts, pts + face * lift * up], axis=0)
+        r, t = _kabsch(src, dst)
+        m = RigidMap(r, t)
+        res = np.full(len(points), np.inf)
+        res[keep] = np.linalg.norm(m(np.asarray(uv_mm)[keep]) - pts, axis=1)
+        worst = int(np.argmax(np.where(keep, res, -1.0)))
+        if res[worst] <= FIT_TOLERANCE_M or keep.sum() <= 2:
+            return m
+        keep[worst] = False
+    return m
+
+
+@dataclass(frozen=True, eq=False)
+class NapkinMaps:
+    """The rigid maps of the parts of a folded napkin seen in one frame.
+
+    Attributes
+    ----------
+    folds : tuple of NominalFold
+        The verdict's folds, in the order they are made.
+    stay : RigidMap or None
+        The napkin that stays (front face up), fitted to its own stickers.
+    flaps : tuple of (RigidMap or None)
+        Each fold's flap, fitted to its own stickers.
+    up : ndarray, shape (3,)
+    offset : float
+        ``up @ x`` of the table plane, m.
+    thickness_m : float
+    sticker_part : tuple of int
+        The part each sticker lies on (as :meth:`part_of` gives it).
+    """
+
+    folds: tuple[NominalFold, ...]
+    stay: RigidMap | None
+    flaps: tuple[RigidMap | None, ...]
+    up: NDArray[np.float64]
+    offset: float
+    thickness_m: float
+    sticker_part: tuple[int, ...] = ()
+
+    def part_of(self, uv_mm: NDArray[np.float64]) -> int:
+        """The part a material point (2,) lies on: -1 the napkin that stays, else the
+        index of the last fold whose flap holds it."""
+        part = -1
+        for j, f in enumerate(self.folds):
+            if f.on_flap(np.atleast_2d(uv_mm), ON_LINE_MM)[0]:
+                part = j
+        return part
+
+    def place(self, uv_mm: NDArray[np.float64]) -> tuple[NDArray[np.float64] | None, str]:
+        """Where a material point (2,) is in the camera frame, and by which map
+        (``"flap rigid map"`` for its own flap's, ``"napkin rigid map"`` otherwise)."""
+        q = np.asarray(uv_mm, dtype=float)
+        j = self.part_of(q)
+        if j >= 0 and self.flaps[j] is not None:
+            return self.flaps[j](q)[0], PLACED_BY[1]
+        if j >= 0:  # the flap is where its mirror image on the napkin is
+            base = self.place_stay(reflect_uv(q, self.folds[j])[0])
+            if base is None:
+                return None, PLACED_BY[2]
+            lift = -1.0 if self.folds[j].under else 1.0
+            return base + lift * self.thickness_m * self.up, PLACED_BY[2]
+        return self.place_stay(q), PLACED_BY[2]
+
+    def place_stay(self, uv_mm: NDArray[np.float64]) -> NDArray[np.float64] | None:
+        """A point of the napkin that stays (2,), from its map or, without one, from a
+        flap lying on it (the mirror image across that flap's fold line)."""
+        q = np.asarray(uv_mm, dtype=float)
+        if self.stay is not None:
+            return self.stay(q)[0]
+        for f, m in zip(self.folds, self.flaps):
+            if m is not None and not f.under:
+                return m(reflect_uv(q, f))[0] - self.thickness_m * self.up
+        return None
+
+    def on_table(self, point: NDArray[np.float64]) -> NDArray[np.float64]:
+        """A camera-frame point (3,) moved along ``up`` onto the table plane."""
+        return point - (point @ self.up - self.offset) * self.up
+
+
+def _table_offset(obs: Any) -> float:
+    """``up @ x`` of the table plane, from the stickers' heights above it."""
+    pts, h = obs.points_m, obs.heights_mm
+    if pts is None or h is None:
+        return float("nan")
+    ok = np.isfinite(h) & np.isfinite(pts).all(axis=1)
+    if not ok.any():
+        return float("nan")
+    return float(np.median(pts[ok] @ obs.up - h[ok] * 1e-3))
+
+
+def _lying(obs: Any) -> NDArray[np.bool_]:
+    """Stickers located and lying (not held up), shape (16,)."""
+    h = obs.heights_mm if obs.heights_mm is not None else np.zeros(len(obs.visible))
+    return obs.visible & ~(np.nan_to_num(h, nan=0.0) > LIFTED_MM)
+
+
+def napkin_maps(
+    obs: Any, class_id: str, variant: str | None, layout: NapkinLayout
+) -> NapkinMaps:
+    """The rigid maps of the napkin that stays and of each flap of the state
+    ``class_id``/``variant``, fitted to the stickers of ``obs`` (a
+    :class:`~dgli_vision.classifier.pipeline.ClothObservation`) lying on each."""
+    folds = nominal_folds(class_id, variant, layout)
+    uv = np.asarray(layout.sticker_uv, dtype=float)
+    pts = obs.points_m if obs.points_m is not None else np.full((len(uv), 3), np.nan)
+    lying = _lying(obs)
+    part = np.full(len(uv), -1)
+    for j, f in enumerate(folds):
+        part[f.on_flap(uv, ON_LINE_MM)] = j  # as part_of, for every sticker at once
+    seen = np.where(lying[:, None], pts, np.nan)
+    stay = fit_map(uv[part == -1], seen[part == -1], obs.up, +1)
+    flaps = tuple(
+        None if f.under else fit_map(uv[part == j], seen[part == j], obs.up, -1)
+        for j, f in enumerate(folds)
+    )
+    return NapkinMaps(
+        folds, stay, flaps, obs.up, _table_offset(obs), layout.thickness_mm * 1e-3,
+        tuple(int(p) for p in part),
+    )
+
+
+@dataclass(frozen=True)
+class CornerAffordance:
+    """One corner as a robot sees it.
+
+    Attributes
+    ----------
+    corner : str
+        ``"A"`` ... ``"D"``.
+    point : tuple of float or None
+        Camera frame, metres.
+    pixel : tuple of float or None
+        Where the point is seen in the image.
+    state : str
+        One of :data:`CORNER_STATES`.
+    graspable : bool
+        Free and on top: lying flat or on a flap folded over, with no flap over it.
+    placed_by : str or None
+        ``"stickers"`` (its own, two or more seen), ``"flap rigid map"`` or
+        ``"napkin rigid map"``; None where it could not be placed.
+    """
+
+    corner: str
+    point: tuple[float, float, float] | None
+    pixel: tuple[float, float] | None
+    state: str
+    graspable: bool
+    placed_by: str | None
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON form (``{"point", "pixel", "state", "graspable", "placed_by"}``)."""
+        return {
+            "point": None if self.point is None else [round(v, 5) for v in self.point],
+            "pixel": None if self.pixel is None else [round(v, 1) for v in self.pixel],
+            "state": self.state,
+            "graspable": self.graspable,
+            "placed_by": self.placed_by,
+        }
+
+
+@dataclass(frozen=True)
+class SeenFold:
+    """One fold of the verdict as a line on the table.
+
+    Attributes
+    ----------
+    fold : str
+        The fold word (``"A over"``, ``"AB half"``...).
+    corner, side : str or None
+        The corner or the side it moved.
+    under : bool
+    line : tuple of two 3D points, or None
+        Its two ends on the table, camera frame, metres.
+    """
+
+    fold: str
+    corner: str | None
+    side: str | None
+    under: bool
+    line: tuple[tuple[float, float, float], tuple[float, float, float]] | None
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON form (``{"fold", "corner" or "side", "under", "line"}``)."""
+        out: dict[str, Any] = {"fold": self.fold}
+        out["corner" if self.corner else "side"] = self.corner or self.side
+        out["under"] = self.under
+        out["line"] = None if self.line is None else [
+            [round(v, 5) for v in p] for p in self.line
+        ]
+        return out
+
+
+@dataclass(frozen=True)
+class Affordances:
+    """The corners A-D and the folds seen in one frame."""
+
+    corners: tuple[CornerAffordance, ...]
+    folds: tuple[SeenFold, ...]
+
+    def corner(self, name: str) -> CornerAffordance:
+        """The corner called ``name``."""
+        return self.corners[CORNERS.index(name)]
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"corners": {"A": {...}, ...}, "folds": [...]}``."""
+        return {
+            "corners": {c.corner: c.to_json() for c in self.corners},
+            "folds": [f.to_json() for f in self.folds],
+        }
+
+
+def _held_up(obs: Any, ids: tuple[int, ...]) -> bool:
+    lifted = obs.lifted
+    if lifted is None:
+        return False
+    return bool(np.any(np.nan_to_num(lifted[list(ids)], nan=0.0) >= 1.0))
+
+
+def _sticker_part(maps: NapkinMaps, i: int, layout: NapkinLayout) -> int:
+    """The part sticker ``i`` lies on (kept by :func:`napkin_maps`, else worked out)."""
+    if len(maps.sticker_part) == len(layout.sticker_uv):
+        return maps.sticker_part[i]
+    return maps.part_of(np.asarray(layout.sticker_uv[i], dtype=float))
+
+
+def _own_fit(
+    obs: Any, k: int, layout: NapkinLayout, face: int, maps: NapkinMaps | None = None
+) -> NDArray[np.float64] | None:
+    """Corner ``k`` placed by its own stickers seen (two or more; three for a corner
+    held up, whose face is not known); with ``maps``, only those on the corner's part
+    (a corner on a fold line has stickers on both sides of it)."""
+    ids = list(CORNER_STICKERS[k])
+    if maps is not None:
+        mine = maps.part_of(np.asarray(layout.corner_uv[k], dtype=float))
+        ids = [i for i in ids if _sticker_part(maps, i, layout) == mine]
+    pts = obs.points_m[ids] if obs.points_m is not None else np.full((len(ids), 3), np.nan)
+    pts = np.where(obs.visible[ids][:, None], pts, np.nan)
+    uv = np.asarray(layout.sticker_uv, dtype=float)[ids]
+    corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
+    ok = np.isfinite(pts).all(axis=1)
+    if face == 0:
+        if ok.sum() < 3:
+            return None
+        src = np.c_[uv[ok] * 1e-3, np.zeros(int(ok.sum()))]
+        r, t = _kabsch(src, pts[ok])
+        return r @ np.r_[corner_uv * 1e-3, 0.0] + t
+    m = fit_map(uv, pts, obs.up, face)
+    return None if m is None else m(corner_uv)[0]
+
+
+def _on_line_fit(
+    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout
+) -> NDArray[np.float64] | None:
+    """A corner at the end of a fold line (a diagonal fold's) placed by its stickers on
+    the flap: the fold leaves the points of its line where they were."""
+    corner_uv = np.asarray(layout.corner_uv[k], dtype=float)[None]
+    for j, f in enumerate(maps.folds):
+        if f.under or abs(float(_signed_mm(corner_uv, f)[0])) > ON_LINE_MM:
+            continue
+        ids = [i for i in CORNER_STICKERS[k] if _sticker_part(maps, i, layout) == j]
+        pts = obs.points_m[ids] if obs.points_m is not None else None
+        if pts is None:
+            return None
+        pts = np.where(_lying(obs)[ids][:, None], pts, np.nan)
+        m = fit_map(np.asarray(layout.sticker_uv, dtype=float)[ids], pts, obs.up, -1)
+        if m is not None:
+            return m(corner_uv[0])[0]
+    return None
+
+
+def _signed_mm(uv: NDArray[np.float64], f: NominalFold) -> NDArray[np.float64]:
+    a, b, c = (np.asarray(x, dtype=float) for x in (f.p0, f.p1, f.flap))
+    t = (b - a) / np.linalg.norm(b - a)
+    n = np.array([-t[1], t[0]])
+    return (uv - a) @ (n if (c - a) @ n >= 0 else -n)
+
+
+def _covered(folds: tuple[NominalFold, ...], corner_uv: NDArray, layout: NapkinLayout) -> bool:
+    """Whether a flap lies over the corner once every fold is made (on the flat napkin's
+    plan: the corner's landing place, mirrored across each later fold's line, falls
+    inside that fold's flap)."""
+    pos, last = np.asarray(corner_uv, dtype=float)[None], -1
+    for j, f in enumerate(folds):
+        if f.on_flap(pos, ON_LINE_MM)[0]:
+            pos, last = reflect_uv(pos, f), j
+    size = np.array([layout.width_mm, layout.height_mm])
+    for j, f in enumerate(folds):
+        if j <= last or f.under:
+            continue
+        back = reflect_uv(pos, f)
+        inside = bool(np.all((back >= -1.0) & (back <= size + 1.0)))
+        if inside and f.on_flap(back, COVER_MARGIN_MM)[0]:
+            return True
+    return False
+
+
+def _corner_of_verdict(
+    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout
+) -> tuple[str, bool, NDArray | None, str | None]:
+    """State, graspable, point and how placed of corner ``k`` given the verdict."""
+    corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
+    j = maps.part_of(corner_uv)
+    fold = maps.folds[j] if j >= 0 else None
+    state = "flat" if fold is None else ("on a flap under" if fold.under else "on a flap over")
+    if _held_up(obs, CORNER_STICKERS[k]):
+        state = "held up"
+    face = {"flat": 1, "on a flap over": -1, "on a flap under": 1}.get(state, 0)
+    point, how = _own_fit(obs, k, layout, face, maps), PLACED_BY[0]
+    if point is None and fold is None and state == "flat":
+        point = _on_line_fit(obs, k, maps, layout)
+    if point is None and state != "held up":
+        point, how = maps.place(corner_uv)
+    if point is None:
+        how = None
+    free = state in ("flat", "on a flap over") and not _covered(maps.folds, corner_uv, layout)
+    return state, bool(free and point is not None), point, how
+
+
+def _corner_of_evidence(
+    obs: Any, k: int, layout: NapkinLayout
+) -> tuple[str, bool, NDArray | None, str | None]:
+    """State, graspable, point and how placed of corner ``k`` without a verdict: from
+    its own stickers alone (the face they show, whether they stand up)."""
+    ids = CORNER_STICKERS[k]
+    if _held_up(obs, ids):
+        return "held up", False, _own_fit(obs, k, layout, 0), PLACED_BY[0]
+    turn = 0.0 if obs.turns is None else float(obs.turns[k])
+    if int(obs.visible[list(ids)].sum()) < 2 or turn == 0:
+        return "unknown", False, None, None
+    face = 1 if turn > 0 else -1
+    point = _own_fit(obs, k, layout, face)
+    state = "flat" if face > 0 else "on a flap over"
+    return state, point is not None, point, PLACED_BY[0] if point is not None else None
+
+
+def affordances_of(
+    obs: Any,
+    class_id: str | None,
+    variant: str | None,
+    layout: NapkinLayout,
+    intrinsics: Intrinsics,
+) -> Affordances:
+    """The corners and folds of one frame.
+
+    Parameters
+    ----------
+    obs : ClothObservation
+        What the pipeline saw (stickers in 3D, table normal, heights, faces).
+    class_id, variant : str or None
+        The verdict; None when it could not be told (the corners are then judged from
+        their own stickers alone, and no fold is given).
+    layout : NapkinLayout
+    intrinsics : Intrinsics
+        To give each point's pixel.
+
+    Returns
+    -------
+    Affordances
+    """
+    maps = napkin_maps(obs, class_id, variant, layout) if class_id else None
+    corners = []
+    for k, name in enumerate(CORNERS):
+        if maps is not None:
+            state, free, point, how = _corner_of_verdict(obs, k, maps, layout)
+        else:
+            state, free, point, how = _corner_of_evidence(obs, k, layout)
+        pixel = None
+        if point is not None and point[2] > 0:
+            px = intrinsics.project(point[None])[0]
+            pixel = (float(px[0]), float(px[1]))
+        corners.append(
+            CornerAffordance(
+                name, None if point is None else tuple(float(v) for v in point), pixel,
+                state, free, how,
+            )
+        )
+    folds = () if maps is None else tuple(
+        _seen_fold(maps, j, corners) for j in range(len(maps.folds))
+    )
+    return Affordances(tuple(corners), folds)
+
+
+def fold_line_3d(
+    maps: NapkinMaps, fold: NominalFold
+) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+    """The two ends of a fold line on the table (camera frame): the nominal line's ends
+    placed on the napkin that stays."""
+    ends = [maps.place_stay(np.asarray(p)) for p in (fold.p0, fold.p1)]
+    if any(e is None for e in ends):
+        return None
+    return maps.on_table(ends[0]), maps.on_table(ends[1])
+
+
+def _seen_fold(maps: NapkinMaps, j: int, corners: list[CornerAffordance]) -> SeenFold:
+    """Fold ``j`` as seen: its line through the middle of the moved corner (where it
+    lies) and its flat place (perpendicular to the two), ends at the nominal line's."""
+    f = maps.folds[j]
+    ends = fold_line_3d(maps, f)
+    if ends is not None:
+        tips = [corners[CORNERS.index(c)].point for c in f.moved_corners]
+        flat = maps.place_stay(np.asarray(f.flap))
+        if flat is not None and all(t is not None for t in tips):
+            tip = maps.on_table(np.mean(np.asarray(tips, dtype=float), axis=0))
+            ends = bisector_through(tip, maps.on_table(flat), ends, maps.up)
+    line = None if ends is None else tuple(tuple(float(v) for v in e) for e in ends)
+    return SeenFold(f.word, f.corner, f.side, f.under, line)
+
+
+def bisector_through(
+    a: NDArray[np.float64],
+    b: NDArray[np.float64],
+    ends: tuple[NDArray[np.float64], NDArray[np.float64]],
+    up: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The perpendicular bisector of ``a`` -> ``b`` in the table plane, as the segment
+    between the projections of ``ends`` onto it (``ends`` unchanged when a and b meet)."""
+    d = b - a
+    if np.linalg.norm(d) < 1e-6:
+        return ends
+    mid = 0.5 * (a + b)
+    along = np.cross(up, d)
+    along /= np.linalg.norm(along)
+    return tuple(mid + ((e - mid) @ along) * along for e in ends)  # type: ignore[return-value]

@@ -1,0 +1,166 @@
+"""``dgli plan``: the next folds towards a goal state, from an image or a known state,
+and ``--check``, the closed loop in the simulator."""
+
+from __future__ import annotations
+
+import json
+import sys
+
+import click
+
+from .errors import handle_errors
+from .options import (
+    image_output,
+    intrinsics_option,
+    json_option,
+    overwrite_option,
+    references_option,
+)
+from .output import command_line
+
+
+def _state(ctx: click.Context, param: click.Parameter, value: str | None):
+    from ..planning.plan import parse_state
+
+    if value is None:
+        return None
+    try:
+        return parse_state(value, need_variant=param.name != "goal")
+    except ValueError as exc:
+        raise click.BadParameter(str(exc)) from None
+
+
+def _plan_line(plan) -> str:
+    def name(k) -> str:
+        return f"{k[0]}/{k[1]}" if k[1] else k[0]
+
+    if not plan.steps:
+        return f"already in {name(plan.goal)}"
+    words = [f"{s.action} {s.fold} -> {name(s.expect)}" for s in plan.steps]
+    text = f"{name(plan.start)} to {name(plan.goal)} in {len(plan.steps)} steps: " + "; ".join(
+        words
+    )
+    first = plan.steps[0]
+    if first.grasp_point is not None:
+        g = ", ".join(f"{v:.3f}" for v in first.grasp_point)
+        p = ", ".join(f"{v:.3f}" for v in first.place_point)
+        text += f"\nnext: grasp at ({g}) m, place at ({p}) m, lift {first.lift_height:.3f} m"
+    return text
+
+
+def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> None:
+    from ..planning.check import check_pairs, check_table
+
+    rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit))
+    table = check_table(rows)
+    if as_json:
+        click.echo(json.dumps(table))
+        return
+    click.echo(f"{table['pairs']} trials, success {table['success']:.3f}")
+    click.echo("| steps to goal | right | cannot tell | refused | wrong |")
+    click.echo("|---|---|---|---|---|")
+    for n, c in table["by_steps"].items():
+        click.echo(f"| {n} | {c['right']} | {c['cannot tell']} | {c['refused']} | {c['wrong']} |")
+    o = table["outcomes"]
+    click.echo(f"| all | {o['right']} | {o['cannot tell']} | {o['refused']} | {o['wrong']} |")
+    for r in table["not_right"]:
+        click.echo(
+            f"{r['outcome']}: {r['start']} -> {r['goal']} (seen {r['seen']}, expected "
+            f"{r['expect']}, got {r['after']}) {r['note']}".rstrip()
+        )
+
+
+@click.command("plan")
+@click.argument("color", type=click.Path(), required=False)
+@click.argument("depth", type=click.Path(), required=False)
+@click.option("--goal", callback=_state, help="The goal state: 08, 02/A, 05/AB/B.")
+@click.option(
+    "--from", "start", callback=_state, help="Plan from this state, without an image."
+)
+@click.option("--check", is_flag=True, help="Run the closed-loop check in the simulator.")
+@click.option("--per-pair", type=click.IntRange(1, 20), default=1, show_default=True,
+              help="--check: trials per (start, goal) pair.")
+@click.option("--seed", type=int, default=0, show_default=True, help="--check: the seed.")
+@click.option("--every", type=click.IntRange(1, None), default=None,
+              help="--check: only every N-th (start, goal) pair (a quicker check).")
+@intrinsics_option
+@references_option
+@json_option("Print the plan (or the check's table) as one JSON object.")
+@click.option("--overlay", type=click.Path(dir_okay=False), callback=image_output,
+              help="Draw the next step (grasp, place, fold line) on the image.")
+@overwrite_option
+@handle_errors
+def plan_cmd(
+    color: str | None,
+    depth: str | None,
+    goal,
+    start,
+    check: bool,
+    per_pair: int,
+    seed: int,
+    every: int | None,
+    intrinsics: str | None,
+    references_path: str | None,
+    as_json: bool,
+    overlay: str | None,
+    overwrite: bool,
+) -> None:
+    """The shortest sequence of folds and unfolds from the state in COLOR DEPTH (or
+    --from STATE) to --goal STATE, with the next step as a pick-and-place in the camera
+    frame. Exit 1 with the reason when there is no plan (the state cannot be told, or
+    no sequence of folds leads there).
+    """
+    from pathlib import Path
+
+    from ..classifier.references import load_references
+    from ..core.layout import layout_of_size
+    from ..planning.api import plan_frame
+    from ..planning.plan import PlanRefused, plan_geometry
+
+    refs = load_references(references_path)
+    if check:
+        _check(per_pair, seed, as_json, refs, every)
+        return
+    if goal is None:
+        raise click.UsageError("give --goal STATE (or --check)")
+    if start is None and (color is None or depth is None):
+        raise click.UsageError("give COLOR and DEPTH, or --from STATE")
+    if start is not None and (color is not None or overlay):
+        raise click.UsageError("--from plans without an image: give no COLOR, DEPTH or --overlay")
+    layout = layout_of_size(refs.napkin_mm)
+    try:
+        if start is not None:
+            plan = plan_geometry(start, goal, layout, None, None, None)
+        else:
+            from ..classifier.pipeline import classify_frame
+            from ..core.io import guard_outputs, write_outputs
+            from ..sources.frames import read_frame
+
+            if overlay:
+                guard_outputs([overlay], overwrite=overwrite)
+            frame = read_frame(color, depth, intrinsics)
+            result = classify_frame(frame, refs, layout=layout)
+            plan = plan_frame(result, frame, goal, layout)
+            if overlay:
+                write_outputs({Path(overlay): _overlay(frame, result, plan)},
+                              overwrite=overwrite, command=command_line())
+    except PlanRefused as exc:
+        if as_json:
+            click.echo(json.dumps({"plan": None, "reason": str(exc)}))
+        else:
+            click.echo(f"no plan: {exc}" if not str(exc).startswith("no plan") else str(exc))
+        sys.exit(1)
+    click.echo(json.dumps(plan.to_json()) if as_json else _plan_line(plan))
+
+
+def _overlay(frame, result, plan):
+    from ..planning.overlay import draw_step
+    from .classify import overlay_of
+
+    img = overlay_of(frame, result)
+    if plan.steps:
+        s = plan.steps[0]
+        what = s.corner or s.side
+        e = f"{s.expect[0]}/{s.expect[1]}" if s.expect[1] else s.expect[0]
+        img = draw_step(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}")
+    return img
