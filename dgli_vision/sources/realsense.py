@@ -30,11 +30,14 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.errors import InvalidInputError, UnreadableInputError
+from .frames import RGBDFrame
+from .labelled import LabelledPair
 
 __all__ = [
     "INSTALL_HINT",
     "CameraFrame",
     "LazyRealSenseFrame",
+    "LivePair",
     "RealSenseFrame",
     "RealSensePlayback",
     "camera_pairs",
@@ -603,6 +606,24 @@ def _camera_frames(rs: Any, pipeline: Any, profile: Any) -> Iterator[CameraFrame
         pipeline.stop()
 
 
+@dataclass(frozen=True)
+class LivePair(LabelledPair):
+    """A frame of a RealSense recording or camera for the live loop: the SDK's frames,
+    whose depth is aligned only when the frame is loaded (a frame dropped costs nothing).
+    Not for other processes: it holds the SDK's frames."""
+
+    frame: Any = None
+
+    def load(self) -> RGBDFrame:
+        """The decoded frame, depth aligned to colour by the SDK."""
+        f = self.frame.decode()
+        return RGBDFrame(f.color, f.depth_mm, f.intrinsics, self.color, self.depth, "stream")
+
+    def light(self) -> LabelledPair:
+        """This frame as names only."""
+        return LabelledPair(self.color, self.depth, self.label, self.variant, self.line, self.time)
+
+
 def camera_pairs(
     serial: str | None = None, *, width: int = 1280, height: int = 720, fps: int = 30
 ) -> Iterator[Any]:
@@ -615,8 +636,6 @@ def camera_pairs(
     UnreadableInputError
         As :func:`open_camera`.
     """
-    from .recording import LivePair
-
     frames = open_camera(serial, width=width, height=height, fps=fps)
     name = f"RealSense camera {serial}" if serial else "RealSense camera"
 

@@ -15,12 +15,12 @@ import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
 from .frames import RGBDFrame
 from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
+from .realsense import LivePair
 from .ros_images import ImagePayload, decode_color, decode_depth
 
 __all__ = [
@@ -316,24 +316,6 @@ def open_recording(
     return replace(
         recording, frames=_label_frames(recording.frames, labels_path, tolerance), labelled=True
     )
-
-
-@dataclass(frozen=True)
-class LivePair(LabelledPair):
-    """A frame of a RealSense recording or camera for the live loop: the SDK's frames,
-    whose depth is aligned only when the frame is loaded (a frame dropped costs nothing).
-    Not for other processes: it holds the SDK's frames."""
-
-    frame: Any = None
-
-    def load(self) -> RGBDFrame:
-        """The decoded frame, depth aligned to colour by the SDK."""
-        f = self.frame.decode()
-        return RGBDFrame(f.color, f.depth_mm, f.intrinsics, self.color, self.depth, "stream")
-
-    def light(self) -> LabelledPair:
-        """This frame as names only."""
-        return LabelledPair(self.color, self.depth, self.label, self.variant, self.line, self.time)
 
 
 def _realsense_recording(p: Path, tolerance: float, live: bool = False) -> Recording:
