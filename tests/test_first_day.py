@@ -100,3 +100,13 @@ def test_the_napkin_page_gives_the_layout_of_the_package():
     assert colours == {
         k: (layout.sticker_disc[k], layout.sticker_dot[k]) for k in range(layout.n_stickers)
     }
+
+
+def test_the_readme_example_is_what_the_command_prints():
+    # The README's first example: its output line is the command's, word for word.
+    text = (ROOT / "README.md").read_text()
+    shown = text.split("$ .venv/bin/dgli-classify ", 1)[1].splitlines()
+    color, depth = shown[0].split()
+    res = CliRunner().invoke(main, ["classify", str(ROOT / color), str(ROOT / depth)])
+    assert res.exit_code == 0
+    assert res.output.strip() == shown[1].strip()
