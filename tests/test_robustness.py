@@ -349,3 +349,17 @@ def test_the_robustness_command_scores_a_condition(tmp_path):
     assert row["right"] + row["cannot_tell"] + row["wrong"] == 12
     assert data["wrong"] == {"cast": []}
     assert "| cast | 12 |" in out.read_text()
+
+
+def test_a_coloured_object_on_the_table_taken_for_a_sticker_is_no_lens_fault():
+    # A green disc on the table, off the napkin, passes for sticker 7: dropped as found
+    # where the napkin cannot be, it must not make the corners look stretched by a lens.
+    from dgli_vision.classifier.pipeline import classify_frame
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.sim.dataset import render_sample
+    from dgli_vision.sources.frames import RGBDFrame
+
+    r = render_sample("03", 2, 7373, conditions=("clutter",)).result
+    res = classify_frame(RGBDFrame(r.color, r.depth_mm, r.intrinsics), load_references())
+    assert "lens" not in (res.reason or "")
+    assert res.prediction is not None and res.prediction.class_id == "03"

@@ -274,8 +274,8 @@ def observe(
     )
     clock.lap("second search")
     lifted = lift_stickers(detections, frame.intrinsics)
-    ruler = measure_napkin(lifted, layout)
     markers, dropped = drop_inconsistent(lifted, layout)
+    ruler = _ruler(lifted, markers, dropped, layout)
     located = np.where(markers.found[:, None], detections.centroids, np.nan)
     turns = image_turns(located, layout)
     clock.lap("lift")
@@ -309,6 +309,20 @@ def observe(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
         turns, markers.points, napkin.occluder, napkin.stride,
     )
+
+
+def _ruler(
+    lifted: Markers3D, kept: Markers3D, dropped: NDArray[np.bool_], layout: NapkinLayout
+) -> NapkinRuler | None:
+    """The napkin's scale from every sticker located, its corners' rigidity without the
+    detections found where the napkin cannot be (a coloured object on the table taken
+    for a sticker stretches no lens; a wrong depth scale moves every sticker, so the
+    scale keeps them all)."""
+    ruler = measure_napkin(lifted, layout)
+    if ruler is None or not dropped.any():
+        return ruler
+    without = measure_napkin(kept, layout)
+    return replace(ruler, worst_against_scale=without.worst_against_scale if without else 0.0)
 
 
 def classify_frame(
