@@ -26,6 +26,7 @@ __all__ = [
     "baseline_cloth_coordinates_loop",
     "baseline_gli_pair",
     "baseline_gli_pair_numpy",
+    "one_core",
     "run_dgli_benchmarks",
     "run_frame_benchmarks",
     "run_pipeline_benchmarks",
@@ -166,7 +167,7 @@ def baseline_cloth_coordinates_loop(
 
 
 @contextmanager
-def _one_core() -> Iterator[None]:
+def one_core() -> Iterator[None]:
     """Pin the process to one CPU while measuring (Linux; a no-op elsewhere)."""
     getter = getattr(os, "sched_getaffinity", None)
     setter = getattr(os, "sched_setaffinity", None)
@@ -225,7 +226,7 @@ class _KernelTimes:
 def _time_kernel_and_loops(boundary: NDArray, batch: NDArray, repeats: int) -> _KernelTimes:
     """Time the kernel and the per-pair loops on one core (the loops on a few states)."""
     loop_states = batch[: max(1, min(len(batch), 200))]
-    with _one_core():
+    with one_core():
         t_boundary = _best_seconds(lambda: cloth_coordinates(boundary), repeats=repeats)
         t_batch = _best_seconds(lambda: cloth_coordinates(batch), repeats=repeats, min_time=1.0)
         t_loop = _loop_seconds(loop_states, use_numpy=False, repeats=min(repeats, 3))
@@ -303,7 +304,7 @@ def _classify_figures(pair: Any, refs: Any, repeats: int) -> list[BenchResult]:
         lambda: classify_frame(read_frame(pair.color, pair.depth), refs), repeats * 4
     )
     frame = read_frame(pair.color, pair.depth)
-    with _one_core():
+    with one_core():
         t_mem = _median_seconds(lambda: classify_frame(frame, refs), repeats * 4)
     return [
         BenchResult(
@@ -604,7 +605,7 @@ def run_frame_benchmarks(
 
     refs = load_references(None)
     frames = list(bench_set(seed, per_condition=per_condition, sequence_frames=sequence_frames))
-    with _one_core():
+    with one_core():
         bench = bench_frames(iter(frames), refs, repeats=repeats)
     med, p90, top = bench.summary()
     n = len(bench.frames)

@@ -6,14 +6,12 @@ from __future__ import annotations
 import os
 import tempfile
 import time
-from collections.abc import Iterator
-from contextlib import contextmanager
 from pathlib import Path
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..analysis.bench import BenchResult
+from ..analysis.bench import BenchResult, one_core
 from ..core.layout import load_layout
 from ..sim.cloth.sequences import sequence_progress, sequence_state, sequence_steps
 from .episodes import ReadOptions
@@ -28,22 +26,6 @@ SOFTGYM_GRID = (58, 96)
 SOFTGYM_SPACING_MM = 6.25
 #: The budget: frames labelled per second on one core, on the 96 x 58 grid.
 GOAL_FPS = 1000.0
-
-
-@contextmanager
-def _one_core() -> Iterator[None]:
-    """Pin the process to one CPU while measuring (Linux; a no-op elsewhere)."""
-    getter = getattr(os, "sched_getaffinity", None)
-    setter = getattr(os, "sched_setaffinity", None)
-    if getter is None or setter is None:
-        yield
-        return
-    before = getter(0)
-    setter(0, {min(before)})
-    try:
-        yield
-    finally:
-        setter(0, before)
 
 
 def _sequence_frames(size_mm: tuple[float, float], n_distinct: int) -> list:
@@ -71,7 +53,7 @@ def _time_part(path: Path, repeats: int) -> float:
     """Best CPU seconds of labelling the whole episode in this process, pinned to one
     core (CPU time: on a shared machine, wall time counts the waits for the core)."""
     best = np.inf
-    with _one_core():
+    with one_core():
         label_part(str(path), ReadOptions(), None)  # warm-up: references, imports
         for _ in range(repeats):
             t0 = time.process_time()
