@@ -23,7 +23,7 @@ from ..sources.frames import (
 from .classify import MIN_CONFIDENCE, Prediction, StickerIds
 from .references import ReferenceSet, load_references
 
-__all__ = ["classify_pair"]
+__all__ = ["classify_pair", "frame_from"]
 
 
 @lru_cache(maxsize=4)
@@ -105,14 +105,7 @@ def classify_pair(
     """
     from .pipeline import classify_frame
 
-    _check_source(color, "color")
-    _check_source(depth, "depth")
-    if intrinsics is not None and not isinstance(intrinsics, (str, Path)):
-        intrinsics = check_intrinsics(intrinsics)
-    if isinstance(color, (str, Path)) and isinstance(depth, (str, Path)):
-        frame = read_frame(color, depth, intrinsics)
-    else:
-        frame = _frame_of(color, depth, intrinsics)
+    frame = frame_from(color, depth, intrinsics)
     refs = _reference_set(references)
     colours = _check_colours(colours)
     result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
@@ -139,6 +132,28 @@ def _sticker_ids(result: object) -> StickerIds:
     hidden = tuple(int(i) for i in np.flatnonzero(np.asarray(ev.status) == HIDDEN))
     unknown = tuple(int(i) for i in np.flatnonzero(obs.unknown))
     return StickerIds(found, hidden, unknown, tuple(str(ev.reasons[i]) for i in unknown))
+
+
+def frame_from(
+    color: str | Path | NDArray,
+    depth: str | Path | NDArray,
+    intrinsics: Intrinsics | str | Path | dict | None = None,
+) -> RGBDFrame:
+    """The frame of a colour and a depth given as files or arrays (as
+    :func:`classify_pair` takes them), checked.
+
+    Raises
+    ------
+    DgliError
+        Unreadable or invalid input, one line naming the file or array and the problem.
+    """
+    _check_source(color, "color")
+    _check_source(depth, "depth")
+    if intrinsics is not None and not isinstance(intrinsics, (str, Path)):
+        intrinsics = check_intrinsics(intrinsics)
+    if isinstance(color, (str, Path)) and isinstance(depth, (str, Path)):
+        return read_frame(color, depth, intrinsics)
+    return _frame_of(color, depth, intrinsics)
 
 
 def _frame_of(

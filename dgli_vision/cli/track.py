@@ -90,18 +90,12 @@ def track(
         "colours_path": colours_path,
         "options": recording_opts,
     }
-    run_journalled(run, report_dir, TRACK_FILES, header, resume=resume, overwrite=overwrite)
+    from ..analysis.track_report import TRACK_REPORT_FILES
+
+    files = TRACK_REPORT_FILES  # besides results.jsonl and the overlays
+    run_journalled(run, report_dir, files, header, resume=resume, overwrite=overwrite)
 
 
-#: The files of a ``dgli track`` report (besides its results.jsonl and overlays).
-TRACK_FILES = (
-    "timeline.json",
-    "timeline.csv",
-    "timeline.png",
-    "distances.png",
-    "report.md",
-    "report.html",
-)
 
 
 class _TrackRun:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Any
 
 from ..classifier.affordances import napkin_maps
@@ -77,8 +76,7 @@ def plan(
     PlanRefused
         No plan (the message says why); other ``DgliError`` for unreadable input.
     """
-    from ..classifier.api import _frame_of, _reference_set
-    from ..sources.frames import check_intrinsics, read_frame
+    from ..classifier.api import _reference_set, frame_from
 
     target = _key(goal, need_variant=False)
     if start is not None:
@@ -86,12 +84,7 @@ def plan(
                              None, None, None)
     if color is None or depth is None:
         raise PlanRefused("give a colour and a depth image, or a start state")
-    if intrinsics is not None and not isinstance(intrinsics, (str, Path)):
-        intrinsics = check_intrinsics(intrinsics)
-    if isinstance(color, (str, Path)) and isinstance(depth, (str, Path)):
-        frame = read_frame(color, depth, intrinsics)
-    else:
-        frame = _frame_of(color, depth, intrinsics)
+    frame = frame_from(color, depth, intrinsics)
     refs = _reference_set(references)
     layout = layout_of_size(refs.napkin_mm)
     result = classify_frame(frame, refs, layout=layout)
