@@ -463,3 +463,16 @@ def test_a_file_that_is_not_a_realsense_recording_is_refused_in_one_line(tmp_pat
     fake.write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 64 + b"/device_0/sensor_0/Depth_0" + b"\0" * 64)
     assert is_realsense_recording(fake)
     _one_line_error(["track", str(fake)], "RealSense recording", str(fake))
+
+
+def test_an_image_given_as_a_recording_is_one_line_naming_what_a_recording_is(tmp_path):
+    from click.testing import CliRunner
+
+    from dgli_vision.cli import main
+
+    png = Path(__file__).resolve().parent.parent / "sample_images" / "05_000_color.png"
+    for args in (["track", str(png)], ["watch", "--bag", str(png)]):
+        res = CliRunner().invoke(main, args)
+        assert res.exit_code == 2
+        (line,) = res.output.strip().splitlines()
+        assert "is not a recording" in line and ".bag" in line and "PNG pairs" in line

@@ -303,6 +303,11 @@ def open_recording(
         recording = _realsense_recording(p, tolerance, live)
     elif is_recording_file(p):
         recording = _bag_recording(p, color_topic, depth_topic, info_topic, tolerance)
+    elif p.is_file():
+        raise UnreadableInputError(
+            f"'{p}' is not a recording: expected a folder of PNG pairs, a ROS 1 .bag, a ROS 2 "
+            f"bag (.db3, .mcap or its folder) or a RealSense .db3/.bag"
+        )
     else:
         if labels is not None:
             raise InvalidInputError(
