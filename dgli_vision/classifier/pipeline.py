@@ -28,6 +28,7 @@ from ..perception.footprint import Footprint, cloth_regions, measure_footprint
 from ..perception.handedness import back_face_up, image_turns
 from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from ..perception.napkin import find_napkin
+from ..perception.partial import confirm_partly_hidden
 from ..perception.scale import NapkinRuler, measure_napkin
 from ..sources.frames import RGBDFrame
 from .affordances import Affordances, affordances_of
@@ -289,6 +290,10 @@ def observe(
         up=up,
         pale_colours=detections.pale_colours,
         turns=turns,
+    )
+    detections, markers, evidence = confirm_partly_hidden(
+        frame.color, napkin.lut, detections, markers, evidence, frame.intrinsics,
+        (up, offset), layout, params, colours=colours,
     )
     clock.lap("evidence")
     visible = markers.found

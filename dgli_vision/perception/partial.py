@@ -1,0 +1,191 @@
+"""Stickers partly under an object: the part of the disc left at the object's edge.
+
+A gripper over a corner of the napkin cuts its stickers to crescents, which the search
+rightly refuses (their centroids would lie far from the centres). Yet a crescent of
+the right colour exactly where the sticker would lie if its part of the cloth lay as
+the rest (the evidence stage's rigid prediction) says that it does lie there: the
+corner is not folded, whatever the object hides. Such a sticker is taken as seen, at
+its predicted place on the cloth.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.camera import Intrinsics
+from ..core.layout import NapkinLayout
+from .detections import DetectorParams, StickerDetections
+from .evidence import SEEN, StickerEvidence
+from .labels import colour_labels, hue_lut
+from .lift import Markers3D
+
+__all__ = ["PartialParams", "confirm_partly_hidden"]
+
+
+@dataclass(frozen=True)
+class PartialParams:
+    """When a sticker at an object's edge is taken as seen.
+
+    Attributes
+    ----------
+    min_colour : float
+        Smallest share of the predicted disc (within ``disc_share`` of its radius) that
+        shows the sticker's disc colour. Default 0.2: a crescent left by a gripper's edge
+        keeps 0.2-0.7; the white napkin, the table and a dark gripper none.
+    disc_share : float
+        Share of the disc radius looked at around the predicted centre. Default 0.9.
+    min_apart : float
+        Smallest distance, in disc radii, from a sticker found of the same disc colour:
+        the colour must be this sticker's, not a neighbour's. Default 2.5.
+    """
+
+    min_colour: float = 0.2
+    disc_share: float = 0.9
+    min_apart: float = 2.5
+
+
+def confirm_partly_hidden(
+    color: NDArray[np.uint8],
+    balance: NDArray[np.uint8],
+    detections: StickerDetections,
+    markers: Markers3D,
+    evidence: StickerEvidence,
+    intrinsics: Intrinsics,
+    table: tuple[NDArray[np.float64], float],
+    layout: NapkinLayout,
+    detector: DetectorParams | None = None,
+    params: PartialParams | None = None,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> tuple[StickerDetections, Markers3D, StickerEvidence]:
+    """Take as seen the stickers possibly under an object whose disc colour shows at
+    their predicted place.
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+        The RGB image.
+    balance : ndarray of uint8, shape (256, 1, 3)
+        The napkin's white balance (``NapkinView.lut``).
+    detections, markers, evidence
+        The search's, the lift's and the evidence stage's results.
+    intrinsics : Intrinsics
+    table : (ndarray, float)
+        The table plane (``up``, ``offset``): ``p @ up == offset`` on it.
+    layout : NapkinLayout
+    detector : DetectorParams, optional
+        The colour thresholds (the search's).
+    params : PartialParams, optional
+    colours : dict, optional
+        Calibrated sticker colours, as the search takes them.
+
+    Returns
+    -------
+    (StickerDetections, Markers3D, StickerEvidence)
+        The same, with each confirmed sticker found at its predicted pixel and 3D
+        place (on the cloth at the height of the stickers lying around it).
+    """
+    p = params or PartialParams()
+    dp = detector or DetectorParams()
+    ids = np.flatnonzero(
+        evidence.near_object & evidence.unknown & np.isfinite(evidence.predicted_px).all(1)
+    )
+    if not len(ids) or not markers.found.any():
+        return detections, markers, evidence
+    up, offset = table
+    lying = _lying_height(markers, up, offset)
+    z = float(np.nanmedian(markers.points[markers.found, 2]))
+    radius = 0.5e-3 * layout.disc_diameter_mm * intrinsics.fx / z
+    lut, names = hue_lut(layout, dp, colours)
+    confirmed = [
+        int(s) for s in ids
+        if _shows_disc(color, balance, evidence.predicted_px[s], radius, lut, dp, p,
+                       names.index(layout.sticker_disc[s]) + 1)
+        and _apart(s, evidence.predicted_px[s], detections, layout, radius * p.min_apart)
+    ]
+    if not confirmed:
+        return detections, markers, evidence
+    px = evidence.predicted_px[confirmed]
+    points = _on_cloth(px, intrinsics, up, offset + lying)
+    return _taken(detections, markers, evidence, confirmed, px, points)
+
+
+def _lying_height(markers: Markers3D, up: NDArray, offset: float) -> float:
+    """Median height of the stickers found lying on the table (below 20 mm), metres."""
+    h = markers.points[markers.found] @ up - offset
+    low = h[h < 0.02]
+    return float(np.median(low)) if len(low) else 0.0
+
+
+def _shows_disc(
+    color: NDArray[np.uint8],
+    balance: NDArray[np.uint8],
+    uv: NDArray[np.float64],
+    radius: float,
+    lut: NDArray[np.uint8],
+    dp: DetectorParams,
+    p: PartialParams,
+    label: int,
+) -> bool:
+    """Whether at least ``min_colour`` of the disc around ``uv`` shows colour ``label``."""
+    h, w = color.shape[:2]
+    r = int(np.ceil(radius)) + 1
+    u, v = int(round(uv[0])), int(round(uv[1]))
+    y0, y1, x0, x1 = max(v - r, 0), min(v + r + 1, h), max(u - r, 0), min(u + r + 1, w)
+    if y1 <= y0 or x1 <= x0:
+        return False
+    labels, _ = colour_labels(cv2.LUT(color[y0:y1, x0:x1], balance), lut, dp)
+    yy, xx = np.mgrid[y0:y1, x0:x1]
+    disc = np.hypot(xx - uv[0], yy - uv[1]) <= p.disc_share * radius
+    if not disc.any():
+        return False
+    return float((labels[disc] == label).mean()) >= p.min_colour
+
+
+def _apart(
+    sid: int, uv: NDArray[np.float64], detections: StickerDetections, layout: NapkinLayout,
+    reach: float,
+) -> bool:
+    """No sticker found with ``sid``'s disc colour lies within ``reach`` pixels of ``uv``
+    (the colour there would be that sticker's)."""
+    same = np.array([c == layout.sticker_disc[sid] for c in layout.sticker_disc])
+    found = same & detections.found
+    if not found.any():
+        return True
+    return bool(np.linalg.norm(detections.centroids[found] - uv, axis=1).min() > reach)
+
+
+def _on_cloth(
+    px: NDArray[np.float64], intrinsics: Intrinsics, up: NDArray, level: float
+) -> NDArray[np.float64]:
+    """Camera-frame points (n, 3) where the rays of pixels ``px`` meet the plane
+    ``p @ up == level``."""
+    ideal = intrinsics.undistort_pixels(px)
+    rays = intrinsics.deproject(ideal, np.ones(len(ideal)))
+    return rays * (level / (rays @ up))[:, None]
+
+
+def _taken(
+    detections: StickerDetections,
+    markers: Markers3D,
+    evidence: StickerEvidence,
+    ids: list[int],
+    px: NDArray[np.float64],
+    points: NDArray[np.float64],
+) -> tuple[StickerDetections, Markers3D, StickerEvidence]:
+    """The three results with stickers ``ids`` found at ``px`` and ``points``."""
+    centroids, depth = detections.centroids.copy(), detections.depth_mm.copy()
+    centroids[ids], depth[ids] = px, points[:, 2] * 1e3
+    pts = markers.points.copy()
+    pts[ids] = points
+    status, near = evidence.status.copy(), evidence.near_object.copy()
+    status[ids], near[ids] = SEEN, False
+    reasons = tuple(None if k in ids else r for k, r in enumerate(evidence.reasons))
+    return (
+        replace(detections, centroids=centroids, depth_mm=depth),
+        Markers3D(pts),
+        replace(evidence, status=status, reasons=reasons, near_object=near),
+    )
