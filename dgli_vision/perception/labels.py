@@ -16,6 +16,9 @@ from .detections import DetectorParams
 
 __all__ = ["colour_labels", "hue_lut", "hue_of"]
 
+#: Up to this many dark coloured pixels, :func:`colour_labels` tests them one by one.
+_FEW_DARK = 2000
+
 
 def hue_of(rgb: tuple[int, int, int]) -> int:
     """OpenCV 8-bit hue (0-179) of an sRGB colour."""
@@ -57,10 +60,33 @@ def colour_labels(
     dark_mask = cv2.bitwise_and(
         coloured, cv2.inRange(hsv, (0, 0, 0), (180, 255, max(v_limit - 1, 0)))
     )
-    if cv2.countNonZero(dark_mask):
-        dv, du = np.nonzero(dark_mask)
-        faint = hsv[dv, du, 1].astype(np.int32) * hsv[dv, du, 2] < params.min_chroma * 255
-        coloured[dv[faint], du[faint]] = 0
+    n_dark = cv2.countNonZero(dark_mask)
+    if n_dark:
+        coloured = _without_faint(coloured, dark_mask, n_dark, hsv, params.min_chroma * 255)
     labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
     return cv2.bitwise_and(labels, coloured), hsv
 
+
+
+def _without_faint(
+    coloured: NDArray[np.uint8],
+    dark_mask: NDArray[np.uint8],
+    n_dark: int,
+    hsv: NDArray[np.uint8],
+    least: int,
+) -> NDArray[np.uint8]:
+    """``coloured`` without the dark pixels (``dark_mask``, ``n_dark`` of them) whose
+    chroma S * V is below ``least``. Few dark pixels are looked up one by one; many
+    (the second search's low saturation makes most coloured pixels dark) are tested
+    with one whole-image product: the same integers either way."""
+    import cv2
+
+    if n_dark <= _FEW_DARK:
+        dv, du = np.nonzero(dark_mask)
+        faint = hsv[dv, du, 1].astype(np.int32) * hsv[dv, du, 2] < least
+        coloured[dv[faint], du[faint]] = 0
+        return coloured
+    chroma = hsv[..., 1].astype(np.uint16)
+    np.multiply(chroma, hsv[..., 2], out=chroma)  # at most 255 * 255: no overflow
+    faint = cv2.bitwise_and(dark_mask, cv2.compare(chroma, least, cv2.CMP_LT))
+    return cv2.bitwise_and(coloured, cv2.bitwise_not(faint))
