@@ -96,7 +96,10 @@ def detect_stickers(
     candidates, rejected = candidate_blobs(image)
     full = None
     if image.halved:
-        full = FullResolution(color, napkin.lut, lut, params, intrinsics.fx, image.disc_radius_mm)
+        full = FullResolution(
+            _refine_all(color, napkin.lut, lut, params, candidates), params, intrinsics.fx,
+            image.disc_radius_mm,
+        )
     ids = identify(candidates, layout, names, full)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
@@ -206,21 +209,19 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
 @dataclass(frozen=True, eq=False)
 class FullResolution:
     """What measuring a candidate's centre at full resolution needs, after a search of
-    the frame halved: the frame, the napkin's balance ``lut``, the ``hue_lut`` of
-    :func:`.labels.hue_lut`, and the focal length and disc radius that give the disc
-    size expected (full-resolution pixels)."""
+    the frame halved: every candidate's centre and area measured there
+    (:func:`_refine_all`), and the focal length and disc radius that give the disc size
+    expected (full-resolution pixels)."""
 
-    color: NDArray[np.uint8]
-    lut: NDArray[np.uint8]
-    hue_lut: NDArray[np.uint8]
+    refined: dict[Candidate, tuple[tuple[float, float], float]]
     params: DetectorParams
     fx: float
     disc_radius_mm: float
 
     def measure(self, c: Candidate) -> tuple[tuple[float, float], float] | Rejection:
-        """Centre (u, v) and area of ``c`` at full resolution (:func:`_refine`), or its
-        rejection (search-image pixels) as too small there."""
-        where, area = _refine(self.color, self.lut, self.hue_lut, self.params, c)
+        """Centre (u, v) and area of ``c`` at full resolution, or its rejection
+        (search-image pixels) as too small there."""
+        where, area = self.refined[c]
         expected = np.pi * (self.disc_radius_mm * self.fx / c.z_mm) ** 2 * c.foreshortening
         if area < self.params.min_area_ratio * expected:
             return Rejection(
@@ -319,30 +320,117 @@ def _at_full_resolution(r: Rejection) -> Rejection:
     return Rejection((2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), 4 * r.area_px, r.reason)
 
 
-def _refine(
+def _refine_all(
     color: NDArray[np.uint8],
     lut: NDArray[np.uint8],
     hue_lut: NDArray[np.uint8],
     params: DetectorParams,
-    c: Candidate,
-) -> tuple[tuple[float, float], float]:
-    """Centre and area of a blob found in the halved image, measured at full resolution:
-    its sticker-coloured (or blown-out) pixels within the blob, grown by two pixels. A
-    blob completed with a highlight's pale halo keeps its centre from the halved image
-    (the halo is no sticker colour)."""
+    candidates: list[Candidate],
+) -> dict[Candidate, tuple[tuple[float, float], float]]:
+    """Centre and area of every blob found in the halved image, measured at full
+    resolution: its sticker-coloured (or blown-out) pixels within the blob, grown by two
+    pixels. A blob completed with a highlight's pale halo keeps its centre from the
+    halved image (the halo is no sticker colour).
+
+    The boxes around the grown blobs are stacked into one image and labelled in one
+    call (labels are per pixel: the same as labelling each box).
+    """
+    out: dict[Candidate, tuple[tuple[float, float], float]] = {}
+    grown = []
+    for c in candidates:
+        if c.recovered or c.region is None:
+            out[c] = (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
+        else:
+            grown.append((c, _GrownBlob.of(c, color.shape[:2])))
+    if not grown:
+        return out
+    hits = _sticker_or_blown(_stacked([g.box_of(color) for _, g in grown]), lut, hue_lut, params)
+    top = 0
+    for c, g in grown:
+        h, w = g.up.shape
+        out[c] = _centre_of(g.region(hits[top : top + h, :w]), *g.origin, c)
+        top += h
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _GrownBlob:
+    """A candidate's blob at full resolution, grown by two pixels: ``up`` (bool), the
+    mask in its box at ``corner`` (x, y) of the frame, and the ``origin`` (x, y) and
+    ``shape`` (rows, columns) of the candidate's whole window there, cut to the frame."""
+
+    up: NDArray[np.bool_]
+    corner: tuple[int, int]
+    origin: tuple[int, int]
+    shape: tuple[int, int]
+
+    @classmethod
+    def of(cls, c: Candidate, frame_shape: tuple[int, int]) -> _GrownBlob:
+        """The blob of ``c`` (region of the halved search) in a frame of
+        ``frame_shape`` (rows, columns): pixels doubled, then dilated by a 5 x 5 square,
+        within the blob's bounding box grown by one search pixel (all the dilation
+        reaches)."""
+        import cv2
+
+        region = c.region.astype(np.uint8)
+        h, w = region.shape
+        bx, by, bw, bh = cv2.boundingRect(region)
+        ax0, ay0 = max(bx - 1, 0), max(by - 1, 0)
+        ax1, ay1 = min(bx + bw + 1, w), min(by + bh + 1, h)
+        up = cv2.dilate(
+            region[ay0:ay1, ax0:ax1].repeat(2, axis=0).repeat(2, axis=1),
+            np.ones((5, 5), np.uint8),
+        )
+        x0, y0 = 2 * c.origin[0], 2 * c.origin[1]
+        shape = (min(2 * h, frame_shape[0] - y0), min(2 * w, frame_shape[1] - x0))
+        up = up[: shape[0] - 2 * ay0, : shape[1] - 2 * ax0]
+        return cls(up.astype(bool), (x0 + 2 * ax0, y0 + 2 * ay0), (x0, y0), shape)
+
+    def box_of(self, color: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """The pixels of ``color`` in the box of ``up``."""
+        (x, y), (h, w) = self.corner, self.up.shape
+        return color[y : y + h, x : x + w]
+
+    def region(self, hits: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """The grown blob's pixels among ``hits`` (0/1, the box's shape), in the
+        window: 0/1, shape ``shape``."""
+        out = np.zeros(self.shape, np.uint8)
+        (x, y), (h, w) = self.corner, self.up.shape
+        dx, dy = x - self.origin[0], y - self.origin[1]
+        out[dy : dy + h, dx : dx + w] = hits * self.up
+        return out
+
+
+def _stacked(boxes: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
+    """Images (h_i, w_i, 3) stacked top to bottom, left-aligned, padded with zeros."""
+    out = np.zeros((sum(b.shape[0] for b in boxes), max(b.shape[1] for b in boxes), 3), np.uint8)
+    top = 0
+    for b in boxes:
+        out[top : top + b.shape[0], : b.shape[1]] = b
+        top += b.shape[0]
+    return out
+
+
+def _sticker_or_blown(
+    image: NDArray[np.uint8], lut: NDArray[np.uint8], hue_lut: NDArray[np.uint8],
+    params: DetectorParams,
+) -> NDArray[np.uint8]:
+    """1 where a pixel of an RGB image has a sticker colour once balanced by ``lut``, or
+    is blown out as taken; else 0. Shape (h, w)."""
     import cv2
 
-    if c.recovered or c.region is None:
-        return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
-    h, w = c.region.shape
-    x0, y0 = 2 * c.origin[0], 2 * c.origin[1]
-    x1, y1 = min(x0 + 2 * w, color.shape[1]), min(y0 + 2 * h, color.shape[0])
-    up = cv2.resize(c.region.astype(np.uint8), (2 * w, 2 * h), interpolation=cv2.INTER_NEAREST)
-    up = cv2.dilate(up, np.ones((5, 5), np.uint8))[: y1 - y0, : x1 - x0]
-    win = color[y0:y1, x0:x1]
-    labels, _ = colour_labels(cv2.LUT(win, lut), hue_lut, params)
-    blown = cv2.inRange(win, (params.highlight_min,) * 3, (255, 255, 255))
-    region = cv2.bitwise_and(up, cv2.bitwise_or((labels > 0).astype(np.uint8), blown // 255))
+    labels, _ = colour_labels(cv2.LUT(image, lut), hue_lut, params)
+    blown = cv2.inRange(image, (params.highlight_min,) * 3, (255, 255, 255))
+    return cv2.bitwise_or((labels > 0).astype(np.uint8), blown // 255)
+
+
+def _centre_of(
+    region: NDArray[np.uint8], x0: int, y0: int, c: Candidate
+) -> tuple[tuple[float, float], float]:
+    """Centre and area of the largest outer contour of ``region`` (its origin at
+    (x0, y0) in the frame); the halved search's, scaled, when it has none."""
+    import cv2
+
     contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
@@ -351,7 +439,6 @@ def _refine(
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     return (m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0), float(m["m00"])
-
 
 
 def find_washed_out(
