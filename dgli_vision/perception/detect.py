@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
-from .blobs import Candidate, SearchImage, judge_blob
+from .blobs import Candidate, SearchImage, judge_blobs
 from .detections import DetectorParams, Rejection, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
@@ -185,7 +185,7 @@ def _halved(intrinsics: Intrinsics) -> Intrinsics:
 
 
 def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection]]:
-    """Every blob of the colour mask judged (:func:`.blobs.judge_blob`): the candidate
+    """Every blob of the colour mask judged (:func:`.blobs.judge_blobs`): the candidate
     stickers, and the rejected blobs with the reason, search-image pixels."""
     import cv2
 
@@ -197,8 +197,8 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
         contours, hierarchy = (), np.zeros((1, 0, 4), int)
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
-    for contour in (c for c, h in zip(contours, hierarchy[0]) if h[3] < 0):
-        judged = judge_blob(contour, image)
+    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
+    for judged in judge_blobs(outer, image):
         if isinstance(judged, Candidate):
             candidates.append(judged)
         elif judged is not None:
