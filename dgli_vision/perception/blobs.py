@@ -50,8 +50,6 @@ class SearchImage:
         HSV of ``norm``.
     labels : ndarray of uint8, shape (h, w)
         Colour label of every pixel: 0 none, k + 1 colour k (:func:`.labels.colour_labels`).
-    blown : ndarray of bool, shape (h, w)
-        Washed-out pixels: blown out as taken, or near-white once balanced.
     depth_mm : ndarray of uint16, shape (h, w)
         Depth, mm (0 = no reading), sampled to the search image.
     intrinsics : Intrinsics
@@ -77,7 +75,6 @@ class SearchImage:
     norm: NDArray[np.uint8]
     hsv: NDArray[np.uint8]
     labels: NDArray[np.uint8]
-    blown: NDArray[np.bool_]
     depth_mm: NDArray[np.uint16]
     intrinsics: Intrinsics
     median_depth_mm: float
@@ -88,6 +85,21 @@ class SearchImage:
     repair_highlights: bool
     n_colours: int
     params: DetectorParams
+
+    def any_blown(self, window: tuple[int, int, int, int]) -> bool:
+        """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
+        taken (every channel at least ``highlight_min``), or near-white once balanced
+        (HSV value at least that, saturation at most 10)."""
+        import cv2
+
+        x0, y0, x1, y1 = window
+        least = self.params.highlight_min
+        return bool(
+            cv2.countNonZero(cv2.inRange(self.color[y0:y1, x0:x1], (least,) * 3, (255,) * 3))
+            or cv2.countNonZero(
+                cv2.inRange(self.hsv[y0:y1, x0:x1], (0, 0, least), (180, 10, 255))
+            )
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -333,7 +345,7 @@ def _repair_highlight(blob: _Blob, image: SearchImage) -> _Blob:
     p = image.params
     x0, y0, x1, y1 = blob.window
     washed = np.zeros(blob.inside.shape, dtype=bool)
-    if image.repair_highlights and image.blown[y0:y1, x0:x1].any():
+    if image.repair_highlights and image.any_blown(blob.window):
         yy, xx = blob.grid
         cu, cv = blob.where
         washed = _highlight_pixels(

@@ -127,7 +127,7 @@ def search_image(
     n_colours: int,
     roi: NDArray[np.bool_] | None = None,
 ) -> SearchImage:
-    """The image stickers are searched in, with its colour labels and washed-out pixels.
+    """The image stickers are searched in, with its colour labels.
 
     It is the frame halved (pixel-area averaging) while a sticker at the median depth
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
@@ -154,17 +154,10 @@ def search_image(
     if roi is not None:
         inside = cv2.resize(roi.astype(np.uint8), labels.shape[::-1], cv2.INTER_NEAREST)
         labels = labels * inside
-    blown = (
-        cv2.bitwise_or(
-            cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
-            cv2.inRange(hsv, (0, 0, params.highlight_min), (180, 10, 255)),
-        )
-        > 0
-    )
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
     return SearchImage(
-        color, norm, hsv, labels, blown, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
+        color, norm, hsv, labels, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
         bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
         params,
