@@ -8,6 +8,8 @@ a sticker colour's.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -22,6 +24,11 @@ _FEW_DARK = 2000
 
 def hue_of(rgb: tuple[int, int, int]) -> int:
     """OpenCV 8-bit hue (0-179) of an sRGB colour."""
+    return _hue_of(tuple(int(c) for c in rgb))
+
+
+@lru_cache(maxsize=64)
+def _hue_of(rgb: tuple[int, ...]) -> int:
     import cv2
 
     return int(cv2.cvtColor(np.uint8([[rgb]]), cv2.COLOR_RGB2HSV)[0, 0, 0])
@@ -37,13 +44,19 @@ def hue_lut(
     """
     names = list(layout.colours_srgb)
     source = {**layout.colours_srgb, **(colours or {})}
-    hues = np.array([hue_of(source[n]) for n in names])
+    lut = _nearest_hue_lut(tuple(hue_of(source[n]) for n in names), params.max_hue_distance)
+    return lut.copy(), names
+
+
+@lru_cache(maxsize=16)
+def _nearest_hue_lut(hues: tuple[int, ...], max_distance: int) -> NDArray[np.uint8]:
+    """Hue -> 1 + index of the nearest of ``hues`` within ``max_distance``, else 0."""
     h = np.arange(180)
-    dist = np.abs(h[:, None] - hues[None, :])
+    dist = np.abs(h[:, None] - np.array(hues)[None, :])
     dist = np.minimum(dist, 180 - dist)  # hue is circular
     lut = (np.argmin(dist, axis=1) + 1).astype(np.uint8)
-    lut[dist.min(axis=1) > params.max_hue_distance] = 0
-    return lut, names
+    lut[dist.min(axis=1) > max_distance] = 0
+    return lut
 
 
 def colour_labels(

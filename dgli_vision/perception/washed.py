@@ -21,7 +21,18 @@ from .footprint import ClothRegions, FootprintParams, cloth_cells
 from .labels import hue_lut
 from .napkin import NapkinView
 
-__all__ = ["merge_second_search", "pale_samples", "pastel_params", "with_unread"]
+__all__ = [
+    "PaleCells",
+    "merge_second_search",
+    "pale_cells",
+    "pale_samples",
+    "pastel_params",
+    "with_unread",
+]
+
+#: The pastel cells of an image (bool) and the cells' HSV, shapes (H // s, W // s) and
+#: (H // s, W // s, 3): :func:`pale_cells`.
+PaleCells = tuple[NDArray[np.bool_], NDArray[np.uint8]]
 
 
 def pastel_params(params: DetectorParams) -> DetectorParams:
@@ -44,6 +55,7 @@ def pale_samples(
     *,
     edge_cells: int = 0,
     regions: ClothRegions | None = None,
+    cells: PaleCells | None = None,
 ) -> tuple[NDArray[np.float64], tuple[str, ...]]:
     """Pixels (x, y), shape (k, 2), and colour names of pastel samples of a sticker hue
     away from the stickers found, on the napkin's sampling grid (``lower.stride``): a
@@ -55,19 +67,20 @@ def pale_samples(
     pale too); anywhere when the napkin is not told from the table. The rims of the
     stickers found are pastel too (their pixels mix with the cloth), so samples within
     two disc radii of them do not count. ``regions``: the frame's white regions
-    (:func:`.footprint.cloth_regions`), when already found.
+    (:func:`.footprint.cloth_regions`), and ``cells``: :func:`pale_cells` of the same
+    image, colours and ``lower``, when already found.
     """
     import cv2
 
     s = lower.stride
     lut, names = hue_lut(layout, params, colours)
-    pale, hsv = _pale_cells(color, lut, params, lower)
+    pale, hsv = cells if cells is not None else pale_cells(color, lut, params, lower)
     if found.found.any() and pale.any():  # (with nothing found, look anywhere)
-        cells = FootprintParams(cell_px=s)
-        cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
+        grid = FootprintParams(cell_px=s)
+        cloth = cloth_cells(color, lower, found.centroids, grid, regions=regions)
         if cloth is not None:  # (else the napkin is not told from the table: anywhere)
             edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
-            pale &= cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
+            pale = pale & cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
     ys, xs = np.nonzero(pale)
     pts = (np.column_stack([xs, ys]).astype(np.float64) + 0.5) * s
     sample_names = [names[k - 1] for k in lut[hsv[ys, xs, 0]]]
@@ -79,9 +92,9 @@ def pale_samples(
     return pts[far], tuple(n for n, f in zip(sample_names, far) if f)
 
 
-def _pale_cells(
+def pale_cells(
     color: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams, lower: NapkinView
-) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
+) -> PaleCells:
     """Pastel cells of a sticker hue, not next to vivid ones, shape (H // s, W // s) for
     cells of s = ``lower.stride`` pixels averaged (a sensor's noise tints single pixels,
     not cells); and the cells' HSV once balanced by ``lower.lut``."""
@@ -143,11 +156,14 @@ def with_unread(
     colours: dict[str, tuple[int, int, int]] | None,
     *,
     regions: ClothRegions | None = None,
+    cells: PaleCells | None = None,
 ) -> StickerDetections:
     """``found`` with the pastel patches on the napkin that no search could read
-    (``pale_px``, ``pale_colours``)."""
+    (``pale_px``, ``pale_colours``). ``regions`` and ``cells`` as for
+    :func:`pale_samples`."""
     left = pale_samples(
-        color, found, layout, params, lower, colours, edge_cells=1, regions=regions
+        color, found, layout, params, lower, colours, edge_cells=1, regions=regions,
+        cells=cells,
     )
     return _washed(found, left, lower.stride)
 
