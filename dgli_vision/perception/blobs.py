@@ -445,37 +445,26 @@ class _DiscPixels:
 
     @classmethod
     def of(cls, shaped: list[_Shaped], image: SearchImage) -> _DiscPixels:
-        """The window pixels of the ``shaped`` blobs of ``image``."""
-        parts: dict[str, list[NDArray]] = {k: [] for k in ("dx", "dy", "lab", "norm", "in", "w")}
-        counts, params = [], []
+        """The pixels of the ``shaped`` blobs of ``image`` within 1.8 radii of each
+        blob's centre (:func:`_disc_box`), row by row."""
+        parts: dict[str, list[NDArray]] = {k: [] for k in ("r", "lab", "norm", "in", "w")}
+        counts = []
         for s in shaped:
             b = s.blob
             x0, y0, x1, y1 = _disc_box(s)
-            cu, cv = b.where
-            h, w = y1 - y0, x1 - x0
-            parts["dx"].append(np.tile(np.arange(x0, x1) - cu, h))
-            parts["dy"].append(np.repeat(np.arange(y0, y1) - cv, w))
-            parts["lab"].append(image.labels[y0:y1, x0:x1].ravel())
-            parts["norm"].append(image.norm[y0:y1, x0:x1].reshape(-1, 3))
             wx, wy = b.window[:2]
             in_window = np.s_[y0 - wy : y1 - wy, x0 - wx : x1 - wx]
+            parts["r"].append(_radii(s, x0, y0, x1, y1).ravel())
+            parts["lab"].append(image.labels[y0:y1, x0:x1].ravel())
+            parts["norm"].append(image.norm[y0:y1, x0:x1].reshape(-1, 3))
             parts["in"].append(b.inside[in_window].ravel())
             parts["w"].append(b.washed[in_window].ravel())
-            counts.append(h * w)
-            face_on = s.fore >= 1.0  # (along = dx, across = dy exactly)
-            params.append(
-                (1.0 if face_on else np.cos(s.minor_angle),
-                 0.0 if face_on else np.sin(s.minor_angle), s.fore, s.radius)
-            )
-        blob = np.repeat(np.arange(len(shaped)), counts)
-        ca, sa, fore, radius = (np.array(v)[blob] for v in zip(*params))
-        dx, dy = np.concatenate(parts["dx"]), np.concatenate(parts["dy"])
-        along, across = dx * ca + dy * sa, -dx * sa + dy * ca
-        return cls(
-            blob, np.hypot(along / fore, across) / radius, np.concatenate(parts["in"]),
-            np.concatenate(parts["w"]), np.concatenate(parts["lab"]),
-            np.concatenate(parts["norm"]), len(shaped), image.n_colours + 1,
+            counts.append((y1 - y0) * (x1 - x0))
+        r, inside, washed, labels, norm = (
+            np.concatenate(parts[k]) for k in ("r", "in", "w", "lab", "norm")
         )
+        blob = np.repeat(np.arange(len(shaped)), counts)
+        return cls(blob, r, inside, washed, labels, norm, len(shaped), image.n_colours + 1)
 
     def count(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
         """Number of pixels ``where`` holds, per blob, shape (n_blobs,)."""
@@ -528,6 +517,19 @@ class _DiscPixels:
             self.count(inner_area),
             self.count(self.washed & inner_area) > 0,
         )
+
+
+def _radii(s: _Shaped, x0: int, y0: int, x1: int, y1: int) -> NDArray[np.float64]:
+    """Distance of every pixel of the box (x0, y0, x1, y1) from the blob's centre, in
+    radii of its disc (elliptic when foreshortened: the minor axis along its minor
+    angle), shape (y1 - y0, x1 - x0)."""
+    cu, cv = s.blob.where
+    dx, dy = np.arange(x0, x1) - cu, (np.arange(y0, y1) - cv)[:, None]
+    if s.fore < 1.0:
+        ca, sa = np.cos(s.minor_angle), np.sin(s.minor_angle)
+        along, across = dx * ca + dy * sa, -dx * sa + dy * ca
+        return np.hypot(along / s.fore, across) / s.radius
+    return np.hypot(dx, dy) / s.radius
 
 
 def _disc_box(s: _Shaped) -> tuple[int, int, int, int]:
