@@ -67,18 +67,16 @@ def colour_labels(
     import cv2
 
     hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
-    coloured = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
+    least = (0, params.min_saturation, params.min_value)
+    coloured = cv2.inRange(hsv, least, (180, 255, 255))
     # chroma = S * V / 255 >= min_chroma: only binding where V is low (dark, noisy pixels)
     v_limit = int(np.ceil(params.min_chroma * 255 / max(params.min_saturation, 1)))
-    dark_mask = cv2.bitwise_and(
-        coloured, cv2.inRange(hsv, (0, 0, 0), (180, 255, max(v_limit - 1, 0)))
-    )
+    dark_mask = cv2.inRange(hsv, least, (180, 255, max(v_limit - 1, 0)))  # (coloured too)
     n_dark = cv2.countNonZero(dark_mask)
     if n_dark:
         coloured = _without_faint(coloured, dark_mask, n_dark, hsv, params.min_chroma * 255)
     labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
     return cv2.bitwise_and(labels, coloured), hsv
-
 
 
 def _without_faint(
