@@ -31,6 +31,10 @@ from .detections import DetectorParams, Rejection
 
 __all__ = ["Candidate", "SearchImage", "judge_blob", "judge_blobs"]
 
+#: A 3 x 3 square: erosion by one pixel.
+_SQUARE3 = np.ones((3, 3), np.uint8)
+_SQUARE3.flags.writeable = False
+
 #: The ring around a blob whose whiteness says it lies on the napkin, in disc radii.
 _RING_INNER, _RING_OUTER = 1.3, 1.8
 
@@ -164,9 +168,10 @@ class _Blob:
 
     @property
     def grid(self) -> tuple[NDArray, NDArray]:
-        """Pixel rows and columns (yy, xx) of the window, search image."""
+        """Pixel rows and columns (yy, xx) of the window, search image, as an open grid
+        (shapes (h, 1) and (1, w): they broadcast to the window)."""
         x0, y0, x1, y1 = self.window
-        return np.mgrid[y0:y1, x0:x1]
+        return np.ogrid[y0:y1, x0:x1]
 
 
 @dataclass(frozen=True)
@@ -288,7 +293,7 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     where = (float(m["m10"] / m["m00"]), float(m["m01"] / m["m00"]))
     x, y, w, h = cv2.boundingRect(contour)
     roi = np.zeros((h, w), np.uint8)
-    cv2.drawContours(roi, [contour - [x, y]], -1, 1, thickness=-1)
+    cv2.drawContours(roi, [contour], -1, 1, thickness=-1, offset=(-x, -y))
     z_mm = _blob_depth(image.depth_mm[y : y + h, x : x + w], roi, image.median_depth_mm)
     if not (z_mm > 0):
         return Rejection(where, area, "no depth to judge its size")
@@ -299,7 +304,7 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     x0, y0 = max(x - pad, 0), max(y - pad, 0)
     x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
     inside = np.zeros((y1 - y0, x1 - x0), bool)
-    inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
+    inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi
     return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
 
 
@@ -308,10 +313,10 @@ def _blob_depth(depth_roi: NDArray, roi: NDArray[np.uint8], fallback_mm: float) 
     all its pixels when none of those has a reading, else ``fallback_mm``."""
     import cv2
 
-    inner_depth = depth_roi[cv2.erode(roi, np.ones((3, 3), np.uint8)).astype(bool)]
+    inner_depth = depth_roi[cv2.erode(roi, _SQUARE3).view(bool)]  # (0 or 1: as bool)
     inner_depth = inner_depth[inner_depth > 0]
     if inner_depth.size == 0:
-        inner_depth = depth_roi[roi.astype(bool) & (depth_roi > 0)]
+        inner_depth = depth_roi[roi.view(bool) & (depth_roi > 0)]
     return _median(inner_depth) if inner_depth.size else fallback_mm
 
 
@@ -344,14 +349,14 @@ def _repair_highlight(blob: _Blob, image: SearchImage) -> _Blob:
 
     p = image.params
     x0, y0, x1, y1 = blob.window
-    washed = np.zeros(blob.inside.shape, dtype=bool)
-    if image.repair_highlights and image.any_blown(blob.window):
-        yy, xx = blob.grid
-        cu, cv = blob.where
-        washed = _highlight_pixels(
-            image.color[y0:y1, x0:x1], image.norm[y0:y1, x0:x1], image.hsv[y0:y1, x0:x1], p,
-            blob.r_exp, image.halo_px,
-        ) & (np.hypot(xx - cu, yy - cv) < p.highlight_reach * blob.r_exp)
+    if not (image.repair_highlights and image.any_blown(blob.window)):
+        return replace(blob, washed=np.zeros(blob.inside.shape, dtype=bool))
+    yy, xx = blob.grid
+    cu, cv = blob.where
+    washed = _highlight_pixels(
+        image.color[y0:y1, x0:x1], image.norm[y0:y1, x0:x1], image.hsv[y0:y1, x0:x1], p,
+        blob.r_exp, image.halo_px,
+    ) & (np.hypot(xx - cu, yy - cv) < p.highlight_reach * blob.r_exp)
     if not (washed & ~blob.inside).any():
         return replace(blob, washed=washed)
     inside = blob.inside
