@@ -10,13 +10,18 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    nearest of the four nominal hues (:mod:`.labels`);
 2. candidate blobs (:func:`candidate_blobs`): the outer contours of the labelled mask (a
    dot inside its disc belongs to it, even where blur leaves an unsaturated ring
-   between them), each judged by :func:`.blobs.judge_blob` (depth, foreshortening,
+   between them), judged by :func:`.blobs.judge_blobs` (depth, foreshortening,
    highlight repair, size, shape, fill, surround, disc and dot colours): a candidate or
    a :class:`Rejection` with the reason;
 3. identities (:func:`identify`): the (disc, dot) pair names the sticker; an identity
    is never given twice (the better-scoring candidate keeps it), and a disc whose dot a
    highlight washed out takes the one sticker of its colour left;
-4. centres at full resolution (:class:`FullResolution`) when the search was halved.
+4. centres at full resolution (:class:`FullResolution`) when the search was halved,
+   measured for every candidate at once (:func:`_refine_all`).
+
+The work is in proportion to the blobs, not to the pixels, wherever it can be: the
+whole image is converted once (balance, HSV, labels, one contour search), and the
+checks of the blobs and their centres run on small windows, batched across blobs.
 
 :func:`find_washed_out` searches again for the stickers a broad sheen left pastel
 (:mod:`.washed`). The parameters and results live in :mod:`.detections` and are
