@@ -21,6 +21,7 @@ gives each blob exactly what judging it alone gives (:func:`judge_blob`).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from functools import cached_property
@@ -302,7 +303,7 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
         return Rejection(where, area, "no depth to judge its size")
     r_exp = image.disc_radius_mm * image.intrinsics.fx / z_mm
     # A window around the blob, one expected diameter wider on each side.
-    pad = int(np.ceil(2 * r_exp)) + 2
+    pad = math.ceil(2 * r_exp) + 2
     h_img, w_img = image.labels.shape
     x0, y0 = max(x - pad, 0), max(y - pad, 0)
     x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
@@ -399,8 +400,8 @@ def _shape_of(blob: _Blob) -> tuple[float, float]:
     hull_area = cv2.contourArea(cv2.convexHull(blob.contour))
     solidity = min(blob.area / hull_area, 1.0) if hull_area > 0 else 0.0
     mu20, mu02, mu11 = blob.moments["mu20"], blob.moments["mu02"], blob.moments["mu11"]
-    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
-    elongation = np.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
+    common = math.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    elongation = math.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
     return solidity, elongation
 
 
@@ -417,7 +418,7 @@ def _radius(blob: _Blob, fore: float) -> float:
     surround and colours are judged on: its equivalent disc, or the expected disc when
     the blob is partly covered, so that the dot stays in the inner part."""
     expected = np.pi * blob.r_exp**2 * fore
-    return float(np.sqrt(max(blob.area, expected) / (np.pi * fore)))
+    return math.sqrt(max(blob.area, expected) / (np.pi * fore))
 
 
 @dataclass(frozen=True, eq=False)
@@ -487,12 +488,14 @@ class _DiscPixels:
 
     def upper_medians(self, values: NDArray[np.uint8], where: NDArray[np.bool_]) -> NDArray:
         """Per blob, the upper median of the 8-bit ``values`` ``where`` holds (as
-        :func:`_median`); -1 for a blob with none. Shape (n_blobs,)."""
-        keys = np.sort(self.blob[where] * 256 + values[where])
-        n = np.bincount(keys // 256, minlength=self.n_blobs)
-        start = np.concatenate([[0], np.cumsum(n)[:-1]])
-        pick = np.minimum(start + n // 2, max(len(keys) - 1, 0))
-        return np.where(n > 0, keys[pick] % 256 if len(keys) else 0, -1)
+        :func:`_median`: the (n // 2)-th smallest of n); -1 for a blob with none.
+        Shape (n_blobs,)."""
+        counts = np.bincount(
+            self.blob[where] * 256 + values[where], minlength=self.n_blobs * 256
+        ).reshape(self.n_blobs, 256)
+        at_most = np.cumsum(counts, axis=1)  # values <= each level, per blob
+        n = at_most[:, -1]
+        return np.where(n > 0, np.argmax(at_most > (n // 2)[:, None], axis=1), -1)
 
     @cached_property
     def covered(self) -> NDArray[np.intp]:
@@ -548,10 +551,10 @@ def _disc_box(s: _Shaped) -> tuple[int, int, int, int]:
     cu, cv = s.blob.where
     reach = _RING_OUTER * s.radius
     return (
-        max(x0, int(np.floor(cu - reach)) - 1),
-        max(y0, int(np.floor(cv - reach)) - 1),
-        min(x1, int(np.ceil(cu + reach)) + 2),
-        min(y1, int(np.ceil(cv + reach)) + 2),
+        max(x0, math.floor(cu - reach) - 1),
+        max(y0, math.floor(cv - reach) - 1),
+        min(x1, math.ceil(cu + reach) + 2),
+        min(y1, math.ceil(cv + reach) + 2),
     )
 
 
