@@ -153,7 +153,8 @@ class _Blob:
     z_mm, r_exp : float
         Its depth, and the radius of a face-on disc there (pixels).
     washed : ndarray of bool, same shape as ``inside``, optional
-        Washed-out pixels near it (after :func:`_repair_highlight`).
+        Washed-out pixels near it (after :func:`_repair_highlight`); None where the
+        window has none.
     recovered : bool
         Washed-out pixels were joined to it.
     """
@@ -348,13 +349,14 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
 
 def _repair_highlight(blob: _Blob, image: SearchImage) -> _Blob:
     """The blob with the washed-out pixels next to it (a glossy sticker's highlight)
-    joined to it, unless the napkin itself is blown out; ``washed`` is set either way."""
+    joined to it, unless the napkin itself is blown out; ``washed`` is set where a
+    pixel of the window is washed out (else it stays None)."""
     import cv2
 
     p = image.params
     x0, y0, x1, y1 = blob.window
     if not (image.repair_highlights and image.any_blown(blob.window)):
-        return replace(blob, washed=np.zeros(blob.inside.shape, dtype=bool))
+        return blob  # (washed None: nothing washed out near it)
     yy, xx = blob.grid
     cu, cv = blob.where
     washed = _highlight_pixels(
@@ -467,7 +469,10 @@ class _DiscPixels:
             parts["lab"].append(image.labels[y0:y1, x0:x1].ravel())
             parts["norm"].append(image.norm[y0:y1, x0:x1].reshape(-1, 3))
             parts["in"].append(b.inside[in_window].ravel())
-            parts["w"].append(b.washed[in_window].ravel())
+            parts["w"].append(
+                np.zeros((y1 - y0) * (x1 - x0), bool) if b.washed is None
+                else b.washed[in_window].ravel()
+            )
             counts.append((y1 - y0) * (x1 - x0))
         r, inside, washed, labels, norm = (
             np.concatenate(parts[k]) for k in ("r", "in", "w", "lab", "norm")
