@@ -99,3 +99,22 @@ def test_dark_pixels_are_tested_alike_one_by_one_and_as_a_whole_image():
     expected = np.where((dark > 0) & (chroma < least), 0, coloured)
     np.testing.assert_array_equal(many, expected)
     np.testing.assert_array_equal(few, expected)
+
+
+def test_pastel_cells_on_the_napkin_alone_are_those_of_the_whole_frame():
+    from dgli_vision.perception.washed import pale_cells
+
+    img, depth = _scene()
+    pastel = cv2.addWeighted(img, 0.35, np.full_like(img, 235), 0.65, 0)  # sheen-washed
+    params = DetectorParams()
+    napkin = find_napkin(pastel, depth, INTR)
+    lut, _ = hue_lut(LAYOUT, params, None)
+    everywhere, hsv = pale_cells(pastel, lut, params, napkin)
+    assert everywhere.sum() > 50
+    within = np.zeros_like(everywhere)
+    within[20:40, 10:60] = True  # a part of the grid, away from its borders
+    part, part_hsv = pale_cells(pastel, lut, params, napkin, within=within)
+    assert (everywhere & within).any() and (everywhere & ~within).any()
+    np.testing.assert_array_equal(part & within, everywhere & within)
+    np.testing.assert_array_equal(part_hsv[within], hsv[within])
+    assert not part_hsv[45:].any()  # (far from the part: not computed)

@@ -43,13 +43,7 @@ from .detections import DetectorParams, Rejection, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
-from .washed import (
-    merge_second_search,
-    pale_cells,
-    pale_samples,
-    pastel_params,
-    with_unread,
-)
+from .washed import merge_second_search, pale_samples, pastel_params, with_unread
 
 __all__ = [
     "DetectorParams",
@@ -493,11 +487,7 @@ def find_washed_out(
     cells = FootprintParams(cell_px=lower.stride)
     if regions is None or regions.cell_px != cells.cell_px:
         regions = cloth_regions(color, napkin.white_rgb, cells)
-    pale = pale_cells(color, hue_lut(layout, params, colours)[0], params, lower)
-    seen = pale_samples(
-        color, found, layout, params, lower, colours, regions=regions, cells=pale
-    )
-    if len(seen[0]) < 2:
+    if len(pale_samples(color, found, layout, params, lower, colours, regions=regions)[0]) < 2:
         return found  # no pastel patch anywhere: nothing to search, nothing left unread
     roi = None
     cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
@@ -509,9 +499,7 @@ def find_washed_out(
         colours=colours, roi=roi,
     )
     merged = merge_second_search(found, again)
-    return with_unread(
-        color, merged, layout, params, lower, colours, regions=regions, cells=pale
-    )
+    return with_unread(color, merged, layout, params, lower, colours, regions=regions)
 
 
 def detect_all_stickers(
