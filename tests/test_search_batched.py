@@ -118,3 +118,25 @@ def test_pastel_cells_on_the_napkin_alone_are_those_of_the_whole_frame():
     np.testing.assert_array_equal(part & within, everywhere & within)
     np.testing.assert_array_equal(part_hsv[within], hsv[within])
     assert not part_hsv[45:].any()  # (far from the part: not computed)
+
+
+def test_a_search_within_a_region_judges_its_blobs_as_a_search_of_the_whole_frame():
+    from dataclasses import replace
+
+    img, depth = _scene()
+    params = DetectorParams()
+    napkin = find_napkin(img, depth, INTR)
+    lut, names = hue_lut(LAYOUT, params, None)
+    roi = np.zeros((90, 160), bool)
+    roi[20:35, 30:90] = True  # cells of 8 pixels: some of the stickers
+    part = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names), roi)
+    whole = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+    assert not part.norm[-20:].any()  # (far from the region: not computed)
+    inside = cv2.resize(roi.astype(np.uint8), whole.labels.shape[::-1], cv2.INTER_NEAREST)
+    masked = replace(whole, labels=whole.labels * inside)  # (labelled everywhere, then cut)
+    np.testing.assert_array_equal(part.labels, masked.labels)
+    found, rejected = candidate_blobs(part)
+    again, rejected_again = candidate_blobs(masked)
+    assert 0 < len(found) < 16
+    assert all(_same(a, b) for a, b in zip(found, again)) and len(found) == len(again)
+    assert rejected == rejected_again

@@ -30,6 +30,7 @@ re-exported here.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -137,7 +138,8 @@ def search_image(
     It is the frame halved (pixel-area averaging) while a sticker at the median depth
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
     ``lut`` is :func:`.labels.hue_lut`'s table. Outside ``roi`` (scaled to the search
-    image) no pixel is labelled.
+    image) no pixel is labelled, and the images are computed only where judging the
+    blobs within it reads them (elsewhere they are 0).
     """
     import cv2
 
@@ -149,15 +151,18 @@ def search_image(
         and (disc_r_mm * intrinsics.fx / med_depth >= 2 * params.search_radius_px)
         and min(color.shape[:2]) >= 200
     )
+    shape = color.shape[:2]
     if halve:
-        h2, w2 = color.shape[0] // 2, color.shape[1] // 2
-        color = cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
-        depth_mm = depth_mm[: 2 * h2 : 2, : 2 * w2 : 2]
+        shape = (color.shape[0] // 2, color.shape[1] // 2)
+        depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
         intrinsics = _halved(intrinsics)
-    norm = cv2.LUT(color, napkin.lut)  # the napkin neutral at a fixed level
-    labels, hsv = colour_labels(norm, lut, params)
-    if roi is not None:
-        inside = cv2.resize(roi.astype(np.uint8), labels.shape[::-1], cv2.INTER_NEAREST)
+    box, inside = (0, 0, shape[1], shape[0]), None
+    if roi is not None:  # (only the box that judging its blobs reads is computed)
+        inside = cv2.resize(roi.astype(np.uint8), shape[::-1], cv2.INTER_NEAREST)
+        box = _judged_box(inside, depth_mm, disc_r_mm * intrinsics.fx, med_depth)
+    color = _halved_within(color, box) if halve else color
+    norm, labels, hsv = _labelled_within(color, napkin.lut, lut, params, box)
+    if inside is not None:
         labels = labels * inside
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
@@ -167,6 +172,75 @@ def search_image(
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
         params,
     )
+
+
+def _judged_box(
+    inside: NDArray[np.uint8], depth_mm: NDArray[np.uint16], disc_mm_px: float,
+    fallback_mm: float,
+) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the box of the search image that judging the blobs within the
+    pixels ``inside`` reads: their bounding box grown by the widest window such a blob
+    can have (:func:`.blobs.judge_blobs`: the expected disc diameter and two pixels, the
+    disc largest at the nearest depth read in the box, or ``fallback_mm`` for a blob
+    without depth). ``disc_mm_px``: the disc radius (mm) times the focal length (px)."""
+    import cv2
+
+    h_img, w_img = inside.shape
+    x, y, w, h = (int(v) for v in cv2.boundingRect(inside))
+    if w == 0:
+        return 0, 0, 0, 0
+    read = depth_mm[y : y + h, x : x + w]
+    read = read[read > 0]
+    depths = [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
+    if not depths:
+        return 0, 0, w_img, h_img
+    pad = math.ceil(2 * disc_mm_px / min(depths)) + 3
+    return max(x - pad, 0), max(y - pad, 0), min(x + w + pad, w_img), min(y + h + pad, h_img)
+
+
+def _halved_within(
+    color: NDArray[np.uint8], box: tuple[int, int, int, int]
+) -> NDArray[np.uint8]:
+    """The frame halved by pixel-area averaging (each pixel the mean of a 2 x 2 block),
+    within ``box`` (x0, y0, x1, y1, halved pixels); 0 elsewhere."""
+    import cv2
+
+    h2, w2 = color.shape[0] // 2, color.shape[1] // 2
+    x0, y0, x1, y1 = box
+    if box == (0, 0, w2, h2):
+        return cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
+    out = np.zeros((h2, w2, 3), np.uint8)
+    if x1 > x0 and y1 > y0:
+        out[y0:y1, x0:x1] = cv2.resize(
+            color[2 * y0 : 2 * y1, 2 * x0 : 2 * x1], (x1 - x0, y1 - y0),
+            interpolation=cv2.INTER_AREA,
+        )
+    return out
+
+
+def _labelled_within(
+    color: NDArray[np.uint8],
+    balance: NDArray[np.uint8],
+    lut: NDArray[np.uint8],
+    params: DetectorParams,
+    box: tuple[int, int, int, int],
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.uint8]]:
+    """The image balanced by ``balance``, its colour labels and HSV
+    (:func:`.labels.colour_labels`) within ``box`` (x0, y0, x1, y1); 0 elsewhere."""
+    import cv2
+
+    x0, y0, x1, y1 = box
+    if box == (0, 0, color.shape[1], color.shape[0]):
+        norm = cv2.LUT(color, balance)
+        return (norm, *colour_labels(norm, lut, params))
+    norm, hsv = np.zeros_like(color), np.zeros_like(color)
+    labels = np.zeros(color.shape[:2], np.uint8)
+    if x1 > x0 and y1 > y0:
+        norm[y0:y1, x0:x1] = cv2.LUT(color[y0:y1, x0:x1], balance)
+        labels[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = colour_labels(
+            norm[y0:y1, x0:x1], lut, params
+        )
+    return norm, labels, hsv
 
 
 def _halved(intrinsics: Intrinsics) -> Intrinsics:
