@@ -33,7 +33,7 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from .detections import DetectorParams, Rejection
 
-__all__ = ["Candidate", "SearchImage", "judge_blob", "judge_blobs"]
+__all__ = ["Candidate", "SearchImage", "judge_blob", "judge_blobs", "window_pad"]
 
 #: A 3 x 3 square: erosion by one pixel.
 _SQUARE3 = np.ones((3, 3), np.uint8)
@@ -303,14 +303,20 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     if not (z_mm > 0):
         return Rejection(where, area, "no depth to judge its size")
     r_exp = image.disc_radius_mm * image.intrinsics.fx / z_mm
-    # A window around the blob, one expected diameter wider on each side.
-    pad = math.ceil(2 * r_exp) + 2
+    pad = window_pad(r_exp)
     h_img, w_img = image.labels.shape
     x0, y0 = max(x - pad, 0), max(y - pad, 0)
     x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
     inside = np.zeros((y1 - y0, x1 - x0), bool)
     inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi
     return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
+
+
+def window_pad(r_exp_px: float) -> int:
+    """How far (pixels) a blob's window reaches beyond its bounding box, for a disc of
+    radius ``r_exp_px`` expected there: one diameter and two pixels. Every check of the
+    blob reads the search image within its window only."""
+    return math.ceil(2 * r_exp_px) + 2
 
 
 def _blob_depth(depth_roi: NDArray, roi: NDArray[np.uint8], fallback_mm: float) -> float:

@@ -30,7 +30,6 @@ re-exported here.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -39,7 +38,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
-from .blobs import Candidate, SearchImage, judge_blobs
+from .blobs import Candidate, SearchImage, judge_blobs, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
@@ -180,9 +179,9 @@ def _judged_box(
 ) -> tuple[int, int, int, int]:
     """(x0, y0, x1, y1): the box of the search image that judging the blobs within the
     pixels ``inside`` reads: their bounding box grown by the widest window such a blob
-    can have (:func:`.blobs.judge_blobs`: the expected disc diameter and two pixels, the
-    disc largest at the nearest depth read in the box, or ``fallback_mm`` for a blob
-    without depth). ``disc_mm_px``: the disc radius (mm) times the focal length (px)."""
+    can have (:func:`.blobs.window_pad` of the disc expected at the nearest depth read in
+    the box, or at ``fallback_mm`` where a blob has no depth; and a pixel more).
+    ``disc_mm_px``: the disc radius (mm) times the focal length (px)."""
     import cv2
 
     h_img, w_img = inside.shape
@@ -194,7 +193,7 @@ def _judged_box(
     depths = [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
     if not depths:
         return 0, 0, w_img, h_img
-    pad = math.ceil(2 * disc_mm_px / min(depths)) + 3
+    pad = window_pad(disc_mm_px / min(depths)) + 1
     return max(x - pad, 0), max(y - pad, 0), min(x + w + pad, w_img), min(y + h + pad, h_img)
 
 
