@@ -220,7 +220,7 @@ def judge_blobs(
     ]
     shaped = [j for j in judged if isinstance(j, _Shaped)]
     if not shaped:
-        return judged  # type: ignore[return-value]
+        return [j for j in judged if not isinstance(j, _Shaped)]  # (all of them)
     discs = _DiscPixels.of(shaped, image)
     verdicts = iter([_judge_disc(s, k, discs, image) for k, s in enumerate(shaped)])
     return [next(verdicts) if isinstance(j, _Shaped) else j for j in judged]
