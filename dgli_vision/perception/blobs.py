@@ -13,12 +13,18 @@ below, each a function; the first that fails gives the :class:`~.detections.Reje
 6. its disc colour (the majority label of an outer band) and dot colour (of the inner
    part), which name the sticker.
 
-Everything the steps share for one frame is a :class:`SearchImage`.
+Everything the steps share for one frame is a :class:`SearchImage`. Steps 1-4 run blob
+by blob (:func:`judge_blobs`); steps 5 and 6 for every blob left at once, on the pixels
+within 1.8 radii of each (:class:`_DiscPixels`: counts and medians per blob), which
+gives each blob exactly what judging it alone gives (:func:`judge_blob`).
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,7 +33,14 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from .detections import DetectorParams, Rejection
 
-__all__ = ["Candidate", "SearchImage", "judge_blob"]
+__all__ = ["Candidate", "SearchImage", "judge_blob", "judge_blobs", "window_pad"]
+
+#: A 3 x 3 square: erosion by one pixel.
+_SQUARE3 = np.ones((3, 3), np.uint8)
+_SQUARE3.flags.writeable = False
+
+#: The ring around a blob whose whiteness says it lies on the napkin, in disc radii.
+_RING_INNER, _RING_OUTER = 1.3, 1.8
 
 
 @dataclass(frozen=True, eq=False)
@@ -45,8 +58,6 @@ class SearchImage:
         HSV of ``norm``.
     labels : ndarray of uint8, shape (h, w)
         Colour label of every pixel: 0 none, k + 1 colour k (:func:`.labels.colour_labels`).
-    blown : ndarray of bool, shape (h, w)
-        Washed-out pixels: blown out as taken, or near-white once balanced.
     depth_mm : ndarray of uint16, shape (h, w)
         Depth, mm (0 = no reading), sampled to the search image.
     intrinsics : Intrinsics
@@ -72,7 +83,6 @@ class SearchImage:
     norm: NDArray[np.uint8]
     hsv: NDArray[np.uint8]
     labels: NDArray[np.uint8]
-    blown: NDArray[np.bool_]
     depth_mm: NDArray[np.uint16]
     intrinsics: Intrinsics
     median_depth_mm: float
@@ -83,6 +93,21 @@ class SearchImage:
     repair_highlights: bool
     n_colours: int
     params: DetectorParams
+
+    def any_blown(self, window: tuple[int, int, int, int]) -> bool:
+        """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
+        taken (every channel at least ``highlight_min``), or near-white once balanced
+        (HSV value at least that, saturation at most 10)."""
+        import cv2
+
+        x0, y0, x1, y1 = window
+        least = self.params.highlight_min
+        return bool(
+            cv2.countNonZero(cv2.inRange(self.color[y0:y1, x0:x1], (least,) * 3, (255,) * 3))
+            or cv2.countNonZero(
+                cv2.inRange(self.hsv[y0:y1, x0:x1], (0, 0, least), (180, 10, 255))
+            )
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -128,7 +153,8 @@ class _Blob:
     z_mm, r_exp : float
         Its depth, and the radius of a face-on disc there (pixels).
     washed : ndarray of bool, same shape as ``inside``, optional
-        Washed-out pixels near it (after :func:`_repair_highlight`).
+        Washed-out pixels near it (after :func:`_repair_highlight`); None where the
+        window has none.
     recovered : bool
         Washed-out pixels were joined to it.
     """
@@ -147,9 +173,10 @@ class _Blob:
 
     @property
     def grid(self) -> tuple[NDArray, NDArray]:
-        """Pixel rows and columns (yy, xx) of the window, search image."""
+        """Pixel rows and columns (yy, xx) of the window, search image, as an open grid
+        (shapes (h, 1) and (1, w): they broadcast to the window)."""
         x0, y0, x1, y1 = self.window
-        return np.mgrid[y0:y1, x0:x1]
+        return np.ogrid[y0:y1, x0:x1]
 
 
 @dataclass(frozen=True)
@@ -162,7 +189,7 @@ class _Colours:
 
 
 def judge_blob(contour: NDArray, image: SearchImage) -> Candidate | Rejection | None:
-    """Judge one outer contour of the colour mask.
+    """Judge one outer contour of the colour mask (:func:`judge_blobs` of one).
 
     Returns
     -------
@@ -170,6 +197,52 @@ def judge_blob(contour: NDArray, image: SearchImage) -> Candidate | Rejection | 
         A candidate sticker; the first check it fails, with the reason; or None for a
         speck too small to report.
     """
+    return judge_blobs([contour], image)[0]
+
+
+def judge_blobs(
+    contours: Sequence[NDArray], image: SearchImage
+) -> list[Candidate | Rejection | None]:
+    """Judge outer contours of the colour mask, each as :func:`judge_blob` would.
+
+    The checks up to the blob's shape run blob by blob; those on the disc centred on
+    each blob (fill, surround, disc and dot colours) run for every blob left at once,
+    on the pixels of all their windows together (:class:`_DiscPixels`).
+
+    Returns
+    -------
+    list
+        Per contour, in order: a candidate, the first check it fails (a rejection with
+        the reason), or None for a speck too small to report.
+    """
+    judged: list[Candidate | Rejection | _Shaped | None] = [
+        _judge_shape(c, image) for c in contours
+    ]
+    shaped = [j for j in judged if isinstance(j, _Shaped)]
+    if not shaped:
+        return [j for j in judged if not isinstance(j, _Shaped)]  # (all of them)
+    discs = _DiscPixels.of(shaped, image)
+    verdicts = iter([_judge_disc(s, k, discs, image) for k, s in enumerate(shaped)])
+    return [next(verdicts) if isinstance(j, _Shaped) else j for j in judged]
+
+
+@dataclass(frozen=True, eq=False)
+class _Shaped:
+    """A blob that passed the checks up to its shape: its tilt (``fore``, minor axis
+    angle), area ratio to the expected disc, solidity, and the radius (pixels, the major
+    semi-axis) of the disc its remaining checks are centred on."""
+
+    blob: _Blob
+    fore: float
+    minor_angle: float
+    ratio: float
+    solidity: float
+    radius: float
+
+
+def _judge_shape(contour: NDArray, image: SearchImage) -> _Shaped | Rejection | None:
+    """The checks of one blob up to its shape: depth, tilt, highlight repair, size,
+    shape. The blob left, or the first check it fails (None: a speck)."""
     blob = _measure_blob(contour, image)
     if blob is None or isinstance(blob, Rejection):
         return blob
@@ -187,19 +260,27 @@ def judge_blob(contour: NDArray, image: SearchImage) -> Candidate | Rejection | 
     why = _shape_problem(solidity, elongation, fore, p)
     if why:
         return Rejection(blob.where, blob.area, why)
-    r, radius = _radii(blob, fore, minor_angle)
-    why = _fill_problem(blob, r, radius, fore, p) or _surround_problem(blob, r, image)
+    return _Shaped(blob, fore, minor_angle, ratio, solidity, _radius(blob, fore))
+
+
+def _judge_disc(
+    s: _Shaped, k: int, discs: _DiscPixels, image: SearchImage
+) -> Candidate | Rejection:
+    """The checks of the ``k``-th shaped blob on the disc centred on it (fill, surround,
+    colours, from ``discs``): the candidate, or the first check it fails."""
+    blob, p = s.blob, image.params
+    why = _fill_problem(discs, k, s, p) or _surround_problem(discs, k, p)
     if why:
         return Rejection(blob.where, blob.area, why)
-    colours = _disc_and_dot(blob, r, image)
+    colours = _disc_and_dot(discs, k, p)
     if isinstance(colours, str):
         return Rejection(blob.where, blob.area, colours)
-    score = float(colours.purity * min(ratio, 1 / ratio) * solidity)
+    score = float(colours.purity * min(s.ratio, 1 / s.ratio) * s.solidity)
     score *= 0.8 if blob.recovered else 1.0
     x0, y0 = blob.window[:2]
     return Candidate(
         score, blob.where, blob.area, blob.z_mm, colours.disc, colours.dot, (x0, y0),
-        blob.inside, blob.recovered, fore,
+        blob.inside, blob.recovered, s.fore,
     )
 
 
@@ -217,19 +298,25 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     where = (float(m["m10"] / m["m00"]), float(m["m01"] / m["m00"]))
     x, y, w, h = cv2.boundingRect(contour)
     roi = np.zeros((h, w), np.uint8)
-    cv2.drawContours(roi, [contour - [x, y]], -1, 1, thickness=-1)
+    cv2.drawContours(roi, [contour], -1, 1, thickness=-1, offset=(-x, -y))
     z_mm = _blob_depth(image.depth_mm[y : y + h, x : x + w], roi, image.median_depth_mm)
     if not (z_mm > 0):
         return Rejection(where, area, "no depth to judge its size")
     r_exp = image.disc_radius_mm * image.intrinsics.fx / z_mm
-    # A window around the blob, one expected diameter wider on each side.
-    pad = int(np.ceil(2 * r_exp)) + 2
+    pad = window_pad(r_exp)
     h_img, w_img = image.labels.shape
     x0, y0 = max(x - pad, 0), max(y - pad, 0)
     x1, y1 = min(x + w + pad, w_img), min(y + h + pad, h_img)
     inside = np.zeros((y1 - y0, x1 - x0), bool)
-    inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi.astype(bool)
+    inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi
     return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
+
+
+def window_pad(r_exp_px: float) -> int:
+    """How far (pixels) a blob's window reaches beyond its bounding box, for a disc of
+    radius ``r_exp_px`` expected there: one diameter and two pixels. Every check of the
+    blob reads the search image within its window only."""
+    return math.ceil(2 * r_exp_px) + 2
 
 
 def _blob_depth(depth_roi: NDArray, roi: NDArray[np.uint8], fallback_mm: float) -> float:
@@ -237,10 +324,10 @@ def _blob_depth(depth_roi: NDArray, roi: NDArray[np.uint8], fallback_mm: float) 
     all its pixels when none of those has a reading, else ``fallback_mm``."""
     import cv2
 
-    inner_depth = depth_roi[cv2.erode(roi, np.ones((3, 3), np.uint8)).astype(bool)]
+    inner_depth = depth_roi[cv2.erode(roi, _SQUARE3).view(bool)]  # (0 or 1: as bool)
     inner_depth = inner_depth[inner_depth > 0]
     if inner_depth.size == 0:
-        inner_depth = depth_roi[roi.astype(bool) & (depth_roi > 0)]
+        inner_depth = depth_roi[roi.view(bool) & (depth_roi > 0)]
     return _median(inner_depth) if inner_depth.size else fallback_mm
 
 
@@ -268,19 +355,20 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
 
 def _repair_highlight(blob: _Blob, image: SearchImage) -> _Blob:
     """The blob with the washed-out pixels next to it (a glossy sticker's highlight)
-    joined to it, unless the napkin itself is blown out; ``washed`` is set either way."""
+    joined to it, unless the napkin itself is blown out; ``washed`` is set where a
+    pixel of the window is washed out (else it stays None)."""
     import cv2
 
     p = image.params
     x0, y0, x1, y1 = blob.window
-    washed = np.zeros(blob.inside.shape, dtype=bool)
-    if image.repair_highlights and image.blown[y0:y1, x0:x1].any():
-        yy, xx = blob.grid
-        cu, cv = blob.where
-        washed = _highlight_pixels(
-            image.color[y0:y1, x0:x1], image.norm[y0:y1, x0:x1], image.hsv[y0:y1, x0:x1], p,
-            blob.r_exp, image.halo_px,
-        ) & (np.hypot(xx - cu, yy - cv) < p.highlight_reach * blob.r_exp)
+    if not (image.repair_highlights and image.any_blown(blob.window)):
+        return blob  # (washed None: nothing washed out near it)
+    yy, xx = blob.grid
+    cu, cv = blob.where
+    washed = _highlight_pixels(
+        image.color[y0:y1, x0:x1], image.norm[y0:y1, x0:x1], image.hsv[y0:y1, x0:x1], p,
+        blob.r_exp, image.halo_px,
+    ) & (np.hypot(xx - cu, yy - cv) < p.highlight_reach * blob.r_exp)
     if not (washed & ~blob.inside).any():
         return replace(blob, washed=washed)
     inside = blob.inside
@@ -320,8 +408,8 @@ def _shape_of(blob: _Blob) -> tuple[float, float]:
     hull_area = cv2.contourArea(cv2.convexHull(blob.contour))
     solidity = min(blob.area / hull_area, 1.0) if hull_area > 0 else 0.0
     mu20, mu02, mu11 = blob.moments["mu20"], blob.moments["mu02"], blob.moments["mu11"]
-    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
-    elongation = np.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
+    common = math.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    elongation = math.sqrt((mu20 + mu02 + common) / max(mu20 + mu02 - common, 1e-9))
     return solidity, elongation
 
 
@@ -333,72 +421,194 @@ def _shape_problem(
     return None
 
 
-def _radii(blob: _Blob, fore: float, minor_angle: float) -> tuple[NDArray[np.float64], float]:
-    """Distance of every window pixel from the blob's centre, in radii of its equivalent
-    disc (elliptic when foreshortened: the minor axis along ``minor_angle``), shape of
-    the window; and that radius (the major semi-axis, pixels). The radius is the
-    expected disc's when the blob is partly covered, so that the dot stays in the inner
-    part."""
+def _radius(blob: _Blob, fore: float) -> float:
+    """Radius (pixels, the major semi-axis when foreshortened) of the disc a blob's fill,
+    surround and colours are judged on: its equivalent disc, or the expected disc when
+    the blob is partly covered, so that the dot stays in the inner part."""
     expected = np.pi * blob.r_exp**2 * fore
-    radius = np.sqrt(max(blob.area, expected) / (np.pi * fore))  # the major semi-axis
-    yy, xx = blob.grid
-    cu, cv = blob.where
-    if fore < 1.0:
-        ca, sa = np.cos(minor_angle), np.sin(minor_angle)
-        along, across = (xx - cu) * ca + (yy - cv) * sa, -(xx - cu) * sa + (yy - cv) * ca
-        return np.hypot(along / fore, across) / radius, radius
-    return np.hypot(xx - cu, yy - cv) / radius, radius
+    return math.sqrt(max(blob.area, expected) / (np.pi * fore))
 
 
-def _fill_problem(
-    blob: _Blob, r: NDArray[np.float64], radius: float, fore: float, p: DetectorParams
-) -> str | None:
+@dataclass(frozen=True, eq=False)
+class _DiscPixels:
+    """The pixels of the windows of several blobs, one after the other, with what the
+    checks on the disc centred on each blob need, per pixel and per blob.
+
+    Attributes
+    ----------
+    blob : ndarray of int, shape (n,)
+        Which blob's window each pixel is in (0, 1, ...).
+    r : ndarray of float, shape (n,)
+        Distance from the blob's centre in radii of its disc (elliptic when
+        foreshortened: the minor axis along its minor angle).
+    inside, washed : ndarray of bool, shape (n,)
+        The pixel is the blob's; washed out near it (:func:`_repair_highlight`).
+    labels : ndarray of uint8, shape (n,)
+        Colour labels.
+    norm : ndarray of uint8, shape (n, 3)
+        The balanced colour.
+    n_blobs, n_labels : int
+        Number of blobs, and of label values (colours + 1).
+    """
+
+    blob: NDArray[np.intp]
+    r: NDArray[np.float64]
+    inside: NDArray[np.bool_]
+    washed: NDArray[np.bool_]
+    labels: NDArray[np.uint8]
+    norm: NDArray[np.uint8]
+    n_blobs: int
+    n_labels: int
+
+    @classmethod
+    def of(cls, shaped: list[_Shaped], image: SearchImage) -> _DiscPixels:
+        """The pixels of the ``shaped`` blobs of ``image`` within 1.8 radii of each
+        blob's centre (:func:`_disc_box`), row by row."""
+        parts: dict[str, list[NDArray]] = {k: [] for k in ("r", "lab", "norm", "in", "w")}
+        counts = []
+        for s in shaped:
+            b = s.blob
+            x0, y0, x1, y1 = _disc_box(s)
+            wx, wy = b.window[:2]
+            in_window = np.s_[y0 - wy : y1 - wy, x0 - wx : x1 - wx]
+            parts["r"].append(_radii(s, x0, y0, x1, y1).ravel())
+            parts["lab"].append(image.labels[y0:y1, x0:x1].ravel())
+            parts["norm"].append(image.norm[y0:y1, x0:x1].reshape(-1, 3))
+            parts["in"].append(b.inside[in_window].ravel())
+            parts["w"].append(
+                np.zeros((y1 - y0) * (x1 - x0), bool) if b.washed is None
+                else b.washed[in_window].ravel()
+            )
+            counts.append((y1 - y0) * (x1 - x0))
+        r, inside, washed, labels, norm = (
+            np.concatenate(parts[k]) for k in ("r", "in", "w", "lab", "norm")
+        )
+        blob = np.repeat(np.arange(len(shaped)), counts)
+        return cls(blob, r, inside, washed, labels, norm, len(shaped), image.n_colours + 1)
+
+    def count(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
+        """Number of pixels ``where`` holds, per blob, shape (n_blobs,)."""
+        return np.bincount(self.blob[where], minlength=self.n_blobs)
+
+    def label_counts(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
+        """Pixels of each label ``where`` holds, per blob, shape (n_blobs, n_labels)."""
+        keys = self.blob[where] * self.n_labels + self.labels[where]
+        return np.bincount(keys, minlength=self.n_blobs * self.n_labels).reshape(
+            self.n_blobs, self.n_labels
+        )
+
+    def upper_medians(self, values: NDArray[np.uint8], where: NDArray[np.bool_]) -> NDArray:
+        """Per blob, the upper median of the 8-bit ``values`` ``where`` holds (as
+        :func:`_median`: the (n // 2)-th smallest of n); -1 for a blob with none.
+        Shape (n_blobs,)."""
+        counts = np.bincount(
+            self.blob[where] * 256 + values[where], minlength=self.n_blobs * 256
+        ).reshape(self.n_blobs, 256)
+        at_most = np.cumsum(counts, axis=1)  # values <= each level, per blob
+        n = at_most[:, -1]
+        return np.where(n > 0, np.argmax(at_most > (n // 2)[:, None], axis=1), -1)
+
+    @cached_property
+    def covered(self) -> NDArray[np.intp]:
+        """Per blob, its pixels within one radius of its centre."""
+        return self.count(self.inside & (self.r < 1.0))
+
+    @cached_property
+    def surround_levels(self) -> tuple[NDArray, NDArray]:
+        """Per blob, the median of the smallest channel on the ring (1.3-1.8 radii, off
+        the blob) and of the largest channel of its coloured pixels within 0.95 radii
+        (8-bit; -1 where there are none). The sRGB curve is increasing, so these are
+        the medians in linear light too."""
+        r, norm = self.r, self.norm
+        ring = (r > _RING_INNER) & (r < _RING_OUTER) & ~self.inside
+        disc = self.inside & (self.labels > 0) & (r < 0.95)
+        smallest = np.minimum(np.minimum(norm[:, 0], norm[:, 1]), norm[:, 2])
+        largest = np.maximum(np.maximum(norm[:, 0], norm[:, 1]), norm[:, 2])
+        return self.upper_medians(smallest, ring), self.upper_medians(largest, disc)
+
+    @cached_property
+    def disc_and_dot(self) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+        """Per blob: label counts of the outer band (0.6-0.95 radii) and of the inner
+        part (below 0.28 radii) of the blob's coloured pixels; pixels of the inner part
+        of the window; whether a washed-out pixel lies there."""
+        coloured = self.inside & (self.labels > 0)
+        inner_area = self.r < 0.28
+        return (
+            self.label_counts(coloured & (self.r > 0.6) & (self.r < 0.95)),
+            self.label_counts(coloured & inner_area),
+            self.count(inner_area),
+            self.count(self.washed & inner_area) > 0,
+        )
+
+
+def _radii(s: _Shaped, x0: int, y0: int, x1: int, y1: int) -> NDArray[np.float64]:
+    """Distance of every pixel of the box (x0, y0, x1, y1) from the blob's centre, in
+    radii of its disc (elliptic when foreshortened: the minor axis along its minor
+    angle), shape (y1 - y0, x1 - x0)."""
+    cu, cv = s.blob.where
+    dx, dy = np.arange(x0, x1) - cu, (np.arange(y0, y1) - cv)[:, None]
+    if s.fore < 1.0:
+        ca, sa = np.cos(s.minor_angle), np.sin(s.minor_angle)
+        along, across = dx * ca + dy * sa, -dx * sa + dy * ca
+        return np.hypot(along / s.fore, across) / s.radius
+    return np.hypot(dx, dy) / s.radius
+
+
+def _disc_box(s: _Shaped) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the part of a blob's window within 1.8 radii of its centre (and
+    a pixel more), where every pixel its disc checks look at lies (a foreshortened
+    disc's radius is its major semi-axis, so its ring lies within it too)."""
+    x0, y0, x1, y1 = s.blob.window
+    cu, cv = s.blob.where
+    reach = _RING_OUTER * s.radius
+    return (
+        max(x0, math.floor(cu - reach) - 1),
+        max(y0, math.floor(cv - reach) - 1),
+        min(x1, math.ceil(cu + reach) + 2),
+        min(y1, math.ceil(cv + reach) + 2),
+    )
+
+
+def _fill_problem(discs: _DiscPixels, k: int, s: _Shaped, p: DetectorParams) -> str | None:
     """Rejects crescents and slivers: too little of the equivalent disc covered."""
-    fill = blob.inside[r < 1.0].sum() / (np.pi * radius**2 * fore)
+    fill = discs.covered[k] / (np.pi * s.radius**2 * s.fore)
     if fill < p.min_fill:
         return f"not a whole disc (covers {fill:.2f} of one)"
     return None
 
 
-def _surround_problem(blob: _Blob, r: NDArray[np.float64], image: SearchImage) -> str | None:
+def _surround_problem(discs: _DiscPixels, k: int, p: DetectorParams) -> str | None:
     """A sticker lies on white cloth, an object on a table does not: the whiteness of a
-    ring around the blob against the blob's own brightness."""
-    x0, y0, x1, y1 = blob.window
-    win = image.norm[y0:y1, x0:x1]
-    inside_colour = blob.inside & (image.labels[y0:y1, x0:x1] > 0)
-    ring = (r > 1.3) & (r < 1.8) & ~blob.inside
-    disc_px = win[inside_colour & (r < 0.95)]
-    if not (ring.any() and disc_px.size):
+    ring around the blob (1.3-1.8 radii) against the blob's own brightness."""
+    white, own = discs.surround_levels
+    if white[k] < 0 or own[k] < 0:  # no ring, or no coloured pixel of the disc
         return None
     lin = srgb_lut()
-    ring_px = win[ring]
-    white = _median(lin[np.minimum(np.minimum(ring_px[:, 0], ring_px[:, 1]), ring_px[:, 2])])
-    own = _median(lin[np.maximum(np.maximum(disc_px[:, 0], disc_px[:, 1]), disc_px[:, 2])])
-    if white < image.params.min_surround * own:
-        return f"not on the napkin (surround {white / max(own, 1e-6):.2f} as bright as the blob)"
+    white_k, own_k = lin[white[k]], lin[own[k]]
+    if white_k < p.min_surround * own_k:
+        return (
+            f"not on the napkin (surround {white_k / max(own_k, 1e-6):.2f} as bright as "
+            "the blob)"
+        )
     return None
 
 
-def _disc_and_dot(blob: _Blob, r: NDArray[np.float64], image: SearchImage) -> _Colours | str:
-    """Disc and dot colours: majority labels of an outer band and of the inner part of
-    the equivalent disc; or why they cannot be read."""
-    p = image.params
-    x0, y0, x1, y1 = blob.window
-    lab = image.labels[y0:y1, x0:x1]
-    outer_band = lab[blob.inside & (r > 0.6) & (r < 0.95) & (lab > 0)]
-    inner_area = r < 0.28
-    inner = lab[blob.inside & inner_area & (lab > 0)]
-    if outer_band.size == 0:
+def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | str:
+    """Disc and dot colours of the ``k``-th blob: majority labels of an outer band and
+    of the inner part of the equivalent disc; or why they cannot be read."""
+    outer_counts, inner_counts, inner_area, washed_inner = discs.disc_and_dot
+    disc_counts, outer = outer_counts[k], int(outer_counts[k].sum())
+    if outer == 0:
         return "no disc colour inside"
-    disc_counts = np.bincount(outer_band, minlength=image.n_colours + 1)
     disc = int(np.argmax(disc_counts))
-    purity = disc_counts[disc] / outer_band.size
+    purity = disc_counts[disc] / outer
     dot: int | None = None
-    if inner.size >= p.min_dot_seen * inner_area.sum():
-        dot_counts = np.bincount(inner, minlength=image.n_colours + 1)
+    inner = int(inner_counts[k].sum())
+    if inner >= p.min_dot_seen * inner_area[k]:
+        dot_counts = inner_counts[k]
         dot = int(np.argmax(dot_counts))
-        purity = min(purity, dot_counts[dot] / inner.size)
-    elif not (blob.washed & inner_area).any():
+        purity = min(purity, dot_counts[dot] / inner)
+    elif not washed_inner[k]:
         return "no dot colour inside"
     if purity < p.min_purity:
         return f"mixed colours (purity {purity:.2f})"

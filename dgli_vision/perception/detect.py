@@ -10,13 +10,18 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    nearest of the four nominal hues (:mod:`.labels`);
 2. candidate blobs (:func:`candidate_blobs`): the outer contours of the labelled mask (a
    dot inside its disc belongs to it, even where blur leaves an unsaturated ring
-   between them), each judged by :func:`.blobs.judge_blob` (depth, foreshortening,
+   between them), judged by :func:`.blobs.judge_blobs` (depth, foreshortening,
    highlight repair, size, shape, fill, surround, disc and dot colours): a candidate or
    a :class:`Rejection` with the reason;
 3. identities (:func:`identify`): the (disc, dot) pair names the sticker; an identity
    is never given twice (the better-scoring candidate keeps it), and a disc whose dot a
    highlight washed out takes the one sticker of its colour left;
-4. centres at full resolution (:class:`FullResolution`) when the search was halved.
+4. centres at full resolution (:class:`FullResolution`) when the search was halved,
+   measured for every candidate at once (:func:`_refine_all`).
+
+The work is in proportion to the blobs, not to the pixels, wherever it can be: the
+whole image is converted once (balance, HSV, labels, one contour search), and the
+checks of the blobs and their centres run on small windows, batched across blobs.
 
 :func:`find_washed_out` searches again for the stickers a broad sheen left pastel
 (:mod:`.washed`). The parameters and results live in :mod:`.detections` and are
@@ -33,7 +38,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
-from .blobs import Candidate, SearchImage, judge_blob
+from .blobs import Candidate, SearchImage, judge_blobs, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
@@ -96,7 +101,10 @@ def detect_stickers(
     candidates, rejected = candidate_blobs(image)
     full = None
     if image.halved:
-        full = FullResolution(color, napkin.lut, lut, params, intrinsics.fx, image.disc_radius_mm)
+        full = FullResolution(
+            _refine_all(color, napkin.lut, lut, params, candidates), params, intrinsics.fx,
+            image.disc_radius_mm,
+        )
     ids = identify(candidates, layout, names, full)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
@@ -124,12 +132,13 @@ def search_image(
     n_colours: int,
     roi: NDArray[np.bool_] | None = None,
 ) -> SearchImage:
-    """The image stickers are searched in, with its colour labels and washed-out pixels.
+    """The image stickers are searched in, with its colour labels.
 
     It is the frame halved (pixel-area averaging) while a sticker at the median depth
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
     ``lut`` is :func:`.labels.hue_lut`'s table. Outside ``roi`` (scaled to the search
-    image) no pixel is labelled.
+    image) no pixel is labelled, and the images are computed only where judging the
+    blobs within it reads them (elsewhere they are 0).
     """
     import cv2
 
@@ -141,31 +150,96 @@ def search_image(
         and (disc_r_mm * intrinsics.fx / med_depth >= 2 * params.search_radius_px)
         and min(color.shape[:2]) >= 200
     )
+    shape = color.shape[:2]
     if halve:
-        h2, w2 = color.shape[0] // 2, color.shape[1] // 2
-        color = cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
-        depth_mm = depth_mm[: 2 * h2 : 2, : 2 * w2 : 2]
+        shape = (color.shape[0] // 2, color.shape[1] // 2)
+        depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
         intrinsics = _halved(intrinsics)
-    norm = cv2.LUT(color, napkin.lut)  # the napkin neutral at a fixed level
-    labels, hsv = colour_labels(norm, lut, params)
-    if roi is not None:
-        inside = cv2.resize(roi.astype(np.uint8), labels.shape[::-1], cv2.INTER_NEAREST)
+    box, inside = (0, 0, shape[1], shape[0]), None
+    if roi is not None:  # (only the box that judging its blobs reads is computed)
+        inside = cv2.resize(roi.astype(np.uint8), shape[::-1], cv2.INTER_NEAREST)
+        box = _judged_box(inside, depth_mm, disc_r_mm * intrinsics.fx, med_depth)
+    color = _halved_within(color, box) if halve else color
+    norm, labels, hsv = _labelled_within(color, napkin.lut, lut, params, box)
+    if inside is not None:
         labels = labels * inside
-    blown = (
-        cv2.bitwise_or(
-            cv2.inRange(color, (params.highlight_min,) * 3, (255, 255, 255)),
-            cv2.inRange(hsv, (0, 0, params.highlight_min), (180, 10, 255)),
-        )
-        > 0
-    )
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
     return SearchImage(
-        color, norm, hsv, labels, blown, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
+        color, norm, hsv, labels, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
         bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
         params,
     )
+
+
+def _judged_box(
+    inside: NDArray[np.uint8], depth_mm: NDArray[np.uint16], disc_mm_px: float,
+    fallback_mm: float,
+) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the box of the search image that judging the blobs within the
+    pixels ``inside`` reads: their bounding box grown by the widest window such a blob
+    can have (:func:`.blobs.window_pad` of the disc expected at the nearest depth read in
+    the box, or at ``fallback_mm`` where a blob has no depth; and a pixel more).
+    ``disc_mm_px``: the disc radius (mm) times the focal length (px)."""
+    import cv2
+
+    h_img, w_img = inside.shape
+    x, y, w, h = (int(v) for v in cv2.boundingRect(inside))
+    if w == 0:
+        return 0, 0, 0, 0
+    read = depth_mm[y : y + h, x : x + w]
+    read = read[read > 0]
+    depths = [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
+    if not depths:
+        return 0, 0, w_img, h_img
+    pad = window_pad(disc_mm_px / min(depths)) + 1
+    return max(x - pad, 0), max(y - pad, 0), min(x + w + pad, w_img), min(y + h + pad, h_img)
+
+
+def _halved_within(
+    color: NDArray[np.uint8], box: tuple[int, int, int, int]
+) -> NDArray[np.uint8]:
+    """The frame halved by pixel-area averaging (each pixel the mean of a 2 x 2 block),
+    within ``box`` (x0, y0, x1, y1, halved pixels); 0 elsewhere."""
+    import cv2
+
+    h2, w2 = color.shape[0] // 2, color.shape[1] // 2
+    x0, y0, x1, y1 = box
+    if box == (0, 0, w2, h2):
+        return cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
+    out = np.zeros((h2, w2, 3), np.uint8)
+    if x1 > x0 and y1 > y0:
+        out[y0:y1, x0:x1] = cv2.resize(
+            color[2 * y0 : 2 * y1, 2 * x0 : 2 * x1], (x1 - x0, y1 - y0),
+            interpolation=cv2.INTER_AREA,
+        )
+    return out
+
+
+def _labelled_within(
+    color: NDArray[np.uint8],
+    balance: NDArray[np.uint8],
+    lut: NDArray[np.uint8],
+    params: DetectorParams,
+    box: tuple[int, int, int, int],
+) -> tuple[NDArray[np.uint8], NDArray[np.uint8], NDArray[np.uint8]]:
+    """The image balanced by ``balance``, its colour labels and HSV
+    (:func:`.labels.colour_labels`) within ``box`` (x0, y0, x1, y1); 0 elsewhere."""
+    import cv2
+
+    x0, y0, x1, y1 = box
+    if box == (0, 0, color.shape[1], color.shape[0]):
+        norm = cv2.LUT(color, balance)
+        return (norm, *colour_labels(norm, lut, params))
+    norm, hsv = np.zeros_like(color), np.zeros_like(color)
+    labels = np.zeros(color.shape[:2], np.uint8)
+    if x1 > x0 and y1 > y0:
+        norm[y0:y1, x0:x1] = cv2.LUT(color[y0:y1, x0:x1], balance)
+        labels[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = colour_labels(
+            norm[y0:y1, x0:x1], lut, params
+        )
+    return norm, labels, hsv
 
 
 def _halved(intrinsics: Intrinsics) -> Intrinsics:
@@ -182,7 +256,7 @@ def _halved(intrinsics: Intrinsics) -> Intrinsics:
 
 
 def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection]]:
-    """Every blob of the colour mask judged (:func:`.blobs.judge_blob`): the candidate
+    """Every blob of the colour mask judged (:func:`.blobs.judge_blobs`): the candidate
     stickers, and the rejected blobs with the reason, search-image pixels."""
     import cv2
 
@@ -194,8 +268,8 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
         contours, hierarchy = (), np.zeros((1, 0, 4), int)
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
-    for contour in (c for c, h in zip(contours, hierarchy[0]) if h[3] < 0):
-        judged = judge_blob(contour, image)
+    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
+    for judged in judge_blobs(outer, image):
         if isinstance(judged, Candidate):
             candidates.append(judged)
         elif judged is not None:
@@ -206,21 +280,19 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
 @dataclass(frozen=True, eq=False)
 class FullResolution:
     """What measuring a candidate's centre at full resolution needs, after a search of
-    the frame halved: the frame, the napkin's balance ``lut``, the ``hue_lut`` of
-    :func:`.labels.hue_lut`, and the focal length and disc radius that give the disc
-    size expected (full-resolution pixels)."""
+    the frame halved: every candidate's centre and area measured there
+    (:func:`_refine_all`), and the focal length and disc radius that give the disc size
+    expected (full-resolution pixels)."""
 
-    color: NDArray[np.uint8]
-    lut: NDArray[np.uint8]
-    hue_lut: NDArray[np.uint8]
+    refined: dict[Candidate, tuple[tuple[float, float], float]]
     params: DetectorParams
     fx: float
     disc_radius_mm: float
 
     def measure(self, c: Candidate) -> tuple[tuple[float, float], float] | Rejection:
-        """Centre (u, v) and area of ``c`` at full resolution (:func:`_refine`), or its
-        rejection (search-image pixels) as too small there."""
-        where, area = _refine(self.color, self.lut, self.hue_lut, self.params, c)
+        """Centre (u, v) and area of ``c`` at full resolution, or its rejection
+        (search-image pixels) as too small there."""
+        where, area = self.refined[c]
         expected = np.pi * (self.disc_radius_mm * self.fx / c.z_mm) ** 2 * c.foreshortening
         if area < self.params.min_area_ratio * expected:
             return Rejection(
@@ -319,30 +391,117 @@ def _at_full_resolution(r: Rejection) -> Rejection:
     return Rejection((2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), 4 * r.area_px, r.reason)
 
 
-def _refine(
+def _refine_all(
     color: NDArray[np.uint8],
     lut: NDArray[np.uint8],
     hue_lut: NDArray[np.uint8],
     params: DetectorParams,
-    c: Candidate,
-) -> tuple[tuple[float, float], float]:
-    """Centre and area of a blob found in the halved image, measured at full resolution:
-    its sticker-coloured (or blown-out) pixels within the blob, grown by two pixels. A
-    blob completed with a highlight's pale halo keeps its centre from the halved image
-    (the halo is no sticker colour)."""
+    candidates: list[Candidate],
+) -> dict[Candidate, tuple[tuple[float, float], float]]:
+    """Centre and area of every blob found in the halved image, measured at full
+    resolution: its sticker-coloured (or blown-out) pixels within the blob, grown by two
+    pixels. A blob completed with a highlight's pale halo keeps its centre from the
+    halved image (the halo is no sticker colour).
+
+    The boxes around the grown blobs are stacked into one image and labelled in one
+    call (labels are per pixel: the same as labelling each box).
+    """
+    out: dict[Candidate, tuple[tuple[float, float], float]] = {}
+    grown = []
+    for c in candidates:
+        if c.recovered or c.region is None:
+            out[c] = (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
+        else:
+            grown.append((c, _GrownBlob.of(c, color.shape[:2])))
+    if not grown:
+        return out
+    hits = _sticker_or_blown(_stacked([g.box_of(color) for _, g in grown]), lut, hue_lut, params)
+    top = 0
+    for c, g in grown:
+        h, w = g.up.shape
+        out[c] = _centre_of(g.region(hits[top : top + h, :w]), *g.origin, c)
+        top += h
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class _GrownBlob:
+    """A candidate's blob at full resolution, grown by two pixels: ``up`` (bool), the
+    mask in its box at ``corner`` (x, y) of the frame, and the ``origin`` (x, y) and
+    ``shape`` (rows, columns) of the candidate's whole window there, cut to the frame."""
+
+    up: NDArray[np.bool_]
+    corner: tuple[int, int]
+    origin: tuple[int, int]
+    shape: tuple[int, int]
+
+    @classmethod
+    def of(cls, c: Candidate, frame_shape: tuple[int, int]) -> _GrownBlob:
+        """The blob of ``c`` (region of the halved search) in a frame of
+        ``frame_shape`` (rows, columns): pixels doubled, then dilated by a 5 x 5 square,
+        within the blob's bounding box grown by one search pixel (all the dilation
+        reaches)."""
+        import cv2
+
+        region = c.region.astype(np.uint8)
+        h, w = region.shape
+        bx, by, bw, bh = cv2.boundingRect(region)
+        ax0, ay0 = max(bx - 1, 0), max(by - 1, 0)
+        ax1, ay1 = min(bx + bw + 1, w), min(by + bh + 1, h)
+        up = cv2.dilate(
+            region[ay0:ay1, ax0:ax1].repeat(2, axis=0).repeat(2, axis=1),
+            np.ones((5, 5), np.uint8),
+        )
+        x0, y0 = 2 * c.origin[0], 2 * c.origin[1]
+        shape = (min(2 * h, frame_shape[0] - y0), min(2 * w, frame_shape[1] - x0))
+        up = up[: shape[0] - 2 * ay0, : shape[1] - 2 * ax0]
+        return cls(up.astype(bool), (x0 + 2 * ax0, y0 + 2 * ay0), (x0, y0), shape)
+
+    def box_of(self, color: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """The pixels of ``color`` in the box of ``up``."""
+        (x, y), (h, w) = self.corner, self.up.shape
+        return color[y : y + h, x : x + w]
+
+    def region(self, hits: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """The grown blob's pixels among ``hits`` (0/1, the box's shape), in the
+        window: 0/1, shape ``shape``."""
+        out = np.zeros(self.shape, np.uint8)
+        (x, y), (h, w) = self.corner, self.up.shape
+        dx, dy = x - self.origin[0], y - self.origin[1]
+        out[dy : dy + h, dx : dx + w] = hits * self.up
+        return out
+
+
+def _stacked(boxes: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
+    """Images (h_i, w_i, 3) stacked top to bottom, left-aligned, padded with zeros."""
+    out = np.zeros((sum(b.shape[0] for b in boxes), max(b.shape[1] for b in boxes), 3), np.uint8)
+    top = 0
+    for b in boxes:
+        out[top : top + b.shape[0], : b.shape[1]] = b
+        top += b.shape[0]
+    return out
+
+
+def _sticker_or_blown(
+    image: NDArray[np.uint8], lut: NDArray[np.uint8], hue_lut: NDArray[np.uint8],
+    params: DetectorParams,
+) -> NDArray[np.uint8]:
+    """1 where a pixel of an RGB image has a sticker colour once balanced by ``lut``, or
+    is blown out as taken; else 0. Shape (h, w)."""
     import cv2
 
-    if c.recovered or c.region is None:
-        return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
-    h, w = c.region.shape
-    x0, y0 = 2 * c.origin[0], 2 * c.origin[1]
-    x1, y1 = min(x0 + 2 * w, color.shape[1]), min(y0 + 2 * h, color.shape[0])
-    up = cv2.resize(c.region.astype(np.uint8), (2 * w, 2 * h), interpolation=cv2.INTER_NEAREST)
-    up = cv2.dilate(up, np.ones((5, 5), np.uint8))[: y1 - y0, : x1 - x0]
-    win = color[y0:y1, x0:x1]
-    labels, _ = colour_labels(cv2.LUT(win, lut), hue_lut, params)
-    blown = cv2.inRange(win, (params.highlight_min,) * 3, (255, 255, 255))
-    region = cv2.bitwise_and(up, cv2.bitwise_or((labels > 0).astype(np.uint8), blown // 255))
+    labels, _ = colour_labels(cv2.LUT(image, lut), hue_lut, params)
+    blown = cv2.inRange(image, (params.highlight_min,) * 3, (255, 255, 255))
+    return cv2.bitwise_or((labels > 0).astype(np.uint8), blown // 255)
+
+
+def _centre_of(
+    region: NDArray[np.uint8], x0: int, y0: int, c: Candidate
+) -> tuple[tuple[float, float], float]:
+    """Centre and area of the largest outer contour of ``region`` (its origin at
+    (x0, y0) in the frame); the halved search's, scaled, when it has none."""
+    import cv2
+
     contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
@@ -351,7 +510,6 @@ def _refine(
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     return (m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0), float(m["m00"])
-
 
 
 def find_washed_out(

@@ -8,6 +8,8 @@ a sticker colour's.
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
 from numpy.typing import NDArray
 
@@ -16,9 +18,17 @@ from .detections import DetectorParams
 
 __all__ = ["colour_labels", "hue_lut", "hue_of"]
 
+#: Up to this many dark coloured pixels, :func:`colour_labels` tests them one by one.
+_FEW_DARK = 2000
+
 
 def hue_of(rgb: tuple[int, int, int]) -> int:
     """OpenCV 8-bit hue (0-179) of an sRGB colour."""
+    return _hue_of(tuple(int(c) for c in rgb))
+
+
+@lru_cache(maxsize=64)
+def _hue_of(rgb: tuple[int, ...]) -> int:
     import cv2
 
     return int(cv2.cvtColor(np.uint8([[rgb]]), cv2.COLOR_RGB2HSV)[0, 0, 0])
@@ -34,13 +44,19 @@ def hue_lut(
     """
     names = list(layout.colours_srgb)
     source = {**layout.colours_srgb, **(colours or {})}
-    hues = np.array([hue_of(source[n]) for n in names])
+    lut = _nearest_hue_lut(tuple(hue_of(source[n]) for n in names), params.max_hue_distance)
+    return lut.copy(), names
+
+
+@lru_cache(maxsize=16)
+def _nearest_hue_lut(hues: tuple[int, ...], max_distance: int) -> NDArray[np.uint8]:
+    """Hue -> 1 + index of the nearest of ``hues`` within ``max_distance``, else 0."""
     h = np.arange(180)
-    dist = np.abs(h[:, None] - hues[None, :])
+    dist = np.abs(h[:, None] - np.array(hues)[None, :])
     dist = np.minimum(dist, 180 - dist)  # hue is circular
     lut = (np.argmin(dist, axis=1) + 1).astype(np.uint8)
-    lut[dist.min(axis=1) > params.max_hue_distance] = 0
-    return lut, names
+    lut[dist.min(axis=1) > max_distance] = 0
+    return lut
 
 
 def colour_labels(
@@ -51,16 +67,37 @@ def colour_labels(
     import cv2
 
     hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
-    coloured = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
+    least = (0, params.min_saturation, params.min_value)
+    coloured = cv2.inRange(hsv, least, (180, 255, 255))
     # chroma = S * V / 255 >= min_chroma: only binding where V is low (dark, noisy pixels)
     v_limit = int(np.ceil(params.min_chroma * 255 / max(params.min_saturation, 1)))
-    dark_mask = cv2.bitwise_and(
-        coloured, cv2.inRange(hsv, (0, 0, 0), (180, 255, max(v_limit - 1, 0)))
-    )
-    if cv2.countNonZero(dark_mask):
-        dv, du = np.nonzero(dark_mask)
-        faint = hsv[dv, du, 1].astype(np.int32) * hsv[dv, du, 2] < params.min_chroma * 255
-        coloured[dv[faint], du[faint]] = 0
+    dark_mask = cv2.inRange(hsv, least, (180, 255, max(v_limit - 1, 0)))  # (coloured too)
+    n_dark = cv2.countNonZero(dark_mask)
+    if n_dark:
+        coloured = _without_faint(coloured, dark_mask, n_dark, hsv, params.min_chroma * 255)
     labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
     return cv2.bitwise_and(labels, coloured), hsv
 
+
+def _without_faint(
+    coloured: NDArray[np.uint8],
+    dark_mask: NDArray[np.uint8],
+    n_dark: int,
+    hsv: NDArray[np.uint8],
+    least: int,
+) -> NDArray[np.uint8]:
+    """``coloured`` without the dark pixels (``dark_mask``, ``n_dark`` of them) whose
+    chroma S * V is below ``least``. Few dark pixels are looked up one by one; many
+    (the second search's low saturation makes most coloured pixels dark) are tested
+    with one whole-image product: the same integers either way."""
+    import cv2
+
+    if n_dark <= _FEW_DARK:
+        dv, du = np.nonzero(dark_mask)
+        faint = hsv[dv, du, 1].astype(np.int32) * hsv[dv, du, 2] < least
+        coloured[dv[faint], du[faint]] = 0
+        return coloured
+    chroma = hsv[..., 1].astype(np.uint16)
+    np.multiply(chroma, hsv[..., 2], out=chroma)  # at most 255 * 255: no overflow
+    faint = cv2.bitwise_and(dark_mask, cv2.compare(chroma, least, cv2.CMP_LT))
+    return cv2.bitwise_and(coloured, cv2.bitwise_not(faint))

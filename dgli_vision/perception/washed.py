@@ -21,7 +21,13 @@ from .footprint import ClothRegions, FootprintParams, cloth_cells
 from .labels import hue_lut
 from .napkin import NapkinView
 
-__all__ = ["merge_second_search", "pale_samples", "pastel_params", "with_unread"]
+__all__ = [
+    "merge_second_search",
+    "pale_cells",
+    "pale_samples",
+    "pastel_params",
+    "with_unread",
+]
 
 
 def pastel_params(params: DetectorParams) -> DetectorParams:
@@ -61,13 +67,16 @@ def pale_samples(
 
     s = lower.stride
     lut, names = hue_lut(layout, params, colours)
-    pale, hsv = _pale_cells(color, lut, params, lower)
-    if found.found.any() and pale.any():  # (with nothing found, look anywhere)
-        cells = FootprintParams(cell_px=s)
-        cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
-        if cloth is not None:  # (else the napkin is not told from the table: anywhere)
+    on_napkin = None  # (with nothing found, or the napkin not told from the table: anywhere)
+    if found.found.any():
+        grid = FootprintParams(cell_px=s)
+        cloth = cloth_cells(color, lower, found.centroids, grid, regions=regions)
+        if cloth is not None:
             edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
-            pale &= cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
+            on_napkin = cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
+    pale, hsv = pale_cells(color, lut, params, lower, within=on_napkin)
+    if on_napkin is not None:
+        pale &= on_napkin
     ys, xs = np.nonzero(pale)
     pts = (np.column_stack([xs, ys]).astype(np.float64) + 0.5) * s
     sample_names = [names[k - 1] for k in lut[hsv[ys, xs, 0]]]
@@ -79,18 +88,57 @@ def pale_samples(
     return pts[far], tuple(n for n, f in zip(sample_names, far) if f)
 
 
-def _pale_cells(
-    color: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams, lower: NapkinView
+def pale_cells(
+    color: NDArray[np.uint8],
+    lut: NDArray[np.uint8],
+    params: DetectorParams,
+    lower: NapkinView,
+    *,
+    within: NDArray[np.bool_] | None = None,
 ) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
     """Pastel cells of a sticker hue, not next to vivid ones, shape (H // s, W // s) for
     cells of s = ``lower.stride`` pixels averaged (a sensor's noise tints single pixels,
-    not cells); and the cells' HSV once balanced by ``lower.lut``."""
+    not cells); and the cells' HSV once balanced by ``lower.lut``.
+
+    ``within`` (bool, that shape): the cells that matter; only the box around them that
+    their test reads (:data:`_VIVID_REACH` cells more) is computed, the other cells are
+    not pastel and their HSV is 0. Default: every cell.
+    """
     import cv2
 
     s = lower.stride
     h, w = color.shape[0] // s, color.shape[1] // s
-    sub = cv2.resize(color[: h * s, : w * s], (w, h), interpolation=cv2.INTER_AREA)
-    hsv = cv2.cvtColor(cv2.LUT(sub, lower.lut), cv2.COLOR_RGB2HSV)
+    x0, y0, x1, y1 = 0, 0, w, h
+    if within is not None:
+        bx, by, bw, bh = cv2.boundingRect(within.astype(np.uint8))
+        m = _VIVID_REACH
+        x0, y0 = max(bx - m, 0), max(by - m, 0)
+        x1, y1 = min(bx + bw + m, w), min(by + bh + m, h)
+    pale, hsv = np.zeros((h, w), bool), np.zeros((h, w, 3), np.uint8)
+    if bool(within is None or within.any()) and x1 > x0 and y1 > y0:
+        box = color[y0 * s : y1 * s, x0 * s : x1 * s]
+        pale[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = _pale_in(box, s, lut, params, lower.lut)
+    return pale, hsv
+
+
+#: How far (cells) a vivid cell makes the pastel cells around it a sticker's rim.
+_VIVID_REACH = 2
+
+
+def _pale_in(
+    color: NDArray[np.uint8],
+    s: int,
+    lut: NDArray[np.uint8],
+    params: DetectorParams,
+    balance: NDArray[np.uint8],
+) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
+    """:func:`pale_cells` of an image whose sides are whole cells of ``s`` pixels
+    (cells are averaged independently: any such box of a frame gives its cells)."""
+    import cv2
+
+    h, w = color.shape[0] // s, color.shape[1] // s
+    sub = cv2.resize(color, (w, h), interpolation=cv2.INTER_AREA)
+    hsv = cv2.cvtColor(cv2.LUT(sub, balance), cv2.COLOR_RGB2HSV)
     pale = cv2.inRange(
         hsv,
         (0, params.washed_saturation, params.min_value),
@@ -101,7 +149,8 @@ def _pale_cells(
     # a sheen washes whole discs: pale cells next to vivid ones are the rim of a sticker
     # partly under a flap, not a washed-out one
     vivid = cv2.inRange(hsv, (0, params.min_saturation, params.min_value), (180, 255, 255))
-    vivid = cv2.dilate(vivid & sticker_hue.astype(np.uint8) * 255, np.ones((5, 5), np.uint8))
+    reach = np.ones((2 * _VIVID_REACH + 1,) * 2, np.uint8)
+    vivid = cv2.dilate(vivid & sticker_hue.astype(np.uint8) * 255, reach)
     pale &= vivid == 0
     return pale, hsv
 
@@ -145,7 +194,7 @@ def with_unread(
     regions: ClothRegions | None = None,
 ) -> StickerDetections:
     """``found`` with the pastel patches on the napkin that no search could read
-    (``pale_px``, ``pale_colours``)."""
+    (``pale_px``, ``pale_colours``). ``regions`` as for :func:`pale_samples`."""
     left = pale_samples(
         color, found, layout, params, lower, colours, edge_cells=1, regions=regions
     )

@@ -1,0 +1,142 @@
+"""The sticker search judges its blobs, measures their centres and labels dark pixels in
+batches: a batch must give each blob exactly what it would get alone."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from dgli_vision.core.camera import DEFAULT_INTRINSICS
+from dgli_vision.core.layout import default_layout
+from dgli_vision.perception.blobs import Candidate, judge_blob, judge_blobs
+from dgli_vision.perception.detect import _refine_all, candidate_blobs, search_image
+from dgli_vision.perception.detections import DetectorParams
+from dgli_vision.perception.labels import _FEW_DARK, _without_faint, hue_lut
+from dgli_vision.perception.napkin import find_napkin
+from dgli_vision.perception.washed import pastel_params
+
+LAYOUT = default_layout()
+INTR = DEFAULT_INTRINSICS
+
+
+def _scene():
+    """Sixteen stickers on white cloth, a disc far too large, a strip, a crescent, a
+    tilted-looking ellipse and a speck: blobs that pass and blobs that fail each check."""
+    depth_mm = 500
+    img = np.full((INTR.height, INTR.width, 3), 215, np.uint8)
+    radius = LAYOUT.disc_diameter_mm / 2 * INTR.fx / depth_mm
+    for sid in range(16):
+        c = (int((100 + 70 * sid) * 16), int((200 + 17 * sid) * 16))
+        disc, dot = LAYOUT.sticker_disc[sid], LAYOUT.sticker_dot[sid]
+        cv2.circle(img, c, int(radius * 16), LAYOUT.colours_srgb[disc], -1, cv2.LINE_AA, 4)
+        cv2.circle(img, c, int(0.4 * radius * 16), LAYOUT.colours_srgb[dot], -1, cv2.LINE_AA, 4)
+    cv2.circle(img, (900, 560), 110, LAYOUT.colours_srgb["blue"], -1)
+    cv2.rectangle(img, (200, 600), (290, 610), LAYOUT.colours_srgb["green"], -1)
+    cv2.circle(img, (500, 600), int(radius), LAYOUT.colours_srgb["red"], -1)
+    cv2.circle(img, (500 + int(radius), 600), int(radius), (215, 215, 215), -1)
+    cv2.ellipse(img, (650, 620), (int(radius), int(radius / 2)), 30, 0, 360,
+                LAYOUT.colours_srgb["yellow"], -1)
+    cv2.circle(img, (1100, 650), 2, LAYOUT.colours_srgb["red"], -1)
+    return img, np.full(img.shape[:2], depth_mm, np.uint16)
+
+
+def _search(img, depth):
+    params = DetectorParams()
+    napkin = find_napkin(img, depth, INTR)
+    lut, names = hue_lut(LAYOUT, params, None)
+    image = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+    mask = cv2.threshold(image.labels, 0, 1, cv2.THRESH_BINARY)[1]
+    contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
+    return image, outer, napkin, lut, params
+
+
+def _same(a, b) -> bool:
+    if type(a) is not type(b):
+        return False
+    if isinstance(a, Candidate):
+        return (a.score, a.where, a.area, a.z_mm, a.disc, a.dot, a.origin, a.foreshortening) == (
+            b.score, b.where, b.area, b.z_mm, b.disc, b.dot, b.origin, b.foreshortening
+        ) and np.array_equal(a.region, b.region)
+    return a == b
+
+
+def test_blobs_judged_together_get_what_each_gets_alone():
+    image, outer, *_ = _search(*_scene())
+    together = judge_blobs(outer, image)
+    alone = [judge_blob(c, image) for c in outer]
+    assert len(together) == len(outer) > 20
+    assert all(_same(a, b) for a, b in zip(together, alone))
+    kinds = {type(j).__name__ for j in together}
+    assert kinds == {"Candidate", "Rejection", "NoneType"}  # every outcome in the batch
+    assert sum(isinstance(j, Candidate) for j in together) == 16
+
+
+def test_centres_measured_together_equal_each_measured_alone():
+    img, depth = _scene()
+    image, _, napkin, lut, params = _search(img, depth)
+    candidates, _ = candidate_blobs(image)
+    assert image.halved and len(candidates) == 16
+    together = _refine_all(img, napkin.lut, lut, params, candidates)
+    for c in candidates:
+        assert together[c] == _refine_all(img, napkin.lut, lut, params, [c])[c]
+        # within a pixel of the halved search's centre, at full resolution
+        assert np.hypot(*(np.array(together[c][0]) - (2 * np.array(c.where) + 0.5))) < 1.0
+
+
+def test_dark_pixels_are_tested_alike_one_by_one_and_as_a_whole_image():
+    rng = np.random.default_rng(3)
+    hsv = rng.integers(0, 256, (120, 90, 3), dtype=np.uint8)
+    params = pastel_params(DetectorParams())  # (most coloured pixels are dark)
+    least = params.min_chroma * 255
+    coloured = cv2.inRange(hsv, (0, params.min_saturation, 0), (180, 255, 255))
+    dark = cv2.inRange(hsv, (0, params.min_saturation, 0), (180, 255, 150))
+    n_dark = cv2.countNonZero(dark)
+    assert n_dark > _FEW_DARK
+    many = _without_faint(coloured.copy(), dark, n_dark, hsv, least)
+    few = _without_faint(coloured.copy(), dark, 1, hsv, least)  # (forced one by one)
+    chroma = hsv[..., 1].astype(int) * hsv[..., 2]
+    expected = np.where((dark > 0) & (chroma < least), 0, coloured)
+    np.testing.assert_array_equal(many, expected)
+    np.testing.assert_array_equal(few, expected)
+
+
+def test_pastel_cells_on_the_napkin_alone_are_those_of_the_whole_frame():
+    from dgli_vision.perception.washed import pale_cells
+
+    img, depth = _scene()
+    pastel = cv2.addWeighted(img, 0.35, np.full_like(img, 235), 0.65, 0)  # sheen-washed
+    params = DetectorParams()
+    napkin = find_napkin(pastel, depth, INTR)
+    lut, _ = hue_lut(LAYOUT, params, None)
+    everywhere, hsv = pale_cells(pastel, lut, params, napkin)
+    assert everywhere.sum() > 50
+    within = np.zeros_like(everywhere)
+    within[20:40, 10:60] = True  # a part of the grid, away from its borders
+    part, part_hsv = pale_cells(pastel, lut, params, napkin, within=within)
+    assert (everywhere & within).any() and (everywhere & ~within).any()
+    np.testing.assert_array_equal(part & within, everywhere & within)
+    np.testing.assert_array_equal(part_hsv[within], hsv[within])
+    assert not part_hsv[45:].any()  # (far from the part: not computed)
+
+
+def test_a_search_within_a_region_judges_its_blobs_as_a_search_of_the_whole_frame():
+    from dataclasses import replace
+
+    img, depth = _scene()
+    params = DetectorParams()
+    napkin = find_napkin(img, depth, INTR)
+    lut, names = hue_lut(LAYOUT, params, None)
+    roi = np.zeros((90, 160), bool)
+    roi[20:35, 30:90] = True  # cells of 8 pixels: some of the stickers
+    part = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names), roi)
+    whole = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+    assert not part.norm[-20:].any()  # (far from the region: not computed)
+    inside = cv2.resize(roi.astype(np.uint8), whole.labels.shape[::-1], cv2.INTER_NEAREST)
+    masked = replace(whole, labels=whole.labels * inside)  # (labelled everywhere, then cut)
+    np.testing.assert_array_equal(part.labels, masked.labels)
+    found, rejected = candidate_blobs(part)
+    again, rejected_again = candidate_blobs(masked)
+    assert 0 < len(found) < 16
+    assert all(_same(a, b) for a, b in zip(found, again)) and len(found) == len(again)
+    assert rejected == rejected_again
