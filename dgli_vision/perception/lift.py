@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
+from ..core.order_stats import median
 from .detect import StickerDetections
 
 __all__ = ["Markers3D", "estimate_table_normal", "estimate_table_plane", "lift_stickers"]
@@ -63,21 +64,6 @@ def estimate_table_normal(
     return estimate_table_plane(depth_mm, intrinsics, stride=stride, iterations=iterations)[0]
 
 
-def _median(x: NDArray[np.float64]) -> float:
-    """``np.median`` of a 1-D array, the same value, without its general machinery
-    (a third of a fit's time on a few thousand points): the middle order statistics by
-    one partition, NaN when the array holds one."""
-    n = x.size
-    k = n // 2
-    if n % 2:
-        part = np.partition(x, (k, n - 1))
-        middle = part[k]
-    else:
-        part = np.partition(x, (k - 1, k, n - 1))
-        middle = (part[k - 1] + part[k]) / 2.0
-    return float("nan") if np.isnan(part[n - 1]) else float(middle)
-
-
 def _mean_in_order(pts: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean of each row of ``pts`` (3, n), summed point after point: the figures of the
     fit do not depend on how the points lie in memory (numpy sums a contiguous row
@@ -101,7 +87,7 @@ def _fit_plane(
         _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
         normal = vecs[:, 0]
         resid = np.abs(normal @ pts - normal @ centre)
-        mad = _median(resid[keep])
+        mad = median(resid[keep])
         new_keep = active & (resid < min(max(3.0 * 1.4826 * mad, 0.003), cap))
         if np.count_nonzero(new_keep) < 50:
             break

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import linear_to_srgb, srgb_lut
+from ..core.order_stats import median
 
 __all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 
@@ -402,13 +403,12 @@ def find_napkin(
 @dataclass(frozen=True, eq=False)
 class _Samples:
     """The image subsampled by ``stride``: linear channels as separate flat arrays
-    (reductions over a last axis of 3 are slow), shape (n,) each, float32; ``lin`` the
-    same as (n, 3); ``clipped`` (n,) the blown-out samples; ``shape`` the grid's."""
+    (reductions over a last axis of 3 are slow), shape (n,) each, float32; ``clipped``
+    (n,) the blown-out samples; ``shape`` the grid's."""
 
     r: NDArray[np.float32]
     g: NDArray[np.float32]
     b: NDArray[np.float32]
-    lin: NDArray[np.float32]
     clipped: NDArray[np.bool_]
     shape: tuple[int, int]
 
@@ -422,7 +422,11 @@ class _Samples:
             & (sub[..., 1] >= p.clipped_level)
             & (sub[..., 2] >= p.clipped_level)
         ).ravel()
-        return cls(r, g, b, np.stack([r, g, b], axis=1), clipped, sub.shape[:2])
+        return cls(r, g, b, clipped, sub.shape[:2])
+
+    def median_of(self, which: NDArray[np.bool_]) -> NDArray[np.float64]:
+        """Per-channel median (3,) of the samples ``which``."""
+        return np.array([median(c[which]) for c in (self.r, self.g, self.b)])
 
     def balanced(self, white: NDArray) -> tuple[NDArray, NDArray]:
         """Brightness and chroma (n,) of every sample balanced to ``white``."""
@@ -443,7 +447,7 @@ def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
         usable = np.ones(len(bright), dtype=bool)
     level = np.quantile(bright[usable], 1.0 - p.bright_fraction)
     top = usable & (bright >= level)
-    white = np.median(samples.lin[top], axis=0).astype(np.float64)
+    white = samples.median_of(top)
     for _ in range(2):
         lum, chroma = samples.balanced(white)
         napkin = usable & (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
@@ -451,8 +455,8 @@ def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
             break
         lum_n = lum[napkin]
         keep = napkin.copy()
-        keep[napkin] = lum_n >= np.median(lum_n)
-        white = np.median(samples.lin[keep], axis=0).astype(np.float64)
+        keep[napkin] = lum_n >= median(lum_n)
+        white = samples.median_of(keep)
     return np.maximum(white, 1e-4)
 
 
