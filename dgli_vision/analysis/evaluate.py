@@ -119,9 +119,11 @@ def _classify_pair(
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
     dist: tuple[float, ...] = ()
     if distances and result.best_guess is not None:  # to every reference, for tracking
-        obs = result.observation
-        d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
-        dist = tuple(round(float(v), 6) for v in d)
+        d = result.distances
+        if d is None:
+            obs = result.observation
+            d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
+        dist = tuple(round(v, 6) for v in np.asarray(d, dtype=np.float64).tolist())
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None
     aff = result.affordances.to_json() if result.affordances is not None else None
