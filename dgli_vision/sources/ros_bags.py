@@ -261,7 +261,7 @@ def _payload(msg: Any, msgtype: str, stream: str, where: str) -> ImagePayload:
         int(msg.height),
         int(msg.step),
         bool(msg.is_bigendian),
-        bytes(msg.data),
+        msg.data,  # an array over the message read: no copy
     )
 
 
