@@ -16,6 +16,7 @@ applies to the full frame in about a millisecond.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -404,29 +405,40 @@ def find_napkin(
 class _Samples:
     """The image subsampled by ``stride``: linear channels as separate flat arrays
     (reductions over a last axis of 3 are slow), shape (n,) each, float32; ``clipped``
-    (n,) the blown-out samples; ``shape`` the grid's."""
+    (n,) the blown-out samples; ``shape`` the grid's; ``codes`` the 8-bit levels of the
+    three channels (3, n)."""
 
     r: NDArray[np.float32]
     g: NDArray[np.float32]
     b: NDArray[np.float32]
     clipped: NDArray[np.bool_]
     shape: tuple[int, int]
+    codes: NDArray[np.uint8]
 
     @classmethod
     def of(cls, color: NDArray[np.uint8], p: NapkinParams) -> _Samples:
         sub = color[:: p.stride, :: p.stride]
-        lut8 = srgb_lut().astype(np.float32)
-        r, g, b = (lut8[sub[..., k].ravel()] for k in range(3))
+        codes = np.ascontiguousarray(np.moveaxis(sub, -1, 0)).reshape(3, -1)
+        r, g, b = _linear8()[codes]
         clipped = (
-            (sub[..., 0] >= p.clipped_level)
-            & (sub[..., 1] >= p.clipped_level)
-            & (sub[..., 2] >= p.clipped_level)
-        ).ravel()
-        return cls(r, g, b, clipped, sub.shape[:2])
+            (codes[0] >= p.clipped_level)
+            & (codes[1] >= p.clipped_level)
+            & (codes[2] >= p.clipped_level)
+        )
+        return cls(r, g, b, clipped, sub.shape[:2], codes)
 
     def median_of(self, which: NDArray[np.bool_]) -> NDArray[np.float64]:
-        """Per-channel median (3,) of the samples ``which``."""
-        return np.array([median(c[which]) for c in (self.r, self.g, self.b)])
+        """Per-channel median (3,) of the samples ``which`` (non-empty): the linear
+        value of each channel's median 8-bit level (the levels' lookup only grows, so it
+        is the median of the linear values, found by counting 256 levels rather than by
+        sorting; the mean of the two middle ones for an even count)."""
+        n = int(np.count_nonzero(which))
+        lut, out = _linear8(), np.empty(3)
+        for k in range(3):
+            ranks = np.cumsum(np.bincount(self.codes[k][which], minlength=256))
+            lo, hi = np.searchsorted(ranks, [(n - 1) // 2, n // 2], side="right")
+            out[k] = lut[lo] if lo == hi else (lut[lo] + lut[hi]) / np.float32(2)
+        return out
 
     def balanced(self, white: NDArray) -> tuple[NDArray, NDArray]:
         """Brightness and chroma (n,) of every sample balanced to ``white``."""
@@ -435,6 +447,12 @@ class _Samples:
         lum = (br + bg + bb) / 3
         chroma = np.maximum(np.maximum(br, bg), bb) - np.minimum(np.minimum(br, bg), bb)
         return lum, chroma
+
+
+@lru_cache(maxsize=1)
+def _linear8() -> NDArray[np.float32]:
+    """Linear light of each 8-bit level, float32 (256,)."""
+    return srgb_lut().astype(np.float32)
 
 
 def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
