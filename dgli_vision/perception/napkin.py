@@ -289,6 +289,35 @@ def _brightest_in_blocks(
     return top[bi * s - y0, bj * s - x0]
 
 
+def _nearest_in_blocks(depth_mm: NDArray[np.uint16], s: int) -> NDArray[np.uint16]:
+    """The nearest reading minus one around every ``s``-th pixel, shape
+    (ceil(H / s), ceil(W / s)): the minimum of ``depth - 1`` over rows and columns
+    ``k s - s // 2`` to ``k s - s // 2 + s - 1`` (an ``s`` x ``s`` erosion sampled every
+    ``s``-th pixel), 65535 where the block has no reading (0 wraps to the largest
+    value, so the nearest reading wins the minimum).
+
+    The rows of each block first, one minimum of row views per row of the block, then
+    the columns on the ``H / s`` rows left: two passes over the image, not an erosion
+    of all of it.
+    """
+    import cv2
+
+    d1 = depth_mm - np.uint16(1)
+    hh = d1.shape[0]
+    nh, first = -(-hh // s), s - s // 2  # blocks; rows of the first (the edge cuts it)
+    whole = max(min(nh - 1, (hh - first) // s), 0)  # blocks after it with all s rows
+    rows = [d1[:first].min(axis=0, keepdims=True)]
+    if whole > 0:
+        body = d1[first : first + s * whole]
+        mid = body[0::s]
+        for k in range(1, s):
+            mid = cv2.min(mid, body[k::s])
+        rows.append(mid)
+    if whole < nh - 1:  # the last block, cut by the image's edge
+        rows.append(d1[first + s * whole :].min(axis=0, keepdims=True))
+    return cv2.erode(np.concatenate(rows), np.ones((1, s), np.uint8))[:, ::s]
+
+
 def _raised_cloth_pixels(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
@@ -305,16 +334,13 @@ def _raised_cloth_pixels(
     says whether anything in the block may stand that high; only those blocks are looked
     at pixel by pixel (a frame with every fold laid flat has none).
     """
-    import cv2
 
     s = p.stride
     hh, ww = depth_mm.shape
-    # 0 (no reading) wraps to the largest value: the nearest reading wins the minimum
-    nearest = cv2.erode(depth_mm - np.uint16(1), np.ones((s, s), np.uint8))[::s, ::s]
-    nearest = nearest.astype(np.float32) + 1.0
-    gi, gj = np.mgrid[0 : nearest.shape[0], 0 : nearest.shape[1]]
+    nearest = _nearest_in_blocks(depth_mm, s).astype(np.float32) + 1.0
+    gy, gx = np.arange(nearest.shape[0])[:, None] * s, np.arange(nearest.shape[1])[None, :] * s
     # a block's slope varies by well under a millimetre of height: 2 mm of slack
-    block_top = _height_above_table(intrinsics, normal, offset_m, gj * s, gi * s, nearest)
+    block_top = _height_above_table(intrinsics, normal, offset_m, gx, gy, nearest)
     bi, bj = np.nonzero((nearest < 65535) & (block_top > p.raised_cloth_mm - 2.0))
     if len(bi) > _MANY_BLOCKS:  # an arm or a gripper: drop the blocks with no bright pixel
         bright = _brightest_in_blocks(color, bi, bj, s)
