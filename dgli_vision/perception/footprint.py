@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
+from ..core.order_stats import median
 from .napkin import NapkinParams, NapkinView
 
 #: Cells of the image border a napkin's region may touch and still be all in view: a
@@ -138,10 +139,14 @@ class ClothRegions:
     """The white regions of a frame: image cells of ``cell_px`` pixels (averaged) that
     look like the napkin's cloth, with its stickers' holes closed, labelled by connected
     region (0: not cloth), shape ``(H // cell_px, W // cell_px)``. Found once per frame
-    (:func:`cloth_regions`); the footprint and the second sticker search both read it."""
+    (:func:`cloth_regions`); the footprint and the second sticker search both read it.
+    ``cells`` keeps the averaged cells themselves (RGB, ``cv2.INTER_AREA`` of the
+    frame's top-left ``H // cell_px * cell_px`` x ``W // cell_px * cell_px`` pixels), for
+    a later stage that needs the same average."""
 
     labels: NDArray[np.int32]
     cell_px: int
+    cells: NDArray[np.uint8] | None = None
 
 
 def cloth_regions(
@@ -181,12 +186,12 @@ def cloth_regions(
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
     # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
+    floor = max(q.min_napkin_brightness, median(lum.ravel()) + p.table_margin)
     cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    return ClothRegions(labels, c)
+    return ClothRegions(labels, c, small)
 
 
 def cloth_cells(
