@@ -349,7 +349,8 @@ def read_bag_messages(bag: RosBag, topics: BagTopics) -> Iterator[BagMessage | I
             if item is None:
                 return
             conn, bag_ns, raw = item
-            msg = reader.deserialize(raw, conn.msgtype)
+            # a view: rosbags slices off the CDR header, which copies a whole image of bytes
+            msg = reader.deserialize(memoryview(raw), conn.msgtype)
         except errors as exc:
             raise UnreadableInputError(
                 f"recording '{bag.path}' cannot be read after {last_t:.3f} s (truncated or "
