@@ -319,6 +319,25 @@ def _nearest_in_blocks(depth_mm: NDArray[np.uint16], s: int) -> NDArray[np.uint1
     return cv2.erode(np.concatenate(rows), np.ones((1, s), np.uint8))[:, ::s]
 
 
+def _block_pixels(
+    bi: NDArray[np.intp], bj: NDArray[np.intp], s: int, hh: int, ww: int
+) -> NDArray[np.intp]:
+    """Flat indices (``y * W + x``) of the pixels of blocks (rows ``bi``, columns ``bj``
+    of the ``s``-pixel grid; the erosion's window around each sample), block after
+    block, row after row, those outside the image left out."""
+    dy, dx = np.mgrid[0:s, 0:s] - s // 2  # the erosion's window around each sample
+    corner = (bi * s) * ww + bj * s
+    at = (corner[:, None] + (dy * ww + dx).ravel()[None, :]).ravel()
+    lo, hi = s // 2, s - 1 - s // 2  # the window's reach before and after its sample
+    y_ok = (bi.min() * s >= lo) and (bi.max() * s + hi < hh)
+    x_ok = (bj.min() * s >= lo) and (bj.max() * s + hi < ww)
+    if y_ok and x_ok:  # no block at the image's edge: every pixel is inside
+        return at
+    ys = (bi[:, None] * s + dy.ravel()[None, :]).ravel()
+    xs = (bj[:, None] * s + dx.ravel()[None, :]).ravel()
+    return at[(ys >= 0) & (ys < hh) & (xs >= 0) & (xs < ww)]
+
+
 def _raised_cloth_pixels(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
@@ -350,19 +369,14 @@ def _raised_cloth_pixels(
     if not len(bi):
         empty = np.zeros((0, 2), dtype=np.intp)
         return empty, np.zeros(0, dtype=np.float32)
-    dy, dx = np.mgrid[0:s, 0:s] - s // 2  # the erosion's window around each sample
-    ys = (bi[:, None] * s + dy.ravel()[None, :]).ravel()
-    xs = (bj[:, None] * s + dx.ravel()[None, :]).ravel()
-    inside = (ys >= 0) & (ys < hh) & (xs >= 0) & (xs < ww)
-    ys, xs = ys[inside], xs[inside]
+    at = _block_pixels(bi, bj, s, hh, ww)
     # colour first (a gripper's or an arm's pixels go no further), one channel at a time
     lut, wt = srgb_lut(), np.maximum(white, 1e-4)
-    px = color.reshape(-1, 3)[ys * ww + xs]  # (n, 3) uint8
+    px = color.reshape(-1, 3)[at]  # (n, 3) uint8
     r, g, b = ((lut / wt[k])[px[:, k]] for k in range(3))  # balanced: 256 divisions, not n
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
-    cloth = ~_not_napkin(lum, chroma, p)
-    ys, xs = ys[cloth], xs[cloth]
+    ys, xs = np.divmod(at[~_not_napkin(lum, chroma, p)], ww)
     d = depth_mm[ys, xs]
     height = _height_above_table(intrinsics, normal, offset_m, xs, ys, d)
     up_high = (d > 0) & (height > p.raised_cloth_mm)
@@ -532,8 +546,9 @@ def _held_up_cloth(
 
     s = p.stride
     held_up = np.zeros(shape, dtype=np.uint8)
-    held_up[raised_px[:, 1] // s, raised_px[:, 0] // s] = 1
+    cell = (raised_px[:, 1] // s, raised_px[:, 0] // s)
+    held_up[cell] = 1
     _, lab, stats, _ = cv2.connectedComponentsWithStats(held_up, connectivity=8)
     big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= p.min_raised_samples)
     raised_cloth = np.isin(lab, big[big > 0])
-    return raised_cloth, raised_cloth[raised_px[:, 1] // s, raised_px[:, 0] // s]
+    return raised_cloth, raised_cloth[cell]
