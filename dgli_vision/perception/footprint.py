@@ -99,8 +99,15 @@ def _table_area_mm2(
     central projection onto a plane): evaluated at each cell's centre, only for the
     cells asked. Through a lens's distortion, each cell's corners are traced instead.
     """
-    if intrinsics.distorted:
-        return float(_cell_areas_mm2(intrinsics, cells.shape, cell, up, offset_m)[cells].sum())
+    if intrinsics.distorted:  # traced for the cells' bounding box only
+        rows, cols = np.flatnonzero(cells.any(axis=1)), np.flatnonzero(cells.any(axis=0))
+        if not len(rows):
+            return 0.0
+        y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+        areas = _cell_areas_mm2(
+            intrinsics, (y1 - y0, x1 - x0), cell, up, offset_m, origin=(y0, x0)
+        )
+        return float(areas[cells[y0:y1, x0:x1]].sum())
     yy, xx = np.nonzero(cells)
     dx = (xx * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
     dy = (yy * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
@@ -110,13 +117,20 @@ def _table_area_mm2(
 
 
 def _cell_areas_mm2(
-    intrinsics: Intrinsics, shape: tuple[int, int], cell: int, up: NDArray, offset_m: float
+    intrinsics: Intrinsics,
+    shape: tuple[int, int],
+    cell: int,
+    up: NDArray,
+    offset_m: float,
+    origin: tuple[int, int] = (0, 0),
 ) -> NDArray[np.float64]:
     """Area on the table plane (mm^2) of every image cell, shape ``shape``, from the
     points where the rays through each cell's corners meet the plane (through the
-    lens's distortion, when the intrinsics carry it)."""
+    lens's distortion, when the intrinsics carry it); ``origin``: the cell (row,
+    column) of the first, for a block of the grid."""
     h, w = shape
-    ys, xs = np.mgrid[0 : h + 1, 0 : w + 1] * cell - 0.5
+    y0, x0 = origin
+    ys, xs = np.mgrid[y0 : y0 + h + 1, x0 : x0 + w + 1] * cell - 0.5
     if intrinsics.distorted:  # the rays of the pixels as the lens bent them
         ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
         xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
