@@ -229,12 +229,35 @@ def _near(
     out = np.zeros(len(uv), dtype=bool)
     if not mask.any():
         return out
-    vs, us = np.nonzero(mask)
-    pts = np.stack([us, vs], 1) * stride
+    reach = radius_px + stride
+    vs, us = np.nonzero(mask) if not np.isfinite(reach) else (None, None)
     for k, p in enumerate(np.asarray(uv, dtype=np.float64)):
-        if np.all(np.isfinite(p)):
-            out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + stride).any())
+        if not np.all(np.isfinite(p)):
+            continue
+        if vs is None:  # only the samples of a window around p can be near
+            pts = _samples_around(mask, p, reach, stride)
+        else:
+            pts = np.stack([us, vs], 1) * stride
+        if len(pts):
+            out[k] = bool((np.abs(pts - p).max(axis=1) <= reach).any())
     return out
+
+
+def _samples_around(
+    mask: NDArray[np.bool_], p: NDArray[np.float64], reach: float, stride: int
+) -> NDArray[np.intp]:
+    """The pixels (x, y), shape (n, 2), of the samples of ``mask`` (a grid of
+    ``stride`` pixels) that may lie within ``reach`` of the pixel ``p``: those of a
+    window of the grid a sample wider each way than the reach."""
+    hh, ww = mask.shape
+    i0 = max(int(np.floor((p[1] - reach) / stride)) - 1, 0)
+    i1 = min(int(np.floor((p[1] + reach) / stride)) + 2, hh)
+    j0 = max(int(np.floor((p[0] - reach) / stride)) - 1, 0)
+    j1 = min(int(np.floor((p[0] + reach) / stride)) + 2, ww)
+    if i0 >= i1 or j0 >= j1:
+        return np.zeros((0, 2), dtype=np.intp)
+    vs, us = np.nonzero(mask[i0:i1, j0:j1])
+    return np.stack([us + j0, vs + i0], 1) * stride
 
 
 def balance_lut(white_rgb: NDArray[np.float64], level: int) -> NDArray[np.uint8]:
