@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["median"]
+__all__ = ["median", "quantile"]
 
 
 def median(x: NDArray) -> float:
@@ -34,3 +34,36 @@ def median(x: NDArray) -> float:
         part = np.partition(x, (k - 1, k, n - 1))
         middle = (part[k - 1] + part[k]) / x.dtype.type(2)
     return float("nan") if np.isnan(part[n - 1]) else float(middle)
+
+
+def quantile(x: NDArray, q: float) -> float:
+    """``np.quantile(x, q)`` (its default, linear method) of a non-empty 1-D array for a
+    float ``q`` in [0, 1], to the bit: the two order statistics around ``(n - 1) q`` by
+    one partition, and numpy's interpolation between them; NaN when the array holds one.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+    q : float
+
+    Returns
+    -------
+    float
+    """
+    n = x.size
+    virtual = (n - 1) * q
+    lo = int(np.floor(virtual))
+    hi = lo + 1
+    if virtual >= n - 1:
+        lo = hi = n - 1
+    elif virtual < 0:
+        lo = hi = 0
+    part = np.partition(x, sorted({0, n - 1, lo, hi}))
+    if np.isnan(part[n - 1]):
+        return float("nan")
+    a, b = part[lo], part[hi]
+    gamma = float(virtual - lo)
+    diff = b - a
+    if gamma >= 0.5:
+        return float(b - diff * (1 - gamma))
+    return float(a + diff * gamma)

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
-from ..core.order_stats import median
+from ..core.order_stats import median, quantile
 from .napkin import NapkinParams, NapkinView
 
 #: Cells of the image border a napkin's region may touch and still be all in view: a
@@ -194,7 +194,7 @@ def cloth_regions(
     lut = srgb_lut()
     r, g, b = (lut[small[..., k]] for k in range(3))
     white = np.maximum(white_rgb, 1e-4)
-    level = np.quantile((r + g + b) / 3, 1.0 - q.bright_fraction)
+    level = quantile(((r + g + b) / 3).ravel(), 1.0 - q.bright_fraction)
     white = white * max(1.0, level / float(white.mean()))
     r, g, b = r / white[0], g / white[1], b / white[2]  # the napkin at 1
     lum = (r + g + b) / 3

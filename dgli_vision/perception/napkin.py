@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import linear_to_srgb, srgb_lut
-from ..core.order_stats import median
+from ..core.order_stats import median, quantile
 
 __all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 
@@ -527,7 +527,7 @@ def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
     usable = ~samples.clipped
     if usable.sum() < 50:
         usable = np.ones(len(bright), dtype=bool)
-    level = np.quantile(bright[usable], 1.0 - p.bright_fraction)
+    level = quantile(bright[usable], 1.0 - p.bright_fraction)
     top = usable & (bright >= level)
     white = samples.median_of(top)
     for _ in range(2):
