@@ -4,7 +4,7 @@ frame's answer depends on which one computed them."""
 import numpy as np
 import pytest
 
-from dgli_vision.core.order_stats import median, quantile
+from dgli_vision.core.order_stats import median, nanmedian, quantile
 
 
 def _samples(seed: int, dtype: type) -> list[np.ndarray]:
@@ -35,3 +35,12 @@ def test_quantile_is_numpys_to_the_bit(dtype, q):
 def test_a_nan_gives_nan_as_numpy_does():
     x = np.array([1.0, np.nan, 3.0, 2.0])
     assert np.isnan(median(x)) and np.isnan(quantile(x, 0.97))
+
+
+def test_nanmedian_is_numpys_to_the_bit():
+    rng = np.random.default_rng(3)
+    for x in _samples(3, np.float64):
+        x[rng.random(x.size) < 0.3] = np.nan
+        if np.isnan(x).all():
+            continue
+        assert nanmedian(x) == float(np.nanmedian(x))

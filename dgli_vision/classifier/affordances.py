@@ -29,6 +29,7 @@ from ..core.camera import Intrinsics
 from ..core.classes import CORNERS, LIFTED_MM
 from ..core.fold_lines import NominalFold, nominal_folds, reflect_uv
 from ..core.layout import CORNER_STICKERS, NapkinLayout
+from ..core.order_stats import median
 
 __all__ = [
     "CORNER_STATES",
@@ -186,7 +187,7 @@ def _table_offset(obs: Any) -> float:
     ok = np.isfinite(h) & np.isfinite(pts).all(axis=1)
     if not ok.any():
         return float("nan")
-    return float(np.median(pts[ok] @ obs.up - h[ok] * 1e-3))
+    return median(pts[ok] @ obs.up - h[ok] * 1e-3)
 
 
 def _lying(obs: Any) -> NDArray[np.bool_]:

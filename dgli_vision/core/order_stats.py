@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["median", "quantile"]
+__all__ = ["median", "nanmedian", "quantile"]
 
 
 def median(x: NDArray) -> float:
@@ -67,3 +67,10 @@ def quantile(x: NDArray, q: float) -> float:
     if gamma >= 0.5:
         return float(b - diff * (1 - gamma))
     return float(a + diff * gamma)
+
+
+def nanmedian(x: NDArray) -> float:
+    """``np.nanmedian`` of a 1-D array, to the bit: the median of its values that are not
+    NaN; NaN when there is none (without numpy's warning)."""
+    told = x[~np.isnan(x)]
+    return median(told) if told.size else float("nan")

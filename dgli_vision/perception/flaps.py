@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
+from ..core.order_stats import median
 from .evidence import HELD_UP, StickerEvidence
 from .napkin import NapkinView
 
@@ -64,7 +65,7 @@ def _line(x: NDArray, h: NDArray, p: FlapParams) -> tuple[float, float]:
         return float("nan"), float("nan")
     beta, c = np.polyfit(h, x, 1)
     res = np.abs(x - (beta * h + c))
-    mad = float(np.median(res)) + 1e-6
+    mad = median(res) + 1e-6
     keep = res <= p.outlier_mads * 1.4826 * mad + 1.0
     if keep.sum() >= p.min_samples and np.ptp(h[keep]) >= p.min_height_span_mm:
         beta, c = np.polyfit(h[keep], x[keep], 1)
