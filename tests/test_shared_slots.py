@@ -56,3 +56,17 @@ def test_slots_are_reused_once_freed_and_a_full_ring_sends_the_frame_as_it_is():
         assert bigger.shared(slots)[1] is None
     finally:
         slots.close()
+
+
+def test_without_room_in_shared_memory_frames_go_with_their_pixels(monkeypatch):
+    import errno
+
+    def full(fd, offset, size):
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(os, "posix_fallocate", full, raising=False)
+    slots = SharedSlots(2)
+    pair = _pair(1)
+    sent, slot = pair.shared(slots)
+    assert slot is None and sent is pair  # sent the usual way, not a crash later
+    slots.close()

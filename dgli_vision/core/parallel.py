@@ -122,6 +122,9 @@ class SharedSlots:
         self._free = list(range(n_slots - 1, -1, -1))
 
     def _open(self, slot_bytes: int) -> None:
+        """Make the file, its space reserved: a shared memory too small for it (a
+        container's 64 MB ``/dev/shm``) leaves the slots unused, rather than failing
+        at the first write into a page it cannot hold."""
         import mmap
         import os
         import tempfile
@@ -129,10 +132,21 @@ class SharedSlots:
         self.slot_bytes = -(-slot_bytes // mmap.PAGESIZE) * mmap.PAGESIZE
         size = self.n_slots * self.slot_bytes
         folder = "/dev/shm" if os.path.isdir("/dev/shm") else None
-        fd, self.path = tempfile.mkstemp(prefix="dgli-slots-", dir=folder)
         try:
-            os.ftruncate(fd, size)
+            fd, path = tempfile.mkstemp(prefix="dgli-slots-", dir=folder)
+        except OSError:
+            self._free = []
+            return
+        try:
+            if hasattr(os, "posix_fallocate"):
+                os.posix_fallocate(fd, 0, size)
+            else:
+                os.ftruncate(fd, size)
             self._map = mmap.mmap(fd, size)
+            self.path = path
+        except OSError:
+            self._free = []  # no room: every payload goes the usual way
+            os.unlink(path)
         finally:
             os.close(fd)
 
@@ -142,9 +156,9 @@ class SharedSlots:
         not fit in one."""
         views = [memoryview(p).cast("B") for p in parts]
         need = sum(v.nbytes for v in views)
-        if self._map is None and self.n_slots and need:
+        if self._map is None and self._free and need:
             self._open(need)
-        if not self._free or need > self.slot_bytes or self.path is None:
+        if self._map is None or not self._free or need > self.slot_bytes:
             return None
         slot = self._free.pop()
         offset, refs = slot * self.slot_bytes, []
