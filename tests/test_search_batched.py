@@ -11,7 +11,7 @@ from dgli_vision.core.layout import default_layout
 from dgli_vision.perception.blobs import Candidate, judge_blob, judge_blobs
 from dgli_vision.perception.detect import _refine_all, candidate_blobs, search_image
 from dgli_vision.perception.detections import DetectorParams
-from dgli_vision.perception.labels import _FEW_DARK, _without_faint, hue_lut
+from dgli_vision.perception.labels import colour_labels, hue_lut
 from dgli_vision.perception.napkin import find_napkin
 from dgli_vision.perception.washed import pastel_params
 
@@ -84,21 +84,21 @@ def test_centres_measured_together_equal_each_measured_alone():
         assert np.hypot(*(np.array(together[c][0]) - (2 * np.array(c.where) + 0.5))) < 1.0
 
 
-def test_dark_pixels_are_tested_alike_one_by_one_and_as_a_whole_image():
+def test_colour_labels_by_one_table_are_those_of_every_threshold_pixel_by_pixel():
     rng = np.random.default_rng(3)
-    hsv = rng.integers(0, 256, (120, 90, 3), dtype=np.uint8)
-    params = pastel_params(DetectorParams())  # (most coloured pixels are dark)
-    least = params.min_chroma * 255
-    coloured = cv2.inRange(hsv, (0, params.min_saturation, 0), (180, 255, 255))
-    dark = cv2.inRange(hsv, (0, params.min_saturation, 0), (180, 255, 150))
-    n_dark = cv2.countNonZero(dark)
-    assert n_dark > _FEW_DARK
-    many = _without_faint(coloured.copy(), dark, n_dark, hsv, least)
-    few = _without_faint(coloured.copy(), dark, 1, hsv, least)  # (forced one by one)
-    chroma = hsv[..., 1].astype(int) * hsv[..., 2]
-    expected = np.where((dark > 0) & (chroma < least), 0, coloured)
-    np.testing.assert_array_equal(many, expected)
-    np.testing.assert_array_equal(few, expected)
+    norm = rng.integers(0, 256, (120, 90, 3), dtype=np.uint8)
+    norm[:40] //= 4  # (dark pixels, where the chroma binds)
+    lut, _ = hue_lut(LAYOUT, DetectorParams(), None)
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV).astype(int)
+    h, s, v = hsv[..., 0], hsv[..., 1], hsv[..., 2]
+    for params in (DetectorParams(), pastel_params(DetectorParams())):
+        labels, _ = colour_labels(norm, lut, params)
+        v_limit = np.ceil(params.min_chroma * 255 / params.min_saturation)
+        coloured = (s >= params.min_saturation) & (v >= params.min_value)
+        faint = (v < v_limit) & (s * v < params.min_chroma * 255)  # (dark, low chroma)
+        expected = np.where(coloured & ~faint, lut[h], 0)
+        assert (coloured & faint).sum() > 100 and (expected > 0).sum() > 1000
+        np.testing.assert_array_equal(labels, expected)
 
 
 def test_pastel_cells_on_the_napkin_alone_are_those_of_the_whole_frame():
