@@ -140,3 +140,44 @@ def test_a_search_within_a_region_judges_its_blobs_as_a_search_of_the_whole_fram
     assert 0 < len(found) < 16
     assert all(_same(a, b) for a, b in zip(found, again)) and len(found) == len(again)
     assert rejected == rejected_again
+
+
+def test_a_search_near_the_napkin_judges_its_blobs_as_a_search_of_the_whole_image():
+    from dataclasses import replace
+
+    from dgli_vision.perception.detect import detect_stickers
+
+    img, depth = _scene()
+    img[:150], img[520:], img[:, :40], img[:, 1240:] = 95, 95, 95, 95  # a grey table
+    for x in (150, 450, 750, 1050):  # things on it, away from the napkin
+        cv2.circle(img, (x, 640), 30, LAYOUT.colours_srgb["blue"], -1)
+    cv2.circle(img, (560, 470), 12, LAYOUT.colours_srgb["green"], -1)  # a crescent on it
+    cv2.circle(img, (572, 470), 12, (215, 215, 215), -1)
+    params = DetectorParams()
+    lut, names = hue_lut(LAYOUT, params, None)
+
+    def near_and_whole():
+        napkin = find_napkin(img, depth, INTR)
+        near = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+        whole = search_image(
+            img, depth, INTR, LAYOUT, replace(params, napkin_margin=None), napkin, lut,
+            len(names),
+        )
+        return napkin, near, whole
+
+    x0, y0, x1, y1 = near_and_whole()[1].within
+    cv2.circle(img, (300, 2 * y1), 30, LAYOUT.colours_srgb["red"], -1)  # across its edge
+    napkin, near, whole = near_and_whole()
+    assert near.within == (x0, y0, x1, y1) and whole.within is None
+    assert 0 < y1 - y0 < 0.8 * near.labels.shape[0]
+    found, rejected = candidate_blobs(near)
+    found_all, rejected_all = candidate_blobs(whole)
+    assert len(found) == 16 and all(_same(a, b) for a, b in zip(found, found_all))
+    far = [r for r in rejected_all if r not in rejected]  # (the table's things)
+    assert len(far) == 5 and all(r.centroid[1] + np.sqrt(r.area_px) > y1 for r in far)
+    assert rejected == [r for r in rejected_all if r not in far] and rejected
+    a = detect_stickers(img, depth, INTR, LAYOUT, params, napkin=napkin)
+    b = detect_stickers(img, depth, INTR, LAYOUT, replace(params, napkin_margin=None),
+                        napkin=napkin)
+    np.testing.assert_array_equal(a.centroids, b.centroids)
+    np.testing.assert_array_equal(a.areas, b.areas)

@@ -77,6 +77,11 @@ class SearchImage:
     n_colours : int
         Number of sticker colours.
     params : DetectorParams
+    within : (int, int, int, int), optional
+        (x0, y0, x1, y1): the box stickers are searched in (near the napkin); only the
+        blobs lying wholly within it are judged, each as in a search of the whole
+        image (the images are computed as far beyond it as their windows reach).
+        None: everywhere.
     """
 
     color: NDArray[np.uint8]
@@ -93,6 +98,7 @@ class SearchImage:
     repair_highlights: bool
     n_colours: int
     params: DetectorParams
+    within: tuple[int, int, int, int] | None = None
 
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as

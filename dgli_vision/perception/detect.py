@@ -30,6 +30,7 @@ re-exported here.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -138,7 +139,9 @@ def search_image(
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
     ``lut`` is :func:`.labels.hue_lut`'s table. Outside ``roi`` (scaled to the search
     image) no pixel is labelled, and the images are computed only where judging the
-    blobs within it reads them (elsewhere they are 0).
+    blobs within it reads them (elsewhere they are 0). Without ``roi``, stickers are
+    searched near the napkin (:func:`_napkin_box`, ``SearchImage.within``): the images
+    are computed only where judging the blobs within that box reads them.
     """
     import cv2
 
@@ -155,10 +158,22 @@ def search_image(
         shape = (color.shape[0] // 2, color.shape[1] // 2)
         depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
         intrinsics = _halved(intrinsics)
-    box, inside = (0, 0, shape[1], shape[0]), None
+    box, inside, near = (0, 0, shape[1], shape[0]), None, None
     if roi is not None:  # (only the box that judging its blobs reads is computed)
         inside = cv2.resize(roi.astype(np.uint8), shape[::-1], cv2.INTER_NEAREST)
-        box = _judged_box(inside, depth_mm, disc_r_mm * intrinsics.fx, med_depth)
+        box = _judged_box(
+            cv2.boundingRect(inside), depth_mm, disc_r_mm * intrinsics.fx, med_depth
+        )
+    else:
+        near = _napkin_box(
+            napkin, shape, 0.5 if halve else 1.0, depth_mm, disc_r_mm * intrinsics.fx,
+            med_depth, params,
+        )
+        if near is not None:
+            x0, y0, x1, y1 = near
+            box = _judged_box(
+                (x0, y0, x1 - x0, y1 - y0), depth_mm, disc_r_mm * intrinsics.fx, med_depth
+            )
     color = _halved_within(color, box) if halve else color
     norm, labels, hsv = _labelled_within(color, napkin.lut, lut, params, box)
     if inside is not None:
@@ -169,32 +184,72 @@ def search_image(
         color, norm, hsv, labels, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
         bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
-        params,
+        params, near,
     )
 
 
 def _judged_box(
-    inside: NDArray[np.uint8], depth_mm: NDArray[np.uint16], disc_mm_px: float,
+    rect: tuple[int, int, int, int], depth_mm: NDArray[np.uint16], disc_mm_px: float,
     fallback_mm: float,
 ) -> tuple[int, int, int, int]:
-    """(x0, y0, x1, y1): the box of the search image that judging the blobs within the
-    pixels ``inside`` reads: their bounding box grown by the widest window such a blob
-    can have (:func:`.blobs.window_pad` of the disc expected at the nearest depth read in
-    the box, or at ``fallback_mm`` where a blob has no depth; and a pixel more).
+    """(x0, y0, x1, y1): the box of the search image that judging the blobs within
+    ``rect`` (x, y, w, h) reads: ``rect`` grown by the widest window such a blob can
+    have (:func:`.blobs.window_pad` of the disc expected at the nearest depth read in
+    it, or at ``fallback_mm`` where a blob has no depth; and a pixel more).
     ``disc_mm_px``: the disc radius (mm) times the focal length (px)."""
-    import cv2
-
-    h_img, w_img = inside.shape
-    x, y, w, h = (int(v) for v in cv2.boundingRect(inside))
+    h_img, w_img = depth_mm.shape
+    x, y, w, h = (int(v) for v in rect)
     if w == 0:
         return 0, 0, 0, 0
-    read = depth_mm[y : y + h, x : x + w]
-    read = read[read > 0]
-    depths = [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
+    depths = _depths_in(depth_mm, (x, y, x + w, y + h), fallback_mm)
     if not depths:
         return 0, 0, w_img, h_img
     pad = window_pad(disc_mm_px / min(depths)) + 1
     return max(x - pad, 0), max(y - pad, 0), min(x + w + pad, w_img), min(y + h + pad, h_img)
+
+
+def _depths_in(
+    depth_mm: NDArray[np.uint16], box: tuple[int, int, int, int], fallback_mm: float
+) -> list[float]:
+    """The nearest depth read in ``box`` (x0, y0, x1, y1) and ``fallback_mm``, those
+    that are readings (> 0)."""
+    x0, y0, x1, y1 = box
+    read = depth_mm[y0:y1, x0:x1]
+    read = read[read > 0]
+    return [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
+
+
+def _napkin_box(
+    napkin: NapkinView, shape: tuple[int, int], scale: float,
+    depth_mm: NDArray[np.uint16], disc_mm_px: float, fallback_mm: float,
+    params: DetectorParams,
+) -> tuple[int, int, int, int] | None:
+    """(x0, y0, x1, y1): the box of the search image (``shape``, rows and columns;
+    ``scale`` of the frame's pixels; ``depth_mm`` sampled to it) where stickers are
+    searched: the box around the napkin's cloth samples grown by
+    ``params.napkin_margin`` sticker diameters at the nearest depth read in it (at
+    least 4 sampling strides). None: the whole image (no margin set, no cloth seen, no
+    depth read, or the box covers it)."""
+    import cv2
+
+    cloth = napkin.cloth
+    if params.napkin_margin is None or cloth is None or not cloth.any():
+        return None
+    h_img, w_img = shape
+    x, y, w, h = cv2.boundingRect(cloth.astype(np.uint8))
+    s = napkin.stride * scale  # (a sample is at pixel stride * k of the frame)
+    x0, y0 = math.floor(x * s), math.floor(y * s)
+    x1, y1 = math.ceil((x + w) * s), math.ceil((y + h) * s)
+    depths = _depths_in(depth_mm, (x0, y0, x1, y1), fallback_mm)
+    if not depths:
+        return None
+    margin = math.ceil(
+        max(params.napkin_margin * 2 * disc_mm_px / min(depths), 4 * s)
+    )
+    box = max(x0 - margin, 0), max(y0 - margin, 0), min(x1 + margin, w_img), min(
+        y1 + margin, h_img
+    )
+    return None if box == (0, 0, w_img, h_img) else box
 
 
 def _halved_within(
@@ -269,12 +324,20 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
     outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
+    if image.within is not None:  # (blobs not wholly within it are not judged)
+        outer = [c for c in outer if _lies_within(cv2.boundingRect(c), image.within)]
     for judged in judge_blobs(outer, image):
         if isinstance(judged, Candidate):
             candidates.append(judged)
         elif judged is not None:
             rejected.append(judged)
     return candidates, rejected
+
+
+def _lies_within(rect: tuple[int, int, int, int], box: tuple[int, int, int, int]) -> bool:
+    """Whether ``rect`` (x, y, w, h) lies within ``box`` (x0, y0, x1, y1)."""
+    x, y, w, h = rect
+    return x >= box[0] and y >= box[1] and x + w <= box[2] and y + h <= box[3]
 
 
 @dataclass(frozen=True, eq=False)
