@@ -215,8 +215,14 @@ def _depths_in(
     that are readings (> 0)."""
     x0, y0, x1, y1 = box
     read = depth_mm[y0:y1, x0:x1]
-    read = read[read > 0]
-    return [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
+    if read.dtype == np.uint16:
+        # (0, no reading, wraps round to the largest value: the least of the rest is read)
+        least = int((read - np.uint16(1)).min()) + 1 if read.size else 0
+        nearest = float(least) if 0 < least <= np.iinfo(np.uint16).max else np.nan
+    else:
+        read = read[read > 0]
+        nearest = float(read.min()) if read.size else np.nan
+    return [d for d in (nearest, fallback_mm) if d > 0]
 
 
 def _napkin_box(
@@ -264,10 +270,10 @@ def _halved_within(
     if box == (0, 0, w2, h2):
         return cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
     out = np.zeros((h2, w2, 3), np.uint8)
-    if x1 > x0 and y1 > y0:
-        out[y0:y1, x0:x1] = cv2.resize(
+    if x1 > x0 and y1 > y0:  # (written in place, into the box of ``out``)
+        cv2.resize(
             color[2 * y0 : 2 * y1, 2 * x0 : 2 * x1], (x1 - x0, y1 - y0),
-            interpolation=cv2.INTER_AREA,
+            dst=out[y0:y1, x0:x1], interpolation=cv2.INTER_AREA,
         )
     return out
 
@@ -289,11 +295,10 @@ def _labelled_within(
         return (norm, *colour_labels(norm, lut, params))
     norm, hsv = np.zeros_like(color), np.zeros_like(color)
     labels = np.zeros(color.shape[:2], np.uint8)
-    if x1 > x0 and y1 > y0:
-        norm[y0:y1, x0:x1] = cv2.LUT(color[y0:y1, x0:x1], balance)
-        labels[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = colour_labels(
-            norm[y0:y1, x0:x1], lut, params
-        )
+    if x1 > x0 and y1 > y0:  # (written in place, into the box of each)
+        inner = np.s_[y0:y1, x0:x1]
+        cv2.LUT(color[inner], balance, dst=norm[inner])
+        colour_labels(norm[inner], lut, params, out=(labels[inner], hsv[inner]))
     return norm, labels, hsv
 
 

@@ -57,17 +57,20 @@ def _nearest_hue_lut(hues: tuple[int, ...], max_distance: int) -> NDArray[np.uin
 
 
 def colour_labels(
-    norm: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams
+    norm: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams,
+    *, out: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None,
 ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     """Colour label (0 none, k + 1 colour k) of every pixel of a balanced RGB image, and
-    its HSV. Shapes (h, w) and (h, w, 3). ``lut`` is :func:`hue_lut`'s table.
+    its HSV. Shapes (h, w) and (h, w, 3). ``lut`` is :func:`hue_lut`'s table; ``out``:
+    the arrays (labels, HSV) to write them in (views of larger images may be given).
 
     A pixel is coloured when its saturation S reaches :func:`least_saturation` of its
     value V (which holds every threshold: saturation, value, chroma): one table lookup
     and one comparison per pixel on the HSV planes."""
     import cv2
 
-    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
+    labels_out, hsv_out = out if out is not None else (None, None)
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV, dst=hsv_out)
     h, s, v = cv2.split(hsv)  # (planes of their own: each is overwritten below)
     needed, v_least = least_saturation(
         params.min_saturation, params.min_value, params.min_chroma
@@ -77,7 +80,7 @@ def colour_labels(
         cv2.threshold(v, v_least - 1, 255, cv2.THRESH_BINARY, dst=v)
         cv2.bitwise_and(coloured, v, dst=coloured)
     labels = cv2.LUT(h, _hue_table(lut), dst=h)
-    return cv2.bitwise_and(labels, coloured, dst=labels), hsv
+    return cv2.bitwise_and(labels, coloured, dst=h if labels_out is None else labels_out), hsv
 
 
 def _hue_table(lut: NDArray[np.uint8]) -> NDArray[np.uint8]:
