@@ -41,10 +41,16 @@ from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
-from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
+from .footprint import ClothRegions, FootprintParams, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
-from .washed import merge_second_search, pale_samples, pastel_params, with_unread
+from .washed import (
+    PastelLooks,
+    merge_second_search,
+    pale_samples,
+    pastel_params,
+    with_unread,
+)
 
 __all__ = [
     "DetectorParams",
@@ -628,10 +634,11 @@ def find_washed_out(
     cells = FootprintParams(cell_px=lower.stride)
     if regions is None or regions.cell_px != cells.cell_px:
         regions = cloth_regions(color, napkin.white_rgb, cells)
-    if len(pale_samples(color, found, layout, params, lower, colours, regions=regions)[0]) < 2:
+    looks = PastelLooks(color, lower, regions)  # (shared by the looks below)
+    if len(pale_samples(color, found, layout, params, lower, colours, looks=looks)[0]) < 2:
         return found  # no pastel patch anywhere: nothing to search, nothing left unread
     roi = None
-    cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
+    cloth = looks.cloth(found.centroids)
     if found.found.any() and cloth is not None:
         m = 2 * params.washed_margin_cells + 1
         roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
@@ -640,7 +647,7 @@ def find_washed_out(
         colours=colours, roi=roi,
     )
     merged = merge_second_search(found, again)
-    return with_unread(color, merged, layout, params, lower, colours, regions=regions)
+    return with_unread(color, merged, layout, params, lower, colours, looks=looks)
 
 
 def detect_all_stickers(
