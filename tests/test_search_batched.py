@@ -208,3 +208,25 @@ def test_blob_depths_measured_together_equal_each_measured_alone():
         z = float(np.sort(seen)[len(seen) // 2]) if seen.size else image.median_depth_mm
         assert b.z_mm == alone.z_mm == z
         assert np.array_equal(b.inside, alone.inside) and b.window == alone.window
+
+
+def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
+    from dgli_vision.perception.footprint import cloth_regions
+    from dgli_vision.perception.washed import PastelLooks, pale_cells
+
+    img, depth = _scene()
+    pastel = cv2.addWeighted(img, 0.35, np.full_like(img, 235), 0.65, 0)  # sheen-washed
+    params = DetectorParams()
+    napkin = find_napkin(pastel, depth, INTR)
+    lut, _ = hue_lut(LAYOUT, params, None)
+    regions = cloth_regions(pastel, napkin.white_rgb)
+    assert regions.cells is not None and regions.cell_px == napkin.stride
+    within = np.zeros(regions.labels.shape, bool)
+    within[20:40, 10:60] = True
+    looks = PastelLooks(pastel, napkin, regions)
+    for part in (within, None):
+        pale, hsv = looks.pale_cells(lut, params, part)
+        again, again_hsv = pale_cells(pastel, lut, params, napkin, within=part)
+        assert pale.sum() > 10
+        np.testing.assert_array_equal(pale, again)
+        np.testing.assert_array_equal(hsv, again_hsv)

@@ -134,16 +134,26 @@ def _pale_cells_in(
     params: DetectorParams,
     lower: NapkinView,
     box: tuple[int, int, int, int],
+    averaged: NDArray[np.uint8] | None = None,
 ) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
     """:func:`pale_cells` of the cells in ``box`` (x0, y0, x1, y1); elsewhere not
-    pastel, HSV 0."""
+    pastel, HSV 0. ``averaged``: the frame's cells already averaged (RGB, shape
+    (H // s, W // s, 3), ``ClothRegions.cells``), else they are averaged here."""
+    import cv2
+
     s = lower.stride
     h, w = color.shape[0] // s, color.shape[1] // s
     x0, y0, x1, y1 = box
     pale, hsv = np.zeros((h, w), bool), np.zeros((h, w, 3), np.uint8)
     if x1 > x0 and y1 > y0:
-        cells = color[y0 * s : y1 * s, x0 * s : x1 * s]
-        pale[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = _pale_in(cells, s, lut, params, lower.lut)
+        if averaged is not None and averaged.shape == (h, w, 3):
+            cells = averaged[y0:y1, x0:x1]
+        else:  # (cells are averaged independently: any box of whole cells gives its own)
+            cells = cv2.resize(
+                color[y0 * s : y1 * s, x0 * s : x1 * s], (x1 - x0, y1 - y0),
+                interpolation=cv2.INTER_AREA,
+            )
+        pale[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = _pale_in(cells, lut, params, lower.lut)
     return pale, hsv
 
 
@@ -151,7 +161,8 @@ class PastelLooks:
     """What the looks for pastel patches at one frame (:func:`pale_samples`) share:
     the napkin's cells for each set of stickers found, and the pastel cells computed
     so far (a box of them; a later look within it reads them, as computing them again
-    gives the same cells).
+    gives the same cells). The cells are averaged once, by :func:`.footprint.cloth_regions`
+    (``ClothRegions.cells``), when ``regions`` keeps them.
 
     Parameters
     ----------
@@ -187,7 +198,12 @@ class PastelLooks:
         box = _cells_box(self.color, self.lower.stride, within)
         key = (lut.tobytes(), params)
         if self._cells is None or self._cells[0] != key or not _holds(self._cells[1], box):
-            self._cells = (key, box, *_pale_cells_in(self.color, lut, params, self.lower, box))
+            averaged = None
+            if self.regions is not None and self.regions.cell_px == self.lower.stride:
+                averaged = self.regions.cells
+            self._cells = (
+                key, box, *_pale_cells_in(self.color, lut, params, self.lower, box, averaged)
+            )
         return self._cells[2].copy(), self._cells[3]
 
 
@@ -206,18 +222,15 @@ _VIVID_REACH = 2
 
 
 def _pale_in(
-    color: NDArray[np.uint8],
-    s: int,
+    sub: NDArray[np.uint8],
     lut: NDArray[np.uint8],
     params: DetectorParams,
     balance: NDArray[np.uint8],
 ) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
-    """:func:`pale_cells` of an image whose sides are whole cells of ``s`` pixels
-    (cells are averaged independently: any such box of a frame gives its cells)."""
+    """:func:`pale_cells` of averaged cells ``sub`` (RGB, shape (h, w, 3)); the test of
+    a cell reads the cells within :data:`_VIVID_REACH` of it."""
     import cv2
 
-    h, w = color.shape[0] // s, color.shape[1] // s
-    sub = cv2.resize(color, (w, h), interpolation=cv2.INTER_AREA)
     hsv = cv2.cvtColor(cv2.LUT(sub, balance), cv2.COLOR_RGB2HSV)
     pale = cv2.inRange(
         hsv,
