@@ -172,8 +172,8 @@ def search_image(
         )
     else:
         near = _napkin_box(
-            napkin, shape, 0.5 if halve else 1.0, depth_mm, disc_r_mm * intrinsics.fx,
-            med_depth, params,
+            napkin, shape, 0.5 if halve else 1.0, disc_r_mm * intrinsics.fx, med_depth,
+            params,
         )
         if near is not None:
             x0, y0, x1, y1 = near
@@ -232,34 +232,28 @@ def _depths_in(
 
 
 def _napkin_box(
-    napkin: NapkinView, shape: tuple[int, int], scale: float,
-    depth_mm: NDArray[np.uint16], disc_mm_px: float, fallback_mm: float,
-    params: DetectorParams,
+    napkin: NapkinView, shape: tuple[int, int], scale: float, disc_mm_px: float,
+    median_mm: float, params: DetectorParams,
 ) -> tuple[int, int, int, int] | None:
     """(x0, y0, x1, y1): the box of the search image (``shape``, rows and columns;
-    ``scale`` of the frame's pixels; ``depth_mm`` sampled to it) where stickers are
-    searched: the box around the napkin's cloth samples grown by
-    ``params.napkin_margin`` sticker diameters at the nearest depth read in it (at
-    least 4 sampling strides). None: the whole image (no margin set, no cloth seen, no
-    depth read, or the box covers it)."""
+    ``scale`` of the frame's pixels) where stickers are searched: the box around the
+    napkin's cloth samples grown by ``params.napkin_margin`` sticker diameters at the
+    frame's median depth ``median_mm`` (at least 4 sampling strides). None: the whole
+    image (no margin set, no cloth seen, no depth read, or the box covers it)."""
     import cv2
 
     cloth = napkin.cloth
     if params.napkin_margin is None or cloth is None or not cloth.any():
         return None
+    if not (median_mm > 0):
+        return None
     h_img, w_img = shape
     x, y, w, h = cv2.boundingRect(cloth.astype(np.uint8))
     s = napkin.stride * scale  # (a sample is at pixel stride * k of the frame)
-    x0, y0 = math.floor(x * s), math.floor(y * s)
-    x1, y1 = math.ceil((x + w) * s), math.ceil((y + h) * s)
-    depths = _depths_in(depth_mm, (x0, y0, x1, y1), fallback_mm)
-    if not depths:
-        return None
-    margin = math.ceil(
-        max(params.napkin_margin * 2 * disc_mm_px / min(depths), 4 * s)
-    )
-    box = max(x0 - margin, 0), max(y0 - margin, 0), min(x1 + margin, w_img), min(
-        y1 + margin, h_img
+    margin = max(params.napkin_margin * 2 * disc_mm_px / median_mm, 4 * s)
+    box = (
+        max(math.floor(x * s - margin), 0), max(math.floor(y * s - margin), 0),
+        min(math.ceil((x + w) * s + margin), w_img), min(math.ceil((y + h) * s + margin), h_img),
     )
     return None if box == (0, 0, w_img, h_img) else box
 
@@ -299,7 +293,8 @@ def _labelled_within(
     if box == (0, 0, color.shape[1], color.shape[0]):
         norm = cv2.LUT(color, balance)
         return (norm, *colour_labels(norm, lut, params))
-    norm, hsv = np.zeros_like(color), np.zeros_like(color)
+    # (np.zeros, not zeros_like: the pages outside the box are never written)
+    norm, hsv = np.zeros(color.shape, np.uint8), np.zeros(color.shape, np.uint8)
     labels = np.zeros(color.shape[:2], np.uint8)
     if x1 > x0 and y1 > y0:  # (written in place, into the box of each)
         inner = np.s_[y0:y1, x0:x1]

@@ -128,7 +128,7 @@ class DetectorParams:
     napkin_margin : float or None
         How far beyond the napkin's white (the box around the napkin's cloth samples,
         ``NapkinView.cloth``) stickers are searched, in sticker diameters at the
-        nearest depth read in that box (at least 4 sampling strides). Only blobs lying
+        frame's median depth (at least 4 sampling strides). Only blobs lying
         wholly within the box so grown are judged and reported. Default 2: a sticker
         lies on the napkin, and where a shadow leaves the cloth beside it unseen as
         white, its centre still lies within the box of the white (at least a third of
