@@ -230,3 +230,20 @@ def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
         assert pale.sum() > 10
         np.testing.assert_array_equal(pale, again)
         np.testing.assert_array_equal(hsv, again_hsv)
+
+
+def test_outer_contours_traced_component_by_component_are_those_of_one_search():
+    from dgli_vision.perception.detect import outer_contours
+
+    rng = np.random.default_rng(11)
+    mask = (rng.random((240, 320)) < 0.45).astype(np.uint8)  # (components full of holes)
+    mask[:, 100:104] = 0
+    cv2.circle(mask, (200, 120), 60, 1, 8)  # a ring with components inside its hole
+    mask[110:130, 190:210] = 1
+    assert cv2.countNonZero(mask) > 8000
+    together = outer_contours(mask, by_component=False)
+    alone = outer_contours(mask, by_component=True)
+    assert len(together) > 100
+    assert len(alone) == len(together)
+    assert all(np.array_equal(a, b) for a, b in zip(alone, together))
+    assert len(outer_contours(mask)) == len(together)

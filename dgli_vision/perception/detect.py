@@ -324,12 +324,9 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
     mask = cv2.threshold(image.labels, 0, 1, cv2.THRESH_BINARY)[1]
     # Outer boundaries of every component, also those inside holes of others (a
     # saturated surround never hides what lies inside it).
-    contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
-    if hierarchy is None:
-        contours, hierarchy = (), np.zeros((1, 0, 4), int)
+    outer = outer_contours(mask)
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
-    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
     if image.within is not None:  # (blobs not wholly within it are not judged)
         outer = [c for c in outer if _lies_within(cv2.boundingRect(c), image.within)]
     for judged in judge_blobs(outer, image):
@@ -338,6 +335,47 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
         elif judged is not None:
             rejected.append(judged)
     return candidates, rejected
+
+
+#: Above this many pixels in a mask, :func:`outer_contours` traces it level by level.
+_MANY_PIXELS = 8000
+
+
+def outer_contours(
+    mask: NDArray[np.uint8], *, by_component: bool | None = None
+) -> list[NDArray[np.int32]]:
+    """The outer contour of every 8-connected component of a 0/1 ``mask``, also of
+    those inside holes of others: ``cv2.findContours``' (``RETR_CCOMP``, all points)
+    outer contours, in its order (their first points, each a component's first pixel,
+    in reverse raster order).
+
+    A mask of many pixels (the second search's pastel labels, with thousands of holes)
+    is traced level by level instead: the outermost components' outer contours
+    (``RETR_EXTERNAL``, no hole traced), those components removed (flood-filled), the
+    components that were inside their holes next: the same contours.
+    ``by_component`` forces either way.
+    """
+    import cv2
+
+    if by_component is None:
+        by_component = cv2.countNonZero(mask) > _MANY_PIXELS
+    if not by_component:
+        contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+        if hierarchy is None:
+            return []
+        return [contours[k] for k in np.flatnonzero(hierarchy[0][:, 3] < 0).tolist()]
+    out: list[NDArray[np.int32]] = []
+    rest = mask.copy()
+    while True:
+        level, _ = cv2.findContours(rest, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        if not level:
+            break
+        out.extend(level)
+        for contour in level:  # (its first point is a pixel of its component)
+            seed = (int(contour[0, 0, 0]), int(contour[0, 0, 1]))
+            cv2.floodFill(rest, None, seed, 0, flags=8)
+    out.sort(key=lambda c: (int(c[0, 0, 1]), int(c[0, 0, 0])), reverse=True)
+    return out
 
 
 def _lies_within(rect: tuple[int, int, int, int], box: tuple[int, int, int, int]) -> bool:
@@ -488,7 +526,7 @@ def _refine_all(
     top = 0
     for c, g in grown:
         h, w = g.up.shape
-        out[c] = _centre_of(g.region(hits[top : top + h, :w]), *g.origin, c)
+        out[c] = _centre_of(g.within(hits[top : top + h, :w]), g, c)
         top += h
     return out
 
@@ -531,14 +569,9 @@ class _GrownBlob:
         (x, y), (h, w) = self.corner, self.up.shape
         return color[y : y + h, x : x + w]
 
-    def region(self, hits: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        """The grown blob's pixels among ``hits`` (0/1, the box's shape), in the
-        window: 0/1, shape ``shape``."""
-        out = np.zeros(self.shape, np.uint8)
-        (x, y), (h, w) = self.corner, self.up.shape
-        dx, dy = x - self.origin[0], y - self.origin[1]
-        out[dy : dy + h, dx : dx + w] = hits * self.up
-        return out
+    def within(self, hits: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """The grown blob's pixels among ``hits`` (0/1, the box's shape), in its box."""
+        return hits * self.up
 
 
 def _stacked(boxes: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
@@ -565,17 +598,20 @@ def _sticker_or_blown(
 
 
 def _centre_of(
-    region: NDArray[np.uint8], x0: int, y0: int, c: Candidate
+    region: NDArray[np.uint8], g: _GrownBlob, c: Candidate
 ) -> tuple[tuple[float, float], float]:
-    """Centre and area of the largest outer contour of ``region`` (its origin at
-    (x0, y0) in the frame); the halved search's, scaled, when it has none."""
+    """Centre and area of the largest outer contour of ``region`` (0/1, the grown blob
+    ``g``'s pixels in its box) in the frame; the halved search's, scaled, when it has
+    none. The contour is measured in the candidate's window (at ``g.origin``), as it
+    always was: its box is all of the window that can hold a pixel of the blob."""
     import cv2
 
     contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
-    contour = max(contours, key=cv2.contourArea)
-    m = cv2.moments(contour)
+    (x, y), (x0, y0) = g.corner, g.origin
+    contour = max(contours, key=cv2.contourArea)  # (the area does not depend on where)
+    m = cv2.moments(contour + np.array([x - x0, y - y0], contour.dtype))
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     return (m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0), float(m["m00"])
