@@ -13,10 +13,11 @@ below, each a function; the first that fails gives the :class:`~.detections.Reje
 6. its disc colour (the majority label of an outer band) and dot colour (of the inner
    part), which name the sticker.
 
-Everything the steps share for one frame is a :class:`SearchImage`. Steps 1-4 run blob
-by blob (:func:`judge_blobs`); steps 5 and 6 for every blob left at once, on the pixels
-within 1.8 radii of each (:class:`_DiscPixels`: counts and medians per blob), which
-gives each blob exactly what judging it alone gives (:func:`judge_blob`).
+Everything the steps share for one frame is a :class:`SearchImage`. The blobs' masks
+and depths (step 1) are measured for every blob at once (:func:`_filled_and_depths`),
+steps 2-4 run blob by blob (:func:`judge_blobs`), steps 5 and 6 for every blob left at
+once, on the pixels within 1.8 radii of each (:class:`_DiscPixels`: counts and medians
+per blob); each blob gets exactly what judging it alone gives (:func:`judge_blob`).
 """
 
 from __future__ import annotations

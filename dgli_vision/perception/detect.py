@@ -20,8 +20,10 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    measured for every candidate at once (:func:`_refine_all`).
 
 The work is in proportion to the blobs, not to the pixels, wherever it can be: the
-whole image is converted once (balance, HSV, labels, one contour search), and the
-checks of the blobs and their centres run on small windows, batched across blobs.
+image is converted once (balance, HSV, labels, one contour search) near the napkin only
+(the box of its white cloth grown by ``DetectorParams.napkin_margin``; blobs beyond it
+are things on the table, neither judged nor reported), and the checks of the blobs and
+their centres run on small windows, batched across blobs.
 
 :func:`find_washed_out` searches again for the stickers a broad sheen left pastel
 (:mod:`.washed`). The parameters and results live in :mod:`.detections` and are
