@@ -183,33 +183,6 @@ def test_a_search_near_the_napkin_judges_its_blobs_as_a_search_of_the_whole_imag
     np.testing.assert_array_equal(a.areas, b.areas)
 
 
-def test_blob_depths_measured_together_equal_each_measured_alone():
-    from dgli_vision.perception.blobs import _measure_blobs
-
-    img, depth = _scene()
-    rng = np.random.default_rng(5)
-    depth = (470 + rng.integers(0, 60, depth.shape)).astype(np.uint16)
-    depth[rng.random(depth.shape) < 0.3] = 0  # (no reading)
-    depth[560:640, 450:560] = 0  # a blob without any reading: the frame's median depth
-    image, outer, *_ = _search(img, depth)
-    together = _measure_blobs(outer, image)
-    assert sum(b is not None for b in together) >= 20
-    for contour, b in zip(outer, together):
-        (alone,) = _measure_blobs([contour], image)
-        if b is None or alone is None:
-            assert b is alone
-            continue
-        x, y, w, h = cv2.boundingRect(contour)
-        roi = np.zeros((h, w), np.uint8)
-        cv2.drawContours(roi, [contour], -1, 1, -1, offset=(-x, -y))
-        d = image.depth_mm[y : y + h, x : x + w]
-        inner = d[(cv2.erode(roi, np.ones((3, 3), np.uint8)) > 0) & (d > 0)]
-        seen = inner if inner.size else d[(roi > 0) & (d > 0)]
-        z = float(np.sort(seen)[len(seen) // 2]) if seen.size else image.median_depth_mm
-        assert b.z_mm == alone.z_mm == z
-        assert np.array_equal(b.inside, alone.inside) and b.window == alone.window
-
-
 def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
     from dgli_vision.perception.footprint import cloth_regions
     from dgli_vision.perception.washed import PastelLooks, pale_cells

@@ -13,11 +13,12 @@ below, each a function; the first that fails gives the :class:`~.detections.Reje
 6. its disc colour (the majority label of an outer band) and dot colour (of the inner
    part), which name the sticker.
 
-Everything the steps share for one frame is a :class:`SearchImage`. The blobs' masks
-and depths (step 1) are measured for every blob at once (:func:`_filled_and_depths`),
-steps 2-4 run blob by blob (:func:`judge_blobs`), steps 5 and 6 for every blob left at
+Everything the steps share for one frame is a :class:`SearchImage`. Steps 1-4 run blob
+by blob (:func:`judge_blobs`; a blob's depth is one partial sort of its own pixels,
+cheaper than any batch when one blob is large); steps 5 and 6 for every blob left at
 once, on the pixels within 1.8 radii of each (:class:`_DiscPixels`: counts and medians
-per blob); each blob gets exactly what judging it alone gives (:func:`judge_blob`).
+per blob), which gives each blob exactly what judging it alone gives
+(:func:`judge_blob`).
 """
 
 from __future__ import annotations
@@ -223,8 +224,7 @@ def judge_blobs(
         the reason), or None for a speck too small to report.
     """
     judged: list[Candidate | Rejection | _Shaped | None] = [
-        _judge_shape(b, image) if isinstance(b, _Blob) else b
-        for b in _measure_blobs(contours, image)
+        _judge_shape(c, image) for c in contours
     ]
     shaped = [j for j in judged if isinstance(j, _Shaped)]
     if not shaped:
@@ -248,9 +248,12 @@ class _Shaped:
     radius: float
 
 
-def _judge_shape(blob: _Blob, image: SearchImage) -> _Shaped | Rejection:
-    """The checks of one measured blob up to its shape: tilt, highlight repair, size,
-    shape. The blob left, or the first check it fails."""
+def _judge_shape(contour: NDArray, image: SearchImage) -> _Shaped | Rejection | None:
+    """The checks of one blob up to its shape: depth, tilt, highlight repair, size,
+    shape. The blob left, or the first check it fails (None: a speck)."""
+    blob = _measure_blob(contour, image)
+    if blob is None or isinstance(blob, Rejection):
+        return blob
     fore, minor_angle = _tilt(blob, image)
     if fore < image.params.min_foreshortening:
         why = f"seen too obliquely (foreshortened {fore:.2f})"
@@ -289,44 +292,24 @@ def _judge_disc(
     )
 
 
-def _measure_blobs(
-    contours: Sequence[NDArray], image: SearchImage
-) -> list[_Blob | Rejection | None]:
-    """The blob of every contour: centroid, area, depth and window; None for a speck,
-    a rejection without depth to judge its size. The blobs' masks and depths are
-    measured for all of them at once (:func:`_filled_and_depths`)."""
+def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | None:
+    """The blob of ``contour``: centroid, area, depth and window; None for a speck, a
+    rejection without depth to judge its size."""
     import cv2
 
-    out: list[_Blob | Rejection | None] = [None] * len(contours)
-    least = max(image.min_area_px, 12.0)
-    kept = []
-    for i, contour in enumerate(contours):
-        area = cv2.contourArea(contour)
-        if area < least:
-            continue
-        m = cv2.moments(contour)
-        if m["m00"] > 0:
-            kept.append((i, contour, area, m, cv2.boundingRect(contour)))
-    if not kept:
-        return out
-    rois, depths = _filled_and_depths(
-        [k[1] for k in kept], [k[4] for k in kept], image.depth_mm, image.median_depth_mm
-    )
-    for (i, contour, area, m, rect), roi, z_mm in zip(kept, rois, depths):
-        out[i] = _blob_of(contour, area, m, rect, roi, z_mm, image)
-    return out
-
-
-def _blob_of(
-    contour: NDArray, area: float, m: dict, rect: tuple[int, int, int, int],
-    roi: NDArray[np.uint8], z_mm: float, image: SearchImage,
-) -> _Blob | Rejection:
-    """The blob of ``contour`` (its area, moments, bounding box ``rect``, filled mask
-    ``roi`` in that box, depth), or a rejection without depth to judge its size."""
+    area = cv2.contourArea(contour)
+    if area < max(image.min_area_px, 12.0):
+        return None
+    m = cv2.moments(contour)
+    if m["m00"] <= 0:
+        return None
     where = (float(m["m10"] / m["m00"]), float(m["m01"] / m["m00"]))
+    x, y, w, h = cv2.boundingRect(contour)
+    roi = np.zeros((h, w), np.uint8)
+    cv2.drawContours(roi, [contour], -1, 1, thickness=-1, offset=(-x, -y))
+    z_mm = _blob_depth(image.depth_mm[y : y + h, x : x + w], roi, image.median_depth_mm)
     if not (z_mm > 0):
         return Rejection(where, area, "no depth to judge its size")
-    x, y, w, h = rect
     r_exp = image.disc_radius_mm * image.intrinsics.fx / z_mm
     pad = window_pad(r_exp)
     h_img, w_img = image.labels.shape
@@ -337,69 +320,23 @@ def _blob_of(
     return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
 
 
-def _filled_and_depths(
-    contours: list[NDArray], rects: list[tuple[int, int, int, int]],
-    depth_mm: NDArray[np.uint16], fallback_mm: float,
-) -> tuple[list[NDArray[np.uint8]], list[float]]:
-    """Each contour filled in its bounding box (0/1, shape (h, w)), and the blob's
-    depth (mm): the median of its inner pixels' readings (its mask eroded by one), of
-    all its pixels' when none of those has one, else ``fallback_mm`` (the upper median
-    for an even count).
-
-    The boxes are stacked top to bottom in one image, each in a frame of ones (as
-    eroding a box alone reads beyond its border), filled in one call and eroded in one;
-    the medians come from one sort of (blob, depth) keys: each blob gets exactly what
-    measuring it alone gives.
-    """
-    import cv2
-
-    heights = [h + 2 for _, _, _, h in rects]
-    tops = np.cumsum([0, *heights[:-1]]).tolist()
-    width = max(w for _, _, w, _ in rects) + 2
-    filled = np.ones((sum(heights), width), np.uint8)
-    depth = np.zeros(filled.shape, np.uint16)
-    shifted = []
-    for (x, y, w, h), top, contour in zip(rects, tops, contours):
-        filled[top + 1 : top + 1 + h, 1 : 1 + w] = 0
-        depth[top + 1 : top + 1 + h, 1 : 1 + w] = depth_mm[y : y + h, x : x + w]
-        shifted.append(contour + np.array([1 - x, top + 1 - y], contour.dtype))
-    cv2.drawContours(filled, shifted, -1, 1, thickness=-1)
-    # (the frames of ones and the columns right of each box have no depth read)
-    blob_of_row = np.repeat(np.arange(len(rects)), heights)
-    read = depth > 0
-    z_mm = _medians_by_blob(cv2.erode(filled, _SQUARE3).view(bool) & read, depth,
-                            blob_of_row, len(rects))
-    if (z_mm < 0).any():
-        whole = _medians_by_blob(filled.view(bool) & read, depth, blob_of_row, len(rects))
-        z_mm = np.where(z_mm < 0, whole, z_mm)
-    rois = [
-        filled[top + 1 : top + 1 + h, 1 : 1 + w] for (_, _, w, h), top in zip(rects, tops)
-    ]
-    return rois, [float(z) if z >= 0 else fallback_mm for z in z_mm]
-
-
-def _medians_by_blob(
-    where: NDArray[np.bool_], values: NDArray[np.uint16], blob_of_row: NDArray[np.intp],
-    n: int,
-) -> NDArray[np.int64]:
-    """Per blob (the rows of each), the upper median of ``values`` ``where`` holds (as
-    :func:`_median`); -1 for a blob with none. Shape (n,)."""
-    rows, cols = np.nonzero(where)
-    if not len(rows):
-        return np.full(n, -1, np.int64)
-    blob = blob_of_row[rows]
-    keys = np.sort(blob.astype(np.int64) << 16 | values[rows, cols])
-    counts = np.bincount(blob, minlength=n)
-    starts = np.cumsum(counts) - counts
-    picked = keys[np.minimum(starts + counts // 2, len(keys) - 1)] & 0xFFFF
-    return np.where(counts > 0, picked, -1)
-
-
 def window_pad(r_exp_px: float) -> int:
     """How far (pixels) a blob's window reaches beyond its bounding box, for a disc of
     radius ``r_exp_px`` expected there: one diameter and two pixels. Every check of the
     blob reads the search image within its window only."""
     return math.ceil(2 * r_exp_px) + 2
+
+
+def _blob_depth(depth_roi: NDArray, roi: NDArray[np.uint8], fallback_mm: float) -> float:
+    """Median depth (mm) of a blob's inner pixels (its mask ``roi`` eroded by one), of
+    all its pixels when none of those has a reading, else ``fallback_mm``."""
+    import cv2
+
+    inner_depth = depth_roi[cv2.erode(roi, _SQUARE3).view(bool)]  # (0 or 1: as bool)
+    inner_depth = inner_depth[inner_depth > 0]
+    if inner_depth.size == 0:
+        inner_depth = depth_roi[roi.view(bool) & (depth_roi > 0)]
+    return _median(inner_depth) if inner_depth.size else fallback_mm
 
 
 def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
