@@ -368,6 +368,7 @@ def outer_contours(
         return [contours[k] for k in np.flatnonzero(hierarchy[0][:, 3] < 0).tolist()]
     out: list[NDArray[np.int32]] = []
     rest = mask.copy()
+    filled = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), np.uint8)  # (one for all)
     while True:
         level, _ = cv2.findContours(rest, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         if not level:
@@ -375,7 +376,7 @@ def outer_contours(
         out.extend(level)
         for contour in level:  # (its first point is a pixel of its component)
             seed = (int(contour[0, 0, 0]), int(contour[0, 0, 1]))
-            cv2.floodFill(rest, None, seed, 0, flags=8)
+            cv2.floodFill(rest, filled, seed, 0, flags=8)
     out.sort(key=lambda c: (int(c[0, 0, 1]), int(c[0, 0, 0])), reverse=True)
     return out
 
