@@ -678,16 +678,15 @@ def _foreshortening(
     major axis ratio is this cosine. Only the sticker's own pixels are used: around a
     sticker partly under an object or a flap lies another surface.
     """
-    h, w = depth_roi.shape
-    yy, xx = np.mgrid[y0 : y0 + h, x0 : x0 + w]
     near = mask & (depth_roi > 0)
-    if near.sum() < 12:
+    rows, cols = np.nonzero(near)  # (row-major: the order of depth_roi[near])
+    if len(rows) < 12:
         return 1.0
-    z = depth_roi[near].astype(np.float64)
+    z = depth_roi[rows, cols].astype(np.float64)
     pts = np.column_stack(
         [
-            (xx[near] - intrinsics.cx) / intrinsics.fx * z,
-            (yy[near] - intrinsics.cy) / intrinsics.fy * z,
+            (cols + x0 - intrinsics.cx) / intrinsics.fx * z,
+            (rows + y0 - intrinsics.cy) / intrinsics.fy * z,
             z,
         ]
     )
