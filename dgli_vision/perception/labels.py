@@ -70,7 +70,7 @@ def colour_labels(
     import cv2
 
     labels_out, hsv_out = out if out is not None else (None, None)
-    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV, dst=hsv_out)
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)  # (its own: split copies a view first)
     h, s, v = cv2.split(hsv)  # (planes of their own: each is overwritten below)
     needed, v_least = least_saturation(
         params.min_saturation, params.min_value, params.min_chroma
@@ -80,7 +80,11 @@ def colour_labels(
         cv2.threshold(v, v_least - 1, 255, cv2.THRESH_BINARY, dst=v)
         cv2.bitwise_and(coloured, v, dst=coloured)
     labels = cv2.LUT(h, _hue_table(lut), dst=h)
-    return cv2.bitwise_and(labels, coloured, dst=h if labels_out is None else labels_out), hsv
+    labels = cv2.bitwise_and(labels, coloured, dst=h if labels_out is None else labels_out)
+    if hsv_out is not None:
+        hsv_out[...] = hsv
+        hsv = hsv_out
+    return labels, hsv
 
 
 def _hue_table(lut: NDArray[np.uint8]) -> NDArray[np.uint8]:
