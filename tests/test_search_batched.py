@@ -205,7 +205,7 @@ def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
         np.testing.assert_array_equal(hsv, again_hsv)
 
 
-def test_outer_contours_traced_component_by_component_are_those_of_one_search():
+def test_outer_contours_traced_component_by_level_are_those_of_one_search():
     from dgli_vision.perception.detect import outer_contours
 
     rng = np.random.default_rng(11)
@@ -214,8 +214,8 @@ def test_outer_contours_traced_component_by_component_are_those_of_one_search():
     cv2.circle(mask, (200, 120), 60, 1, 8)  # a ring with components inside its hole
     mask[110:130, 190:210] = 1
     assert cv2.countNonZero(mask) > 8000
-    together = outer_contours(mask, by_component=False)
-    alone = outer_contours(mask, by_component=True)
+    together = outer_contours(mask, by_level=False)
+    alone = outer_contours(mask, by_level=True)
     assert len(together) > 100
     assert len(alone) == len(together)
     assert all(np.array_equal(a, b) for a, b in zip(alone, together))

@@ -344,7 +344,7 @@ _MANY_PIXELS = 8000
 
 
 def outer_contours(
-    mask: NDArray[np.uint8], *, by_component: bool | None = None
+    mask: NDArray[np.uint8], *, by_level: bool | None = None
 ) -> list[NDArray[np.int32]]:
     """The outer contour of every 8-connected component of a 0/1 ``mask``, also of
     those inside holes of others: ``cv2.findContours``' (``RETR_CCOMP``, all points)
@@ -355,13 +355,13 @@ def outer_contours(
     is traced level by level instead: the outermost components' outer contours
     (``RETR_EXTERNAL``, no hole traced), those components removed (flood-filled), the
     components that were inside their holes next: the same contours.
-    ``by_component`` forces either way.
+    ``by_level`` forces either way.
     """
     import cv2
 
-    if by_component is None:
-        by_component = cv2.countNonZero(mask) > _MANY_PIXELS
-    if not by_component:
+    if by_level is None:
+        by_level = cv2.countNonZero(mask) > _MANY_PIXELS
+    if not by_level:
         contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
         if hierarchy is None:
             return []
