@@ -205,7 +205,7 @@ def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
         np.testing.assert_array_equal(hsv, again_hsv)
 
 
-def test_outer_contours_traced_component_by_level_are_those_of_one_search():
+def test_outer_contours_traced_level_by_level_are_those_of_one_search():
     from dgli_vision.perception.detect import outer_contours
 
     rng = np.random.default_rng(11)
