@@ -11,7 +11,7 @@ from dgli_vision.core.layout import default_layout
 from dgli_vision.perception.blobs import Candidate, judge_blob, judge_blobs
 from dgli_vision.perception.detect import _refine_all, candidate_blobs, search_image
 from dgli_vision.perception.detections import DetectorParams
-from dgli_vision.perception.labels import _FEW_DARK, _without_faint, hue_lut
+from dgli_vision.perception.labels import colour_labels, hue_lut
 from dgli_vision.perception.napkin import find_napkin
 from dgli_vision.perception.washed import pastel_params
 
@@ -84,21 +84,21 @@ def test_centres_measured_together_equal_each_measured_alone():
         assert np.hypot(*(np.array(together[c][0]) - (2 * np.array(c.where) + 0.5))) < 1.0
 
 
-def test_dark_pixels_are_tested_alike_one_by_one_and_as_a_whole_image():
+def test_colour_labels_by_one_table_are_those_of_every_threshold_pixel_by_pixel():
     rng = np.random.default_rng(3)
-    hsv = rng.integers(0, 256, (120, 90, 3), dtype=np.uint8)
-    params = pastel_params(DetectorParams())  # (most coloured pixels are dark)
-    least = params.min_chroma * 255
-    coloured = cv2.inRange(hsv, (0, params.min_saturation, 0), (180, 255, 255))
-    dark = cv2.inRange(hsv, (0, params.min_saturation, 0), (180, 255, 150))
-    n_dark = cv2.countNonZero(dark)
-    assert n_dark > _FEW_DARK
-    many = _without_faint(coloured.copy(), dark, n_dark, hsv, least)
-    few = _without_faint(coloured.copy(), dark, 1, hsv, least)  # (forced one by one)
-    chroma = hsv[..., 1].astype(int) * hsv[..., 2]
-    expected = np.where((dark > 0) & (chroma < least), 0, coloured)
-    np.testing.assert_array_equal(many, expected)
-    np.testing.assert_array_equal(few, expected)
+    norm = rng.integers(0, 256, (120, 90, 3), dtype=np.uint8)
+    norm[:40] //= 4  # (dark pixels, where the chroma binds)
+    lut, _ = hue_lut(LAYOUT, DetectorParams(), None)
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV).astype(int)
+    h, s, v = hsv[..., 0], hsv[..., 1], hsv[..., 2]
+    for params in (DetectorParams(), pastel_params(DetectorParams())):
+        labels, _ = colour_labels(norm, lut, params)
+        v_limit = np.ceil(params.min_chroma * 255 / params.min_saturation)
+        coloured = (s >= params.min_saturation) & (v >= params.min_value)
+        faint = (v < v_limit) & (s * v < params.min_chroma * 255)  # (dark, low chroma)
+        expected = np.where(coloured & ~faint, lut[h], 0)
+        assert (coloured & faint).sum() > 100 and (expected > 0).sum() > 1000
+        np.testing.assert_array_equal(labels, expected)
 
 
 def test_pastel_cells_on_the_napkin_alone_are_those_of_the_whole_frame():
@@ -140,3 +140,83 @@ def test_a_search_within_a_region_judges_its_blobs_as_a_search_of_the_whole_fram
     assert 0 < len(found) < 16
     assert all(_same(a, b) for a, b in zip(found, again)) and len(found) == len(again)
     assert rejected == rejected_again
+
+
+def test_a_search_near_the_napkin_judges_its_blobs_as_a_search_of_the_whole_image():
+    from dataclasses import replace
+
+    from dgli_vision.perception.detect import detect_stickers
+
+    img, depth = _scene()
+    img[:150], img[520:], img[:, :40], img[:, 1240:] = 95, 95, 95, 95  # a grey table
+    for x in (150, 450, 750, 1050):  # things on it, away from the napkin
+        cv2.circle(img, (x, 640), 30, LAYOUT.colours_srgb["blue"], -1)
+    cv2.circle(img, (560, 470), 12, LAYOUT.colours_srgb["green"], -1)  # a crescent on it
+    cv2.circle(img, (572, 470), 12, (215, 215, 215), -1)
+    params = DetectorParams()
+    lut, names = hue_lut(LAYOUT, params, None)
+
+    def near_and_whole():
+        napkin = find_napkin(img, depth, INTR)
+        near = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+        whole = search_image(
+            img, depth, INTR, LAYOUT, replace(params, napkin_margin=None), napkin, lut,
+            len(names),
+        )
+        return napkin, near, whole
+
+    x0, y0, x1, y1 = near_and_whole()[1].within
+    cv2.circle(img, (300, 2 * y1), 30, LAYOUT.colours_srgb["red"], -1)  # across its edge
+    napkin, near, whole = near_and_whole()
+    assert near.within == (x0, y0, x1, y1) and whole.within is None
+    assert 0 < y1 - y0 < 0.8 * near.labels.shape[0]
+    found, rejected = candidate_blobs(near)
+    found_all, rejected_all = candidate_blobs(whole)
+    assert len(found) == 16 and all(_same(a, b) for a, b in zip(found, found_all))
+    far = [r for r in rejected_all if r not in rejected]  # (the table's things)
+    assert len(far) == 5 and all(r.centroid[1] + np.sqrt(r.area_px) > y1 for r in far)
+    assert rejected == [r for r in rejected_all if r not in far] and rejected
+    a = detect_stickers(img, depth, INTR, LAYOUT, params, napkin=napkin)
+    b = detect_stickers(img, depth, INTR, LAYOUT, replace(params, napkin_margin=None),
+                        napkin=napkin)
+    np.testing.assert_array_equal(a.centroids, b.centroids)
+    np.testing.assert_array_equal(a.areas, b.areas)
+
+
+def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
+    from dgli_vision.perception.footprint import cloth_regions
+    from dgli_vision.perception.washed import PastelLooks, pale_cells
+
+    img, depth = _scene()
+    pastel = cv2.addWeighted(img, 0.35, np.full_like(img, 235), 0.65, 0)  # sheen-washed
+    params = DetectorParams()
+    napkin = find_napkin(pastel, depth, INTR)
+    lut, _ = hue_lut(LAYOUT, params, None)
+    regions = cloth_regions(pastel, napkin.white_rgb)
+    assert regions.cells is not None and regions.cell_px == napkin.stride
+    within = np.zeros(regions.labels.shape, bool)
+    within[20:40, 10:60] = True
+    looks = PastelLooks(pastel, napkin, regions)
+    for part in (within, None):
+        pale, hsv = looks.pale_cells(lut, params, part)
+        again, again_hsv = pale_cells(pastel, lut, params, napkin, within=part)
+        assert pale.sum() > 10
+        np.testing.assert_array_equal(pale, again)
+        np.testing.assert_array_equal(hsv, again_hsv)
+
+
+def test_outer_contours_traced_level_by_level_are_those_of_one_search():
+    from dgli_vision.perception.detect import outer_contours
+
+    rng = np.random.default_rng(11)
+    mask = (rng.random((240, 320)) < 0.45).astype(np.uint8)  # (components full of holes)
+    mask[:, 100:104] = 0
+    cv2.circle(mask, (200, 120), 60, 1, 8)  # a ring with components inside its hole
+    mask[110:130, 190:210] = 1
+    assert cv2.countNonZero(mask) > 8000
+    together = outer_contours(mask, by_level=False)
+    alone = outer_contours(mask, by_level=True)
+    assert len(together) > 100
+    assert len(alone) == len(together)
+    assert all(np.array_equal(a, b) for a, b in zip(alone, together))
+    assert len(outer_contours(mask)) == len(together)

@@ -14,9 +14,11 @@ below, each a function; the first that fails gives the :class:`~.detections.Reje
    part), which name the sticker.
 
 Everything the steps share for one frame is a :class:`SearchImage`. Steps 1-4 run blob
-by blob (:func:`judge_blobs`); steps 5 and 6 for every blob left at once, on the pixels
-within 1.8 radii of each (:class:`_DiscPixels`: counts and medians per blob), which
-gives each blob exactly what judging it alone gives (:func:`judge_blob`).
+by blob (:func:`judge_blobs`; a blob's depth is one partial sort of its own pixels,
+cheaper than any batch when one blob is large); steps 5 and 6 for every blob left at
+once, on the pixels within 1.8 radii of each (:class:`_DiscPixels`: counts and medians
+per blob), which gives each blob exactly what judging it alone gives
+(:func:`judge_blob`).
 """
 
 from __future__ import annotations
@@ -77,6 +79,11 @@ class SearchImage:
     n_colours : int
         Number of sticker colours.
     params : DetectorParams
+    within : (int, int, int, int), optional
+        (x0, y0, x1, y1): the box stickers are searched in (near the napkin); only the
+        blobs lying wholly within it are judged, each as in a search of the whole
+        image (the images are computed as far beyond it as their windows reach).
+        None: everywhere.
     """
 
     color: NDArray[np.uint8]
@@ -93,6 +100,7 @@ class SearchImage:
     repair_highlights: bool
     n_colours: int
     params: DetectorParams
+    within: tuple[int, int, int, int] | None = None
 
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
@@ -670,16 +678,15 @@ def _foreshortening(
     major axis ratio is this cosine. Only the sticker's own pixels are used: around a
     sticker partly under an object or a flap lies another surface.
     """
-    h, w = depth_roi.shape
-    yy, xx = np.mgrid[y0 : y0 + h, x0 : x0 + w]
     near = mask & (depth_roi > 0)
-    if near.sum() < 12:
+    rows, cols = np.nonzero(near)  # (row-major: the order of depth_roi[near])
+    if len(rows) < 12:
         return 1.0
-    z = depth_roi[near].astype(np.float64)
+    z = depth_roi[rows, cols].astype(np.float64)
     pts = np.column_stack(
         [
-            (xx[near] - intrinsics.cx) / intrinsics.fx * z,
-            (yy[near] - intrinsics.cy) / intrinsics.fy * z,
+            (cols + x0 - intrinsics.cx) / intrinsics.fx * z,
+            (rows + y0 - intrinsics.cy) / intrinsics.fy * z,
             z,
         ]
     )

@@ -20,8 +20,10 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    measured for every candidate at once (:func:`_refine_all`).
 
 The work is in proportion to the blobs, not to the pixels, wherever it can be: the
-whole image is converted once (balance, HSV, labels, one contour search), and the
-checks of the blobs and their centres run on small windows, batched across blobs.
+image is converted once (balance, HSV, labels, one contour search) near the napkin only
+(the box of its white cloth grown by ``DetectorParams.napkin_margin``; blobs beyond it
+are things on the table, neither judged nor reported), and the checks of the blobs and
+their centres run on small windows, batched across blobs.
 
 :func:`find_washed_out` searches again for the stickers a broad sheen left pastel
 (:mod:`.washed`). The parameters and results live in :mod:`.detections` and are
@@ -30,6 +32,7 @@ re-exported here.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -40,10 +43,16 @@ from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
-from .footprint import ClothRegions, FootprintParams, cloth_cells, cloth_regions
+from .footprint import ClothRegions, FootprintParams, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
-from .washed import merge_second_search, pale_samples, pastel_params, with_unread
+from .washed import (
+    PastelLooks,
+    merge_second_search,
+    pale_samples,
+    pastel_params,
+    with_unread,
+)
 
 __all__ = [
     "DetectorParams",
@@ -138,7 +147,9 @@ def search_image(
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
     ``lut`` is :func:`.labels.hue_lut`'s table. Outside ``roi`` (scaled to the search
     image) no pixel is labelled, and the images are computed only where judging the
-    blobs within it reads them (elsewhere they are 0).
+    blobs within it reads them (elsewhere they are 0). Without ``roi``, stickers are
+    searched near the napkin (:func:`_napkin_box`, ``SearchImage.within``): the images
+    are computed only where judging the blobs within that box reads them.
     """
     import cv2
 
@@ -155,10 +166,22 @@ def search_image(
         shape = (color.shape[0] // 2, color.shape[1] // 2)
         depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
         intrinsics = _halved(intrinsics)
-    box, inside = (0, 0, shape[1], shape[0]), None
+    box, inside, near = (0, 0, shape[1], shape[0]), None, None
     if roi is not None:  # (only the box that judging its blobs reads is computed)
         inside = cv2.resize(roi.astype(np.uint8), shape[::-1], cv2.INTER_NEAREST)
-        box = _judged_box(inside, depth_mm, disc_r_mm * intrinsics.fx, med_depth)
+        box = _judged_box(
+            cv2.boundingRect(inside), depth_mm, disc_r_mm * intrinsics.fx, med_depth
+        )
+    else:
+        near = _napkin_box(
+            napkin, shape, 0.5 if halve else 1.0, disc_r_mm * intrinsics.fx, med_depth,
+            params,
+        )
+        if near is not None:
+            x0, y0, x1, y1 = near
+            box = _judged_box(
+                (x0, y0, x1 - x0, y1 - y0), depth_mm, disc_r_mm * intrinsics.fx, med_depth
+            )
     color = _halved_within(color, box) if halve else color
     norm, labels, hsv = _labelled_within(color, napkin.lut, lut, params, box)
     if inside is not None:
@@ -169,32 +192,72 @@ def search_image(
         color, norm, hsv, labels, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
         bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
-        params,
+        params, near,
     )
 
 
 def _judged_box(
-    inside: NDArray[np.uint8], depth_mm: NDArray[np.uint16], disc_mm_px: float,
+    rect: tuple[int, int, int, int], depth_mm: NDArray[np.uint16], disc_mm_px: float,
     fallback_mm: float,
 ) -> tuple[int, int, int, int]:
-    """(x0, y0, x1, y1): the box of the search image that judging the blobs within the
-    pixels ``inside`` reads: their bounding box grown by the widest window such a blob
-    can have (:func:`.blobs.window_pad` of the disc expected at the nearest depth read in
-    the box, or at ``fallback_mm`` where a blob has no depth; and a pixel more).
+    """(x0, y0, x1, y1): the box of the search image that judging the blobs within
+    ``rect`` (x, y, w, h) reads: ``rect`` grown by the widest window such a blob can
+    have (:func:`.blobs.window_pad` of the disc expected at the nearest depth read in
+    it, or at ``fallback_mm`` where a blob has no depth; and a pixel more).
     ``disc_mm_px``: the disc radius (mm) times the focal length (px)."""
-    import cv2
-
-    h_img, w_img = inside.shape
-    x, y, w, h = (int(v) for v in cv2.boundingRect(inside))
+    h_img, w_img = depth_mm.shape
+    x, y, w, h = (int(v) for v in rect)
     if w == 0:
         return 0, 0, 0, 0
-    read = depth_mm[y : y + h, x : x + w]
-    read = read[read > 0]
-    depths = [d for d in (float(read.min()) if read.size else np.nan, fallback_mm) if d > 0]
+    depths = _depths_in(depth_mm, (x, y, x + w, y + h), fallback_mm)
     if not depths:
         return 0, 0, w_img, h_img
     pad = window_pad(disc_mm_px / min(depths)) + 1
     return max(x - pad, 0), max(y - pad, 0), min(x + w + pad, w_img), min(y + h + pad, h_img)
+
+
+def _depths_in(
+    depth_mm: NDArray[np.uint16], box: tuple[int, int, int, int], fallback_mm: float
+) -> list[float]:
+    """The nearest depth read in ``box`` (x0, y0, x1, y1) and ``fallback_mm``, those
+    that are readings (> 0)."""
+    x0, y0, x1, y1 = box
+    read = depth_mm[y0:y1, x0:x1]
+    if read.dtype == np.uint16:
+        # (0, no reading, wraps round to the largest value: the least of the rest is read)
+        least = int((read - np.uint16(1)).min()) + 1 if read.size else 0
+        nearest = float(least) if 0 < least <= np.iinfo(np.uint16).max else np.nan
+    else:
+        read = read[read > 0]
+        nearest = float(read.min()) if read.size else np.nan
+    return [d for d in (nearest, fallback_mm) if d > 0]
+
+
+def _napkin_box(
+    napkin: NapkinView, shape: tuple[int, int], scale: float, disc_mm_px: float,
+    median_mm: float, params: DetectorParams,
+) -> tuple[int, int, int, int] | None:
+    """(x0, y0, x1, y1): the box of the search image (``shape``, rows and columns;
+    ``scale`` of the frame's pixels) where stickers are searched: the box around the
+    napkin's cloth samples grown by ``params.napkin_margin`` sticker diameters at the
+    frame's median depth ``median_mm`` (at least 4 sampling strides). None: the whole
+    image (no margin set, no cloth seen, no depth read, or the box covers it)."""
+    import cv2
+
+    cloth = napkin.cloth
+    if params.napkin_margin is None or cloth is None or not cloth.any():
+        return None
+    if not (median_mm > 0):
+        return None
+    h_img, w_img = shape
+    x, y, w, h = cv2.boundingRect(cloth.astype(np.uint8))
+    s = napkin.stride * scale  # (a sample is at pixel stride * k of the frame)
+    margin = max(params.napkin_margin * 2 * disc_mm_px / median_mm, 4 * s)
+    box = (
+        max(math.floor(x * s - margin), 0), max(math.floor(y * s - margin), 0),
+        min(math.ceil((x + w) * s + margin), w_img), min(math.ceil((y + h) * s + margin), h_img),
+    )
+    return None if box == (0, 0, w_img, h_img) else box
 
 
 def _halved_within(
@@ -209,10 +272,10 @@ def _halved_within(
     if box == (0, 0, w2, h2):
         return cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
     out = np.zeros((h2, w2, 3), np.uint8)
-    if x1 > x0 and y1 > y0:
-        out[y0:y1, x0:x1] = cv2.resize(
+    if x1 > x0 and y1 > y0:  # (written in place, into the box of ``out``)
+        cv2.resize(
             color[2 * y0 : 2 * y1, 2 * x0 : 2 * x1], (x1 - x0, y1 - y0),
-            interpolation=cv2.INTER_AREA,
+            dst=out[y0:y1, x0:x1], interpolation=cv2.INTER_AREA,
         )
     return out
 
@@ -232,13 +295,13 @@ def _labelled_within(
     if box == (0, 0, color.shape[1], color.shape[0]):
         norm = cv2.LUT(color, balance)
         return (norm, *colour_labels(norm, lut, params))
-    norm, hsv = np.zeros_like(color), np.zeros_like(color)
+    # (np.zeros, not zeros_like: the pages outside the box are never written)
+    norm, hsv = np.zeros(color.shape, np.uint8), np.zeros(color.shape, np.uint8)
     labels = np.zeros(color.shape[:2], np.uint8)
-    if x1 > x0 and y1 > y0:
-        norm[y0:y1, x0:x1] = cv2.LUT(color[y0:y1, x0:x1], balance)
-        labels[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = colour_labels(
-            norm[y0:y1, x0:x1], lut, params
-        )
+    if x1 > x0 and y1 > y0:  # (written in place, into the box of each)
+        inner = np.s_[y0:y1, x0:x1]
+        cv2.LUT(color[inner], balance, dst=norm[inner])
+        colour_labels(norm[inner], lut, params, out=(labels[inner], hsv[inner]))
     return norm, labels, hsv
 
 
@@ -263,18 +326,65 @@ def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection
     mask = cv2.threshold(image.labels, 0, 1, cv2.THRESH_BINARY)[1]
     # Outer boundaries of every component, also those inside holes of others (a
     # saturated surround never hides what lies inside it).
-    contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
-    if hierarchy is None:
-        contours, hierarchy = (), np.zeros((1, 0, 4), int)
+    outer = outer_contours(mask)
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
-    outer = [c for c, h in zip(contours, hierarchy[0]) if h[3] < 0]
+    if image.within is not None:  # (blobs not wholly within it are not judged)
+        outer = [c for c in outer if _lies_within(cv2.boundingRect(c), image.within)]
     for judged in judge_blobs(outer, image):
         if isinstance(judged, Candidate):
             candidates.append(judged)
         elif judged is not None:
             rejected.append(judged)
     return candidates, rejected
+
+
+#: Above this many pixels in a mask, :func:`outer_contours` traces it level by level.
+_MANY_PIXELS = 8000
+
+
+def outer_contours(
+    mask: NDArray[np.uint8], *, by_level: bool | None = None
+) -> list[NDArray[np.int32]]:
+    """The outer contour of every 8-connected component of a 0/1 ``mask``, also of
+    those inside holes of others: ``cv2.findContours``' (``RETR_CCOMP``, all points)
+    outer contours, in its order (their first points, each a component's first pixel,
+    in reverse raster order).
+
+    A mask of many pixels (the second search's pastel labels, with thousands of holes)
+    is traced level by level instead: the outermost components' outer contours
+    (``RETR_EXTERNAL``, no hole traced), those components removed (flood-filled), the
+    components that were inside their holes next: the same contours.
+    ``by_level`` forces either way.
+    """
+    import cv2
+
+    if by_level is None:
+        by_level = cv2.countNonZero(mask) > _MANY_PIXELS
+    if not by_level:
+        contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+        if hierarchy is None:
+            return []
+        return [contours[k] for k in np.flatnonzero(hierarchy[0][:, 3] < 0).tolist()]
+    out: list[NDArray[np.int32]] = []
+    rest = mask.copy()
+    filled = np.zeros((mask.shape[0] + 2, mask.shape[1] + 2), np.uint8)  # (one for all)
+    while True:
+        level, _ = cv2.findContours(rest, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+        if not level:
+            break
+        out.extend(level)
+        for contour in level:  # (its first point is a pixel of its component)
+            seed = (int(contour[0, 0, 0]), int(contour[0, 0, 1]))
+            cv2.floodFill(rest, filled, seed, 0, flags=8)
+    out.sort(key=lambda c: (int(c[0, 0, 1]), int(c[0, 0, 0])), reverse=True)
+    return out
+
+
+def _lies_within(rect: tuple[int, int, int, int], box: tuple[int, int, int, int]) -> bool:
+    """Whether ``rect`` (x, y, w, h) lies within ``box`` (x0, y0, x1, y1)."""
+    x, y, w, h = rect
+    return x >= box[0] and y >= box[1] and x + w <= box[2] and y + h <= box[3]
 
 
 @dataclass(frozen=True, eq=False)
@@ -419,7 +529,7 @@ def _refine_all(
     top = 0
     for c, g in grown:
         h, w = g.up.shape
-        out[c] = _centre_of(g.region(hits[top : top + h, :w]), *g.origin, c)
+        out[c] = _centre_of(g.within(hits[top : top + h, :w]), g, c)
         top += h
     return out
 
@@ -462,14 +572,9 @@ class _GrownBlob:
         (x, y), (h, w) = self.corner, self.up.shape
         return color[y : y + h, x : x + w]
 
-    def region(self, hits: NDArray[np.uint8]) -> NDArray[np.uint8]:
-        """The grown blob's pixels among ``hits`` (0/1, the box's shape), in the
-        window: 0/1, shape ``shape``."""
-        out = np.zeros(self.shape, np.uint8)
-        (x, y), (h, w) = self.corner, self.up.shape
-        dx, dy = x - self.origin[0], y - self.origin[1]
-        out[dy : dy + h, dx : dx + w] = hits * self.up
-        return out
+    def within(self, hits: NDArray[np.uint8]) -> NDArray[np.uint8]:
+        """The grown blob's pixels among ``hits`` (0/1, the box's shape), in its box."""
+        return hits * self.up
 
 
 def _stacked(boxes: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
@@ -496,17 +601,20 @@ def _sticker_or_blown(
 
 
 def _centre_of(
-    region: NDArray[np.uint8], x0: int, y0: int, c: Candidate
+    region: NDArray[np.uint8], g: _GrownBlob, c: Candidate
 ) -> tuple[tuple[float, float], float]:
-    """Centre and area of the largest outer contour of ``region`` (its origin at
-    (x0, y0) in the frame); the halved search's, scaled, when it has none."""
+    """Centre and area of the largest outer contour of ``region`` (0/1, the grown blob
+    ``g``'s pixels in its box) in the frame; the halved search's, scaled, when it has
+    none. The contour is measured in the candidate's window (at ``g.origin``), as it
+    always was: its box is all of the window that can hold a pixel of the blob."""
     import cv2
 
     contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
-    contour = max(contours, key=cv2.contourArea)
-    m = cv2.moments(contour)
+    (x, y), (x0, y0) = g.corner, g.origin
+    contour = max(contours, key=cv2.contourArea)  # (the area does not depend on where)
+    m = cv2.moments(contour + np.array([x - x0, y - y0], contour.dtype))
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     return (m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0), float(m["m00"])
@@ -560,10 +668,11 @@ def find_washed_out(
     cells = FootprintParams(cell_px=lower.stride)
     if regions is None or regions.cell_px != cells.cell_px:
         regions = cloth_regions(color, napkin.white_rgb, cells)
-    if len(pale_samples(color, found, layout, params, lower, colours, regions=regions)[0]) < 2:
+    looks = PastelLooks(color, lower, regions)  # (shared by the looks below)
+    if len(pale_samples(color, found, layout, params, lower, colours, looks=looks)[0]) < 2:
         return found  # no pastel patch anywhere: nothing to search, nothing left unread
     roi = None
-    cloth = cloth_cells(color, lower, found.centroids, cells, regions=regions)
+    cloth = looks.cloth(found.centroids)
     if found.found.any() and cloth is not None:
         m = 2 * params.washed_margin_cells + 1
         roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
@@ -572,7 +681,7 @@ def find_washed_out(
         colours=colours, roi=roi,
     )
     merged = merge_second_search(found, again)
-    return with_unread(color, merged, layout, params, lower, colours, regions=regions)
+    return with_unread(color, merged, layout, params, lower, colours, looks=looks)
 
 
 def detect_all_stickers(

@@ -125,6 +125,15 @@ class DetectorParams:
         ``min_chroma`` of that search. Default 20: a pastel sticker keeps the chroma of
         its own colour under added white light (in linear light exactly; 8-bit levels
         compress it), the napkin's noise stays below 10.
+    napkin_margin : float or None
+        How far beyond the napkin's white (the box around the napkin's cloth samples,
+        ``NapkinView.cloth``) stickers are searched, in sticker diameters at the
+        frame's median depth (at least 4 sampling strides). Only blobs lying
+        wholly within the box so grown are judged and reported. Default 2: a sticker
+        lies on the napkin, and where a shadow leaves the cloth beside it unseen as
+        white, its centre still lies within the box of the white (at least a third of
+        a radius inside it on 240 test frames); blobs farther out are things on the
+        table. None: the whole image.
     """
 
     min_saturation: int = 115
@@ -154,6 +163,7 @@ class DetectorParams:
     washed_level: int = 150
     washed_surround: float = 0.35
     washed_margin_cells: int = 7
+    napkin_margin: float | None = 2.0
 
 
 @dataclass(frozen=True)

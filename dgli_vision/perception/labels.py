@@ -8,6 +8,7 @@ a sticker colour's.
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -17,10 +18,6 @@ from ..core.layout import NapkinLayout
 from .detections import DetectorParams
 
 __all__ = ["colour_labels", "hue_lut", "hue_of"]
-
-#: Up to this many dark coloured pixels, :func:`colour_labels` tests them one by one.
-_FEW_DARK = 2000
-
 
 def hue_of(rgb: tuple[int, int, int]) -> int:
     """OpenCV 8-bit hue (0-179) of an sRGB colour."""
@@ -60,44 +57,64 @@ def _nearest_hue_lut(hues: tuple[int, ...], max_distance: int) -> NDArray[np.uin
 
 
 def colour_labels(
-    norm: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams
+    norm: NDArray[np.uint8], lut: NDArray[np.uint8], params: DetectorParams,
+    *, out: tuple[NDArray[np.uint8], NDArray[np.uint8]] | None = None,
 ) -> tuple[NDArray[np.uint8], NDArray[np.uint8]]:
     """Colour label (0 none, k + 1 colour k) of every pixel of a balanced RGB image, and
-    its HSV. Shapes (h, w) and (h, w, 3). ``lut`` is :func:`hue_lut`'s table."""
+    its HSV. Shapes (h, w) and (h, w, 3). ``lut`` is :func:`hue_lut`'s table; ``out``:
+    the arrays (labels, HSV) to write them in (views of larger images may be given).
+
+    A pixel is coloured when its saturation S reaches :func:`least_saturation` of its
+    value V (which holds every threshold: saturation, value, chroma): one table lookup
+    and one comparison per pixel on the HSV planes."""
     import cv2
 
-    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)
-    least = (0, params.min_saturation, params.min_value)
-    coloured = cv2.inRange(hsv, least, (180, 255, 255))
-    # chroma = S * V / 255 >= min_chroma: only binding where V is low (dark, noisy pixels)
-    v_limit = int(np.ceil(params.min_chroma * 255 / max(params.min_saturation, 1)))
-    dark_mask = cv2.inRange(hsv, least, (180, 255, max(v_limit - 1, 0)))  # (coloured too)
-    n_dark = cv2.countNonZero(dark_mask)
-    if n_dark:
-        coloured = _without_faint(coloured, dark_mask, n_dark, hsv, params.min_chroma * 255)
-    labels = cv2.LUT(hsv[..., 0], np.concatenate([lut, np.zeros(76, np.uint8)]))
-    return cv2.bitwise_and(labels, coloured), hsv
+    labels_out, hsv_out = out if out is not None else (None, None)
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)  # (its own: split copies a view first)
+    h, s, v = cv2.split(hsv)  # (planes of their own: each is overwritten below)
+    needed, v_least = least_saturation(
+        params.min_saturation, params.min_value, params.min_chroma
+    )
+    coloured = cv2.compare(s, cv2.LUT(v, needed), cv2.CMP_GE, dst=s)
+    if v_least > 0:  # (no saturation is enough below it)
+        cv2.threshold(v, v_least - 1, 255, cv2.THRESH_BINARY, dst=v)
+        cv2.bitwise_and(coloured, v, dst=coloured)
+    labels = cv2.LUT(h, _hue_table(lut), dst=h)
+    labels = cv2.bitwise_and(labels, coloured, dst=h if labels_out is None else labels_out)
+    if hsv_out is not None:
+        hsv_out[...] = hsv
+        hsv = hsv_out
+    return labels, hsv
 
 
-def _without_faint(
-    coloured: NDArray[np.uint8],
-    dark_mask: NDArray[np.uint8],
-    n_dark: int,
-    hsv: NDArray[np.uint8],
-    least: int,
-) -> NDArray[np.uint8]:
-    """``coloured`` without the dark pixels (``dark_mask``, ``n_dark`` of them) whose
-    chroma S * V is below ``least``. Few dark pixels are looked up one by one; many
-    (the second search's low saturation makes most coloured pixels dark) are tested
-    with one whole-image product: the same integers either way."""
-    import cv2
+def _hue_table(lut: NDArray[np.uint8]) -> NDArray[np.uint8]:
+    """``lut`` (hues 0-179) as a 256-entry table for ``cv2.LUT`` (0 beyond 179)."""
+    return np.concatenate([lut, np.zeros(256 - len(lut), np.uint8)])
 
-    if n_dark <= _FEW_DARK:
-        dv, du = np.nonzero(dark_mask)
-        faint = hsv[dv, du, 1].astype(np.int32) * hsv[dv, du, 2] < least
-        coloured[dv[faint], du[faint]] = 0
-        return coloured
-    chroma = hsv[..., 1].astype(np.uint16)
-    np.multiply(chroma, hsv[..., 2], out=chroma)  # at most 255 * 255: no overflow
-    faint = cv2.bitwise_and(dark_mask, cv2.compare(chroma, least, cv2.CMP_LT))
-    return cv2.bitwise_and(coloured, cv2.bitwise_not(faint))
+
+@lru_cache(maxsize=16)
+def least_saturation(
+    min_saturation: int, min_value: int, min_chroma: float
+) -> tuple[NDArray[np.uint8], int]:
+    """The least HSV saturation (8-bit) a pixel of each value V (0-255) needs to be
+    coloured, and the least value that can be coloured at all (any saturation below it
+    is too little). Shape (256,).
+
+    A coloured pixel has S >= ``min_saturation`` and V >= ``min_value``; where V is low
+    (dark, noisy pixels: V below ``min_chroma`` * 255 / ``min_saturation``) also a chroma
+    S * V of at least ``min_chroma`` * 255: there S >= ceil(``min_chroma`` * 255 / V)."""
+    least = min_chroma * 255
+    v_limit = int(np.ceil(least / max(min_saturation, 1)))
+    needed = np.full(256, max(min_saturation, 0), np.int64)
+    v_least = max(min_value, 0) if min_saturation <= 255 else 256
+    for v in range(min(max(v_limit - 1, 0), 255) + 1):  # (dark: the chroma binds)
+        if v == 0:
+            need = max(min_saturation, 0) if least <= 0 else 256
+        else:
+            need = max(min_saturation, math.ceil(-(-least // v)))
+        needed[v] = need
+        if need > 255:
+            v_least = max(v_least, v + 1)
+    table = np.minimum(needed, 255).astype(np.uint8)
+    table.flags.writeable = False
+    return table, min(v_least, 256)

@@ -22,6 +22,7 @@ from .labels import hue_lut
 from .napkin import NapkinView
 
 __all__ = [
+    "PastelLooks",
     "merge_second_search",
     "pale_cells",
     "pale_samples",
@@ -50,6 +51,7 @@ def pale_samples(
     *,
     edge_cells: int = 0,
     regions: ClothRegions | None = None,
+    looks: PastelLooks | None = None,
 ) -> tuple[NDArray[np.float64], tuple[str, ...]]:
     """Pixels (x, y), shape (k, 2), and colour names of pastel samples of a sticker hue
     away from the stickers found, on the napkin's sampling grid (``lower.stride``): a
@@ -61,20 +63,21 @@ def pale_samples(
     pale too); anywhere when the napkin is not told from the table. The rims of the
     stickers found are pastel too (their pixels mix with the cloth), so samples within
     two disc radii of them do not count. ``regions``: the frame's white regions
-    (:func:`.footprint.cloth_regions`), when already found.
+    (:func:`.footprint.cloth_regions`), when already found; ``looks``: what earlier
+    looks at the same frame found (:class:`PastelLooks`, of the same ``lower``).
     """
     import cv2
 
     s = lower.stride
+    looks = looks or PastelLooks(color, lower, regions)
     lut, names = hue_lut(layout, params, colours)
     on_napkin = None  # (with nothing found, or the napkin not told from the table: anywhere)
     if found.found.any():
-        grid = FootprintParams(cell_px=s)
-        cloth = cloth_cells(color, lower, found.centroids, grid, regions=regions)
+        cloth = looks.cloth(found.centroids)
         if cloth is not None:
             edge = np.ones((2 * edge_cells + 1,) * 2, np.uint8)
             on_napkin = cv2.erode(cloth.astype(np.uint8), edge).astype(bool)
-    pale, hsv = pale_cells(color, lut, params, lower, within=on_napkin)
+    pale, hsv = looks.pale_cells(lut, params, on_napkin)
     if on_napkin is not None:
         pale &= on_napkin
     ys, xs = np.nonzero(pale)
@@ -104,21 +107,114 @@ def pale_cells(
     their test reads (:data:`_VIVID_REACH` cells more) is computed, the other cells are
     not pastel and their HSV is 0. Default: every cell.
     """
+    return _pale_cells_in(color, lut, params, lower, _cells_box(color, lower.stride, within))
+
+
+def _cells_box(
+    color: NDArray[np.uint8], s: int, within: NDArray[np.bool_] | None
+) -> tuple[int, int, int, int]:
+    """(x0, y0, x1, y1): the cells (of ``s`` pixels) :func:`pale_cells` computes for
+    the cells ``within`` (all of them for None): their box and :data:`_VIVID_REACH`
+    cells more; empty when ``within`` holds none."""
+    import cv2
+
+    h, w = color.shape[0] // s, color.shape[1] // s
+    if within is None:
+        return 0, 0, w, h
+    if not within.any():
+        return 0, 0, 0, 0
+    bx, by, bw, bh = cv2.boundingRect(within.astype(np.uint8))
+    m = _VIVID_REACH
+    return max(bx - m, 0), max(by - m, 0), min(bx + bw + m, w), min(by + bh + m, h)
+
+
+def _pale_cells_in(
+    color: NDArray[np.uint8],
+    lut: NDArray[np.uint8],
+    params: DetectorParams,
+    lower: NapkinView,
+    box: tuple[int, int, int, int],
+    averaged: NDArray[np.uint8] | None = None,
+) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
+    """:func:`pale_cells` of the cells in ``box`` (x0, y0, x1, y1); elsewhere not
+    pastel, HSV 0. ``averaged``: the frame's cells already averaged (RGB, shape
+    (H // s, W // s, 3), ``ClothRegions.cells``), else they are averaged here."""
     import cv2
 
     s = lower.stride
     h, w = color.shape[0] // s, color.shape[1] // s
-    x0, y0, x1, y1 = 0, 0, w, h
-    if within is not None:
-        bx, by, bw, bh = cv2.boundingRect(within.astype(np.uint8))
-        m = _VIVID_REACH
-        x0, y0 = max(bx - m, 0), max(by - m, 0)
-        x1, y1 = min(bx + bw + m, w), min(by + bh + m, h)
+    x0, y0, x1, y1 = box
     pale, hsv = np.zeros((h, w), bool), np.zeros((h, w, 3), np.uint8)
-    if bool(within is None or within.any()) and x1 > x0 and y1 > y0:
-        box = color[y0 * s : y1 * s, x0 * s : x1 * s]
-        pale[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = _pale_in(box, s, lut, params, lower.lut)
+    if x1 > x0 and y1 > y0:
+        if averaged is not None and averaged.shape == (h, w, 3):
+            cells = averaged[y0:y1, x0:x1]
+        else:  # (cells are averaged independently: any box of whole cells gives its own)
+            cells = cv2.resize(
+                color[y0 * s : y1 * s, x0 * s : x1 * s], (x1 - x0, y1 - y0),
+                interpolation=cv2.INTER_AREA,
+            )
+        pale[y0:y1, x0:x1], hsv[y0:y1, x0:x1] = _pale_in(cells, lut, params, lower.lut)
     return pale, hsv
+
+
+class PastelLooks:
+    """What the looks for pastel patches at one frame (:func:`pale_samples`) share:
+    the napkin's cells for each set of stickers found, and the pastel cells computed
+    so far (a box of them; a later look within it reads them, as computing them again
+    gives the same cells). The cells are averaged once, by :func:`.footprint.cloth_regions`
+    (``ClothRegions.cells``), when ``regions`` keeps them.
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+    lower : NapkinView
+        The napkin balanced to the low level (its ``stride`` is the cell size).
+    regions : ClothRegions, optional
+        The frame's white regions, when already found.
+    """
+
+    def __init__(
+        self, color: NDArray[np.uint8], lower: NapkinView, regions: ClothRegions | None
+    ) -> None:
+        self.color, self.lower, self.regions = color, lower, regions
+        self._cloth: dict[bytes, NDArray[np.bool_] | None] = {}
+        self._cells: tuple[tuple, tuple[int, int, int, int], NDArray, NDArray] | None = None
+
+    def cloth(self, sticker_px: NDArray[np.float64]) -> NDArray[np.bool_] | None:
+        """:func:`.footprint.cloth_cells` of the stickers at ``sticker_px`` (n, 2)."""
+        key = np.ascontiguousarray(sticker_px, dtype=np.float64).tobytes()
+        if key not in self._cloth:
+            grid = FootprintParams(cell_px=self.lower.stride)
+            self._cloth[key] = cloth_cells(
+                self.color, self.lower, sticker_px, grid, regions=self.regions
+            )
+        return self._cloth[key]
+
+    def pale_cells(
+        self, lut: NDArray[np.uint8], params: DetectorParams,
+        within: NDArray[np.bool_] | None,
+    ) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
+        """:func:`pale_cells` (the pastel cells a copy: the caller's to change)."""
+        box = _cells_box(self.color, self.lower.stride, within)
+        key = (lut.tobytes(), params)
+        if self._cells is None or self._cells[0] != key or not _holds(self._cells[1], box):
+            averaged = None
+            if self.regions is not None and self.regions.cell_px == self.lower.stride:
+                averaged = self.regions.cells
+            self._cells = (
+                key, box, *_pale_cells_in(self.color, lut, params, self.lower, box, averaged)
+            )
+        return self._cells[2].copy(), self._cells[3]
+
+
+def _holds(outer: tuple[int, int, int, int], inner: tuple[int, int, int, int]) -> bool:
+    """Whether box ``inner`` (x0, y0, x1, y1) lies within box ``outer`` (or is empty)."""
+    if inner[2] <= inner[0] or inner[3] <= inner[1]:
+        return True
+    return (
+        outer[0] <= inner[0] and outer[1] <= inner[1]
+        and inner[2] <= outer[2] and inner[3] <= outer[3]
+    )
 
 
 #: How far (cells) a vivid cell makes the pastel cells around it a sticker's rim.
@@ -126,18 +222,15 @@ _VIVID_REACH = 2
 
 
 def _pale_in(
-    color: NDArray[np.uint8],
-    s: int,
+    sub: NDArray[np.uint8],
     lut: NDArray[np.uint8],
     params: DetectorParams,
     balance: NDArray[np.uint8],
 ) -> tuple[NDArray[np.bool_], NDArray[np.uint8]]:
-    """:func:`pale_cells` of an image whose sides are whole cells of ``s`` pixels
-    (cells are averaged independently: any such box of a frame gives its cells)."""
+    """:func:`pale_cells` of averaged cells ``sub`` (RGB, shape (h, w, 3)); the test of
+    a cell reads the cells within :data:`_VIVID_REACH` of it."""
     import cv2
 
-    h, w = color.shape[0] // s, color.shape[1] // s
-    sub = cv2.resize(color, (w, h), interpolation=cv2.INTER_AREA)
     hsv = cv2.cvtColor(cv2.LUT(sub, balance), cv2.COLOR_RGB2HSV)
     pale = cv2.inRange(
         hsv,
@@ -192,11 +285,14 @@ def with_unread(
     colours: dict[str, tuple[int, int, int]] | None,
     *,
     regions: ClothRegions | None = None,
+    looks: PastelLooks | None = None,
 ) -> StickerDetections:
     """``found`` with the pastel patches on the napkin that no search could read
-    (``pale_px``, ``pale_colours``). ``regions`` as for :func:`pale_samples`."""
+    (``pale_px``, ``pale_colours``). ``regions`` and ``looks`` as for
+    :func:`pale_samples`."""
     left = pale_samples(
-        color, found, layout, params, lower, colours, edge_cells=1, regions=regions
+        color, found, layout, params, lower, colours, edge_cells=1, regions=regions,
+        looks=looks,
     )
     return _washed(found, left, lower.stride)
 
