@@ -74,12 +74,18 @@ def track(
     --report, each frame's result is kept as it is done: Ctrl-C or SIGTERM gives the
     timeline of the frames done and exits 130 (143), and --resume goes on from there.
     """
+    import os
+
+    from ..analysis.evaluate import start_workers
     from ..sources.colours_file import read_colours
 
-    recording = open_recording_with(folder, recording_opts)
     require_report_for_resume(resume, report_dir)
     refs, refs_path = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
+    jobs = jobs or os.cpu_count() or 1
+    if os.path.exists(folder):  # they start up while the recording is opened
+        start_workers(jobs, refs, colours)
+    recording = open_recording_with(folder, recording_opts)
     run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
     header = {
         "kind": "track",
