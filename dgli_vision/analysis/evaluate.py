@@ -239,12 +239,24 @@ def _warm() -> None:
 def start_workers(jobs: int, references: ReferenceSet, colours: dict | None = None) -> None:
     """Start the worker processes that :func:`evaluate_pairs` with ``jobs`` will use,
     now: they spawn, import and load ``references`` (half a second) while this process
-    goes on opening its input, instead of after. Nothing for ``jobs`` 1."""
+    goes on opening its input, instead of after. Nothing for ``jobs`` 1.
+
+    The processes are started from a thread: starting one waits until it has read its
+    references, which it does after its first imports (a few tenths of a second)."""
     if jobs < 2:
         return
+    import threading
+
     pool = _worker_pool(jobs - 1, references, colours)
-    for _ in range(jobs - 1):  # each submit starts a process while none is idle
-        pool.submit(_warm)
+
+    def start() -> None:
+        try:
+            for _ in range(jobs - 1):  # each submit starts a process while none is idle
+                pool.submit(_warm)
+        except Exception:  # the pool's first real submit raises it again
+            return
+
+    threading.Thread(target=start, name="dgli-start-workers", daemon=True).start()
 
 
 def _shutdown_pool() -> None:

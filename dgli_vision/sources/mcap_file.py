@@ -209,40 +209,57 @@ def plan(path: str | Path) -> McapPlan | None:
     return McapPlan(tuple(f for f in parsed if f is not None))
 
 
+class _Window:
+    """Reads of one file through a window of a few kilobytes: a chunk's header and its
+    records' headers mostly lie in the first, so a chunk costs about one system call."""
+
+    SIZE = 4096
+
+    def __init__(self, fd: int) -> None:
+        self.fd, self.start, self.data = fd, 0, b""
+
+    def read(self, offset: int, size: int) -> bytes:
+        at = offset - self.start
+        if at < 0 or at + size > len(self.data):
+            self.start, self.data = offset, os.pread(self.fd, max(size, self.SIZE), offset)
+            at = 0
+        out = self.data[at : at + size]
+        if len(out) != size:
+            raise McapError(f"truncated record at offset {offset}")
+        return out
+
+
 def _chunk_messages(
-    fd: int, chunk: _Chunk, wanted: dict[int, tuple[str, str]]
+    window: _Window, chunk: _Chunk, wanted: dict[int, tuple[str, str]]
 ) -> Iterator[tuple[int, int, int, int, int, int]]:
     """The messages of one chunk on the ``wanted`` channels, sorted by log time:
     ``(log time, chunk offset, order, channel, data offset, data length)``, after a
     first item that holds the chunk's start time (read only when the merge comes to it)."""
     yield (chunk.start, 0, -1, -1, -1, -1)
-    head = _pread(fd, _CHUNK_HEAD.size, chunk.offset)
-    op, length, _, _, size, crc = _CHUNK_HEAD.unpack(head)
+    op, length, _, _, size, crc = _CHUNK_HEAD.unpack(window.read(chunk.offset, _CHUNK_HEAD.size))
     if op != _CHUNK:
         raise McapError(f"no chunk at offset {chunk.offset}")
     pos = chunk.offset + _CHUNK_HEAD.size
-    (n,) = _U32.unpack(_pread(fd, 4, pos))
+    (n,) = _U32.unpack(window.read(pos, 4))
     pos += 4 + n
-    (records,) = _U64.unpack(_pread(fd, 8, pos))
+    (records,) = _U64.unpack(window.read(pos, 8))
     pos += 8
     end = pos + records
     if records != size or end > chunk.offset + 9 + length:
         raise McapError(f"chunk at offset {chunk.offset}: records do not fit")
     if crc:
-        _check_crc(fd, pos, records, crc, chunk.offset)
+        _check_crc(window.fd, pos, records, crc, chunk.offset)
     found = []
     while pos < end:
-        if pos + _MESSAGE_HEAD.size <= end:
-            head = _pread(fd, _MESSAGE_HEAD.size, pos)
-            op, length = _RECORD.unpack_from(head)
-        else:
-            op, length = _RECORD.unpack(_pread(fd, 9, pos))
+        op, length = _RECORD.unpack(window.read(pos, 9))
         if pos + 9 + length > end:
             raise McapError(f"record at offset {pos} runs past its chunk")
         if op == _MESSAGE:
             if length < 22:
                 raise McapError(f"message record at offset {pos} is too short")
-            _, _, channel, _, log_time, _ = _MESSAGE_HEAD.unpack(head)
+            _, _, channel, _, log_time, _ = _MESSAGE_HEAD.unpack(
+                window.read(pos, _MESSAGE_HEAD.size)
+            )
             if chunk.start <= log_time <= chunk.end and channel in wanted:
                 found.append((log_time, channel, pos + 9 + 22, length - 22))
         pos += 9 + length
@@ -266,8 +283,9 @@ def _check_crc(fd: int, pos: int, size: int, crc: int, where: int) -> None:
 def _file_messages(f: _File, wanted: dict[int, tuple[str, str]]) -> Iterator[McapMessage]:
     fd = os.open(f.path, os.O_RDONLY)
     try:
+        window = _Window(fd)
         sources = [
-            _chunk_messages(fd, c, wanted) for c in f.chunks if c.channels & wanted.keys()
+            _chunk_messages(window, c, wanted) for c in f.chunks if c.channels & wanted.keys()
         ]
         for log_time, _, order, channel, offset, n in heapq.merge(*sources):
             if order >= 0:
