@@ -312,10 +312,14 @@ class RosBag:
     def __enter__(self) -> RosBag:
         highlevel, typesys = _rosbags()
         errors = _read_errors()
-        store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
         try:
-            self.reader = highlevel.AnyReader([self.path], default_typestore=store)
-            self.reader.open()
+            try:  # most bags carry their message definitions: no default types to load
+                self.reader = highlevel.AnyReader([self.path])
+                self.reader.open()
+            except highlevel.AnyReaderError:  # none (or another problem, said again)
+                store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+                self.reader = highlevel.AnyReader([self.path], default_typestore=store)
+                self.reader.open()
         except errors as exc:
             raise UnreadableInputError(
                 f"recording '{self.path}' cannot be read (truncated, corrupt or not a bag): "
