@@ -123,6 +123,7 @@ class _TrackRun:
         self.refs, self.colours = refs, colours
         self.jobs = jobs or os.cpu_count() or 1
         self.as_json = as_json
+        self._keys: dict[tuple[str, str], tuple[str, str]] = {}
 
     def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
         """Classify the frames not done yet (``journal``: the results.jsonl writer and
@@ -139,7 +140,9 @@ class _TrackRun:
             finally:
                 if writer:
                     writer.close()
-        outcomes = [done[k] for k in (pair_key(p) for p in seen) if k in done]
+        keys = self._keys
+        found = (keys.get((p.color, p.depth)) or pair_key(p) for p in seen)
+        outcomes = [done[k] for k in found if k in done]
         recording_notes(self.recording, quiet=self.as_json)
         labelled = self.recording.labelled and all(o.pair.label for o in outcomes)
         timeline = track_outcomes(
@@ -172,10 +175,16 @@ class _TrackRun:
         into ``seen``, until all are or a stop signal comes (:func:`stop_signals`)."""
         from ..analysis.evaluate import pair_key
 
+        keys = self._keys  # each frame's key (real paths) worked out once
+
+        def key(pair: Any) -> tuple[str, str]:
+            return keys.get((pair.color, pair.depth)) or pair_key(pair)
+
         def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
             for pair in self.recording.frames:
                 seen.append(pair.light())
-                if pair_key(pair) not in done:
+                keys[(pair.color, pair.depth)] = k = pair_key(pair)
+                if k not in done:
                     yield pair
 
         classify_into(
@@ -188,6 +197,7 @@ class _TrackRun:
             stop,
             colours=self.colours,
             distances=True,
+            key=key,
         )
 
     def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
