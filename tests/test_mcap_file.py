@@ -1,6 +1,7 @@
 """ROS 2 MCAP recordings read in place (sources.mcap_file): the same messages, in the
 same order, as rosbags reads; images handed on as where they lie in the file; and what
-is not read in place (compressed chunks) still read, through rosbags."""
+is not read in place (compressed chunks) still read, through rosbags; and the workers of
+`track -j N`, started before the references are loaded, are those that classify."""
 
 from __future__ import annotations
 
@@ -198,3 +199,22 @@ def test_a_corrupt_chunk_stops_with_one_line(episode, tmp_path):
     assert r.exit_code == 2
     (line,) = r.output.strip().splitlines()
     assert str(cut) in line and "truncated or corrupt" in line and "Traceback" not in line
+
+
+def test_the_workers_started_before_the_references_load_are_those_used(episode, monkeypatch):
+    from dgli_vision.analysis import evaluate, workers
+
+    taken = []
+    take = workers.take_early_workers
+
+    def recording_take(*args):
+        pool = take(*args)
+        taken.append(pool)
+        return pool
+
+    monkeypatch.setattr(workers, "take_early_workers", recording_take)
+    r = CliRunner().invoke(main, ["track", str(episode), "-j", "2", "--json"])
+    assert r.exit_code == 0, r.output
+    assert taken and taken[-1] is not None
+    assert evaluate._POOL[1] is taken[-1]  # one start of the workers, not two
+

@@ -26,6 +26,7 @@ __all__ = [
     "EvaluationResult",
     "PairOutcome",
     "accuracy_answered",
+    "adopt_workers",
     "coordinate_matrix",
     "coverage",
     "evaluate_pairs",
@@ -35,7 +36,6 @@ __all__ = [
     "outcome_from_dict",
     "outcome_to_dict",
     "outcomes_text",
-    "start_workers",
     "summarise",
     "timed_evaluation",
 ]
@@ -230,33 +230,26 @@ def _worker_pool(
     return pool
 
 
-def _warm() -> None:
-    """A worker's first task: import what classifying a pair needs, so that the first
-    pair it is sent finds it ready."""
-    from ..classifier import classify, pipeline  # noqa: F401
+def adopt_workers(
+    jobs: int, references: ReferenceSet, colours: dict | None, references_path: str | None
+) -> None:
+    """Make the workers :func:`~dgli_vision.analysis.workers.start_workers_early` started
+    with ``references_path`` and ``colours`` those that :func:`evaluate_pairs` with
+    ``jobs`` and ``references`` (loaded from that file) uses; nothing when none were."""
+    global _POOL
+    from .workers import take_early_workers
 
-
-def start_workers(jobs: int, references: ReferenceSet, colours: dict | None = None) -> None:
-    """Start the worker processes that :func:`evaluate_pairs` with ``jobs`` will use,
-    now: they spawn, import and load ``references`` (half a second) while this process
-    goes on opening its input, instead of after. Nothing for ``jobs`` 1.
-
-    The processes are started from a thread: starting one waits until it has read its
-    references, which it does after its first imports (a few tenths of a second)."""
-    if jobs < 2:
+    pool = take_early_workers(jobs - 1, references_path, colours)
+    if pool is None:
         return
-    import threading
+    first = _POOL is None
+    _shutdown_pool()
+    if first:
+        import atexit
 
-    pool = _worker_pool(jobs - 1, references, colours)
-
-    def start() -> None:
-        try:
-            for _ in range(jobs - 1):  # each submit starts a process while none is idle
-                pool.submit(_warm)
-        except Exception:  # the pool's first real submit raises it again
-            return
-
-    threading.Thread(target=start, name="dgli-start-workers", daemon=True).start()
+        atexit.register(_shutdown_pool)
+    key = (jobs - 1, references, None if colours is None else tuple(sorted(colours.items())))
+    _POOL = (key, pool)
 
 
 def _shutdown_pool() -> None:

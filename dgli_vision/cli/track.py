@@ -76,15 +76,18 @@ def track(
     """
     import os
 
-    from ..analysis.evaluate import start_workers
+    from ..analysis.workers import start_workers_early
     from ..sources.colours_file import read_colours
 
     require_report_for_resume(resume, report_dir)
-    refs, refs_path = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
     jobs = jobs or os.cpu_count() or 1
-    if os.path.exists(folder):  # they start up while the recording is opened
-        start_workers(jobs, refs, colours)
+    if os.path.exists(folder):  # they start up while this process loads and opens
+        start_workers_early(jobs, references_path, colours)
+    refs, refs_path = references_of(references_path)
+    from ..analysis.evaluate import adopt_workers
+
+    adopt_workers(jobs, refs, colours, references_path)
     recording = open_recording_with(folder, recording_opts)
     run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
     header = {
