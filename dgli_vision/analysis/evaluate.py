@@ -26,6 +26,7 @@ __all__ = [
     "EvaluationResult",
     "PairOutcome",
     "accuracy_answered",
+    "adopt_workers",
     "coordinate_matrix",
     "coverage",
     "evaluate_pairs",
@@ -227,6 +228,28 @@ def _worker_pool(
         atexit.register(_shutdown_pool)
     _POOL = (key, pool)
     return pool
+
+
+def adopt_workers(
+    jobs: int, references: ReferenceSet, colours: dict | None, references_path: str | None
+) -> None:
+    """Make the workers :func:`~dgli_vision.analysis.workers.start_workers_early` started
+    with ``references_path`` and ``colours`` those that :func:`evaluate_pairs` with
+    ``jobs`` and ``references`` (loaded from that file) uses; nothing when none were."""
+    global _POOL
+    from .workers import take_early_workers
+
+    pool = take_early_workers(jobs - 1, references_path, colours)
+    if pool is None:
+        return
+    first = _POOL is None
+    _shutdown_pool()
+    if first:
+        import atexit
+
+        atexit.register(_shutdown_pool)
+    key = (jobs - 1, references, None if colours is None else tuple(sorted(colours.items())))
+    _POOL = (key, pool)
 
 
 def _shutdown_pool() -> None:

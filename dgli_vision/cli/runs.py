@@ -162,12 +162,14 @@ def classify_into(
     writer: Any,
     done: dict,
     stop: Any,
+    key: Any = None,
     **options: Any,
 ) -> None:
     """Classify the pairs of ``todo`` (``count`` of them) on ``run.jobs`` workers with
-    ``run.refs`` and a progress bar, each outcome into ``done`` by its pair and, at once,
-    into ``writer`` (results.jsonl): a run stopped by Ctrl-C or SIGTERM (``stop``) keeps
-    what is done. ``options`` go to ``evaluate_pairs``."""
+    ``run.refs`` and a progress bar, each outcome into ``done`` by its pair (``key`` of
+    it, :func:`~dgli_vision.analysis.evaluate.pair_key` by default) and, at once, into
+    ``writer`` (results.jsonl): a run stopped by Ctrl-C or SIGTERM (``stop``) keeps what
+    is done. ``options`` go to ``evaluate_pairs``."""
     from concurrent.futures.process import BrokenProcessPool
 
     from ..analysis.evaluate import evaluate_pairs, outcome_to_dict, pair_key
@@ -180,7 +182,7 @@ def classify_into(
                 with stop.holding():  # in the journal and counted, or neither
                     if writer:  # flushed at once: an interrupted run keeps its work
                         writer.write(outcome_to_dict(outcome))
-                    done[pair_key(outcome.pair)] = outcome
+                    done[(key or pair_key)(outcome.pair)] = outcome
     except KeyboardInterrupt:
         stop.stopped = True
     except BrokenProcessPool:  # a stop sent to the whole group ended the workers

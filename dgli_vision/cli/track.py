@@ -74,12 +74,21 @@ def track(
     --report, each frame's result is kept as it is done: Ctrl-C or SIGTERM gives the
     timeline of the frames done and exits 130 (143), and --resume goes on from there.
     """
+    import os
+
+    from ..analysis.workers import start_workers_early
     from ..sources.colours_file import read_colours
 
-    recording = open_recording_with(folder, recording_opts)
     require_report_for_resume(resume, report_dir)
-    refs, refs_path = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
+    jobs = jobs or os.cpu_count() or 1
+    if os.path.exists(folder):  # they start up while this process loads and opens
+        start_workers_early(jobs, references_path, colours)
+    refs, refs_path = references_of(references_path)
+    from ..analysis.evaluate import adopt_workers
+
+    adopt_workers(jobs, refs, colours, references_path)
+    recording = open_recording_with(folder, recording_opts)
     run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
     header = {
         "kind": "track",
@@ -117,6 +126,7 @@ class _TrackRun:
         self.refs, self.colours = refs, colours
         self.jobs = jobs or os.cpu_count() or 1
         self.as_json = as_json
+        self._keys: dict[tuple[str, str], tuple[str, str]] = {}
 
     def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
         """Classify the frames not done yet (``journal``: the results.jsonl writer and
@@ -133,7 +143,9 @@ class _TrackRun:
             finally:
                 if writer:
                     writer.close()
-        outcomes = [done[k] for k in (pair_key(p) for p in seen) if k in done]
+        keys = self._keys
+        found = (keys.get((p.color, p.depth)) or pair_key(p) for p in seen)
+        outcomes = [done[k] for k in found if k in done]
         recording_notes(self.recording, quiet=self.as_json)
         labelled = self.recording.labelled and all(o.pair.label for o in outcomes)
         timeline = track_outcomes(
@@ -166,10 +178,16 @@ class _TrackRun:
         into ``seen``, until all are or a stop signal comes (:func:`stop_signals`)."""
         from ..analysis.evaluate import pair_key
 
+        keys = self._keys  # each frame's key (real paths) worked out once
+
+        def key(pair: Any) -> tuple[str, str]:
+            return keys.get((pair.color, pair.depth)) or pair_key(pair)
+
         def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
             for pair in self.recording.frames:
                 seen.append(pair.light())
-                if pair_key(pair) not in done:
+                keys[(pair.color, pair.depth)] = k = pair_key(pair)
+                if k not in done:
                     yield pair
 
         classify_into(
@@ -182,6 +200,7 @@ class _TrackRun:
             stop,
             colours=self.colours,
             distances=True,
+            key=key,
         )
 
     def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:

@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-__all__ = ["SharedSlots", "SlotRef", "ordered_map"]
+__all__ = ["FileSpan", "SharedSlots", "SlotRef", "ordered_map"]
 
 T = TypeVar("T")
 
@@ -80,6 +80,35 @@ class SlotRef:
     def view(self) -> memoryview:
         """The bytes, read-only, without a copy (the file is mapped once per process)."""
         return _mapping(self.path)[self.offset : self.offset + self.length]
+
+
+@dataclass(frozen=True)
+class FileSpan:
+    """Bytes that lie in a file as they are (a raw image in an uncompressed recording):
+    what a worker process is sent instead of the bytes; it maps them itself."""
+
+    path: str
+    offset: int
+    length: int
+
+    def view(self) -> memoryview:
+        """The bytes, read-only, without a copy: only their own pages are mapped, and
+        unmapped once nothing refers to them.
+
+        Raises
+        ------
+        OSError, ValueError
+            The file cannot be opened, or is now shorter than the span.
+        """
+        import mmap
+
+        if not self.length:
+            return memoryview(b"")
+        start = self.offset - self.offset % mmap.ALLOCATIONGRANULARITY
+        with open(self.path, "rb") as f:
+            size = self.offset + self.length - start
+            mapped = mmap.mmap(f.fileno(), size, access=mmap.ACCESS_READ, offset=start)
+        return memoryview(mapped)[self.offset - start :]
 
 
 #: The slot file this process has mapped last, by path (kept: its slots are used over

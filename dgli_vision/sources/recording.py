@@ -13,12 +13,13 @@ from __future__ import annotations
 import csv
 import os
 from collections.abc import Iterable, Iterator
+from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
-from ..core.parallel import SharedSlots, SlotRef
+from ..core.parallel import FileSpan, SharedSlots, SlotRef
 from .frames import RGBDFrame
 from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
 from .realsense import LivePair
@@ -158,8 +159,8 @@ class RecordedPair(LabelledPair):
         """
         if self.problem or self.color_payload is None or self.depth_payload is None:
             raise InvalidInputError(self.problem or f"{self.color}: no image")
-        color = decode_color(_in_memory(self.color_payload), self.color)
-        depth = decode_depth(_in_memory(self.depth_payload), self.depth)
+        color = decode_color(_in_memory(self.color_payload, self.color), self.color)
+        depth = decode_depth(_in_memory(self.depth_payload, self.depth), self.depth)
         if color.shape[:2] != depth.shape:
             raise InvalidInputError(
                 f"{self.depth}: depth is {depth.shape[1]}x{depth.shape[0]} but colour is "
@@ -188,19 +189,34 @@ class RecordedPair(LabelledPair):
         c, d = self.color_payload, self.depth_payload
         if self.problem or c is None or d is None:
             return self, None
-        put = slots.put([c.data, d.data])
+        # pixels that lie in the recording's file as they are go as where they lie
+        held = [p for p in (c, d) if not isinstance(p.data, FileSpan)]
+        if not held:
+            return self, None
+        put = slots.put([p.data for p in held])
         if put is None:
             return self, None
-        slot, (cref, dref) = put
-        return replace(
-            self, color_payload=replace(c, data=cref), depth_payload=replace(d, data=dref)
-        ), slot
+        slot, refs = put
+        sent = dict(zip(map(id, held), refs))
+        c, d = (replace(p, data=sent[id(p)]) if id(p) in sent else p for p in (c, d))
+        return replace(self, color_payload=c, depth_payload=d), slot
 
 
-def _in_memory(p: ImagePayload) -> ImagePayload:
+def _in_memory(p: ImagePayload, where: str) -> ImagePayload:
     """The payload with its bytes readable: mapped from their shared slot when they were
-    sent in one (:meth:`RecordedPair.shared`)."""
-    return replace(p, data=p.data.view()) if isinstance(p.data, SlotRef) else p
+    sent in one (:meth:`RecordedPair.shared`), or from the recording's file.
+
+    Raises
+    ------
+    UnreadableInputError
+        The recording's file cannot be read there any more.
+    """
+    if not isinstance(p.data, (SlotRef, FileSpan)):
+        return p
+    try:
+        return replace(p, data=p.data.view())
+    except (OSError, ValueError) as exc:
+        raise UnreadableInputError(f"{where}: cannot be read from the recording: {exc}") from None
 
 
 def is_recording_file(path: str | Path) -> bool:
@@ -395,13 +411,21 @@ def _bag_recording(
     info_topic: str | None,
     tolerance: float,
 ) -> Recording:
-    from .ros_bags import BagMessage, InfoMessage, RosBag, choose_topics, read_bag_messages
+    from .ros_bags import (
+        BagMessage,
+        InfoMessage,
+        RosBag,
+        choose_topics,
+        in_place_reader,
+        read_bag_messages,
+    )
 
     with RosBag(p) as bag:
         topics = choose_topics(
             bag.types, bag.counts, str(p), color=color_topic, depth=depth_topic, info=info_topic
         )
         kind = "ROS 2 bag" if bag.reader.is2 else "ROS 1 bag"
+        in_place = in_place_reader(bag, topics)  # an MCAP file: no second opening
     if topics.counts[topics.color] == 0 or topics.counts[topics.depth] == 0:
         empty = topics.color if topics.counts[topics.color] == 0 else topics.depth
         raise InvalidInputError(f"recording '{p}': topic {empty} holds no message")
@@ -414,8 +438,13 @@ def _bag_recording(
     state: dict = {"intr": None, "t0": None}  # the latest camera info; the first stamp
 
     def events() -> Iterator[tuple[str, float, object]]:
-        with RosBag(p) as bag:
-            for item in read_bag_messages(bag, topics):
+        with ExitStack() as opened:
+            if in_place is None:
+                items = read_bag_messages(opened.enter_context(RosBag(p)), topics)
+            else:
+                items = in_place()
+            opened.callback(items.close)
+            for item in items:
                 if isinstance(item, InfoMessage):
                     state["intr"] = item.intrinsics
                     if item.note and item.note not in notes:
@@ -469,8 +498,8 @@ def _check_first(pair: RecordedPair) -> None:
     alike. A first image that does not decode is only that frame's gap."""
     assert pair.color_payload is not None and pair.depth_payload is not None
     try:
-        decode_color(pair.color_payload, pair.color)
-        decode_depth(pair.depth_payload, pair.depth)
+        decode_color(_in_memory(pair.color_payload, pair.color), pair.color)
+        decode_depth(_in_memory(pair.depth_payload, pair.depth), pair.depth)
     except InvalidInputError:
         return
     pair.load()

@@ -18,6 +18,7 @@ from typing import Any
 
 from ..core.camera import Intrinsics
 from ..core.errors import InvalidInputError, UnreadableInputError
+from ..core.parallel import FileSpan
 from .ros_images import COLOR_ENCODINGS, DEPTH_ENCODINGS, ImagePayload
 
 __all__ = [
@@ -26,6 +27,7 @@ __all__ = [
     "InfoMessage",
     "RosBag",
     "choose_topics",
+    "in_place_reader",
     "is_ros_bag",
     "read_bag_messages",
 ]
@@ -245,9 +247,14 @@ def _intrinsics(msg: Any) -> tuple[Intrinsics, str | None]:
     return intr, note
 
 
-def _payload(msg: Any, msgtype: str, stream: str, where: str) -> ImagePayload:
+def _payload(
+    msg: Any, msgtype: str, stream: str, where: str, data: Any = None
+) -> ImagePayload:
+    """The message's pixels, ``data`` (where they lie in the file) or its own."""
     if msgtype == COMPRESSED:
-        return ImagePayload(f"compressed:{msg.format}", 0, 0, 0, False, bytes(msg.data))
+        return ImagePayload(
+            f"compressed:{msg.format}", 0, 0, 0, False, bytes(msg.data) if data is None else data
+        )
     known = COLOR_ENCODINGS if stream == "color" else DEPTH_ENCODINGS
     if msg.encoding not in known:
         what = "colour" if stream == "color" else "depth"
@@ -261,7 +268,7 @@ def _payload(msg: Any, msgtype: str, stream: str, where: str) -> ImagePayload:
         int(msg.height),
         int(msg.step),
         bool(msg.is_bigendian),
-        msg.data,  # an array over the message read: no copy
+        msg.data if data is None else data,  # an array over the message read: no copy
     )
 
 
@@ -305,10 +312,14 @@ class RosBag:
     def __enter__(self) -> RosBag:
         highlevel, typesys = _rosbags()
         errors = _read_errors()
-        store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
         try:
-            self.reader = highlevel.AnyReader([self.path], default_typestore=store)
-            self.reader.open()
+            try:  # most bags carry their message definitions: no default types to load
+                self.reader = highlevel.AnyReader([self.path])
+                self.reader.open()
+            except highlevel.AnyReaderError:  # none (or another problem, said again)
+                store = typesys.get_typestore(typesys.Stores.ROS2_HUMBLE)
+                self.reader = highlevel.AnyReader([self.path], default_typestore=store)
+                self.reader.open()
         except errors as exc:
             raise UnreadableInputError(
                 f"recording '{self.path}' cannot be read (truncated, corrupt or not a bag): "
@@ -318,6 +329,11 @@ class RosBag:
         self.counts: dict[str, int] = {}
         for c in self.reader.connections:
             self.counts[c.topic] = self.counts.get(c.topic, 0) + c.msgcount
+        self.in_place = None  # how to read it in place (an MCAP recording), if it can be
+        if self.reader.is2:
+            from .mcap_file import plan
+
+            self.in_place = plan(self.path)
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -336,27 +352,85 @@ def read_bag_messages(bag: RosBag, topics: BagTopics) -> Iterator[BagMessage | I
         The bag is truncated or corrupt part-way.
     """
     reader = bag.reader
+    wanted = _streams(topics)
+    conns = [c for c in reader.connections if c.topic in wanted]
+
+    def items() -> Iterator[tuple[str, str, int, Any, Any]]:
+        for conn, bag_ns, raw in reader.messages(connections=conns):
+            # a view: rosbags slices off the CDR header, which copies a whole image of bytes
+            msg = reader.deserialize(memoryview(raw), conn.msgtype)
+            yield conn.topic, conn.msgtype, bag_ns, msg, None
+
+    return _messages(items(), wanted, bag.path)
+
+
+def in_place_reader(
+    bag: RosBag, topics: BagTopics
+) -> Callable[[], Iterator[BagMessage | InfoMessage]] | None:
+    """What :func:`read_bag_messages` gives, read in place from the recording's MCAP files
+    (:mod:`.mcap_file`), without ``bag`` staying open: each image's pixels are a
+    :class:`~dgli_vision.core.parallel.FileSpan` of the file, mapped only where the frame
+    is decoded. None when the recording cannot be read so.
+    """
+    wanted = _streams(topics)
+    types = {t: bag.types[t] for t in wanted}
+    plan = bag.in_place
+    if plan is None or not plan.covers(types):
+        return None
+    typestore, path = bag.reader.typestore, bag.path
+
+    def items() -> Iterator[tuple[str, str, int, Any, Any]]:
+        for m in plan.messages(types):
+            view = FileSpan(m.path, m.offset, m.length).view()
+            msg = typestore.deserialize_cdr(view, m.msgtype)
+            yield m.topic, m.msgtype, m.log_time, msg, _span_of(msg, view, m)
+
+    return lambda: _messages(items(), wanted, path)
+
+
+def _span_of(msg: Any, view: memoryview, m: Any) -> FileSpan | None:
+    """Where an image message's pixels lie in its file (None: not an image, or its
+    ``data`` is not a view of the message's bytes)."""
+    import numpy as np
+
+    data = getattr(msg, "data", None)
+    if m.msgtype not in (IMAGE, COMPRESSED) or not isinstance(data, np.ndarray):
+        return None
+    if data.dtype != np.uint8 or data.ndim != 1 or not data.flags.c_contiguous or not data.size:
+        return None
+    base = np.frombuffer(view, np.uint8).__array_interface__["data"][0]
+    start = data.__array_interface__["data"][0] - base
+    if start < 0 or start + data.size > len(view):
+        return None
+    return FileSpan(m.path, m.offset + start, data.size)
+
+
+def _streams(topics: BagTopics) -> dict[str, str]:
     wanted = {topics.color: "color", topics.depth: "depth"}
     if topics.info:
         wanted[topics.info] = "info"
-    conns = [c for c in reader.connections if c.topic in wanted]
+    return wanted
+
+
+def _messages(
+    items: Iterator[tuple[str, str, int, Any, Any]], wanted: dict[str, str], path: Path
+) -> Iterator[BagMessage | InfoMessage]:
+    """The messages of ``items`` (topic, type, bag time in ns, message, where its pixels
+    lie or None) as :func:`read_bag_messages` gives them."""
     errors = _read_errors()
     last_info, last_t = None, 0.0
-    messages = reader.messages(connections=conns)
     while True:
         try:
-            item = next(messages, None)
+            item = next(items, None)
             if item is None:
                 return
-            conn, bag_ns, raw = item
-            # a view: rosbags slices off the CDR header, which copies a whole image of bytes
-            msg = reader.deserialize(memoryview(raw), conn.msgtype)
+            topic, msgtype, bag_ns, msg, span = item
         except errors as exc:
             raise UnreadableInputError(
-                f"recording '{bag.path}' cannot be read after {last_t:.3f} s (truncated or "
+                f"recording '{path}' cannot be read after {last_t:.3f} s (truncated or "
                 f"corrupt): {str(exc).strip() or type(exc).__name__}"
             ) from None
-        stream = wanted[conn.topic]
+        stream = wanted[topic]
         last_t = bag_ns * 1e-9
         if stream == "info":
             info = InfoMessage(*_intrinsics(msg))
@@ -365,5 +439,5 @@ def read_bag_messages(bag: RosBag, topics: BagTopics) -> Iterator[BagMessage | I
                 yield info
             continue
         t = _stamp(msg, bag_ns)
-        where = f"recording '{bag.path}' topic {conn.topic} at {t:.3f} s"
-        yield BagMessage(stream, t, _payload(msg, conn.msgtype, stream, where))
+        where = f"recording '{path}' topic {topic} at {t:.3f} s"
+        yield BagMessage(stream, t, _payload(msg, msgtype, stream, where, span))

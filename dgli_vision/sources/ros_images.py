@@ -51,7 +51,9 @@ class ImagePayload:
     big_endian : bool
     data : bytes-like
         The message's bytes (``bytes``, or an array of uint8 over the message read; a
-        :class:`~dgli_vision.core.parallel.SlotRef` while in a shared slot).
+        :class:`~dgli_vision.core.parallel.SlotRef` while in a shared slot, a
+        :class:`~dgli_vision.core.parallel.FileSpan` while they lie in the recording's
+        file).
     """
 
     encoding: str
