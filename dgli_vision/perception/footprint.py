@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from .napkin import NapkinParams, NapkinView
+from .shade import into_shade, shadow_suspected
 
 #: Cells of the image border a napkin's region may touch and still be all in view: a
 #: bright seam the closing joined to it touches with one or two.
@@ -138,10 +139,14 @@ class ClothRegions:
     """The white regions of a frame: image cells of ``cell_px`` pixels (averaged) that
     look like the napkin's cloth, with its stickers' holes closed, labelled by connected
     region (0: not cloth), shape ``(H // cell_px, W // cell_px)``. Found once per frame
-    (:func:`cloth_regions`); the footprint and the second sticker search both read it."""
+    (:func:`cloth_regions`); the footprint and the second sticker search both read it.
+    ``lum``: every cell's luminance balanced to the napkin's white (1); ``lit``: the cells
+    bright and neutral enough to be cloth, before the closing."""
 
     labels: NDArray[np.int32]
     cell_px: int
+    lum: NDArray[np.float64] | None = None
+    lit: NDArray[np.bool_] | None = None
 
 
 def cloth_regions(
@@ -186,7 +191,7 @@ def cloth_regions(
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    return ClothRegions(labels, c)
+    return ClothRegions(labels, c, lum, cloth)
 
 
 def cloth_cells(
@@ -232,10 +237,29 @@ def cloth_cells(
     cloth = np.isin(labels, held)
     # a region cut by the image border is not all in view; a thread of a cell or two
     # (a bright seam the closing joined) does not make it so
-    border = int(cloth[0].sum() + cloth[-1].sum() + cloth[1:-1, 0].sum() + cloth[1:-1, -1].sum())
-    if border > MAX_BORDER_CELLS:
+    if _border_cells(cloth) > MAX_BORDER_CELLS:
         return None
     return cloth
+
+
+def _border_cells(cells: NDArray[np.bool_]) -> int:
+    """How many of the ``cells`` lie on the grid's border."""
+    return int(cells[0].sum() + cells[-1].sum() + cells[1:-1, 0].sum() + cells[1:-1, -1].sum())
+
+
+def _in_shade(
+    color: NDArray[np.uint8], cloth: NDArray[np.bool_], regions: ClothRegions, p: FootprintParams
+) -> NDArray[np.bool_] | None:
+    """The napkin's ``cloth`` cells with its cloth in an arm's shadow (:mod:`.shade`)
+    added, when table in shadow lies next to them; None when there is none to add."""
+    import cv2
+
+    if regions.lum is None or regions.lit is None or not shadow_suspected(cloth, regions.lum):
+        return None
+    lit = regions.lit & cloth
+    seeds = cv2.erode(lit.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+    grown = into_shade(color, cloth, seeds, p.cell_px, p.close_cells)
+    return None if grown is cloth else grown
 
 
 def measure_footprint(
@@ -283,6 +307,8 @@ def measure_footprint(
     h, w = color.shape[0] // c, color.shape[1] // c
     if float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
         return None
+    if regions is None or regions.cell_px != c:
+        regions = cloth_regions(color, napkin.white_rgb, p, q)
     cloth = cloth_cells(color, napkin, sticker_px, p, q, regions=regions)
     if cloth is None:
         return None
@@ -290,6 +316,13 @@ def measure_footprint(
     if low > p.max_fraction * napkin_area_mm2:
         return None
     high = low
+    shaded = _in_shade(color, cloth, regions, p)
+    if shaded is not None:
+        area = _table_area_mm2(intrinsics, shaded, c, up, offset_m)
+        if _border_cells(shaded) <= MAX_BORDER_CELLS and area <= p.max_fraction * napkin_area_mm2:
+            cloth, low, high = shaded, area, area
+        else:  # the fill ran out onto the table: the shadowed cloth is not measured
+            high = napkin_area_mm2 * p.max_fraction
     if napkin.occluder.any():
         # objects above the table (napkin's own sampling grid) next to the cloth
         occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), cv2.INTER_NEAREST)
