@@ -141,12 +141,16 @@ class ClothRegions:
     region (0: not cloth), shape ``(H // cell_px, W // cell_px)``. Found once per frame
     (:func:`cloth_regions`); the footprint and the second sticker search both read it.
     ``lum``: every cell's luminance balanced to the napkin's white (1); ``lit``: the cells
-    bright and neutral enough to be cloth, before the closing."""
+    bright and neutral enough to be cloth, before the closing; ``chroma``: every cell's
+    chroma (largest less smallest balanced channel); ``table_lum``: the median cell's
+    luminance (the table's)."""
 
     labels: NDArray[np.int32]
     cell_px: int
     lum: NDArray[np.float64] | None = None
     lit: NDArray[np.bool_] | None = None
+    chroma: NDArray[np.float64] | None = None
+    table_lum: float = float("nan")
 
 
 def cloth_regions(
@@ -186,12 +190,13 @@ def cloth_regions(
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
     # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    floor = max(q.min_napkin_brightness, float(np.median(lum)) + p.table_margin)
+    table = float(np.median(lum))
+    floor = max(q.min_napkin_brightness, table + p.table_margin)
     cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    return ClothRegions(labels, c, lum, cloth)
+    return ClothRegions(labels, c, lum, cloth, chroma, table)
 
 
 def cloth_cells(
@@ -248,13 +253,20 @@ def _border_cells(cells: NDArray[np.bool_]) -> int:
 
 
 def _in_shade(
-    color: NDArray[np.uint8], cloth: NDArray[np.bool_], regions: ClothRegions, p: FootprintParams
+    color: NDArray[np.uint8],
+    cloth: NDArray[np.bool_],
+    regions: ClothRegions,
+    raised: NDArray[np.bool_] | None,
+    p: FootprintParams,
 ) -> NDArray[np.bool_] | None:
     """The napkin's ``cloth`` cells with its cloth in an arm's shadow (:mod:`.shade`)
-    added, when table in shadow lies next to them; None when there is none to add."""
+    added, when table in shadow lies next to them (``raised``: the cells of objects
+    above the table, not table); None when there is none to add."""
     import cv2
 
-    if regions.lum is None or regions.lit is None or not shadow_suspected(cloth, regions.lum):
+    if regions.lum is None or regions.lit is None or regions.chroma is None:
+        return None
+    if not shadow_suspected(cloth, regions.lum, regions.chroma, regions.table_lum, raised):
         return None
     lit = regions.lit & cloth
     seeds = cv2.erode(lit.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
@@ -316,16 +328,19 @@ def measure_footprint(
     if low > p.max_fraction * napkin_area_mm2:
         return None
     high = low
-    shaded = _in_shade(color, cloth, regions, p)
+    occ = None
+    if napkin.occluder.any():
+        occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), cv2.INTER_NEAREST)
+    raised = None if occ is None else cv2.dilate(occ, np.ones((3, 3), np.uint8)).view(bool)
+    shaded = _in_shade(color, cloth, regions, raised, p)
     if shaded is not None:
         area = _table_area_mm2(intrinsics, shaded, c, up, offset_m)
         if _border_cells(shaded) <= MAX_BORDER_CELLS and area <= p.max_fraction * napkin_area_mm2:
             cloth, low, high = shaded, area, area
         else:  # the fill ran out onto the table: the shadowed cloth is not measured
             high = napkin_area_mm2 * p.max_fraction
-    if napkin.occluder.any():
+    if occ is not None:
         # objects above the table (napkin's own sampling grid) next to the cloth
-        occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), cv2.INTER_NEAREST)
         near = cv2.dilate(cloth.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
         over = occ.astype(bool) & ~cloth
         _, olab, _, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), 8)
