@@ -5,13 +5,16 @@ robot arm's soft shadow across the napkin can leave the shadowed cloth darker th
 lit table, and that part of the napkin is then missing from the footprint: a footprint
 measured too small, which makes a state's footprint check speak for the wrong state.
 
-A shadow multiplies the light on cloth and table alike, and its edge is soft (tens of
-pixels), while the napkin's outline is a step of the material (one or two pixels), as
-large in the shade as in the light. So the cloth is followed from the cells that are
-surely lit cloth across small steps of log-luminance only, at half the image's
-resolution: the fill crosses a shadow's edge and stops at the outline. It runs only
-where a shadow can be at play: when table notably darker than the rest of the table
-lies next to the cloth.
+A shadow multiplies the light on cloth and table alike, and its edge is soft (several
+centimetres), while the napkin's outline is a step of the material within a pixel or
+two, as large in the shade as in the light. So the cloth is followed, at half the
+image's resolution, from the cells that are surely lit cloth through every pixel whose
+3 x 3 neighbourhood spans a small ratio of light in each colour channel: the fill
+crosses a shadow's edge and stops at the outline. (A fill that compares neighbouring
+pixels only runs out along a slanting outline, whose mixed pixels change a little from
+one to the next.) A fill that reaches the image border found no outline: the caller
+does not take its cells. It runs only where a shadow can be at play: when table notably
+darker than the rest of the table lies next to the cloth.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ from numpy.typing import NDArray
 
 from ..core.colour import srgb_lut
 
-__all__ = ["ShadeParams", "into_shade"]
+__all__ = ["ShadeParams", "into_shade", "shadow_suspected"]
 
 
 @dataclass(frozen=True)
