@@ -119,9 +119,11 @@ def _classify_pair(
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
     dist: tuple[float, ...] = ()
     if distances and result.best_guess is not None:  # to every reference, for tracking
-        obs = result.observation
-        d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
-        dist = tuple(round(float(v), 6) for v in d)
+        d = result.distances
+        if d is None:
+            obs = result.observation
+            d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
+        dist = tuple(round(v, 6) for v in np.asarray(d, dtype=np.float64).tolist())
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None
     aff = result.affordances.to_json() if result.affordances is not None else None
@@ -253,8 +255,13 @@ def _shared_work(
 
     import cv2
 
+    from ..core.parallel import SharedSlots
+
     pool = _worker_pool(jobs - 1, references, colours)
     work = partial(_classify_pair, distances=distances)
+    ahead = 6 * (jobs - 1)  # pairs handed to workers and not back yet, at most
+    slots = SharedSlots(ahead)  # a recording's pixels go through shared memory
+    slot_of: dict[int, int] = {}
     threads = cv2.getNumThreads()
     cv2.setNumThreads(1)  # one process per core, this one included
     todo = iter(pairs)  # taken one at a time: a recording is read as it is classified
@@ -264,16 +271,17 @@ def _shared_work(
     handed, given, more = 0, 0, True  # next index to hand out; next to yield
     try:
         while more or given < handed:
-            while more and len(pending) < 6 * (jobs - 1):
+            while more and len(pending) < ahead:
                 pair = next(todo, None)
                 if pair is None:
                     more = False
                     break
-                pending[pool.submit(work, pair)] = handed
+                pending[pool.submit(work, _to_slot(pair, slots, slot_of, handed))] = handed
                 mine[handed] = pair
                 handed += 1
             for future in [f for f in pending if f.done()]:
                 index = pending.pop(future)
+                _free_slot(slots, slot_of, index)
                 done[index] = future.result()
                 del mine[index]
             while given in done:
@@ -290,6 +298,7 @@ def _shared_work(
                 if stolen is None:
                     wait(pending, return_when=FIRST_COMPLETED)
                 else:  # the tail: a waiting worker pair is done here rather than idling
+                    _free_slot(slots, slot_of, stolen)
                     pair = mine.pop(stolen)
                     done[stolen] = _classify_pair(pair, references, colours, distances)
     finally:  # also on Ctrl-C or when the caller stops early: drop what has not started
@@ -297,6 +306,24 @@ def _shared_work(
         for future in pending:
             future.cancel()
         wait(pending)
+        slots.close()
+
+
+def _to_slot(pair: Any, slots: Any, slot_of: dict[int, int], index: int) -> Any:
+    """What to send a worker for ``pair``: a recorded frame with its pixels in a shared
+    slot (its slot kept in ``slot_of``), anything else as it is."""
+    if not hasattr(pair, "shared"):
+        return pair
+    sent, slot = pair.shared(slots)
+    if slot is not None:
+        slot_of[index] = slot
+    return sent
+
+
+def _free_slot(slots: Any, slot_of: dict[int, int], index: int) -> None:
+    slot = slot_of.pop(index, None)
+    if slot is not None:
+        slots.release(slot)
 
 
 def _take_back(pending: dict) -> int | None:

@@ -29,6 +29,7 @@ from ..core.camera import Intrinsics
 from ..core.classes import CORNERS, LIFTED_MM
 from ..core.fold_lines import NominalFold, nominal_folds, reflect_uv
 from ..core.layout import CORNER_STICKERS, NapkinLayout
+from ..core.order_stats import median
 
 __all__ = [
     "CORNER_STATES",
@@ -67,8 +68,9 @@ class RigidMap:
 
     def __call__(self, uv_mm: NDArray[np.float64]) -> NDArray[np.float64]:
         """Camera-frame points (k, 3) of material points (k, 2) in mm."""
-        uv = np.atleast_2d(np.asarray(uv_mm, dtype=float)) * 1e-3
-        src = np.concatenate([uv, np.zeros((len(uv), 1))], axis=1)
+        uv = np.atleast_2d(np.asarray(uv_mm, dtype=float))
+        src = np.zeros((len(uv), 3))
+        src[:, :2] = uv * 1e-3
         return src @ self.rotation.T + self.translation
 
 
@@ -87,22 +89,23 @@ def fit_map(
     napkin's normal held to ``face * up`` (+1: front face up, -1: back face up), which
     makes two points enough. None with fewer than two points."""
     keep = np.isfinite(points).all(axis=1)
+    uv_all = np.asarray(uv_mm, dtype=float)
+    lift = 0.05  # m: the virtual points along the normal
     for _ in range(3):
-        if keep.sum() < 2:
+        n = int(np.count_nonzero(keep))
+        if n < 2:
             return None
-        uv = np.asarray(uv_mm, dtype=float)[keep] * 1e-3
         pts = points[keep]
-        lift = 0.05  # m: the virtual points along the normal
-        src = np.concatenate(
-            [np.c_[uv, np.zeros(len(uv))], np.c_[uv, np.full(len(uv), lift)]], axis=0
-        )
+        src = np.zeros((2 * n, 3))  # the points on the napkin, then lifted along z
+        src[:n, :2] = src[n:, :2] = uv_all[keep] * 1e-3
+        src[n:, 2] = lift
         dst = np.concatenate([pts, pts + face * lift * up], axis=0)
         r, t = _kabsch(src, dst)
         m = RigidMap(r, t)
         res = np.full(len(points), np.inf)
-        res[keep] = np.linalg.norm(m(np.asarray(uv_mm)[keep]) - pts, axis=1)
+        res[keep] = np.linalg.norm(m(uv_all[keep]) - pts, axis=1)
         worst = int(np.argmax(np.where(keep, res, -1.0)))
-        if res[worst] <= FIT_TOLERANCE_M or keep.sum() <= 2:
+        if res[worst] <= FIT_TOLERANCE_M or n <= 2:
             return m
         keep[worst] = False
     return m
@@ -184,7 +187,7 @@ def _table_offset(obs: Any) -> float:
     ok = np.isfinite(h) & np.isfinite(pts).all(axis=1)
     if not ok.any():
         return float("nan")
-    return float(np.median(pts[ok] @ obs.up - h[ok] * 1e-3))
+    return median(pts[ok] @ obs.up - h[ok] * 1e-3)
 
 
 def _lying(obs: Any) -> NDArray[np.bool_]:
@@ -308,11 +311,11 @@ class Affordances:
         }
 
 
-def _held_up(obs: Any, ids: tuple[int, ...]) -> bool:
-    lifted = obs.lifted
+def _held_up(lifted: NDArray[np.float64] | None, ids: tuple[int, ...]) -> bool:
+    """Whether any of the stickers ``ids`` stands up (``lifted``: the observation's)."""
     if lifted is None:
         return False
-    return bool(np.any(np.nan_to_num(lifted[list(ids)], nan=0.0) >= 1.0))
+    return bool(np.any(lifted[list(ids)] >= 1.0))  # NaN (not told) is not standing
 
 
 def _sticker_part(maps: NapkinMaps, i: int, layout: NapkinLayout) -> int:
@@ -340,7 +343,7 @@ def _own_fit(
     if face == 0:
         if ok.sum() < 3:
             return None
-        src = np.c_[uv[ok] * 1e-3, np.zeros(int(ok.sum()))]
+        src = np.column_stack([uv[ok] * 1e-3, np.zeros(int(ok.sum()))])
         r, t = _kabsch(src, pts[ok])
         return r @ np.r_[corner_uv * 1e-3, 0.0] + t
     m = fit_map(uv, pts, obs.up, face)
@@ -394,14 +397,14 @@ def _covered(folds: tuple[NominalFold, ...], corner_uv: NDArray, layout: NapkinL
 
 
 def _corner_of_verdict(
-    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout
+    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout, lifted: NDArray | None
 ) -> tuple[str, bool, NDArray | None, str | None]:
     """State, graspable, point and how placed of corner ``k`` given the verdict."""
     corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
     j = maps.part_of(corner_uv)
     fold = maps.folds[j] if j >= 0 else None
     state = "flat" if fold is None else ("on a flap under" if fold.under else "on a flap over")
-    if _held_up(obs, CORNER_STICKERS[k]):
+    if _held_up(lifted, CORNER_STICKERS[k]):
         state = "held up"
     face = {"flat": 1, "on a flap over": -1, "on a flap under": 1}.get(state, 0)
     point, how = _own_fit(obs, k, layout, face, maps), PLACED_BY[0]
@@ -416,12 +419,12 @@ def _corner_of_verdict(
 
 
 def _corner_of_evidence(
-    obs: Any, k: int, layout: NapkinLayout
+    obs: Any, k: int, layout: NapkinLayout, lifted: NDArray | None
 ) -> tuple[str, bool, NDArray | None, str | None]:
     """State, graspable, point and how placed of corner ``k`` without a verdict: from
     its own stickers alone (the face they show, whether they stand up)."""
     ids = CORNER_STICKERS[k]
-    if _held_up(obs, ids):
+    if _held_up(lifted, ids):
         return "held up", False, _own_fit(obs, k, layout, 0), PLACED_BY[0]
     turn = 0.0 if obs.turns is None else float(obs.turns[k])
     if int(obs.visible[list(ids)].sum()) < 2 or turn == 0:
@@ -457,12 +460,13 @@ def affordances_of(
     Affordances
     """
     maps = napkin_maps(obs, class_id, variant, layout) if class_id else None
+    lifted = obs.lifted  # worked out from the evidence: once, not per corner
     corners = []
     for k, name in enumerate(CORNERS):
         if maps is not None:
-            state, free, point, how = _corner_of_verdict(obs, k, maps, layout)
+            state, free, point, how = _corner_of_verdict(obs, k, maps, layout, lifted)
         else:
-            state, free, point, how = _corner_of_evidence(obs, k, layout)
+            state, free, point, how = _corner_of_evidence(obs, k, layout, lifted)
         pixel = None
         if point is not None and point[2] > 0:
             px = intrinsics.project(point[None])[0]

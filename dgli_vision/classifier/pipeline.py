@@ -206,7 +206,10 @@ class FrameResult:
     ``candidates`` the nearest states of the three nearest classes, as (class, variant,
     distance), nearest first (empty when too few stickers were seen to rank any).
     ``affordances`` gives each corner's point, state and whether it can be grasped, and
-    the folds seen (:mod:`~dgli_vision.classifier.affordances`).
+    the folds seen (:mod:`~dgli_vision.classifier.affordances`). ``distances`` keeps the
+    frame's distance to every reference (what
+    :func:`~dgli_vision.classifier.classify.reference_distances` gives for its
+    evidence) whenever they were ranked: ``best_guess`` is then set.
     """
 
     detections: StickerDetections
@@ -220,6 +223,7 @@ class FrameResult:
     why: str | None = None
     candidates: tuple[tuple[str, str | None, float], ...] = ()
     affordances: Affordances | None = None
+    distances: NDArray[np.float64] | None = None
 
 
 #: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is
@@ -436,11 +440,12 @@ def _judge(
         doubted = replace(guess, confidence=0.0)
         return FrameResult(
             detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted,
-            why=WHY_KINDS[2], candidates=near,
+            why=WHY_KINDS[2], candidates=near, distances=front,
         )
     if guess.confidence >= min_confidence:
         return FrameResult(
-            detections, markers, obs, coords, guess, None, guess, candidates=near
+            detections, markers, obs, coords, guess, None, guess, candidates=near,
+            distances=front,
         )
     ru = guess.runner_up
     why = [f"confidence {guess.confidence:.2f} < {min_confidence:.2f}"]
@@ -458,5 +463,6 @@ def _judge(
     why.append(f"{n} of {len(obs.visible)} stickers located")
     reason = "cannot tell: " + "; ".join(why)
     return FrameResult(
-        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near
+        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near,
+        distances=front,
     )

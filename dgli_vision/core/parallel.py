@@ -1,5 +1,6 @@
 """Work spread over processes, results in input order: what ``-j N`` does for commands
-whose items are independent (``render``, ``simulate``).
+whose items are independent (``render``, ``simulate``); and shared slots through which
+large payloads reach worker processes without pickling (:class:`SharedSlots`).
 
 Each item's result depends on the item alone (its own seed), so the results are those of
 one process, in the same order, whatever the number of workers.
@@ -7,10 +8,11 @@ one process, in the same order, whatever the number of workers.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
+from dataclasses import dataclass
 from typing import Any, TypeVar
 
-__all__ = ["ordered_map"]
+__all__ = ["SharedSlots", "SlotRef", "ordered_map"]
 
 T = TypeVar("T")
 
@@ -64,3 +66,121 @@ def ordered_map(func: Callable[[Any], T], items: Iterable[Any], *, jobs: int = 1
             yield future.result()
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+@dataclass(frozen=True)
+class SlotRef:
+    """Bytes held in a slot of a :class:`SharedSlots` file: what a worker process is sent
+    instead of the bytes themselves (a path and two numbers pickle in microseconds)."""
+
+    path: str
+    offset: int
+    length: int
+
+    def view(self) -> memoryview:
+        """The bytes, read-only, without a copy (the file is mapped once per process)."""
+        return _mapping(self.path)[self.offset : self.offset + self.length]
+
+
+#: The slot file this process has mapped last, by path (kept: its slots are used over
+#: and over; a mapping outlives the removal of its file, and is dropped for the next).
+_MAPPED: dict[str, memoryview] = {}
+
+
+def _mapping(path: str) -> memoryview:
+    view = _MAPPED.get(path)
+    if view is None:
+        import mmap
+
+        with open(path, "rb") as f:
+            view = memoryview(mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ))
+        _MAPPED.clear()  # an earlier run's slots: unmapped once nothing reads them
+        _MAPPED[path] = view
+    return view
+
+
+class SharedSlots:
+    """Equal slots in one file of shared memory (``/dev/shm`` where there is one),
+    through which a parent hands large byte payloads (a recording's raw images, 4.6 MB a
+    1280 x 720 frame) to worker processes: one copy into the slot, no pickling and no
+    pipe. The parent writes a slot (:meth:`put`), sends its :class:`SlotRef`, and frees
+    the slot (:meth:`release`) once the worker's result is back; :meth:`close` removes
+    the file. The file is made at the first :meth:`put`, its slots as large as that
+    payload (a later, larger one does not fit: it is sent the usual way).
+
+    Parameters
+    ----------
+    n_slots : int
+        At most this many payloads in flight.
+    """
+
+    def __init__(self, n_slots: int) -> None:
+        self.n_slots = n_slots
+        self.path: str | None = None
+        self.slot_bytes = 0
+        self._map: Any = None
+        self._free = list(range(n_slots - 1, -1, -1))
+
+    def _open(self, slot_bytes: int) -> None:
+        """Make the file, its space reserved: a shared memory too small for it (a
+        container's 64 MB ``/dev/shm``) leaves the slots unused, rather than failing
+        at the first write into a page it cannot hold."""
+        import mmap
+        import os
+        import tempfile
+
+        self.slot_bytes = -(-slot_bytes // mmap.PAGESIZE) * mmap.PAGESIZE
+        size = self.n_slots * self.slot_bytes
+        folder = "/dev/shm" if os.path.isdir("/dev/shm") else None
+        try:
+            fd, path = tempfile.mkstemp(prefix="dgli-slots-", dir=folder)
+        except OSError:
+            self._free = []
+            return
+        try:
+            if hasattr(os, "posix_fallocate"):
+                os.posix_fallocate(fd, 0, size)
+            else:
+                os.ftruncate(fd, size)
+            self._map = mmap.mmap(fd, size)
+            self.path = path
+        except OSError:
+            self._free = []  # no room: every payload goes the usual way
+            os.unlink(path)
+        finally:
+            os.close(fd)
+
+    def put(self, parts: Sequence[Any]) -> tuple[int, list[SlotRef]] | None:
+        """Copy ``parts`` (bytes-like objects) into a free slot, one after the other:
+        the slot and a reference to each part; None when no slot is free or they do
+        not fit in one."""
+        views = [memoryview(p).cast("B") for p in parts]
+        need = sum(v.nbytes for v in views)
+        if self._map is None and self._free and need:
+            self._open(need)
+        if self._map is None or not self._free or need > self.slot_bytes:
+            return None
+        slot = self._free.pop()
+        offset, refs = slot * self.slot_bytes, []
+        for v in views:
+            self._map[offset : offset + v.nbytes] = v
+            refs.append(SlotRef(self.path, offset, v.nbytes))
+            offset += v.nbytes
+        return slot, refs
+
+    def release(self, slot: int) -> None:
+        """Make ``slot`` free again (its worker is done with it, or never started)."""
+        self._free.append(slot)
+
+    def close(self) -> None:
+        """Remove the file (mappings still open stay valid until they are closed)."""
+        import os
+
+        if self._map is None or self.path is None:
+            return
+        self._map.close()
+        self._map = None
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass

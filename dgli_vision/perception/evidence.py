@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.layout import NapkinLayout
+from ..core.order_stats import nanmedian
 from .lift import Markers3D
 from .napkin import NapkinMasks, NapkinView
 from .rigid import rigid_prediction
@@ -231,7 +232,7 @@ def _seen_stickers(
 ) -> _Seen:
     seen = markers.found
     pts = markers.points[seen]
-    z_typ = float(np.nanmedian(pts[:, 2])) if seen.any() else 0.6
+    z_typ = nanmedian(pts[:, 2]) if seen.any() else 0.6
     radius_px = p.near_radii * layout.disc_diameter_mm / 2 * 1e-3 * intrinsics.fx / z_typ
     fore = foreshortening if foreshortening is not None else np.ones(len(seen))
     steep = np.nan_to_num(fore[seen], nan=1.0) < p.steep_foreshortening
@@ -395,7 +396,7 @@ def _layer_over(
     are under it, not up on the flap. With ``flat3d`` and the table normal ``up`` the
     layer is looked for straight above the place; without, along the camera's ray."""
     base = masks.height_at(seen.pixels)
-    ground = float(np.nanmedian(base)) if np.isfinite(base).any() else 0.0
+    ground = nanmedian(base) if np.isfinite(base).any() else 0.0
     if flat3d is not None and up is not None:
         top = max(layout.width_mm, layout.height_mm) / 2
         return _covered_from_above(masks, flat3d, up, intrinsics, ground + p.cover_mm, top)

@@ -12,12 +12,13 @@ degrees).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
+from ..core.order_stats import median
 from .evidence import HELD_UP, StickerEvidence
 from .napkin import NapkinView
 
@@ -64,27 +65,34 @@ def _line(x: NDArray, h: NDArray, p: FlapParams) -> tuple[float, float]:
         return float("nan"), float("nan")
     beta, c = np.polyfit(h, x, 1)
     res = np.abs(x - (beta * h + c))
-    mad = float(np.median(res)) + 1e-6
+    mad = median(res) + 1e-6
     keep = res <= p.outlier_mads * 1.4826 * mad + 1.0
     if keep.sum() >= p.min_samples and np.ptp(h[keep]) >= p.min_height_span_mm:
         beta, c = np.polyfit(h[keep], x[keep], 1)
     return float(beta), float(c)
 
 
+def _plane_normal(cloud: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """Unit normal of the least-squares plane of ``cloud`` (n, 3); None below 3 points."""
+    if len(cloud) < 3:
+        return None
+    _, _, vt = np.linalg.svd(cloud - cloud.mean(axis=0), full_matrices=False)
+    return vt[-1]
+
+
 def _across_fold(
-    cloud: NDArray[np.float64], up: NDArray[np.float64], inwards: NDArray[np.float64]
+    normal: NDArray[np.float64] | None, up: NDArray[np.float64], inwards: NDArray[np.float64]
 ) -> NDArray[np.float64] | None:
-    """The horizontal unit vector across the fold line of the flap ``cloud`` (n, 3),
-    pointing the way of ``inwards`` (from the flap's flat place to the napkin lying on
-    the table); None when the flap lies too flat to tell its fold line.
+    """The horizontal unit vector across the fold line of a flap whose plane has
+    ``normal`` (:func:`_plane_normal`), pointing the way of ``inwards`` (from the flap's
+    flat place to the napkin lying on the table); None when the flap lies too flat to
+    tell its fold line (or has no plane).
 
     The flap's plane holds the fold line, which is horizontal; so the horizontal part of
     the plane's normal runs across it.
     """
-    if len(cloud) < 3:
+    if normal is None:
         return None
-    _, _, vt = np.linalg.svd(cloud - cloud.mean(axis=0), full_matrices=False)
-    normal = vt[-1]
     across = normal - (normal @ up) * up
     norm = float(np.linalg.norm(across))
     if norm < 0.2:  # the flap is within 12 degrees of flat
@@ -160,8 +168,11 @@ def flap_angles(
         found = cloth.flap_of(flat[sid], up, reach)
         if found is None:
             continue
-        mine, anchor = found
-        fit = _lean(cloth.cloud[mine], cloth.heights_mm[mine], up, inside - anchor, anchor, p)
+        mine, anchor, part = found
+        fit = _lean(
+            cloth.cloud[mine], cloth.heights_mm[mine], up, inside - anchor, anchor, p,
+            cloth.normal_of(part),
+        )
         if fit is None:
             continue
         beta, hinge = fit  # beta = -cot(angle); hinge: x at the table
@@ -204,6 +215,14 @@ class _RaisedCloth:
     heights_mm: NDArray[np.float64]
     label: NDArray[np.intp]
     sizes: NDArray[np.intp]
+    _normals: dict[int, NDArray[np.float64] | None] = field(default_factory=dict)
+
+    def normal_of(self, part: int) -> NDArray[np.float64] | None:
+        """The plane normal of raised part ``part`` (:func:`_plane_normal`), found once
+        however many stickers lie on it."""
+        if part not in self._normals:
+            self._normals[part] = _plane_normal(self.cloud[self.label == part])
+        return self._normals[part]
 
     @classmethod
     def of(
@@ -229,10 +248,11 @@ class _RaisedCloth:
 
     def flap_of(
         self, anchor: NDArray[np.float64], up: NDArray[np.float64], reach: float
-    ) -> tuple[NDArray[np.bool_], NDArray[np.float64]] | None:
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float64], int] | None:
         """The points (mask) of the raised part nearest the flat place ``anchor`` (3,)
-        within ``reach`` (m, horizontally), and the anchor; with no place (NaN), the
-        largest part and its mean. None when no raised cloth comes within reach."""
+        within ``reach`` (m, horizontally), the anchor and the part; with no place
+        (NaN), the largest part and its mean. None when no raised cloth comes within
+        reach."""
         if np.isfinite(anchor).all():
             gap = np.linalg.norm(_horizontal(self.cloud - anchor, up), axis=1)
             near = gap < reach
@@ -242,7 +262,7 @@ class _RaisedCloth:
         else:  # nowhere to put it: the largest raised part
             part = int(np.argmax(self.sizes[1:])) + 1
             anchor = self.cloud[self.label == part].mean(axis=0)
-        return self.label == part, anchor
+        return self.label == part, anchor, int(part)
 
 
 def _horizontal(v: NDArray, up: NDArray) -> NDArray:
@@ -256,12 +276,13 @@ def _lean(
     inwards: NDArray[np.float64],
     anchor: NDArray[np.float64],
     p: FlapParams,
+    normal: NDArray[np.float64] | None,
 ) -> tuple[float, float] | None:
-    """The flap ``cloud`` (n, 3) with heights ``h`` (n,): the slope ``-cot(angle)`` of
-    its horizontal position across the fold line (mm from ``anchor``, towards
-    ``inwards``) against height, and that position at the table; None when the flap
-    lies too flat or too few samples give a slope."""
-    towards = _across_fold(cloud, up, inwards)
+    """The flap ``cloud`` (n, 3) with heights ``h`` (n,) and plane ``normal``: the slope
+    ``-cot(angle)`` of its horizontal position across the fold line (mm from
+    ``anchor``, towards ``inwards``) against height, and that position at the table;
+    None when the flap lies too flat or too few samples give a slope."""
+    towards = _across_fold(normal, up, inwards)
     if towards is None:
         return None
     x = _horizontal(cloud - anchor, up) @ towards * 1e3

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
+from ..core.order_stats import median, quantile
 from .napkin import NapkinParams, NapkinView
 from .shade import into_shade, shadow_suspected
 
@@ -99,8 +100,15 @@ def _table_area_mm2(
     central projection onto a plane): evaluated at each cell's centre, only for the
     cells asked. Through a lens's distortion, each cell's corners are traced instead.
     """
-    if intrinsics.distorted:
-        return float(_cell_areas_mm2(intrinsics, cells.shape, cell, up, offset_m)[cells].sum())
+    if intrinsics.distorted:  # traced for the cells' bounding box only
+        rows, cols = np.flatnonzero(cells.any(axis=1)), np.flatnonzero(cells.any(axis=0))
+        if not len(rows):
+            return 0.0
+        y0, y1, x0, x1 = rows[0], rows[-1] + 1, cols[0], cols[-1] + 1
+        areas = _cell_areas_mm2(
+            intrinsics, (y1 - y0, x1 - x0), cell, up, offset_m, origin=(y0, x0)
+        )
+        return float(areas[cells[y0:y1, x0:x1]].sum())
     yy, xx = np.nonzero(cells)
     dx = (xx * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
     dy = (yy * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
@@ -110,13 +118,20 @@ def _table_area_mm2(
 
 
 def _cell_areas_mm2(
-    intrinsics: Intrinsics, shape: tuple[int, int], cell: int, up: NDArray, offset_m: float
+    intrinsics: Intrinsics,
+    shape: tuple[int, int],
+    cell: int,
+    up: NDArray,
+    offset_m: float,
+    origin: tuple[int, int] = (0, 0),
 ) -> NDArray[np.float64]:
     """Area on the table plane (mm^2) of every image cell, shape ``shape``, from the
     points where the rays through each cell's corners meet the plane (through the
-    lens's distortion, when the intrinsics carry it)."""
+    lens's distortion, when the intrinsics carry it); ``origin``: the cell (row,
+    column) of the first, for a block of the grid."""
     h, w = shape
-    ys, xs = np.mgrid[0 : h + 1, 0 : w + 1] * cell - 0.5
+    y0, x0 = origin
+    ys, xs = np.mgrid[y0 : y0 + h + 1, x0 : x0 + w + 1] * cell - 0.5
     if intrinsics.distorted:  # the rays of the pixels as the lens bent them
         ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
         xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
@@ -140,13 +155,16 @@ class ClothRegions:
     look like the napkin's cloth, with its stickers' holes closed, labelled by connected
     region (0: not cloth), shape ``(H // cell_px, W // cell_px)``. Found once per frame
     (:func:`cloth_regions`); the footprint and the second sticker search both read it.
-    ``lum``: every cell's luminance balanced to the napkin's white (1); ``lit``: the cells
-    bright and neutral enough to be cloth, before the closing; ``chroma``: every cell's
-    chroma (largest less smallest balanced channel); ``table_lum``: the median cell's
-    luminance (the table's)."""
+    ``cells`` keeps the averaged cells themselves (RGB, ``cv2.INTER_AREA`` of the
+    frame's top-left ``H // cell_px * cell_px`` x ``W // cell_px * cell_px`` pixels), for
+    a later stage that needs the same average. ``lum``: every cell's luminance balanced to
+    the napkin's white (1); ``lit``: the cells bright and neutral enough to be cloth,
+    before the closing; ``chroma``: every cell's chroma (largest less smallest balanced
+    channel); ``table_lum``: the median cell's luminance (the table's)."""
 
     labels: NDArray[np.int32]
     cell_px: int
+    cells: NDArray[np.uint8] | None = None
     lum: NDArray[np.float64] | None = None
     lit: NDArray[np.bool_] | None = None
     chroma: NDArray[np.float64] | None = None
@@ -184,19 +202,19 @@ def cloth_regions(
     lut = srgb_lut()
     r, g, b = (lut[small[..., k]] for k in range(3))
     white = np.maximum(white_rgb, 1e-4)
-    level = np.quantile((r + g + b) / 3, 1.0 - q.bright_fraction)
+    level = quantile(((r + g + b) / 3).ravel(), 1.0 - q.bright_fraction)
     white = white * max(1.0, level / float(white.mean()))
     r, g, b = r / white[0], g / white[1], b / white[2]  # the napkin at 1
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
     # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    table = float(np.median(lum))
+    table = median(lum.ravel())
     floor = max(q.min_napkin_brightness, table + p.table_margin)
     cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    return ClothRegions(labels, c, lum, cloth, chroma, table)
+    return ClothRegions(labels, c, small, lum, cloth, chroma, table)
 
 
 def cloth_cells(

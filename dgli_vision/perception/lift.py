@@ -8,6 +8,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
+from ..core.order_stats import median
 from .detect import StickerDetections
 
 __all__ = ["Markers3D", "estimate_table_normal", "estimate_table_plane", "lift_stickers"]
@@ -63,6 +64,13 @@ def estimate_table_normal(
     return estimate_table_plane(depth_mm, intrinsics, stride=stride, iterations=iterations)[0]
 
 
+def _mean_in_order(pts: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean of each row of ``pts`` (3, n), summed point after point: the figures of the
+    fit do not depend on how the points lie in memory (numpy sums a contiguous row
+    pairwise, a strided one in order)."""
+    return np.cumsum(pts, axis=1)[:, -1] / pts.shape[1]
+
+
 def _fit_plane(
     pts: NDArray[np.float64], active: NDArray[np.bool_], iterations: int
 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
@@ -70,19 +78,22 @@ def _fit_plane(
     the camera, a point on it, and its inliers."""
     keep = active.copy()
     normal = np.array([0.0, 0.0, -1.0])
-    centre = pts[:, keep].mean(axis=1)
+    centre = None
     caps = (0.10, 0.04) + (0.015,) * max(iterations - 2, 0)  # metres: narrow down slowly
     for cap in caps[:iterations]:
-        centre = pts[:, keep].mean(axis=1)
-        rel = pts[:, keep] - centre[:, None]
+        inliers = pts.compress(keep, axis=1)
+        centre = _mean_in_order(inliers)
+        rel = inliers - centre[:, None]
         _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
         normal = vecs[:, 0]
         resid = np.abs(normal @ pts - normal @ centre)
-        mad = np.median(resid[keep])
+        mad = median(resid[keep])
         new_keep = active & (resid < min(max(3.0 * 1.4826 * mad, 0.003), cap))
-        if new_keep.sum() < 50:
+        if np.count_nonzero(new_keep) < 50:
             break
         keep = new_keep
+    if centre is None:
+        centre = _mean_in_order(pts.compress(keep, axis=1))
     if normal @ (-centre) < 0:  # point towards the camera at the origin
         normal = -normal
     return normal, centre, keep

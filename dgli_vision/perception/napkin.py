@@ -16,12 +16,14 @@ applies to the full frame in about a millisecond.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import linear_to_srgb, srgb_lut
+from ..core.order_stats import median, quantile
 
 __all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
 
@@ -192,8 +194,9 @@ class NapkinMasks:
                 continue
             i, j = round(v / self.stride), round(u / self.stride)
             win = self.height_mm[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
-            if win.size and np.isfinite(win).any():
-                out[k] = float(np.nanmedian(win))
+            told = win[np.isfinite(win)]
+            if told.size:
+                out[k] = median(told)  # np.nanmedian's value, without its overhead
         return out
 
     def without_objects_near(self, uv: NDArray, radius_px: float) -> NapkinMasks:
@@ -226,12 +229,35 @@ def _near(
     out = np.zeros(len(uv), dtype=bool)
     if not mask.any():
         return out
-    vs, us = np.nonzero(mask)
-    pts = np.stack([us, vs], 1) * stride
+    reach = radius_px + stride
+    vs, us = np.nonzero(mask) if not np.isfinite(reach) else (None, None)
     for k, p in enumerate(np.asarray(uv, dtype=np.float64)):
-        if np.all(np.isfinite(p)):
-            out[k] = bool((np.abs(pts - p).max(axis=1) <= radius_px + stride).any())
+        if not np.all(np.isfinite(p)):
+            continue
+        if vs is None:  # only the samples of a window around p can be near
+            pts = _samples_around(mask, p, reach, stride)
+        else:
+            pts = np.stack([us, vs], 1) * stride
+        if len(pts):
+            out[k] = bool((np.abs(pts - p).max(axis=1) <= reach).any())
     return out
+
+
+def _samples_around(
+    mask: NDArray[np.bool_], p: NDArray[np.float64], reach: float, stride: int
+) -> NDArray[np.intp]:
+    """The pixels (x, y), shape (n, 2), of the samples of ``mask`` (a grid of
+    ``stride`` pixels) that may lie within ``reach`` of the pixel ``p``: those of a
+    window of the grid a sample wider each way than the reach."""
+    hh, ww = mask.shape
+    i0 = max(int(np.floor((p[1] - reach) / stride)) - 1, 0)
+    i1 = min(int(np.floor((p[1] + reach) / stride)) + 2, hh)
+    j0 = max(int(np.floor((p[0] - reach) / stride)) - 1, 0)
+    j1 = min(int(np.floor((p[0] + reach) / stride)) + 2, ww)
+    if i0 >= i1 or j0 >= j1:
+        return np.zeros((0, 2), dtype=np.intp)
+    vs, us = np.nonzero(mask[i0:i1, j0:j1])
+    return np.stack([us + j0, vs + i0], 1) * stride
 
 
 def balance_lut(white_rgb: NDArray[np.float64], level: int) -> NDArray[np.uint8]:
@@ -287,6 +313,54 @@ def _brightest_in_blocks(
     return top[bi * s - y0, bj * s - x0]
 
 
+def _nearest_in_blocks(depth_mm: NDArray[np.uint16], s: int) -> NDArray[np.uint16]:
+    """The nearest reading minus one around every ``s``-th pixel, shape
+    (ceil(H / s), ceil(W / s)): the minimum of ``depth - 1`` over rows and columns
+    ``k s - s // 2`` to ``k s - s // 2 + s - 1`` (an ``s`` x ``s`` erosion sampled every
+    ``s``-th pixel), 65535 where the block has no reading (0 wraps to the largest
+    value, so the nearest reading wins the minimum).
+
+    The rows of each block first, one minimum of row views per row of the block, then
+    the columns on the ``H / s`` rows left: two passes over the image, not an erosion
+    of all of it.
+    """
+    import cv2
+
+    d1 = depth_mm - np.uint16(1)
+    hh = d1.shape[0]
+    nh, first = -(-hh // s), s - s // 2  # blocks; rows of the first (the edge cuts it)
+    whole = max(min(nh - 1, (hh - first) // s), 0)  # blocks after it with all s rows
+    rows = [d1[:first].min(axis=0, keepdims=True)]
+    if whole > 0:
+        body = d1[first : first + s * whole]
+        mid = body[0::s]
+        for k in range(1, s):
+            mid = cv2.min(mid, body[k::s])
+        rows.append(mid)
+    if whole < nh - 1:  # the last block, cut by the image's edge
+        rows.append(d1[first + s * whole :].min(axis=0, keepdims=True))
+    return cv2.erode(np.concatenate(rows), np.ones((1, s), np.uint8))[:, ::s]
+
+
+def _block_pixels(
+    bi: NDArray[np.intp], bj: NDArray[np.intp], s: int, hh: int, ww: int
+) -> NDArray[np.intp]:
+    """Flat indices (``y * W + x``) of the pixels of blocks (rows ``bi``, columns ``bj``
+    of the ``s``-pixel grid; the erosion's window around each sample), block after
+    block, row after row, those outside the image left out."""
+    dy, dx = np.mgrid[0:s, 0:s] - s // 2  # the erosion's window around each sample
+    corner = (bi * s) * ww + bj * s
+    at = (corner[:, None] + (dy * ww + dx).ravel()[None, :]).ravel()
+    lo, hi = s // 2, s - 1 - s // 2  # the window's reach before and after its sample
+    y_ok = (bi.min() * s >= lo) and (bi.max() * s + hi < hh)
+    x_ok = (bj.min() * s >= lo) and (bj.max() * s + hi < ww)
+    if y_ok and x_ok:  # no block at the image's edge: every pixel is inside
+        return at
+    ys = (bi[:, None] * s + dy.ravel()[None, :]).ravel()
+    xs = (bj[:, None] * s + dx.ravel()[None, :]).ravel()
+    return at[(ys >= 0) & (ys < hh) & (xs >= 0) & (xs < ww)]
+
+
 def _raised_cloth_pixels(
     color: NDArray[np.uint8],
     depth_mm: NDArray[np.uint16],
@@ -303,16 +377,13 @@ def _raised_cloth_pixels(
     says whether anything in the block may stand that high; only those blocks are looked
     at pixel by pixel (a frame with every fold laid flat has none).
     """
-    import cv2
 
     s = p.stride
     hh, ww = depth_mm.shape
-    # 0 (no reading) wraps to the largest value: the nearest reading wins the minimum
-    nearest = cv2.erode(depth_mm - np.uint16(1), np.ones((s, s), np.uint8))[::s, ::s]
-    nearest = nearest.astype(np.float32) + 1.0
-    gi, gj = np.mgrid[0 : nearest.shape[0], 0 : nearest.shape[1]]
+    nearest = _nearest_in_blocks(depth_mm, s).astype(np.float32) + 1.0
+    gy, gx = np.arange(nearest.shape[0])[:, None] * s, np.arange(nearest.shape[1])[None, :] * s
     # a block's slope varies by well under a millimetre of height: 2 mm of slack
-    block_top = _height_above_table(intrinsics, normal, offset_m, gj * s, gi * s, nearest)
+    block_top = _height_above_table(intrinsics, normal, offset_m, gx, gy, nearest)
     bi, bj = np.nonzero((nearest < 65535) & (block_top > p.raised_cloth_mm - 2.0))
     if len(bi) > _MANY_BLOCKS:  # an arm or a gripper: drop the blocks with no bright pixel
         bright = _brightest_in_blocks(color, bi, bj, s)
@@ -321,19 +392,14 @@ def _raised_cloth_pixels(
     if not len(bi):
         empty = np.zeros((0, 2), dtype=np.intp)
         return empty, np.zeros(0, dtype=np.float32)
-    dy, dx = np.mgrid[0:s, 0:s] - s // 2  # the erosion's window around each sample
-    ys = (bi[:, None] * s + dy.ravel()[None, :]).ravel()
-    xs = (bj[:, None] * s + dx.ravel()[None, :]).ravel()
-    inside = (ys >= 0) & (ys < hh) & (xs >= 0) & (xs < ww)
-    ys, xs = ys[inside], xs[inside]
+    at = _block_pixels(bi, bj, s, hh, ww)
     # colour first (a gripper's or an arm's pixels go no further), one channel at a time
     lut, wt = srgb_lut(), np.maximum(white, 1e-4)
-    px = color.reshape(-1, 3)[ys * ww + xs]  # (n, 3) uint8
-    r, g, b = (lut[px[:, k]] / wt[k] for k in range(3))
+    px = color.reshape(-1, 3)[at]  # (n, 3) uint8
+    r, g, b = ((lut / wt[k])[px[:, k]] for k in range(3))  # balanced: 256 divisions, not n
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
-    cloth = ~_not_napkin(lum, chroma, p)
-    ys, xs = ys[cloth], xs[cloth]
+    ys, xs = np.divmod(at[~_not_napkin(lum, chroma, p)], ww)
     d = depth_mm[ys, xs]
     height = _height_above_table(intrinsics, normal, offset_m, xs, ys, d)
     up_high = (d > 0) & (height > p.raised_cloth_mm)
@@ -402,27 +468,41 @@ def find_napkin(
 @dataclass(frozen=True, eq=False)
 class _Samples:
     """The image subsampled by ``stride``: linear channels as separate flat arrays
-    (reductions over a last axis of 3 are slow), shape (n,) each, float32; ``lin`` the
-    same as (n, 3); ``clipped`` (n,) the blown-out samples; ``shape`` the grid's."""
+    (reductions over a last axis of 3 are slow), shape (n,) each, float32; ``clipped``
+    (n,) the blown-out samples; ``shape`` the grid's; ``codes`` the 8-bit levels of the
+    three channels (3, n)."""
 
     r: NDArray[np.float32]
     g: NDArray[np.float32]
     b: NDArray[np.float32]
-    lin: NDArray[np.float32]
     clipped: NDArray[np.bool_]
     shape: tuple[int, int]
+    codes: NDArray[np.uint8]
 
     @classmethod
     def of(cls, color: NDArray[np.uint8], p: NapkinParams) -> _Samples:
         sub = color[:: p.stride, :: p.stride]
-        lut8 = srgb_lut().astype(np.float32)
-        r, g, b = (lut8[sub[..., k].ravel()] for k in range(3))
+        codes = np.ascontiguousarray(np.moveaxis(sub, -1, 0)).reshape(3, -1)
+        r, g, b = _linear8()[codes]
         clipped = (
-            (sub[..., 0] >= p.clipped_level)
-            & (sub[..., 1] >= p.clipped_level)
-            & (sub[..., 2] >= p.clipped_level)
-        ).ravel()
-        return cls(r, g, b, np.stack([r, g, b], axis=1), clipped, sub.shape[:2])
+            (codes[0] >= p.clipped_level)
+            & (codes[1] >= p.clipped_level)
+            & (codes[2] >= p.clipped_level)
+        )
+        return cls(r, g, b, clipped, sub.shape[:2], codes)
+
+    def median_of(self, which: NDArray[np.bool_]) -> NDArray[np.float64]:
+        """Per-channel median (3,) of the samples ``which`` (non-empty): the linear
+        value of each channel's median 8-bit level (the levels' lookup only grows, so it
+        is the median of the linear values, found by counting 256 levels rather than by
+        sorting; the mean of the two middle ones for an even count)."""
+        n = int(np.count_nonzero(which))
+        lut, out = _linear8(), np.empty(3)
+        for k in range(3):
+            ranks = np.cumsum(np.bincount(self.codes[k][which], minlength=256))
+            lo, hi = np.searchsorted(ranks, [(n - 1) // 2, n // 2], side="right")
+            out[k] = lut[lo] if lo == hi else (lut[lo] + lut[hi]) / np.float32(2)
+        return out
 
     def balanced(self, white: NDArray) -> tuple[NDArray, NDArray]:
         """Brightness and chroma (n,) of every sample balanced to ``white``."""
@@ -433,6 +513,12 @@ class _Samples:
         return lum, chroma
 
 
+@lru_cache(maxsize=1)
+def _linear8() -> NDArray[np.float32]:
+    """Linear light of each 8-bit level, float32 (256,)."""
+    return srgb_lut().astype(np.float32)
+
+
 def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
     """The napkin's white, linear RGB (3,): the median of the brightest samples, refined
     twice on the neutral, bright samples under that white (the napkin itself), of which
@@ -441,9 +527,9 @@ def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
     usable = ~samples.clipped
     if usable.sum() < 50:
         usable = np.ones(len(bright), dtype=bool)
-    level = np.quantile(bright[usable], 1.0 - p.bright_fraction)
+    level = quantile(bright[usable], 1.0 - p.bright_fraction)
     top = usable & (bright >= level)
-    white = np.median(samples.lin[top], axis=0).astype(np.float64)
+    white = samples.median_of(top)
     for _ in range(2):
         lum, chroma = samples.balanced(white)
         napkin = usable & (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
@@ -451,8 +537,8 @@ def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:
             break
         lum_n = lum[napkin]
         keep = napkin.copy()
-        keep[napkin] = lum_n >= np.median(lum_n)
-        white = np.median(samples.lin[keep], axis=0).astype(np.float64)
+        keep[napkin] = lum_n >= median(lum_n)
+        white = samples.median_of(keep)
     return np.maximum(white, 1e-4)
 
 
@@ -483,8 +569,9 @@ def _held_up_cloth(
 
     s = p.stride
     held_up = np.zeros(shape, dtype=np.uint8)
-    held_up[raised_px[:, 1] // s, raised_px[:, 0] // s] = 1
+    cell = (raised_px[:, 1] // s, raised_px[:, 0] // s)
+    held_up[cell] = 1
     _, lab, stats, _ = cv2.connectedComponentsWithStats(held_up, connectivity=8)
     big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= p.min_raised_samples)
     raised_cloth = np.isin(lab, big[big > 0])
-    return raised_cloth, raised_cloth[raised_px[:, 1] // s, raised_px[:, 0] // s]
+    return raised_cloth, raised_cloth[cell]

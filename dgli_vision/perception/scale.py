@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.layout import CORNER_STICKERS, NapkinLayout
+from ..core.order_stats import median
 from .lift import Markers3D
 
 __all__ = ["NapkinRuler", "measure_napkin"]
@@ -94,18 +95,15 @@ def measure_napkin(
     flat_mm = np.linalg.norm(uv[i] - uv[j], axis=1)
     d_mm = np.linalg.norm(markers.points[i] - markers.points[j], axis=1) * 1e3
     ratio = d_mm / flat_mm
-    scale = float(np.median(ratio))
-    spread = float(np.median(np.abs(ratio - scale)))
+    scale = median(ratio)
+    spread = median(np.abs(ratio - scale))
     corner_of = {s: k for k, ids in enumerate(CORNER_STICKERS) for s in ids}
     corners = np.array([corner_of[int(a)] for a in i])
-    medians = [float(np.median(ratio[corners == k])) for k in np.unique(corners)]
+    of_corner = [ratio[corners == k] for k in np.unique(corners)]
+    medians = [median(r) for r in of_corner]
     worst = float(max(abs(m - 1.0) for m in medians))
     # a corner is judged on three stickers or more (three pairs): one pair with a
     # sticker half hidden (a gripper's finger, a flap's edge) moves its centre
-    judged = [
-        float(np.median(ratio[corners == k]))
-        for k in np.unique(corners)
-        if (corners == k).sum() >= 3
-    ]
+    judged = [m for m, r in zip(medians, of_corner) if len(r) >= 3]
     against = max((abs(m / scale - 1.0) for m in judged), default=0.0) if scale > 0 else np.inf
     return NapkinRuler(scale, spread, worst, int(use.sum()), against)

@@ -18,6 +18,7 @@ from pathlib import Path
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
+from ..core.parallel import SharedSlots, SlotRef
 from .frames import RGBDFrame
 from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
 from .realsense import LivePair
@@ -157,8 +158,8 @@ class RecordedPair(LabelledPair):
         """
         if self.problem or self.color_payload is None or self.depth_payload is None:
             raise InvalidInputError(self.problem or f"{self.color}: no image")
-        color = decode_color(self.color_payload, self.color)
-        depth = decode_depth(self.depth_payload, self.depth)
+        color = decode_color(_in_memory(self.color_payload), self.color)
+        depth = decode_depth(_in_memory(self.depth_payload), self.depth)
         if color.shape[:2] != depth.shape:
             raise InvalidInputError(
                 f"{self.depth}: depth is {depth.shape[1]}x{depth.shape[0]} but colour is "
@@ -178,6 +179,28 @@ class RecordedPair(LabelledPair):
     def light(self) -> LabelledPair:
         """This frame as names only, without its pixels (what an outcome keeps)."""
         return LabelledPair(self.color, self.depth, self.label, self.variant, self.line, self.time)
+
+    def shared(self, slots: SharedSlots) -> tuple[RecordedPair, int | None]:
+        """This frame with its pixels copied into a slot of ``slots``, for a worker process
+        (what pickles is then a few names and numbers), and the slot to free once the
+        worker is done; the frame itself and None when it has no pixels or no slot is
+        free."""
+        c, d = self.color_payload, self.depth_payload
+        if self.problem or c is None or d is None:
+            return self, None
+        put = slots.put([c.data, d.data])
+        if put is None:
+            return self, None
+        slot, (cref, dref) = put
+        return replace(
+            self, color_payload=replace(c, data=cref), depth_payload=replace(d, data=dref)
+        ), slot
+
+
+def _in_memory(p: ImagePayload) -> ImagePayload:
+    """The payload with its bytes readable: mapped from their shared slot when they were
+    sent in one (:meth:`RecordedPair.shared`)."""
+    return replace(p, data=p.data.view()) if isinstance(p.data, SlotRef) else p
 
 
 def is_recording_file(path: str | Path) -> bool:

@@ -261,7 +261,7 @@ def _payload(msg: Any, msgtype: str, stream: str, where: str) -> ImagePayload:
         int(msg.height),
         int(msg.step),
         bool(msg.is_bigendian),
-        bytes(msg.data),
+        msg.data,  # an array over the message read: no copy
     )
 
 
@@ -349,7 +349,8 @@ def read_bag_messages(bag: RosBag, topics: BagTopics) -> Iterator[BagMessage | I
             if item is None:
                 return
             conn, bag_ns, raw = item
-            msg = reader.deserialize(raw, conn.msgtype)
+            # a view: rosbags slices off the CDR header, which copies a whole image of bytes
+            msg = reader.deserialize(memoryview(raw), conn.msgtype)
         except errors as exc:
             raise UnreadableInputError(
                 f"recording '{bag.path}' cannot be read after {last_t:.3f} s (truncated or "

@@ -15,6 +15,7 @@ aligned depth) and ``32FC1`` (metres; NaN and non-positive values read as no dep
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -35,7 +36,7 @@ _CHANNELS = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "16UC1": 1, "mono16":
 _ITEM = {"16UC1": 2, "mono16": 2, "32FC1": 4}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ImagePayload:
     """One image message's pixels, undecoded.
 
@@ -48,7 +49,9 @@ class ImagePayload:
     width, height, step : int
         From the message (0 for a compressed image).
     big_endian : bool
-    data : bytes
+    data : bytes-like
+        The message's bytes (``bytes``, or an array of uint8 over the message read; a
+        :class:`~dgli_vision.core.parallel.SlotRef` while in a shared slot).
     """
 
     encoding: str
@@ -56,7 +59,7 @@ class ImagePayload:
     height: int
     step: int
     big_endian: bool
-    data: bytes
+    data: Any
 
     @property
     def compressed(self) -> bool:
@@ -81,10 +84,10 @@ def _raw_array(p: ImagePayload, where: str) -> NDArray:
     return np.ascontiguousarray(pixels).view(dtype).reshape(p.height, p.width)
 
 
-def _imdecode(data: bytes, flags: int, where: str) -> NDArray:
+def _imdecode(data: Any, flags: int, where: str) -> NDArray:
     import cv2
 
-    image = cv2.imdecode(np.frombuffer(data, np.uint8), flags) if data else None
+    image = cv2.imdecode(np.frombuffer(data, np.uint8), flags) if len(data) else None
     if image is None:
         raise InvalidInputError(f"{where}: compressed image could not be decoded")
     return image

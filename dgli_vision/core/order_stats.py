@@ -1,0 +1,76 @@
+"""Order statistics of small 1-D arrays without numpy's general machinery.
+
+``np.median`` spends most of its time, on a few thousand values, in axis handling and
+checks; the per-frame pipeline takes dozens of medians. These give the same values.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ["median", "nanmedian", "quantile"]
+
+
+def median(x: NDArray) -> float:
+    """``np.median`` of a non-empty 1-D array, to the bit: the middle order statistics
+    by one partition (their mean in the array's dtype when the count is even), NaN when
+    the array holds one.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+
+    Returns
+    -------
+    float
+    """
+    n = x.size
+    k = n // 2
+    if n % 2:
+        part = np.partition(x, (k, n - 1))
+        middle = part[k]
+    else:
+        part = np.partition(x, (k - 1, k, n - 1))
+        middle = (part[k - 1] + part[k]) / x.dtype.type(2)
+    return float("nan") if np.isnan(part[n - 1]) else float(middle)
+
+
+def quantile(x: NDArray, q: float) -> float:
+    """``np.quantile(x, q)`` (its default, linear method) of a non-empty 1-D array for a
+    float ``q`` in [0, 1], to the bit: the two order statistics around ``(n - 1) q`` by
+    one partition, and numpy's interpolation between them; NaN when the array holds one.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+    q : float
+
+    Returns
+    -------
+    float
+    """
+    n = x.size
+    virtual = (n - 1) * q
+    lo = int(np.floor(virtual))
+    hi = lo + 1
+    if virtual >= n - 1:
+        lo = hi = n - 1
+    elif virtual < 0:
+        lo = hi = 0
+    part = np.partition(x, sorted({0, n - 1, lo, hi}))
+    if np.isnan(part[n - 1]):
+        return float("nan")
+    a, b = part[lo], part[hi]
+    gamma = float(virtual - lo)
+    diff = b - a
+    if gamma >= 0.5:
+        return float(b - diff * (1 - gamma))
+    return float(a + diff * gamma)
+
+
+def nanmedian(x: NDArray) -> float:
+    """``np.nanmedian`` of a 1-D array, to the bit: the median of its values that are not
+    NaN; NaN when there is none (without numpy's warning)."""
+    told = x[~np.isnan(x)]
+    return median(told) if told.size else float("nan")
