@@ -225,6 +225,18 @@ def test_a_sticker_left_pastel_by_a_sheen_is_unknown_never_hidden(monkeypatch):
     assert res.prediction is None or res.prediction.class_id == "08"
 
 
+def test_a_grippers_fingers_low_over_the_cloth_are_an_object_not_a_flap_held_up():
+    """Fingers 10-25 mm above the napkin: the napkin-coloured rim of their depth edge
+    read as cloth held up at their height, and a corner folded under became a flat
+    napkin with that corner rising (confidence 0.34)."""
+    sample = render_sample("03", 0, 5858, conditions=("grasp",))
+    r = sample.result
+    result = classify_frame(RGBDFrame(r.color, r.depth_mm, r.intrinsics), REFS)
+    p = result.prediction
+    assert p is None or p.class_id == "03"
+    assert not np.isfinite(result.observation.flap_deg).any()  # no flap held up seen
+
+
 # --- an arm's soft shadow across the napkin ----------------------------------------------
 
 

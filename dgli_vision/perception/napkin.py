@@ -66,8 +66,11 @@ class NapkinParams:
         slightly by the sticker under it.
     occluder_height_mm : float
         Height above the table plane above which a pixel that is not napkin-coloured is
-        an object over the napkin. Default 30 mm: folded cloth lies within a few
-        millimetres of the table, and a flap held up is napkin-coloured.
+        an object over the napkin. Default 15 mm: folded cloth lies within a few
+        millimetres of the table, and a flap held up is napkin-coloured. Below
+        ``raised_cloth_mm``, so that a gripper's fingers closing on the cloth (10-25 mm
+        up) are an object, not cloth held up: the napkin-coloured rim of their depth
+        edge would otherwise read as a flap standing at their height.
     occluder_darkness : float
         Linear brightness, relative to the napkin's white, below which a raised pixel is
         not napkin (a napkin in an arm's shadow keeps at least 0.3 of its light).
@@ -94,7 +97,7 @@ class NapkinParams:
     clipped_level: int = 250
     highlight_level: float = 1.35
     highlight_chroma: float = 0.25
-    occluder_height_mm: float = 30.0
+    occluder_height_mm: float = 15.0
     occluder_darkness: float = 0.2
     occluder_chroma: float = 0.28
     raised_cloth_mm: float = 25.0
