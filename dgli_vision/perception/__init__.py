@@ -12,7 +12,8 @@ before (:func:`dgli_vision.classifier.pipeline.observe` chains them):
 4. evidence (:mod:`.evidence`): each missing sticker hidden by cloth or unknown, from
    the napkin view's masks (:meth:`.napkin.NapkinView.masks`);
 5. flaps (:mod:`.flaps`): how far a flap held up has turned; and the footprint
-   (:mod:`.footprint`) and the face each corner shows (:mod:`.handedness`).
+   (:mod:`.footprint`, its cloth followed into an arm's shadow by :mod:`.shade`) and the
+   face each corner shows (:mod:`.handedness`).
 """
 
 from .detect import DetectorParams, StickerDetections, detect_stickers

@@ -24,6 +24,7 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.order_stats import median, quantile
 from .napkin import NapkinParams, NapkinView
+from .shade import into_shade, shadow_suspected
 
 #: Cells of the image border a napkin's region may touch and still be all in view: a
 #: bright seam the closing joined to it touches with one or two.
@@ -156,11 +157,18 @@ class ClothRegions:
     (:func:`cloth_regions`); the footprint and the second sticker search both read it.
     ``cells`` keeps the averaged cells themselves (RGB, ``cv2.INTER_AREA`` of the
     frame's top-left ``H // cell_px * cell_px`` x ``W // cell_px * cell_px`` pixels), for
-    a later stage that needs the same average."""
+    a later stage that needs the same average. ``lum``: every cell's luminance balanced to
+    the napkin's white (1); ``lit``: the cells bright and neutral enough to be cloth,
+    before the closing; ``chroma``: every cell's chroma (largest less smallest balanced
+    channel); ``table_lum``: the median cell's luminance (the table's)."""
 
     labels: NDArray[np.int32]
     cell_px: int
     cells: NDArray[np.uint8] | None = None
+    lum: NDArray[np.float64] | None = None
+    lit: NDArray[np.bool_] | None = None
+    chroma: NDArray[np.float64] | None = None
+    table_lum: float = float("nan")
 
 
 def cloth_regions(
@@ -200,12 +208,13 @@ def cloth_regions(
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
     # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    floor = max(q.min_napkin_brightness, median(lum.ravel()) + p.table_margin)
+    table = median(lum.ravel())
+    floor = max(q.min_napkin_brightness, table + p.table_margin)
     cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
-    return ClothRegions(labels, c, small)
+    return ClothRegions(labels, c, small, lum, cloth, chroma, table)
 
 
 def cloth_cells(
@@ -251,10 +260,36 @@ def cloth_cells(
     cloth = np.isin(labels, held)
     # a region cut by the image border is not all in view; a thread of a cell or two
     # (a bright seam the closing joined) does not make it so
-    border = int(cloth[0].sum() + cloth[-1].sum() + cloth[1:-1, 0].sum() + cloth[1:-1, -1].sum())
-    if border > MAX_BORDER_CELLS:
+    if _border_cells(cloth) > MAX_BORDER_CELLS:
         return None
     return cloth
+
+
+def _border_cells(cells: NDArray[np.bool_]) -> int:
+    """How many of the ``cells`` lie on the grid's border."""
+    return int(cells[0].sum() + cells[-1].sum() + cells[1:-1, 0].sum() + cells[1:-1, -1].sum())
+
+
+def _in_shade(
+    color: NDArray[np.uint8],
+    cloth: NDArray[np.bool_],
+    regions: ClothRegions,
+    raised: NDArray[np.bool_] | None,
+    p: FootprintParams,
+) -> NDArray[np.bool_] | None:
+    """The napkin's ``cloth`` cells with its cloth in an arm's shadow (:mod:`.shade`)
+    added, when table in shadow lies next to them (``raised``: the cells of objects
+    above the table, not table); None when there is none to add."""
+    import cv2
+
+    if regions.lum is None or regions.lit is None or regions.chroma is None:
+        return None
+    if not shadow_suspected(cloth, regions.lum, regions.chroma, regions.table_lum, raised):
+        return None
+    lit = regions.lit & cloth
+    seeds = cv2.erode(lit.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
+    grown = into_shade(color, cloth, seeds, p.cell_px, p.close_cells)
+    return None if grown is cloth else grown
 
 
 def measure_footprint(
@@ -302,6 +337,8 @@ def measure_footprint(
     h, w = color.shape[0] // c, color.shape[1] // c
     if float(up @ np.array([0.0, 0.0, 1.0])) == 0.0:
         return None
+    if regions is None or regions.cell_px != c:
+        regions = cloth_regions(color, napkin.white_rgb, p, q)
     cloth = cloth_cells(color, napkin, sticker_px, p, q, regions=regions)
     if cloth is None:
         return None
@@ -309,9 +346,19 @@ def measure_footprint(
     if low > p.max_fraction * napkin_area_mm2:
         return None
     high = low
+    occ = None
     if napkin.occluder.any():
-        # objects above the table (napkin's own sampling grid) next to the cloth
         occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), cv2.INTER_NEAREST)
+    raised = None if occ is None else cv2.dilate(occ, np.ones((3, 3), np.uint8)).view(bool)
+    shaded = _in_shade(color, cloth, regions, raised, p)
+    if shaded is not None:
+        area = _table_area_mm2(intrinsics, shaded, c, up, offset_m)
+        if _border_cells(shaded) <= MAX_BORDER_CELLS and area <= p.max_fraction * napkin_area_mm2:
+            cloth, low, high = shaded, area, area
+        else:  # the fill ran out onto the table: the shadowed cloth is not measured
+            high = napkin_area_mm2 * p.max_fraction
+    if occ is not None:
+        # objects above the table (napkin's own sampling grid) next to the cloth
         near = cv2.dilate(cloth.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
         over = occ.astype(bool) & ~cloth
         _, olab, _, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), 8)
