@@ -21,6 +21,7 @@ from ..classifier.references import ReferenceSet
 from ..core.classes import VARIANTS
 from ..core.errors import DgliError
 from ..sources.labelled import LabelledPair
+from .workers import init_worker, worker_references
 
 __all__ = [
     "EvaluationResult",
@@ -74,28 +75,6 @@ class PairOutcome:
         return self.correct and self.predicted_variant == self.pair.variant
 
 
-_WORKER_REFS: ReferenceSet | None = None
-_WORKER_COLOURS: dict | None = None
-
-
-def _init_worker(refs: ReferenceSet, colours: dict | None = None) -> None:
-    """Each worker is one of ``jobs`` processes: keep it to one thread (no oversubscription).
-
-    Workers ignore Ctrl-C: the parent stops the batch and lets running pairs finish, so a
-    terminal's interrupt (sent to the whole process group) leaves no half-written state
-    and no worker tracebacks.
-    """
-    import signal
-
-    import cv2
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    global _WORKER_REFS, _WORKER_COLOURS
-    _WORKER_REFS = refs
-    _WORKER_COLOURS = colours
-    cv2.setNumThreads(1)
-
-
 def _classify_pair(
     pair: LabelledPair,
     refs: ReferenceSet | None = None,
@@ -106,7 +85,7 @@ def _classify_pair(
     from ..classifier.pipeline import classify_frame
 
     if refs is None:
-        refs, colours = _WORKER_REFS, _WORKER_COLOURS
+        refs, colours = worker_references()
     if refs is None:
         raise RuntimeError("worker started without references (pool initializer not run)")
     try:
@@ -221,7 +200,7 @@ def _worker_pool(
     pool = ProcessPoolExecutor(
         workers,
         mp_context=mp.get_context("spawn"),
-        initializer=_init_worker,
+        initializer=init_worker,
         initargs=(references, colours),
     )
     if _POOL is None:

@@ -13,11 +13,40 @@ from __future__ import annotations
 
 from typing import Any
 
-__all__ = ["start_workers_early", "take_early_workers"]
+__all__ = ["init_worker", "start_workers_early", "take_early_workers", "worker_references"]
 
 #: The pool started early and what it was started with: (workers, references file or
 #: None for the default, colours, pool); None once taken or when none was started.
 _EARLY: tuple[int, Any, Any, Any] | None = None
+#: A worker process's reference set and calibrated colours (:func:`init_worker`).
+_WORKER_REFS: Any = None
+_WORKER_COLOURS: dict | None = None
+
+
+def init_worker(refs: Any, colours: dict | None = None) -> None:
+    """A worker process's start: keep its reference set (a ``ReferenceSet``) and
+    colours, and keep it to one thread (each worker is one of ``jobs`` processes: no
+    oversubscription).
+
+    Workers ignore Ctrl-C: the parent stops the batch and lets running pairs finish, so a
+    terminal's interrupt (sent to the whole process group) leaves no half-written state
+    and no worker tracebacks.
+    """
+    import signal
+
+    import cv2
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    global _WORKER_REFS, _WORKER_COLOURS
+    _WORKER_REFS = refs
+    _WORKER_COLOURS = colours
+    cv2.setNumThreads(1)
+
+
+def worker_references() -> tuple[Any, dict | None]:
+    """The reference set and colours :func:`init_worker` kept in this process (None,
+    None where it has not run)."""
+    return _WORKER_REFS, _WORKER_COLOURS
 
 
 def _init_from_file(references_path: str | None, colours: dict | None) -> None:
@@ -25,13 +54,12 @@ def _init_from_file(references_path: str | None, colours: dict | None) -> None:
     read leaves it without: this process reports the problem, in one line)."""
     from ..classifier.references import load_references
     from ..core.errors import DgliError
-    from .evaluate import _init_worker
 
     try:
         refs = load_references(references_path)
     except DgliError:
         refs = None
-    _init_worker(refs, colours)
+    init_worker(refs, colours)
 
 
 def _warm() -> None:
