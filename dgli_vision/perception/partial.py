@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
+from ..core.classes import LIFTED_MM
 from ..core.layout import NapkinLayout
 from .detections import DetectorParams, StickerDetections
 from .evidence import SEEN, StickerEvidence
@@ -114,9 +115,10 @@ def confirm_partly_hidden(
 
 
 def _lying_height(markers: Markers3D, up: NDArray, offset: float) -> float:
-    """Median height of the stickers found lying on the table (below 20 mm), metres."""
+    """Median height of the stickers found lying on the table (below ``LIFTED_MM``),
+    metres."""
     h = markers.points[markers.found] @ up - offset
-    low = h[h < 0.02]
+    low = h[h < LIFTED_MM / 1e3]
     return float(np.median(low)) if len(low) else 0.0
 
 
