@@ -187,3 +187,22 @@ def test_a_stop_signal_never_cuts_a_kept_result_in_two():
                     kept.append("count")
         assert kept == ["journal", "count"]
         assert stop.stopped and stop.exit_code == code
+
+
+def test_a_stop_that_lands_inside_a_c_function_still_counts_as_the_stop():
+    """A signal during a C call (np.fromfile checking its path) surfaces as a SystemError
+    around the handler's KeyboardInterrupt: that is the stop, kept as such, not a crash."""
+    from dgli_vision.cli.runs import Stop
+
+    stop = Stop()
+    try:
+        try:
+            raise KeyboardInterrupt
+        except KeyboardInterrupt as inner:
+            raise SystemError("fspath returned a result with an exception set") from inner
+    except SystemError as exc:
+        wrapped = exc
+    assert not stop.cut_short(wrapped)  # no stop came: a real error, raised on
+    stop.stopped = True
+    assert stop.cut_short(wrapped) and stop.cut_short(KeyboardInterrupt())
+    assert not stop.cut_short(SystemError("something else"))

@@ -198,6 +198,8 @@ def _rendered(stream: Any, todo: list[int]) -> tuple[list, Stop]:
             with progress(todo, "rendering") as bar:
                 for sample, _ in zip(stream, bar):
                     samples.append(sample)
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, SystemError) as exc:
+            if not stop.cut_short(exc):
+                raise
             stop.stopped = True
     return samples, stop

@@ -60,6 +60,17 @@ class Stop:
             return
         raise KeyboardInterrupt
 
+    def cut_short(self, exc: BaseException) -> bool:
+        """Whether ``exc`` is this stop interrupting the work: the KeyboardInterrupt that
+        :meth:`on_signal` raises, or the SystemError a C function raises around it when
+        the signal came while it ran (``np.fromfile`` checking its path, say)."""
+        if isinstance(exc, KeyboardInterrupt):
+            return True
+        cause = exc.__cause__ or exc.__context__
+        return self.stopped and isinstance(exc, SystemError) and isinstance(
+            cause, KeyboardInterrupt
+        )
+
     def holding(self):
         """A block that a stop signal does not cut in two (it interrupts after it)."""
         from contextlib import contextmanager
@@ -183,7 +194,9 @@ def classify_into(
                     if writer:  # flushed at once: an interrupted run keeps its work
                         writer.write(outcome_to_dict(outcome))
                     done[(key or pair_key)(outcome.pair)] = outcome
-    except KeyboardInterrupt:
+    except (KeyboardInterrupt, SystemError) as exc:
+        if not stop.cut_short(exc):
+            raise
         stop.stopped = True
     except BrokenProcessPool:  # a stop sent to the whole group ended the workers
         if not stop.stopped:
