@@ -36,3 +36,24 @@ def test_every_frame_says_where_its_time_went() -> None:
     assert bench.conditions() == ["clean", "gripper"]
     assert bench.stage_summary()["napkin"][0] == 0.0  # a stage a frame skips costs it 0
     assert [f.name for f in bench.slowest(2)] == ["c", "b"]
+
+
+def test_the_decode_included_bench_reads_back_the_frames_it_times(tmp_path) -> None:
+    """``bench_files`` times each frame from PNG files it writes: the files hold exactly
+    the frame's pixels (lossless), so decode-included and in-memory times are of the same
+    frames."""
+    import numpy as np
+
+    from dgli_vision.analysis.frame_bench import bench_files
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.sim.dataset import render_sample
+    from dgli_vision.sources.frames import RGBDFrame, read_frame
+
+    r = render_sample("02", 0, 11, conditions=("gripper",)).result
+    frame = RGBDFrame(r.color, r.depth_mm, r.intrinsics)
+    times = bench_files([("gripper", "02_000", frame)], load_references(None), tmp_path,
+                        repeats=1)
+    assert times.shape == (1,) and np.isfinite(times).all()
+    back = read_frame(tmp_path / "0000_color.png", tmp_path / "0000_depth.png", r.intrinsics)
+    assert np.array_equal(back.color, frame.color)
+    assert np.array_equal(back.depth_mm, frame.depth_mm)

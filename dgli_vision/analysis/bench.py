@@ -574,6 +574,12 @@ def run_watch_benchmarks(
     ]
 
 
+def _cores() -> int:
+    """The processors this process may run on."""
+    getter = getattr(os, "sched_getaffinity", None)
+    return len(getter(0)) if getter is not None else os.cpu_count() or 1
+
+
 def _children_cpu() -> float:
     """Processor seconds (user + system) of the finished child processes so far."""
     import resource
@@ -600,13 +606,19 @@ def run_frame_benchmarks(
     bench : FrameBench
         Every frame's times.
     """
+    import tempfile
+
     from ..classifier.references import load_references
-    from .frame_bench import bench_frames, bench_set
+    from .frame_bench import bench_files, bench_frames, bench_set
 
     refs = load_references(None)
     frames = list(bench_set(seed, per_condition=per_condition, sequence_frames=sequence_frames))
     with one_core():
         bench = bench_frames(iter(frames), refs, repeats=repeats)
+    with tempfile.TemporaryDirectory(prefix="dgli-bench-") as tmp:
+        with one_core():
+            from_files = bench_files(frames, refs, tmp, repeats=repeats)
+        from_files_2 = bench_files(frames, refs, tmp, repeats=repeats)
     med, p90, top = bench.summary()
     n = len(bench.frames)
     out = [
@@ -614,6 +626,11 @@ def run_frame_benchmarks(
                     "<= 8 ms", med <= 8.0),
         BenchResult("every frame: 90th percentile", p90, "ms", "<= 12 ms", p90 <= 12.0),
         BenchResult("every frame: slowest", top, "ms", "<= 25 ms", top <= 25.0),
+        BenchResult("every frame from its PNG files, decode included, one core: median",
+                    float(np.median(from_files)), "ms", "<= 25 ms",
+                    float(np.median(from_files)) <= 25.0),
+        BenchResult(f"  the same on {_cores()} cores (the two images decode side by side):"
+                    " median", float(np.median(from_files_2)), "ms"),
     ]
     for condition in bench.conditions():
         c_med, c_p90, c_top = bench.summary(condition)

@@ -11,17 +11,19 @@ regression shows where it is. Nothing here prints.
 from __future__ import annotations
 
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
 from ..core.classes import CLASS_IDS
 from ..sim.condition_names import CONDITION_NAMES
 from ..sources.frames import RGBDFrame
 
-__all__ = ["FrameBench", "FrameTime", "bench_frames", "bench_set"]
+__all__ = ["FrameBench", "FrameTime", "bench_files", "bench_frames", "bench_set"]
 
 #: The sequence rendered with a gripper for the frames of folds in progress.
 SEQUENCE = "II"
@@ -135,3 +137,38 @@ def bench_frames(
                 best, stages = dt, dict(result.timings_ms)
         out.append(FrameTime(condition, name, best, stages))
     return FrameBench(tuple(out))
+
+
+def bench_files(
+    frames: Sequence[tuple[str, str, RGBDFrame]],
+    references: ReferenceSet,
+    folder: str | Path,
+    *,
+    repeats: int = 3,
+) -> NDArray[np.float64]:
+    """Each frame's best time from its files: written as PNG pairs (as ``dgli render``
+    writes them) into ``folder``, then read (:func:`~dgli_vision.sources.frames.read_frame`,
+    which decodes the two images concurrently) and classified, ``repeats`` times.
+
+    Returns
+    -------
+    ndarray
+        The best time of each frame, ms, in order.
+    """
+    from ..classifier.pipeline import classify_frame
+    from ..core.io import write_png
+    from ..sources.frames import read_frame
+
+    root = Path(folder)
+    out = []
+    for k, (_, _, frame) in enumerate(frames):
+        color, depth = root / f"{k:04d}_color.png", root / f"{k:04d}_depth.png"
+        write_png(color, np.ascontiguousarray(frame.color[..., ::-1]))
+        write_png(depth, frame.depth_mm)
+        best = np.inf
+        for _ in range(max(repeats, 1)):
+            t0 = time.perf_counter()
+            classify_frame(read_frame(color, depth, frame.intrinsics), references)
+            best = min(best, (time.perf_counter() - t0) * 1e3)
+        out.append(best)
+    return np.array(out)
