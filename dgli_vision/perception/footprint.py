@@ -16,6 +16,7 @@ cover (a table as bright as the napkin).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -132,8 +133,12 @@ def _cell_areas_mm2(
     y0, x0 = origin
     ys, xs = np.mgrid[y0 : y0 + h + 1, x0 : x0 + w + 1] * cell - 0.5
     if intrinsics.distorted:  # the rays of the pixels as the lens bent them
-        ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
-        xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
+        grid = _ideal_corners(intrinsics, cell)
+        if grid is not None and y0 + h < grid.shape[1] and x0 + w < grid.shape[2]:
+            xs, ys = grid[:, y0 : y0 + h + 1, x0 : x0 + w + 1]
+        else:
+            ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
+            xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
     d = np.stack(
         [
             (xs - intrinsics.cx) / intrinsics.fx,
@@ -146,6 +151,28 @@ def _cell_areas_mm2(
     ex = x[:-1, 1:] - x[:-1, :-1]
     ey = x[1:, :-1] - x[:-1, :-1]
     return np.linalg.norm(np.cross(ex, ey), axis=-1) * 1e6
+
+
+def _ideal_corners(intrinsics: Intrinsics, cell: int) -> NDArray[np.float64] | None:
+    """The undistorted pixels (x, y) of the corners of every ``cell``-pixel cell of the
+    camera's image, shape (2, H // cell + 1, W // cell + 1), made once per camera (each
+    pixel is undistorted on its own: a block of the grid is what undistorting the
+    block gives); None for a camera that cannot be a cache key."""
+    try:
+        return _camera_corners(intrinsics, cell)
+    except TypeError:  # unhashable intrinsics (a list of coefficients)
+        return None
+
+
+@lru_cache(maxsize=4)
+def _camera_corners(intrinsics: Intrinsics, cell: int) -> NDArray[np.float64]:
+    """:func:`_ideal_corners`, kept for the last few cameras."""
+    ys, xs = np.mgrid[0 : intrinsics.height // cell + 1, 0 : intrinsics.width // cell + 1]
+    ys, xs = ys * cell - 0.5, xs * cell - 0.5
+    ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
+    grid = ideal.T.reshape(2, *xs.shape).copy()
+    grid.flags.writeable = False
+    return grid
 
 
 @dataclass(frozen=True, eq=False)
@@ -292,12 +319,23 @@ def cloth_cells(
     held = held[held > 0]
     if held.size == 0:
         return None
-    cloth = np.isin(labels, held)
+    cloth = _any_of(labels, held)
     # a region cut by the image border is not all in view; a thread of a cell or two
     # (a bright seam the closing joined) does not make it so
     if _border_cells(cloth) > MAX_BORDER_CELLS:
         return None
     return cloth
+
+
+def _any_of(labels: NDArray[np.int32], wanted: NDArray) -> NDArray[np.bool_]:
+    """``np.isin(labels, wanted)`` for labels of connected regions (0 and up): a
+    comparison per label wanted (the napkin is one region, or a few)."""
+    if len(wanted) > 8:
+        return np.isin(labels, wanted)
+    out = np.zeros(labels.shape, dtype=bool)
+    for label in wanted.tolist():
+        out |= labels == label
+    return out
 
 
 def _border_cells(cells: NDArray[np.bool_]) -> int:
@@ -398,6 +436,6 @@ def measure_footprint(
         over = occ.astype(bool) & ~cloth
         _, olab, _, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), 8)
         touching = np.unique(olab[near & over])
-        hidden = np.isin(olab, touching[touching > 0])
+        hidden = _any_of(olab, touching[touching > 0])
         high += _table_area_mm2(intrinsics, hidden, c, up, offset_m)
     return Footprint(low, min(high, napkin_area_mm2 * p.max_fraction))
