@@ -78,6 +78,14 @@ FACE_WEIGHT = 1.0
 #: centre can rank alike, but their stickers lie 300 mm apart in one and 50 mm in the
 #: other.
 SPREAD_WEIGHT = 1.0
+#: Weight of the tip term: the sum, over the corners whose tip's flat place was looked
+#: at (:mod:`~dgli_vision.perception.tips`), of how much more of it shows bare table
+#: than the reference leaves bare, beyond :data:`TIP_SLACK`. A gripper over a corner
+#: hides its stickers; the table seen where a flat corner would lie says it has moved.
+TIP_WEIGHT = 1.0
+#: Share of a tip's place seen bare beyond the reference's that costs nothing (the
+#: nominal fold sizes stand for ranges; the fit of the napkin is a few mm off).
+TIP_SLACK = 0.3
 #: Distances within this of a reference's range agree with it (sticker centres to a few
 #: mm, wrinkles up to 10 mm, a range drawn from a few states).
 SPREAD_SLACK_MM = 20.0
@@ -231,6 +239,7 @@ def reference_distances(
     past: ArrayLike | None = None,
     back: ArrayLike | None = None,
     spread_mm: ArrayLike | None = None,
+    tips: ArrayLike | None = None,
 ) -> NDArray[np.float64]:
     """Distance of one observation to every reference, shape (k,).
 
@@ -261,6 +270,9 @@ def reference_distances(
     spread_mm : array_like of float, shape (120,), optional
         3D distance between the stickers of each pair (``references.sticker_pairs``),
         mm, NaN where either was not seen (:data:`SPREAD_WEIGHT`).
+    tips : array_like of float, shape (4,), optional
+        For each corner A-D, the share of its tip's flat place seen bare table, NaN where
+        not told (:data:`TIP_WEIGHT`).
 
     Raises
     ------
@@ -268,7 +280,7 @@ def reference_distances(
         With fewer than :data:`MIN_COORDINATES` known coordinates.
     """
     return reference_terms(
-        coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm
+        coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm, tips
     ).total()
 
 
@@ -276,24 +288,28 @@ def reference_distances(
 class DistanceTerms:
     """The parts of an observation's distance to every reference, shape (k,) each: the
     Spearman distance of the dGLI coordinates, the sum of the weighted evidence terms but
-    the corners' faces, and the faces' mean disagreement (unweighted; zeros without
-    ``back``). :meth:`mirrored` gives the terms of the same observation seen in a mirror
-    without computing anything again."""
+    the corners' faces and tips, the faces' mean disagreement (unweighted; zeros without
+    ``back``), and the weighted tip term (None without ``tips``). :meth:`mirrored` gives
+    the terms of the same observation seen in a mirror without computing anything
+    again."""
 
     dgli: NDArray[np.float64]
     evidence: NDArray[np.float64]
     face: NDArray[np.float64]
     back: NDArray[np.float64] | None
     back_rates: NDArray[np.float64] | None
+    tip: NDArray[np.float64] | None = None
 
     def total(self) -> NDArray[np.float64]:
         """The distance to every reference, shape (k,)."""
-        return self.dgli + self.evidence + FACE_WEIGHT * self.face
+        out = self.dgli + self.evidence + FACE_WEIGHT * self.face
+        return out if self.tip is None else out + self.tip
 
     def mirrored(self) -> DistanceTerms:
         """The terms of the mirror image: every dGLI coordinate changes sign, so each
         Spearman correlation does (``d -> 2 - d``), and every corner's stickers turn round
-        (``back -> 1 - back``); nothing else changes."""
+        (``back -> 1 - back``). The tips' places were found front face up, which a
+        mirror does not hold to: the mirrored reading goes without them."""
         face, back = self.face, self.back
         if back is not None and self.back_rates is not None:
             back = 1.0 - back
@@ -312,6 +328,7 @@ def reference_terms(
     past: ArrayLike | None = None,
     back: ArrayLike | None = None,
     spread_mm: ArrayLike | None = None,
+    tips: ArrayLike | None = None,
 ) -> DistanceTerms:
     """:func:`reference_distances` in its parts (same arguments, same errors)."""
     x = np.asarray(coords, dtype=np.float64)
@@ -355,8 +372,20 @@ def reference_terms(
         face = _face_gap(back_x, references.back_rates())
     if spread_mm is not None:
         dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_bounds())
+    tip = None if tips is None else TIP_WEIGHT * _tip_gap(tips, references)
     rates = references.back_rates() if back is not None else None
-    return DistanceTerms(dgli, dist, face, back_x, rates)
+    return DistanceTerms(dgli, dist, face, back_x, rates, tip)
+
+
+def _tip_gap(tips: ArrayLike, references: ReferenceSet) -> NDArray[np.float64]:
+    """How much more of the corners' tip places shows bare table than each reference
+    leaves bare, beyond :data:`TIP_SLACK`, summed over the corners told, shape (k,)."""
+    t = np.asarray(tips, dtype=np.float64)
+    told = np.isfinite(t)
+    if not told.any():
+        return np.zeros(len(references.references))
+    over = t[told][None, :] - references.tip_clear()[:, told] - TIP_SLACK
+    return np.clip(over, 0.0, None).sum(axis=1)
 
 
 def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -420,6 +449,7 @@ def classify_coordinates(
     past: ArrayLike | None = None,
     back: ArrayLike | None = None,
     spread_mm: ArrayLike | None = None,
+    tips: ArrayLike | None = None,
     *,
     distances: ArrayLike | None = None,
     unsure: ArrayLike | None = None,
@@ -448,6 +478,8 @@ def classify_coordinates(
         Which face each corner shows (see :func:`reference_distances`).
     spread_mm : array_like of float, shape (120,), optional
         Distances between the stickers seen (see :func:`reference_distances`).
+    tips : array_like of float, shape (4,), optional
+        The corners' tip places seen bare (see :func:`reference_distances`).
     distances : array_like, shape (k,), keyword-only, optional
         :func:`reference_distances` of these arguments, when already computed.
     unsure : array_like of bool, shape (16,), keyword-only, optional
@@ -461,7 +493,7 @@ def classify_coordinates(
     """
     if distances is None:
         dist = reference_distances(
-            coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm
+            coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm, tips
         )
     else:
         dist = np.asarray(distances, dtype=np.float64)

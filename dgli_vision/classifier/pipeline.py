@@ -24,12 +24,13 @@ from ..perception.detect import (
 )
 from ..perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
 from ..perception.flaps import flap_angles
-from ..perception.footprint import Footprint, cloth_regions, measure_footprint
+from ..perception.footprint import ClothRegions, Footprint, cloth_regions, measure_footprint
 from ..perception.handedness import back_face_up, image_turns
 from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
-from ..perception.napkin import find_napkin
+from ..perception.napkin import NapkinView, find_napkin
 from ..perception.partial import confirm_partly_hidden
 from ..perception.scale import NapkinRuler, measure_napkin
+from ..perception.tips import corner_tips
 from ..sources.frames import RGBDFrame
 from .affordances import Affordances, affordances_of
 from .classify import (
@@ -84,7 +85,9 @@ class ClothObservation:
     turns : ndarray, shape (4,), optional
         Which face each corner A-D shows the camera: +1 front, -1 back, 0 not told
         (:func:`~dgli_vision.perception.handedness.image_turns`).
-        The table area the cloth covers; None where it cannot be measured.
+    tips : ndarray, shape (4,), optional
+        For each corner A-D, the share of its tip's flat place seen as bare table (NaN
+        not told: :func:`~dgli_vision.perception.tips.corner_tips`).
     """
 
     segments: NDArray[np.float64]
@@ -100,6 +103,7 @@ class ClothObservation:
     points_m: NDArray[np.float64] | None = None
     objects: NDArray[np.bool_] | None = None
     objects_stride: int = 8
+    tips: NDArray[np.float64] | None = None
 
     @property
     def spread_mm(self) -> NDArray[np.float64] | None:
@@ -169,7 +173,7 @@ class ClothObservation:
         return {
             "visible": self.visible, "unknown": self.unknown, "lifted": self.lifted,
             "heights_mm": self.matched_heights_mm, "past": self.past_vertical,
-            "back": self.back, "spread_mm": self.spread_mm,
+            "back": self.back, "spread_mm": self.spread_mm, "tips": self.tips,
         }
 
     @property
@@ -314,9 +318,35 @@ def observe(
         layout.width_mm * layout.height_mm, regions=regions,
     )
     clock.lap("footprint")
+    tips = _tips(frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions)
+    clock.lap("tips")
     return detections, markers, ClothObservation(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
-        turns, markers.points, napkin.occluder, napkin.stride,
+        turns, markers.points, napkin.occluder, napkin.stride, tips,
+    )
+
+
+def _tips(
+    frame: RGBDFrame,
+    layout: NapkinLayout,
+    napkin: NapkinView,
+    markers: Markers3D,
+    heights: NDArray[np.float64],
+    evidence: StickerEvidence,
+    turns: NDArray[np.float64],
+    up: NDArray[np.float64],
+    footprint: Footprint | None,
+    regions: ClothRegions | None,
+) -> NDArray[np.float64] | None:
+    """:func:`~dgli_vision.perception.tips.corner_tips` of the frame: what is not table is
+    the napkin's measured cloth and any other white region (a flap apart from it)."""
+    if footprint is None or footprint.cells is None or regions is None:
+        return None
+    cloth = footprint.cells | (regions.labels > 0)
+    held_up = np.array([why == HELD_UP for why in evidence.reasons]) & evidence.unknown
+    return corner_tips(
+        markers.points, heights, evidence.unknown, held_up, turns, layout, frame.intrinsics,
+        up, cloth, regions.cell_px, napkin.occluder, napkin.stride,
     )
 
 

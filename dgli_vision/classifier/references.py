@@ -20,7 +20,8 @@ from ..core.classes import CLASS_NAMES, VARIANTS
 from ..core.distance import pairwise_spearman
 from ..core.errors import ReferenceError_, UnreadableInputError
 from ..core.io import guard_outputs, read_json, record_outputs, write_json
-from ..core.layout import sticker_spreads_mm
+from ..core.layout import layout_of_size, sticker_spreads_mm
+from ..perception.tips import stage_tip_clear
 
 if TYPE_CHECKING:
     from ..sim.database import StateRecords
@@ -184,6 +185,19 @@ class ReferenceSet:
                 a.flags.writeable = False
                 self._stacks[name] = a
         return self._stacks["spread_lo"], self._stacks["spread_hi"], self._stacks["spread_kept"]
+
+    def tip_clear(self) -> NDArray[np.float64]:
+        """The share of each corner's tip place each reference leaves bare table, shape
+        (k, 4) (:func:`~dgli_vision.perception.tips.stage_tip_clear`, at the napkin size
+        the references were built for); built once."""
+        if "tip_clear" not in self._stacks:
+            layout = layout_of_size(self.napkin_mm)
+            a = np.array(
+                [stage_tip_clear(r.class_id, r.variant, r.stage, layout) for r in self.references]
+            )
+            a.flags.writeable = False
+            self._stacks["tip_clear"] = a
+        return self._stacks["tip_clear"]
 
     def back_rates(self) -> NDArray[np.float64]:
         """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""

@@ -15,7 +15,7 @@ cover (a table as bright as the napkin).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 
 import numpy as np
@@ -78,10 +78,14 @@ class Footprint:
     low_mm2, high_mm2 : float
         The area of the cloth seen, and that plus the area of objects above the napkin
         that may hide more of it, mm^2.
+    cells : ndarray of bool, optional
+        The napkin's cloth cells measured (the cloth in an arm's shadow included when
+        followed there), on the grid of ``FootprintParams.cell_px``.
     """
 
     low_mm2: float
     high_mm2: float
+    cells: NDArray[np.bool_] | None = field(default=None, compare=False, repr=False)
 
     def fraction(self, napkin_area_mm2: float) -> tuple[float, float]:
         """The interval as fractions of the napkin's area."""
@@ -438,4 +442,4 @@ def measure_footprint(
         touching = np.unique(olab[near & over])
         hidden = _any_of(olab, touching[touching > 0])
         high += _table_area_mm2(intrinsics, hidden, c, up, offset_m)
-    return Footprint(low, min(high, napkin_area_mm2 * p.max_fraction))
+    return Footprint(low, min(high, napkin_area_mm2 * p.max_fraction), cloth)

@@ -1,0 +1,267 @@
+"""Whether each corner lies where a flat corner would: bare table seen there says the
+corner has moved.
+
+A gripper over a corner hides that corner's stickers, and a flat napkin with its corner
+under the arm then ranks close to a corner folded away. The cloth next to the arm may
+still tell them apart: fitted to the stickers of the napkin that stays (lying flat,
+front face up), the flat napkin puts the corner's region at a known place on the table.
+Where that region shows bare table (neither cloth nor an object), the corner is not
+there.
+
+The region is a band across the corner, inside the smallest fold of the twelve states
+(the smallest corner fold has 150 mm legs, a strip 125 mm, on a 400 mm napkin), so every
+state that moves a corner clears it, and a state that leaves the corner flat covers it
+with cloth. :func:`expected_tip_clear` gives the share of it a state clears (a diagonal
+fold clears half of the two corners on its crease).
+
+Only table seen is evidence: a flap held up can stand over its own corner's place, so
+cloth seen there says nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.camera import Intrinsics
+from ..core.classes import LIFTED_MM
+from ..core.fold_lines import fold_for_word, nominal_folds, reflect_uv
+from ..core.layout import NapkinLayout
+from .rigid import kabsch, rigid_prediction
+
+__all__ = ["TipParams", "corner_tips", "expected_tip_clear", "stage_tip_clear"]
+
+
+@dataclass(frozen=True)
+class TipParams:
+    """How the corners' places are looked at. Every field has a unit and a reason.
+
+    Attributes
+    ----------
+    leg_mm, near_mm : float
+        The band's samples lie where ``u + v`` (the distances along the corner's two
+        edges, on the 400 mm napkin, scaled with the napkin's folds) is between
+        ``near_mm`` and ``leg_mm``. Default 80-138: inside the smallest fold's reach
+        (150 mm), and beyond the stickers (within 120 mm) an object hiding them hides.
+    inset_mm : float
+        Samples keep this far inside the napkin's edges. Default 15: a fit a few mm off
+        and the cloth's edge pixels (mixed with the table) stay out.
+    step_mm : float
+        Spacing of the samples. Default 6: about one footprint cell at 520 mm.
+    fit_tolerance_mm : float
+        Stickers farther than this from the rigid fit are not of the napkin that stays.
+        Default 12: wrinkles move a sticker by a few mm.
+    min_face_cos : float
+        Least cosine between the fitted napkin's front normal and the table's up. A fit
+        face down is a flap folded over, not the napkin that stays. Default 0.9 (26
+        degrees).
+    min_table_share : float
+        Least share of all the samples seen as table for the corner to be told.
+        Default 0.25: a corner mostly under an object says nothing.
+    """
+
+    leg_mm: float = 138.0
+    near_mm: float = 80.0
+    inset_mm: float = 15.0
+    step_mm: float = 6.0
+    fit_tolerance_mm: float = 12.0
+    min_face_cos: float = 0.9
+    min_table_share: float = 0.25
+
+
+def _corner_of(layout: NapkinLayout) -> NDArray[np.intp]:
+    """The corner (0-3) nearest each sticker, shape (16,)."""
+    d = np.linalg.norm(layout.sticker_uv[:, None] - layout.corner_uv[None], axis=2)
+    return np.argmin(d, axis=1)
+
+
+def _tip_samples(layout: NapkinLayout, k: int, p: TipParams) -> NDArray[np.float64]:
+    """Material points (n, 2), mm, of corner ``k``'s band."""
+    c = layout.corner_uv
+    here = c[k]
+    e1 = (c[(k + 1) % 4] - here) / np.linalg.norm(c[(k + 1) % 4] - here)
+    e2 = (c[(k - 1) % 4] - here) / np.linalg.norm(c[(k - 1) % 4] - here)
+    scale = min(layout.fold_scale)
+    leg, near = p.leg_mm * scale, p.near_mm * scale
+    s = np.arange(p.inset_mm, leg, p.step_mm)
+    a, b = np.meshgrid(s, s)
+    keep = ((a + b) <= leg) & ((a + b) >= near)
+    return here + a[keep][:, None] * e1 + b[keep][:, None] * e2
+
+
+@lru_cache(maxsize=512)
+def expected_tip_clear(
+    class_id: str, variant: str | None, layout: NapkinLayout, params: TipParams | None = None
+) -> tuple[float, ...]:
+    """The share of each corner's band a state leaves bare table: on a flap's side of
+    one of its folds and not under a flap laid down (its nominal folds).
+
+    Parameters
+    ----------
+    class_id : str
+    variant : str or None
+    layout : NapkinLayout
+    params : TipParams, optional
+
+    Returns
+    -------
+    tuple of 4 float
+        Corners A-D, each in [0, 1].
+    """
+    p = params or TipParams()
+    folds = nominal_folds(class_id, variant, layout)
+    size = np.array([layout.width_mm, layout.height_mm])
+    out = []
+    for k in range(len(layout.corner_uv)):
+        q = _tip_samples(layout, k, p)
+        clear = np.zeros(len(q), dtype=bool)
+        for f in folds:
+            clear |= f.on_flap(q, 2.0)
+        for f in folds:  # a flap laid down over the place covers it again
+            src = reflect_uv(q, f)
+            inside = np.all((src >= 0) & (src <= size), axis=1)
+            clear &= ~(inside & f.on_flap(src, 2.0))
+        out.append(float(clear.mean()))
+    return tuple(out)
+
+
+def stage_tip_clear(
+    class_id: str, variant: str | None, stage: str, layout: NapkinLayout
+) -> tuple[float, ...]:
+    """:func:`expected_tip_clear` of a reference with a fold in progress (its ``stage``,
+    ``"rising A over, 50-90 deg"``): the corners that fold moves may show their place
+    bare as well (a flap standing up clears its corner's place, in part)."""
+    base = list(expected_tip_clear(class_id, variant, layout))
+    if stage:
+        word = stage.split(",")[0].split(" ", 1)[1]
+        for name in fold_for_word(word, class_id, layout).moved_corners:
+            base[layout.corner_names.index(name)] = 1.0
+    return tuple(base)
+
+
+def _stay_fit(
+    points: NDArray[np.float64],
+    lying: NDArray[np.bool_],
+    layout: NapkinLayout,
+    up: NDArray[np.float64],
+    p: TipParams,
+) -> tuple[NDArray, NDArray] | None:
+    """The rigid map (R, t) of the napkin that stays, fitted to the ``lying`` stickers:
+    at least three, spanning two corners (a far corner's place is then interpolated,
+    not extrapolated from one corner's stickers 80 mm apart), front face up (every flap
+    folded over lies face down, and a flap folded under is out of sight); None
+    otherwise."""
+    corner_of = _corner_of(layout)
+    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(len(points))])
+    fit = rigid_prediction(uv_m, points, lying, p.fit_tolerance_mm * 1e-3)
+    if fit is None or len(set(corner_of[fit[1]].tolist())) < 2:
+        return None
+    r, t = kabsch(uv_m[fit[1]], points[fit[1]])
+    if float(r[:, 2] @ up) < p.min_face_cos:
+        return None
+    return r, t
+
+
+def corner_tips(
+    points: NDArray[np.float64],
+    heights_mm: NDArray[np.float64],
+    unknown: NDArray[np.bool_],
+    held_up: NDArray[np.bool_],
+    turns: NDArray[np.float64] | None,
+    layout: NapkinLayout,
+    intrinsics: Intrinsics,
+    up: NDArray[np.float64],
+    cloth: NDArray[np.bool_] | None,
+    cell_px: int,
+    objects: NDArray[np.bool_] | None,
+    stride: int,
+    params: TipParams | None = None,
+) -> NDArray[np.float64]:
+    """The share of each corner's band seen as bare table, where it can be told.
+
+    A corner is told when fewer than two of its stickers were located (else they tell
+    more) and one of the others is unknown, none may be on cloth held up, the napkin
+    that stays (the stickers lying flat, front face up) fits rigidly, and at least
+    ``params.min_table_share`` of the band's samples show table.
+
+    Parameters
+    ----------
+    points : ndarray, shape (16, 3)
+        Located stickers, camera frame, metres; NaN where not located.
+    heights_mm : ndarray, shape (16,)
+        Their heights above the table.
+    unknown : ndarray of bool, shape (16,)
+        Missing stickers not known to be under cloth: only a corner with one is looked
+        at (a corner whose stickers lie under a fold is told by that).
+    held_up : ndarray of bool, shape (16,)
+        Missing stickers that may lie on cloth held up.
+    turns : ndarray, shape (4,) or None
+        Each corner's face towards the camera (+1 front, -1 back, 0 not told): corners
+        showing their back lie on a flap and are left out of the fit.
+    layout : NapkinLayout
+    intrinsics : Intrinsics
+    up : ndarray, shape (3,)
+        The table's unit normal towards the camera.
+    cloth : ndarray of bool, shape (H // cell_px, W // cell_px) or None
+        Cells of cloth (the napkin's footprint and any other white region); None:
+        nothing is told.
+    cell_px : int
+    objects : ndarray of bool, shape (H // stride + 1, W // stride + 1) or None
+        Objects above the table.
+    stride : int
+    params : TipParams, optional
+
+    Returns
+    -------
+    ndarray, shape (4,)
+        Corners A-D: share of the band seen as table among its samples seen as table or
+        cloth; NaN where not told.
+    """
+    import cv2
+
+    p = params or TipParams()
+    out = np.full(len(layout.corner_uv), np.nan)
+    if cloth is None:
+        return out
+    corner_of = _corner_of(layout)
+    found = np.isfinite(points).all(axis=1)
+    lying = found & (np.nan_to_num(heights_mm, nan=np.inf) < LIFTED_MM)
+    if turns is not None:
+        lying &= np.asarray(turns)[corner_of] >= 0
+    todo = [
+        k
+        for k in range(len(out))
+        if ((corner_of == k) & found).sum() < 2
+        and ((corner_of == k) & unknown).any()
+        and not ((corner_of == k) & (held_up | (found & ~lying))).any()
+    ]
+    fit = _stay_fit(points, lying, layout, up, p) if todo else None
+    if fit is None:
+        return out
+    r, t = fit
+    near_objects = None
+    if objects is not None and objects.any():
+        near_objects = cv2.dilate(objects.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
+    h, w = cloth.shape
+    for k in todo:
+        uv = _tip_samples(layout, k, p)
+        px = intrinsics.project(np.column_stack([uv * 1e-3, np.zeros(len(uv))]) @ r.T + t)
+        ok = np.isfinite(px).all(axis=1)
+        cx = np.where(ok, px[:, 0], -1.0) // cell_px
+        cy = np.where(ok, px[:, 1], -1.0) // cell_px
+        inview = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
+        cxi, cyi = np.clip(cx, 0, w - 1).astype(int), np.clip(cy, 0, h - 1).astype(int)
+        is_cloth = inview & cloth[cyi, cxi]
+        is_object = np.zeros(len(uv), dtype=bool)
+        if near_objects is not None:
+            gy, gx = near_objects.shape
+            oy = np.clip(np.round(np.where(ok, px[:, 1], 0) / stride).astype(int), 0, gy - 1)
+            ox = np.clip(np.round(np.where(ok, px[:, 0], 0) / stride).astype(int), 0, gx - 1)
+            is_object = inview & ~is_cloth & near_objects[oy, ox]
+        table = inview & ~is_cloth & ~is_object
+        if table.sum() >= p.min_table_share * len(uv):
+            out[k] = table.sum() / (table.sum() + is_cloth.sum())
+    return out
