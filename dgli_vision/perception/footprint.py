@@ -113,10 +113,13 @@ def _table_area_mm2(
             intrinsics, (y1 - y0, x1 - x0), cell, up, offset_m, origin=(y0, x0)
         )
         return float(areas[cells[y0:y1, x0:x1]].sum())
-    yy, xx = np.nonzero(cells)
-    dx = (xx * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
-    dy = (yy * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
-    cos = np.abs(up[0] * dx + up[1] * dy + up[2])
+    # each cell's cosine from its column's and its row's terms (the same sums, cell by
+    # cell), taken in row-major order as np.nonzero gives the cells
+    h, w = cells.shape
+    dx = (np.arange(w) * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
+    dy = (np.arange(h) * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
+    grid = (up[0] * dx)[None, :] + (up[1] * dy)[:, None]
+    cos = np.abs(grid[cells] + up[2])
     scale = offset_m**2 * cell * cell / (intrinsics.fx * intrinsics.fy) * 1e6
     return float(scale * np.sum(cos**-3.0))
 
