@@ -73,3 +73,19 @@ def test_a_flap_seen_exactly_edge_on_is_raised_cloth_not_a_fold_under(frames):
             missing = ~obs.visible
             assert missing.any()
             assert obs.unknown[missing].all(), (name, angle)
+
+
+def test_the_lean_is_numpys_least_squares_line_and_a_flying_pixel_is_left_out():
+    """Without outliers the lean is the least-squares line itself (one fit); a flying
+    pixel at the flap's edge is left out of the second fit, which then finds the line."""
+    from dgli_vision.perception.flaps import FlapParams, _line
+
+    rng = np.random.default_rng(5)
+    h = rng.uniform(0.0, 80.0, 400)
+    x = -0.3 * h + 12.0 + rng.normal(0.0, 0.5, 400)
+    beta, at_table = _line(x, h, FlapParams())
+    assert (beta, at_table) == tuple(float(v) for v in np.polyfit(h, x, 1))
+    x[7] += 200.0  # a flying pixel
+    beta, at_table = _line(x, h, FlapParams())
+    assert beta == pytest.approx(-0.3, abs=0.01) and at_table == pytest.approx(12.0, abs=0.3)
+    assert abs(np.polyfit(h, x, 1)[0] + 0.3) > 0.01  # one fit alone would be pulled off

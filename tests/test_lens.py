@@ -286,3 +286,36 @@ def test_calibrate_with_focal_corrects_a_wrong_focal_length(flat_k1, tmp_path):
     assert r.exit_code == 0, r.output
     intr = read_intrinsics(out)  # an OpenCV YAML file, by its extension
     assert abs(intr.fx - 605.0) < 3.0 and abs(intr.distortion[0] - 0.1) < 0.01
+
+
+BARREL = (-0.2, 0.05, 0.001, 0.0005)
+
+
+@pytest.mark.parametrize("coefficients", [BARREL, list(BARREL)])
+def test_footprint_cells_through_a_lens_measure_what_their_own_corners_give(coefficients):
+    """The footprint's cell corners are undistorted once per camera: any block of cells
+    measures, to the bit, what undistorting that block's own corners gives (also for
+    coefficients in a list, which cannot be kept), and a second camera gets its own."""
+    from dgli_vision.perception import footprint
+
+    up = np.array([0.02, -0.15, -0.988])
+    up /= np.linalg.norm(up)
+    for fx in (605.0, 540.0):
+        cam = Intrinsics(1280, 720, fx, fx, 641.0, 358.0, coefficients)
+        for shape, origin in (((90, 160), (0, 0)), ((31, 47), (12, 80)), ((1, 1), (89, 159))):
+            areas = footprint._cell_areas_mm2(cam, shape, 8, up, -0.55, origin=origin)
+            ys, xs = np.mgrid[
+                origin[0] : origin[0] + shape[0] + 1, origin[1] : origin[1] + shape[1] + 1
+            ]
+            ideal = cam.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]) * 8 - 0.5)
+            d = np.stack(
+                [
+                    (ideal[:, 0].reshape(xs.shape) - cam.cx) / cam.fx,
+                    (ideal[:, 1].reshape(xs.shape) - cam.cy) / cam.fy,
+                    np.ones(xs.shape),
+                ],
+                axis=-1,
+            )
+            x = -0.55 * d / (d @ up)[..., None]
+            cross = np.cross(x[:-1, 1:] - x[:-1, :-1], x[1:, :-1] - x[:-1, :-1])
+            assert np.array_equal(areas, np.linalg.norm(cross, axis=-1) * 1e6)

@@ -32,6 +32,20 @@ def test_quantile_is_numpys_to_the_bit(dtype, q):
         assert quantile(x, q) == float(np.quantile(x, q))
 
 
+@pytest.mark.parametrize("n", [1023, 1024, 1025, 3600, 14400])
+def test_order_statistics_of_thousands_of_values_are_numpys_to_the_bit(n):
+    """From a thousand values on, one partition and the neighbour on its side (ties as
+    depth in millimetres or 8-bit levels give them, and a NaN)."""
+    rng = np.random.default_rng(n)
+    for x in (rng.normal(size=n), rng.integers(0, 40, n) / 7.0, rng.normal(size=n) + 0.5):
+        x = x.astype(np.float64)
+        assert median(x) == float(np.median(x))
+        for q in (0.97, 0.5, 0.03, 0.0, 1.0):
+            assert quantile(x, q) == float(np.quantile(x, q))
+    x[n // 3] = np.nan
+    assert np.isnan(median(x)) and np.isnan(quantile(x, 0.97)) and np.isnan(quantile(x, 0.0))
+
+
 def test_a_nan_gives_nan_as_numpy_does():
     x = np.array([1.0, np.nan, 3.0, 2.0])
     assert np.isnan(median(x)) and np.isnan(quantile(x, 0.97))
@@ -44,3 +58,19 @@ def test_nanmedian_is_numpys_to_the_bit():
         if np.isnan(x).all():
             continue
         assert nanmedian(x) == float(np.nanmedian(x))
+
+
+@pytest.mark.parametrize("q", [0.97, 0.5, 0.0, 1.0, 0.123])
+def test_the_cloth_regions_order_statistics_of_sorted_cells_are_numpys(q):
+    """The white regions take the bright level and the table's median from sorted cells
+    (8-bit levels through a table: many ties), image sized and tiny, NaN included."""
+    from dgli_vision.perception.footprint import _sorted_median, _sorted_quantile
+
+    rng = np.random.default_rng(4)
+    for n in (1, 2, 7, 14400, 14401):
+        x = rng.integers(0, 256, n) / 255.0 * rng.uniform(0.5, 2.0)
+        s = np.sort(x)
+        assert _sorted_quantile(s, q) == float(np.quantile(x, q))
+        assert _sorted_median(s) == float(np.median(x))
+    x[3] = np.nan
+    assert np.isnan(_sorted_quantile(np.sort(x), q)) and np.isnan(_sorted_median(np.sort(x)))

@@ -125,6 +125,34 @@ def test_table_normal_needs_depth():
         estimate_table_normal(np.zeros((720, 1280), np.uint16), INTR)
 
 
+LENS = (0.12, -0.25, 0.001, -0.002)
+
+
+@pytest.mark.parametrize("coefficients", [LENS, list(LENS)])
+def test_table_plane_through_a_lens_is_the_true_plane_for_every_camera_and_frame(coefficients):
+    """The plane's sample rays are kept per camera: a tilted table seen through a lens
+    (coefficients as a tuple, or as a list that cannot be a cache key) is found at its
+    true tilt and offset, by a second camera as well, and again for a closer table."""
+    from dgli_vision.core.camera import Intrinsics
+    from dgli_vision.perception.lift import estimate_table_plane
+
+    normal = np.array([0.0, -np.sin(np.radians(12)), -np.cos(np.radians(12))])
+    for cam in (
+        Intrinsics(320, 240, 300.0, 300.0, 159.5, 119.5, coefficients),
+        Intrinsics(320, 240, 280.0, 285.0, 162.0, 118.0, coefficients),
+    ):
+        vv, uu = np.mgrid[0:240, 0:320]
+        ideal = cam.undistort_pixels(np.column_stack([uu.ravel(), vv.ravel()]))
+        rays = np.column_stack(
+            [(ideal[:, 0] - cam.cx) / cam.fx, (ideal[:, 1] - cam.cy) / cam.fy, np.ones(len(ideal))]
+        )
+        for offset in (-0.6, -0.45):  # normal @ x of the table's points, metres
+            depth = (offset / (rays @ normal) * 1e3).reshape(240, 320)
+            up, found = estimate_table_plane(np.rint(depth).astype(np.uint16), cam, stride=8)
+            assert np.degrees(np.arccos(min(1.0, abs(up @ normal)))) < 0.5
+            assert abs(abs(found) - abs(offset)) < 0.002
+
+
 def test_a_sliver_of_a_covered_sticker_is_rejected_a_mostly_visible_one_kept():
     img, depth = synthetic([(7, (300.0, 300.0)), (9, (700.0, 300.0))])
     radius = LAYOUT.disc_diameter_mm / 2 * INTR.fx / 500

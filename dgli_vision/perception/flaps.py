@@ -67,6 +67,8 @@ def _line(x: NDArray, h: NDArray, p: FlapParams) -> tuple[float, float]:
     res = np.abs(x - (beta * h + c))
     mad = median(res) + 1e-6
     keep = res <= p.outlier_mads * 1.4826 * mad + 1.0
+    if keep.all():  # no outlier: the second fit would be the first
+        return float(beta), float(c)
     if keep.sum() >= p.min_samples and np.ptp(h[keep]) >= p.min_height_span_mm:
         beta, c = np.polyfit(h[keep], x[keep], 1)
     return float(beta), float(c)
@@ -168,11 +170,8 @@ def flap_angles(
         found = cloth.flap_of(flat[sid], up, reach)
         if found is None:
             continue
-        mine, anchor, part = found
-        fit = _lean(
-            cloth.cloud[mine], cloth.heights_mm[mine], up, inside - anchor, anchor, p,
-            cloth.normal_of(part),
-        )
+        mine, anchor, part, offsets = found
+        fit = _lean(offsets, cloth.heights_mm[mine], up, inside - anchor, p, cloth.normal_of(part))
         if fit is None:
             continue
         beta, hinge = fit  # beta = -cot(angle); hinge: x at the table
@@ -248,21 +247,26 @@ class _RaisedCloth:
 
     def flap_of(
         self, anchor: NDArray[np.float64], up: NDArray[np.float64], reach: float
-    ) -> tuple[NDArray[np.bool_], NDArray[np.float64], int] | None:
+    ) -> tuple[NDArray[np.bool_], NDArray[np.float64], int, NDArray[np.float64]] | None:
         """The points (mask) of the raised part nearest the flat place ``anchor`` (3,)
-        within ``reach`` (m, horizontally), the anchor and the part; with no place
-        (NaN), the largest part and its mean. None when no raised cloth comes within
-        reach."""
+        within ``reach`` (m, horizontally), the anchor, the part and the points'
+        horizontal offsets from the anchor (n, 3); with no place (NaN), the largest part
+        and its mean. None when no raised cloth comes within reach."""
         if np.isfinite(anchor).all():
-            gap = np.linalg.norm(_horizontal(self.cloud - anchor, up), axis=1)
+            away = _horizontal(self.cloud - anchor, up)
+            # their lengths, summed as np.linalg.norm sums them
+            gap = np.sqrt((away[:, 0] * away[:, 0] + away[:, 1] * away[:, 1]) + away[:, 2] ** 2)
             near = gap < reach
             if not near.any():
                 return None
             part = self.label[near][np.argmin(gap[near])]
-        else:  # nowhere to put it: the largest raised part
-            part = int(np.argmax(self.sizes[1:])) + 1
-            anchor = self.cloud[self.label == part].mean(axis=0)
-        return self.label == part, anchor, int(part)
+            mine = self.label == part
+            return mine, anchor, int(part), away[mine]
+        # nowhere to put it: the largest raised part
+        part = int(np.argmax(self.sizes[1:])) + 1
+        mine = self.label == part
+        anchor = self.cloud[mine].mean(axis=0)
+        return mine, anchor, part, _horizontal(self.cloud[mine] - anchor, up)
 
 
 def _horizontal(v: NDArray, up: NDArray) -> NDArray:
@@ -270,22 +274,22 @@ def _horizontal(v: NDArray, up: NDArray) -> NDArray:
 
 
 def _lean(
-    cloud: NDArray[np.float64],
+    offsets: NDArray[np.float64],
     h: NDArray[np.float64],
     up: NDArray[np.float64],
     inwards: NDArray[np.float64],
-    anchor: NDArray[np.float64],
     p: FlapParams,
     normal: NDArray[np.float64] | None,
 ) -> tuple[float, float] | None:
-    """The flap ``cloud`` (n, 3) with heights ``h`` (n,) and plane ``normal``: the slope
-    ``-cot(angle)`` of its horizontal position across the fold line (mm from
-    ``anchor``, towards ``inwards``) against height, and that position at the table;
-    None when the flap lies too flat or too few samples give a slope."""
+    """The flap's points, at horizontal ``offsets`` (n, 3) from an anchor and heights
+    ``h`` (n,), with plane ``normal``: the slope ``-cot(angle)`` of their horizontal
+    position across the fold line (mm from the anchor, towards ``inwards``) against
+    height, and that position at the table; None when the flap lies too flat or too
+    few samples give a slope."""
     towards = _across_fold(normal, up, inwards)
     if towards is None:
         return None
-    x = _horizontal(cloud - anchor, up) @ towards * 1e3
+    x = offsets @ towards * 1e3
     beta, hinge = _line(x, h, p)
     if not np.isfinite(beta):
         return None

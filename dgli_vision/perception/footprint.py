@@ -16,13 +16,13 @@ cover (a table as bright as the napkin).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
-from ..core.order_stats import median, quantile
 from .napkin import NapkinParams, NapkinView
 from .shade import into_shade, shadow_suspected
 
@@ -113,10 +113,13 @@ def _table_area_mm2(
             intrinsics, (y1 - y0, x1 - x0), cell, up, offset_m, origin=(y0, x0)
         )
         return float(areas[cells[y0:y1, x0:x1]].sum())
-    yy, xx = np.nonzero(cells)
-    dx = (xx * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
-    dy = (yy * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
-    cos = np.abs(up[0] * dx + up[1] * dy + up[2])
+    # each cell's cosine from its column's and its row's terms (the same sums, cell by
+    # cell), taken in row-major order as np.nonzero gives the cells
+    h, w = cells.shape
+    dx = (np.arange(w) * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
+    dy = (np.arange(h) * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
+    grid = (up[0] * dx)[None, :] + (up[1] * dy)[:, None]
+    cos = np.abs(grid[cells] + up[2])
     scale = offset_m**2 * cell * cell / (intrinsics.fx * intrinsics.fy) * 1e6
     return float(scale * np.sum(cos**-3.0))
 
@@ -137,8 +140,12 @@ def _cell_areas_mm2(
     y0, x0 = origin
     ys, xs = np.mgrid[y0 : y0 + h + 1, x0 : x0 + w + 1] * cell - 0.5
     if intrinsics.distorted:  # the rays of the pixels as the lens bent them
-        ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
-        xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
+        grid = _ideal_corners(intrinsics, cell)
+        if grid is not None and y0 + h < grid.shape[1] and x0 + w < grid.shape[2]:
+            xs, ys = grid[:, y0 : y0 + h + 1, x0 : x0 + w + 1]
+        else:
+            ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
+            xs, ys = ideal[:, 0].reshape(xs.shape), ideal[:, 1].reshape(ys.shape)
     d = np.stack(
         [
             (xs - intrinsics.cx) / intrinsics.fx,
@@ -151,6 +158,28 @@ def _cell_areas_mm2(
     ex = x[:-1, 1:] - x[:-1, :-1]
     ey = x[1:, :-1] - x[:-1, :-1]
     return np.linalg.norm(np.cross(ex, ey), axis=-1) * 1e6
+
+
+def _ideal_corners(intrinsics: Intrinsics, cell: int) -> NDArray[np.float64] | None:
+    """The undistorted pixels (x, y) of the corners of every ``cell``-pixel cell of the
+    camera's image, shape (2, H // cell + 1, W // cell + 1), made once per camera (each
+    pixel is undistorted on its own: a block of the grid is what undistorting the
+    block gives); None for a camera that cannot be a cache key."""
+    try:
+        return _camera_corners(intrinsics, cell)
+    except TypeError:  # unhashable intrinsics (a list of coefficients)
+        return None
+
+
+@lru_cache(maxsize=4)
+def _camera_corners(intrinsics: Intrinsics, cell: int) -> NDArray[np.float64]:
+    """:func:`_ideal_corners`, kept for the last few cameras."""
+    ys, xs = np.mgrid[0 : intrinsics.height // cell + 1, 0 : intrinsics.width // cell + 1]
+    ys, xs = ys * cell - 0.5, xs * cell - 0.5
+    ideal = intrinsics.undistort_pixels(np.column_stack([xs.ravel(), ys.ravel()]))
+    grid = ideal.T.reshape(2, *xs.shape).copy()
+    grid.flags.writeable = False
+    return grid
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,23 +231,59 @@ def cloth_regions(
     # The napkin's white; where the napkin is blown out the estimate falls on the next
     # brightest surface (the table), so the level is at least that of the brightest
     # few per cent of the cells, clipped ones included. (One channel at a time: the
-    # same arithmetic as reductions over the last axis, ten times cheaper.)
-    lut = srgb_lut()
-    r, g, b = (lut[small[..., k]] for k in range(3))
+    # same arithmetic as reductions over the last axis, ten times cheaper; the linear
+    # light of every cell by one table look-up, cv2.LUT keeping the table's float64.)
+    linear = cv2.LUT(small, srgb_lut())
+    r, g, b = linear[..., 0], linear[..., 1], linear[..., 2]
     white = np.maximum(white_rgb, 1e-4)
-    level = quantile(((r + g + b) / 3).ravel(), 1.0 - q.bright_fraction)
+    level = _sorted_quantile(np.sort(((r + g + b) / 3).ravel()), 1.0 - q.bright_fraction)
     white = white * max(1.0, level / float(white.mean()))
     r, g, b = r / white[0], g / white[1], b / white[2]  # the napkin at 1
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
     # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    table = median(lum.ravel())
+    table = _sorted_median(np.sort(lum.ravel()))
     floor = max(q.min_napkin_brightness, table + p.table_margin)
     cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
-    closed = cv2.morphologyEx(cloth.astype(np.uint8), cv2.MORPH_CLOSE, kernel)
-    _, labels, _, _ = cv2.connectedComponentsWithStats(closed, connectivity=8)
+    closed = cv2.morphologyEx(cloth.view(np.uint8), cv2.MORPH_CLOSE, kernel)
+    _, labels = cv2.connectedComponents(closed, connectivity=8)
     return ClothRegions(labels, c, small, lum, cloth, chroma, table)
+
+
+def _sorted_quantile(ordered: NDArray[np.float64], q: float) -> float:
+    """:func:`~dgli_vision.core.order_stats.quantile` of an array already sorted (NaN
+    last, as ``np.sort`` leaves it), to the bit. The cells' values repeat (8-bit levels
+    through a table): a partition about the few order statistics wanted costs two to
+    three times a sort of them."""
+    n = ordered.size
+    virtual = (n - 1) * q
+    lo = int(np.floor(virtual))
+    hi = lo + 1
+    if virtual >= n - 1:
+        lo = hi = n - 1
+    elif virtual < 0:
+        lo = hi = 0
+    if np.isnan(ordered[n - 1]):
+        return float("nan")
+    a, b = ordered[lo], ordered[hi]
+    gamma = float(virtual - lo)
+    diff = b - a
+    if gamma >= 0.5:
+        return float(b - diff * (1 - gamma))
+    return float(a + diff * gamma)
+
+
+def _sorted_median(ordered: NDArray[np.float64]) -> float:
+    """:func:`~dgli_vision.core.order_stats.median` of an array already sorted (NaN
+    last), to the bit."""
+    n = ordered.size
+    k = n // 2
+    if np.isnan(ordered[n - 1]):
+        return float("nan")
+    if n % 2:
+        return float(ordered[k])
+    return float((ordered[k - 1] + ordered[k]) / ordered.dtype.type(2))
 
 
 def cloth_cells(
@@ -261,12 +326,23 @@ def cloth_cells(
     held = held[held > 0]
     if held.size == 0:
         return None
-    cloth = np.isin(labels, held)
+    cloth = _any_of(labels, held)
     # a region cut by the image border is not all in view; a thread of a cell or two
     # (a bright seam the closing joined) does not make it so
     if _border_cells(cloth) > MAX_BORDER_CELLS:
         return None
     return cloth
+
+
+def _any_of(labels: NDArray[np.int32], wanted: NDArray) -> NDArray[np.bool_]:
+    """``np.isin(labels, wanted)`` for labels of connected regions (0 and up): a
+    comparison per label wanted (the napkin is one region, or a few)."""
+    if len(wanted) > 8:
+        return np.isin(labels, wanted)
+    out = np.zeros(labels.shape, dtype=bool)
+    for label in wanted.tolist():
+        out |= labels == label
+    return out
 
 
 def _border_cells(cells: NDArray[np.bool_]) -> int:
@@ -367,6 +443,6 @@ def measure_footprint(
         over = occ.astype(bool) & ~cloth
         _, olab, _, _ = cv2.connectedComponentsWithStats(over.astype(np.uint8), 8)
         touching = np.unique(olab[near & over])
-        hidden = np.isin(olab, touching[touching > 0])
+        hidden = _any_of(olab, touching[touching > 0])
         high += _table_area_mm2(intrinsics, hidden, c, up, offset_m)
     return Footprint(low, min(high, napkin_area_mm2 * p.max_fraction), cloth)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -80,23 +81,53 @@ def _fit_plane(
     normal = np.array([0.0, 0.0, -1.0])
     centre = None
     caps = (0.10, 0.04) + (0.015,) * max(iterations - 2, 0)  # metres: narrow down slowly
+    settled = False  # the inliers did not change: the fit and its residuals neither
     for cap in caps[:iterations]:
-        inliers = pts.compress(keep, axis=1)
-        centre = _mean_in_order(inliers)
-        rel = inliers - centre[:, None]
-        _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
-        normal = vecs[:, 0]
-        resid = np.abs(normal @ pts - normal @ centre)
-        mad = median(resid[keep])
+        if not settled:
+            inliers = pts.compress(keep, axis=1)
+            centre = _mean_in_order(inliers)
+            rel = inliers - centre[:, None]
+            _, vecs = np.linalg.eigh(rel @ rel.T)  # smallest eigenvector: the plane normal
+            normal = vecs[:, 0]
+            resid = np.abs(normal @ pts - normal @ centre)
+            mad = median(resid[keep])
         new_keep = active & (resid < min(max(3.0 * 1.4826 * mad, 0.003), cap))
         if np.count_nonzero(new_keep) < 50:
             break
+        settled = np.array_equal(new_keep, keep)
         keep = new_keep
     if centre is None:
         centre = _mean_in_order(pts.compress(keep, axis=1))
     if normal @ (-centre) < 0:  # point towards the camera at the origin
         normal = -normal
     return normal, centre, keep
+
+
+def _sample_rays(
+    intrinsics: Intrinsics, shape: tuple[int, int], stride: int
+) -> NDArray[np.float64]:
+    """``(u - cx) / fx`` and ``(v - cy) / fy`` (2, h, w) of the undistorted pixels of
+    every ``stride``-th pixel (``shape``: the subsampled grid's), made once per camera:
+    each pixel is undistorted on its own, so the rays of the valid ones are those
+    :meth:`~dgli_vision.core.camera.Intrinsics.undistort_pixels` gives them."""
+    try:
+        return _camera_rays(intrinsics, shape, stride)
+    except TypeError:  # intrinsics that cannot be a key (a list of coefficients)
+        return _camera_rays.__wrapped__(intrinsics, shape, stride)
+
+
+@lru_cache(maxsize=8)
+def _camera_rays(
+    intrinsics: Intrinsics, shape: tuple[int, int], stride: int
+) -> NDArray[np.float64]:
+    """:func:`_sample_rays`, kept for the last few cameras."""
+    vv, uu = np.indices(shape).reshape(2, -1)
+    pix = intrinsics.undistort_pixels(np.stack([uu * stride, vv * stride], axis=1))
+    rays = np.stack(
+        [(pix[:, 0] - intrinsics.cx) / intrinsics.fx, (pix[:, 1] - intrinsics.cy) / intrinsics.fy]
+    ).reshape(2, *shape)
+    rays.flags.writeable = False
+    return rays
 
 
 def estimate_table_plane(
@@ -132,12 +163,17 @@ def estimate_table_plane(
         With fewer than 50 valid depth pixels.
     """
     sub = depth_mm[::stride, ::stride].astype(np.float64) * 1e-3
-    vv, uu = np.nonzero(sub > 0)
-    if len(vv) < 50:
-        raise ValueError(f"only {len(vv)} valid depth samples; cannot fit the table plane")
-    pix = intrinsics.undistort_pixels(np.stack([uu * stride, vv * stride], axis=1))
-    # (3, n): coordinates in rows, so that every reduction runs along contiguous memory
-    pts = np.ascontiguousarray(intrinsics.deproject(pix, sub[vv, uu]).T)
+    valid = sub > 0
+    z = sub[valid]
+    if len(z) < 50:
+        raise ValueError(f"only {len(z)} valid depth samples; cannot fit the table plane")
+    rays = _sample_rays(intrinsics, sub.shape, stride)
+    # (3, n): coordinates in rows, so that every reduction runs along contiguous memory;
+    # the arithmetic of ``intrinsics.deproject`` of the undistorted pixels
+    pts = np.empty((3, len(z)))
+    np.multiply(rays[0][valid], z, out=pts[0])
+    np.multiply(rays[1][valid], z, out=pts[1])
+    pts[2] = z
     active = np.ones(pts.shape[1], dtype=bool)
     cos_tilt = np.cos(np.radians(max_tilt_deg))
     normal, centre, keep = _fit_plane(pts, active, iterations)
