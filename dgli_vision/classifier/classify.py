@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.classes import LIFTED_MM
 from ..core.dgli import pair_indices
-from ..core.distance import pairwise_spearman
+from ..core.distance import spearman_to_ranked
 from ..core.errors import DetectionError
 from .references import ReferenceSet
 
@@ -333,7 +333,7 @@ def reference_terms(
             f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
             f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
-    dgli = pairwise_spearman(x[known][None, :], ref[:, known])[0]
+    dgli = spearman_to_ranked(x[known], references.ranked(known))
     dist = np.zeros_like(dgli)
     if visible is not None:
         rates = references.visible_rates()

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.classes import CLASS_NAMES, VARIANTS
-from ..core.distance import pairwise_spearman
+from ..core.distance import centred_unit_ranks, pairwise_spearman
 from ..core.errors import ReferenceError_, UnreadableInputError
 from ..core.io import guard_outputs, read_json, record_outputs, write_json
 from ..core.layout import sticker_spreads_mm
@@ -121,6 +121,7 @@ class ReferenceSet:
     references: tuple[Reference, ...]
     provenance: dict[str, Any] = field(default_factory=dict)
     _stacks: dict[str, NDArray] = field(default_factory=dict, init=False, repr=False)
+    _ranked: dict[bytes, NDArray] = field(default_factory=dict, init=False, repr=False)
 
     def _stacked(self, name: str) -> NDArray[np.float64]:
         """The references' ``name`` stacked, shape (k, ...), read-only; built once (the
@@ -145,6 +146,25 @@ class ReferenceSet:
     def matrix(self) -> NDArray[np.float64]:
         """Coordinates of all references, shape (k, 28)."""
         return self._stacked("coordinates")
+
+    def ranked(self, known: NDArray[np.bool_]) -> NDArray[np.float64]:
+        """The references' coordinates ``known`` (bool, shape (28,)) ranked, centred and
+        scaled (:func:`~dgli_vision.core.distance.centred_unit_ranks`), shape
+        (k, known.sum()), read-only: what every frame with these coordinates known is
+        correlated with. Kept per mask (a camera sees the same few masks frame after
+        frame)."""
+        key = np.asarray(known, dtype=bool).tobytes()
+        out = self._ranked.get(key)
+        if out is None:
+            sub = self.matrix()[:, np.asarray(known, dtype=bool)]
+            if np.isnan(sub).any():
+                raise ValueError("references contain NaN coordinates")
+            out = centred_unit_ranks(sub)
+            out.flags.writeable = False
+            if len(self._ranked) >= 512:
+                self._ranked.clear()
+            self._ranked[key] = out
+        return out
 
     def visible_rates(self) -> NDArray[np.float64]:
         """Sticker visibility rates of all references, shape (k, 16)."""
