@@ -182,6 +182,31 @@ class ReferenceSet:
         """Lowest and highest height of each sticker, mm, shape (k, 16, 2)."""
         return self._stacked("height_range_mm")
 
+    def class_codes(self) -> NDArray[np.intp]:
+        """A number for each reference's class (equal numbers, equal classes), shape (k,),
+        read-only; built once."""
+        if "class_codes" not in self._stacks:
+            ids = [r.class_id for r in self.references]
+            a = np.unique(np.array(ids, dtype=object), return_inverse=True)[1].ravel()
+            a.flags.writeable = False
+            self._stacks["class_codes"] = a
+        return self._stacks["class_codes"]
+
+    def height_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
+        """The height ranges split for the classifier's per-frame use: lows and highs,
+        shape (k, 16) each (contiguous), and whether every range is known; built once."""
+        if "height_lo" not in self._stacks:
+            r = self.height_ranges()
+            for name, a in (
+                ("height_lo", np.ascontiguousarray(r[..., 0])),
+                ("height_hi", np.ascontiguousarray(r[..., 1])),
+                ("height_kept", np.asarray(np.isfinite(r).all())),
+            ):
+                a.flags.writeable = False
+                self._stacks[name] = a
+        s = self._stacks
+        return s["height_lo"], s["height_hi"], bool(s["height_kept"])
+
     def footprint_ranges(self) -> NDArray[np.float64]:
         """Smallest and largest footprint (fraction of the napkin's area), shape (k, 2)."""
         return self._stacked("footprint_range")
