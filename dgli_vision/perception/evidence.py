@@ -14,6 +14,7 @@ napkin. A sticker that breaks this with others is a false detection and is dropp
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -158,6 +159,16 @@ class StickerEvidence:
         return ", ".join(f"{k} sticker{'s' if k > 1 else ''} {why}" for why, k in counts.items())
 
 
+@lru_cache(maxsize=32)
+def _flat_distances_mm(layout: NapkinLayout) -> NDArray[np.float64]:
+    """Distances between every two stickers on the flat napkin, mm, shape (16, 16);
+    read-only, once per layout."""
+    uv = layout.sticker_uv
+    out = np.linalg.norm(uv[:, None] - uv[None], axis=2)
+    out.flags.writeable = False
+    return out
+
+
 def drop_inconsistent(
     markers: Markers3D, layout: NapkinLayout, params: EvidenceParams | None = None
 ) -> tuple[Markers3D, NDArray[np.bool_]]:
@@ -172,8 +183,7 @@ def drop_inconsistent(
     p = params or EvidenceParams()
     pts = markers.points.copy()
     found = markers.found.copy()
-    uv = layout.sticker_uv
-    flat_mm = np.linalg.norm(uv[:, None] - uv[None], axis=2)
+    flat_mm = _flat_distances_mm(layout)
     dropped = np.zeros(len(pts), dtype=bool)
     while found.sum() > 2:
         d3 = np.linalg.norm(pts[:, None] - pts[None], axis=2) * 1e3
