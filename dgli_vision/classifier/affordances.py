@@ -76,7 +76,8 @@ class RigidMap:
 
 
 def _kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    # the means as ndarray.mean takes them (sum, then divide), without its overhead
+    cs, cd = np.add.reduce(src, axis=0) / len(src), np.add.reduce(dst, axis=0) / len(dst)
     u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
     r = u @ vt
     if _det3(r) < 0:  # a reflection: turn the last axis round (u @ diag(1, 1, -1) @ vt)
@@ -542,22 +543,25 @@ def affordances_of(
     maps = napkin_maps(obs, class_id, variant, layout) if class_id else None
     plan = _plan(class_id, variant, layout) if class_id else None
     lifted = obs.lifted  # worked out from the evidence: once, not per corner
-    corners = []
-    for k, name in enumerate(CORNERS):
-        if maps is not None:
-            state, free, point, how = _corner_of_verdict(obs, k, maps, layout, lifted, plan)
-        else:
-            state, free, point, how = _corner_of_evidence(obs, k, layout, lifted)
-        pixel = None
-        if point is not None and point[2] > 0:
-            px = intrinsics.project(point[None])[0]
-            pixel = (float(px[0]), float(px[1]))
-        corners.append(
-            CornerAffordance(
-                name, None if point is None else tuple(float(v) for v in point), pixel,
-                state, free, how,
-            )
+    judged = [
+        _corner_of_verdict(obs, k, maps, layout, lifted, plan)
+        if maps is not None
+        else _corner_of_evidence(obs, k, layout, lifted)
+        for k in range(len(CORNERS))
+    ]
+    # every point in front of the camera projected at once (point by point, the same)
+    front = [k for k, (_, _, point, _) in enumerate(judged) if point is not None and point[2] > 0]
+    pixels: dict[int, tuple[float, float]] = {}
+    if front:
+        px = intrinsics.project(np.stack([judged[k][2] for k in front]))
+        pixels = {k: (float(p[0]), float(p[1])) for k, p in zip(front, px)}
+    corners = [
+        CornerAffordance(
+            name, None if point is None else tuple(float(v) for v in point), pixels.get(k),
+            state, free, how,
         )
+        for k, (name, (state, free, point, how)) in enumerate(zip(CORNERS, judged))
+    ]
     folds = () if maps is None else tuple(
         _seen_fold(maps, j, corners) for j in range(len(maps.folds))
     )

@@ -378,11 +378,23 @@ def _spread_gap(
     known, or where some reference keeps no range of a pair told."""
     lo, hi, kept = bounds
     d = np.asarray(spread_mm, dtype=np.float64)
-    idx = np.flatnonzero(np.isfinite(d))
-    if not len(idx) or not kept[idx].all():
-        return np.zeros(len(lo))
-    x = d[idx]
-    outside = np.maximum(lo.take(idx, axis=1) - x, x - hi.take(idx, axis=1))
+    told = np.isfinite(d)
+    if told.all():  # every pair seen: the ranges as they are, no copy
+        if not kept.all():
+            return np.zeros(len(lo))
+        x = d
+        outside = np.subtract(lo, x)
+        other = np.subtract(x, hi)
+    else:
+        idx = np.flatnonzero(told)
+        if not len(idx) or not kept[idx].all():
+            return np.zeros(len(lo))
+        x = d[idx]
+        outside = lo.take(idx, axis=1)
+        outside -= x
+        other = hi.take(idx, axis=1)
+        np.subtract(x, other, out=other)
+    np.maximum(outside, other, out=outside)  # max(lo - x, x - hi)
     outside -= SPREAD_SLACK_MM
     outside /= SPREAD_SCALE_MM
     return np.clip(outside, 0.0, 1.0, out=outside).mean(axis=1)
