@@ -348,10 +348,15 @@ def _covered_from_above(
     out = np.zeros(len(flat), dtype=bool)
     ok = np.isfinite(flat).all(axis=1)
     step = 10.0
-    for height in np.arange(min_mm, top_mm + step, step):
-        above = flat[ok] + height * 1e-3 * up
-        seen = masks.height_at(intrinsics.project(above))
-        out[ok] |= np.isfinite(seen) & (np.abs(seen - height) <= step / 2)
+    heights = np.arange(min_mm, top_mm + step, step)
+    if not ok.any() or not len(heights):
+        return out
+    # every height at once: (heights, points) places above the points, projected and
+    # read in one call each (point by point, as one height at a time would)
+    above = flat[ok][None] + (heights * 1e-3)[:, None, None] * up
+    seen = masks.height_at(intrinsics.project(above.reshape(-1, 3))).reshape(above.shape[:2])
+    hit = np.isfinite(seen) & (np.abs(seen - heights[:, None]) <= step / 2)
+    out[ok] = hit.any(axis=0)
     return out
 
 
