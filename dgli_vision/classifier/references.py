@@ -161,7 +161,7 @@ class ReferenceSet:
                 raise ValueError("references contain NaN coordinates")
             out = centred_unit_ranks(sub)
             out.flags.writeable = False
-            if len(self._ranked) >= 512:
+            if len(self._ranked) >= 64:  # at most ~4 MB (64 x 304 x 28 floats)
                 self._ranked.clear()
             self._ranked[key] = out
         return out
