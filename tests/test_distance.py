@@ -8,10 +8,12 @@ from scipy.stats import rankdata, spearmanr
 
 from dgli_vision.core.distance import (
     average_ranks,
+    centred_unit_ranks,
     davies_bouldin,
     davies_bouldin_points,
     pairwise_spearman,
     spearman_distance,
+    spearman_to_ranked,
 )
 
 
@@ -104,3 +106,20 @@ def test_average_ranks_match_scipy():
     x = rng.integers(0, 6, size=(7, 28)).astype(float)
     np.testing.assert_array_equal(average_ranks(x), rankdata(x, axis=-1))
     np.testing.assert_array_equal(average_ranks([3.0, 1.0, 3.0]), [2.5, 1.0, 2.5])
+
+
+def test_distances_to_ranked_rows_equal_pairwise_bit_for_bit():
+    # the classifier ranks its references once and compares every frame with them:
+    # the verdicts must not move by a bit (ties, a constant vector, a signed zero)
+    rng = np.random.default_rng(7)
+    for t in range(300):
+        n = int(rng.integers(3, 29))
+        x = rng.integers(-3, 4, n).astype(float) if t % 2 else rng.normal(size=n)
+        if t % 10 == 0:
+            x[:] = 0.5
+        x[int(rng.integers(0, n))] = -0.0
+        y = rng.integers(0, 5, size=(40, n)).astype(float)
+        got = spearman_to_ranked(x, centred_unit_ranks(y))
+        assert got.tobytes() == pairwise_spearman(x[None], y)[0].tobytes()
+    with pytest.raises(ValueError, match="NaN"):
+        spearman_to_ranked(np.array([1.0, np.nan, 2.0]), centred_unit_ranks(np.ones((2, 3))))

@@ -186,3 +186,17 @@ def test_reference_json_records_provenance(shipped):
     data = json.loads(json.dumps(references_to_dict(shipped)))
     assert data["provenance"]["command"].startswith("dgli references build")
     assert all(len(r["visible_rate"]) == 16 for r in data["references"])
+
+
+def test_reference_ranks_are_kept_per_mask_and_give_the_same_distances(fresh, shipped):
+    from dgli_vision.classifier.classify import reference_distances
+    from dgli_vision.core.distance import pairwise_spearman
+
+    known = np.isfinite(fresh.coordinates[3]) & (np.arange(28) % 3 != 0)
+    ranked = shipped.ranked(known)
+    assert shipped.ranked(known.copy()) is ranked  # ranked once per mask
+    assert not ranked.flags.writeable
+    coords = np.where(known, fresh.coordinates[3], np.nan)
+    spearman = pairwise_spearman(coords[known][None], shipped.matrix()[:, known])[0]
+    got = reference_distances(coords, shipped)
+    np.testing.assert_array_equal(got, spearman)  # no other term given

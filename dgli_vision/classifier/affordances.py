@@ -20,6 +20,7 @@ folded over, with no flap lying over it.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -75,11 +76,21 @@ class RigidMap:
 
 
 def _kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
-    cs, cd = src.mean(axis=0), dst.mean(axis=0)
+    # the means as ndarray.mean takes them (sum, then divide), without its overhead
+    cs, cd = np.add.reduce(src, axis=0) / len(src), np.add.reduce(dst, axis=0) / len(dst)
     u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
-    d = np.sign(np.linalg.det(u @ vt)) or 1.0
-    r = (u @ np.diag([1.0, 1.0, d]) @ vt).T
+    r = u @ vt
+    if _det3(r) < 0:  # a reflection: turn the last axis round (u @ diag(1, 1, -1) @ vt)
+        r = (u * np.array([1.0, 1.0, -1.0])) @ vt
+    r = r.T
     return r, cd - r @ cs
+
+
+def _det3(m: NDArray) -> float:
+    """Determinant of a 3x3 matrix (here a rotation or a reflection: +1 or -1, whose sign
+    is all that is read), without a LAPACK call."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
 def fit_map(
@@ -91,6 +102,7 @@ def fit_map(
     keep = np.isfinite(points).all(axis=1)
     uv_all = np.asarray(uv_mm, dtype=float)
     lift = 0.05  # m: the virtual points along the normal
+    along = face * lift * up
     for _ in range(3):
         n = int(np.count_nonzero(keep))
         if n < 2:
@@ -99,15 +111,16 @@ def fit_map(
         src = np.zeros((2 * n, 3))  # the points on the napkin, then lifted along z
         src[:n, :2] = src[n:, :2] = uv_all[keep] * 1e-3
         src[n:, 2] = lift
-        dst = np.concatenate([pts, pts + face * lift * up], axis=0)
+        dst = np.concatenate([pts, pts + along], axis=0)
         r, t = _kabsch(src, dst)
         m = RigidMap(r, t)
-        res = np.full(len(points), np.inf)
-        res[keep] = np.linalg.norm(m(uv_all[keep]) - pts, axis=1)
-        worst = int(np.argmax(np.where(keep, res, -1.0)))
+        # the residuals of the points on the napkin: m(uv) of those points, whose
+        # material coordinates are the first n rows of src
+        res = np.linalg.norm(src[:n] @ r.T + t - pts, axis=1)
+        worst = int(np.argmax(res))
         if res[worst] <= FIT_TOLERANCE_M or n <= 2:
             return m
-        keep[worst] = False
+        keep[np.flatnonzero(keep)[worst]] = False
     return m
 
 
@@ -148,11 +161,14 @@ class NapkinMaps:
                 part = j
         return part
 
-    def place(self, uv_mm: NDArray[np.float64]) -> tuple[NDArray[np.float64] | None, str]:
+    def place(
+        self, uv_mm: NDArray[np.float64], part: int | None = None
+    ) -> tuple[NDArray[np.float64] | None, str]:
         """Where a material point (2,) is in the camera frame, and by which map
-        (``"flap rigid map"`` for its own flap's, ``"napkin rigid map"`` otherwise)."""
+        (``"flap rigid map"`` for its own flap's, ``"napkin rigid map"`` otherwise).
+        ``part``: the point's :meth:`part_of`, when already known."""
         q = np.asarray(uv_mm, dtype=float)
-        j = self.part_of(q)
+        j = self.part_of(q) if part is None else part
         if j >= 0 and self.flaps[j] is not None:
             return self.flaps[j](q)[0], PLACED_BY[1]
         if j >= 0:  # the flap is where its mirror image on the napkin is
@@ -202,13 +218,12 @@ def napkin_maps(
     """The rigid maps of the napkin that stays and of each flap of the state
     ``class_id``/``variant``, fitted to the stickers of ``obs`` (a
     :class:`~dgli_vision.classifier.pipeline.ClothObservation`) lying on each."""
-    folds = nominal_folds(class_id, variant, layout)
+    plan = _plan(class_id, variant, layout)
+    folds = plan.folds
     uv = np.asarray(layout.sticker_uv, dtype=float)
     pts = obs.points_m if obs.points_m is not None else np.full((len(uv), 3), np.nan)
     lying = _lying(obs)
-    part = np.full(len(uv), -1)
-    for j, f in enumerate(folds):
-        part[f.on_flap(uv, ON_LINE_MM)] = j  # as part_of, for every sticker at once
+    part = np.asarray(plan.sticker_part)
     seen = np.where(lying[:, None], pts, np.nan)
     stay = fit_map(uv[part == -1], seen[part == -1], obs.up, +1)
     flaps = tuple(
@@ -217,7 +232,49 @@ def napkin_maps(
     )
     return NapkinMaps(
         folds, stay, flaps, obs.up, _table_offset(obs), layout.thickness_mm * 1e-3,
-        tuple(int(p) for p in part),
+        plan.sticker_part,
+    )
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What a state's folds say of the flat napkin, the same in every frame: the part
+    each sticker and each corner lies on, which corners a flap covers, and for a corner
+    at the end of a fold line the stickers of each flap it ends."""
+
+    folds: tuple[NominalFold, ...]
+    sticker_part: tuple[int, ...]
+    corner_part: tuple[int, ...]
+    covered: tuple[bool, ...]
+    own_ids: tuple[tuple[int, ...], ...]
+    on_line_ids: tuple[tuple[tuple[int, ...], ...], ...]
+
+
+@lru_cache(maxsize=256)
+def _plan(class_id: str, variant: str | None, layout: NapkinLayout) -> _Plan:
+    """The :class:`_Plan` of a state, worked out once."""
+    folds = nominal_folds(class_id, variant, layout)
+    uv = np.asarray(layout.sticker_uv, dtype=float)
+    part = np.full(len(uv), -1)
+    for j, f in enumerate(folds):
+        part[f.on_flap(uv, ON_LINE_MM)] = j  # as part_of, for every sticker at once
+    sticker_part = tuple(int(p) for p in part)
+    probe = NapkinMaps(folds, None, (), np.zeros(3), 0.0, 0.0, sticker_part)
+    corner_part, covered, own_ids, on_line_ids = [], [], [], []
+    for k in range(len(CORNERS)):
+        corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
+        mine = probe.part_of(corner_uv)
+        corner_part.append(mine)
+        covered.append(_covered(folds, corner_uv, layout))
+        own_ids.append(tuple(i for i in CORNER_STICKERS[k] if sticker_part[i] == mine))
+        on_line_ids.append(tuple(
+            tuple(i for i in CORNER_STICKERS[k] if sticker_part[i] == j)
+            for j, f in enumerate(folds)
+            if not f.under and abs(float(_signed_mm(corner_uv[None], f)[0])) <= ON_LINE_MM
+        ))
+    return _Plan(
+        folds, sticker_part, tuple(corner_part), tuple(covered), tuple(own_ids),
+        tuple(on_line_ids),
     )
 
 
@@ -326,15 +383,24 @@ def _sticker_part(maps: NapkinMaps, i: int, layout: NapkinLayout) -> int:
 
 
 def _own_fit(
-    obs: Any, k: int, layout: NapkinLayout, face: int, maps: NapkinMaps | None = None
+    obs: Any,
+    k: int,
+    layout: NapkinLayout,
+    face: int,
+    maps: NapkinMaps | None = None,
+    ids: tuple[int, ...] | None = None,
 ) -> NDArray[np.float64] | None:
     """Corner ``k`` placed by its own stickers seen (two or more; three for a corner
     held up, whose face is not known); with ``maps``, only those on the corner's part
-    (a corner on a fold line has stickers on both sides of it)."""
-    ids = list(CORNER_STICKERS[k])
-    if maps is not None:
-        mine = maps.part_of(np.asarray(layout.corner_uv[k], dtype=float))
-        ids = [i for i in ids if _sticker_part(maps, i, layout) == mine]
+    (a corner on a fold line has stickers on both sides of it): ``ids``, when already
+    known."""
+    if ids is not None:
+        ids = list(ids)
+    else:
+        ids = list(CORNER_STICKERS[k])
+        if maps is not None:
+            mine = maps.part_of(np.asarray(layout.corner_uv[k], dtype=float))
+            ids = [i for i in ids if _sticker_part(maps, i, layout) == mine]
     pts = obs.points_m[ids] if obs.points_m is not None else np.full((len(ids), 3), np.nan)
     pts = np.where(obs.visible[ids][:, None], pts, np.nan)
     uv = np.asarray(layout.sticker_uv, dtype=float)[ids]
@@ -351,15 +417,21 @@ def _own_fit(
 
 
 def _on_line_fit(
-    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout
+    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout, plan: _Plan | None = None
 ) -> NDArray[np.float64] | None:
     """A corner at the end of a fold line (a diagonal fold's) placed by its stickers on
-    the flap: the fold leaves the points of its line where they were."""
+    the flap: the fold leaves the points of its line where they were. ``plan``: the
+    state's, whose folds are ``maps.folds``."""
     corner_uv = np.asarray(layout.corner_uv[k], dtype=float)[None]
-    for j, f in enumerate(maps.folds):
-        if f.under or abs(float(_signed_mm(corner_uv, f)[0])) > ON_LINE_MM:
-            continue
-        ids = [i for i in CORNER_STICKERS[k] if _sticker_part(maps, i, layout) == j]
+    if plan is not None:
+        flaps = [list(ids) for ids in plan.on_line_ids[k]]
+    else:
+        flaps = [
+            [i for i in CORNER_STICKERS[k] if _sticker_part(maps, i, layout) == j]
+            for j, f in enumerate(maps.folds)
+            if not f.under and abs(float(_signed_mm(corner_uv, f)[0])) <= ON_LINE_MM
+        ]
+    for ids in flaps:
         pts = obs.points_m[ids] if obs.points_m is not None else None
         if pts is None:
             return None
@@ -397,24 +469,33 @@ def _covered(folds: tuple[NominalFold, ...], corner_uv: NDArray, layout: NapkinL
 
 
 def _corner_of_verdict(
-    obs: Any, k: int, maps: NapkinMaps, layout: NapkinLayout, lifted: NDArray | None
+    obs: Any,
+    k: int,
+    maps: NapkinMaps,
+    layout: NapkinLayout,
+    lifted: NDArray | None,
+    plan: _Plan | None = None,
 ) -> tuple[str, bool, NDArray | None, str | None]:
-    """State, graspable, point and how placed of corner ``k`` given the verdict."""
+    """State, graspable, point and how placed of corner ``k`` given the verdict
+    (``plan``: the verdict's, whose folds are ``maps.folds``)."""
     corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
-    j = maps.part_of(corner_uv)
+    j = maps.part_of(corner_uv) if plan is None else plan.corner_part[k]
     fold = maps.folds[j] if j >= 0 else None
     state = "flat" if fold is None else ("on a flap under" if fold.under else "on a flap over")
     if _held_up(lifted, CORNER_STICKERS[k]):
         state = "held up"
     face = {"flat": 1, "on a flap over": -1, "on a flap under": 1}.get(state, 0)
-    point, how = _own_fit(obs, k, layout, face, maps), PLACED_BY[0]
+    own = None if plan is None else plan.own_ids[k]
+    point, how = _own_fit(obs, k, layout, face, maps, own), PLACED_BY[0]
     if point is None and fold is None and state == "flat":
-        point = _on_line_fit(obs, k, maps, layout)
+        point = _on_line_fit(obs, k, maps, layout, plan)
     if point is None and state != "held up":
-        point, how = maps.place(corner_uv)
+        point, how = maps.place(corner_uv, j)
     if point is None:
         how = None
-    free = state in ("flat", "on a flap over") and not _covered(maps.folds, corner_uv, layout)
+    free = state in ("flat", "on a flap over") and not (
+        _covered(maps.folds, corner_uv, layout) if plan is None else plan.covered[k]
+    )
     return state, bool(free and point is not None), point, how
 
 
@@ -460,23 +541,27 @@ def affordances_of(
     Affordances
     """
     maps = napkin_maps(obs, class_id, variant, layout) if class_id else None
+    plan = _plan(class_id, variant, layout) if class_id else None
     lifted = obs.lifted  # worked out from the evidence: once, not per corner
-    corners = []
-    for k, name in enumerate(CORNERS):
-        if maps is not None:
-            state, free, point, how = _corner_of_verdict(obs, k, maps, layout, lifted)
-        else:
-            state, free, point, how = _corner_of_evidence(obs, k, layout, lifted)
-        pixel = None
-        if point is not None and point[2] > 0:
-            px = intrinsics.project(point[None])[0]
-            pixel = (float(px[0]), float(px[1]))
-        corners.append(
-            CornerAffordance(
-                name, None if point is None else tuple(float(v) for v in point), pixel,
-                state, free, how,
-            )
+    judged = [
+        _corner_of_verdict(obs, k, maps, layout, lifted, plan)
+        if maps is not None
+        else _corner_of_evidence(obs, k, layout, lifted)
+        for k in range(len(CORNERS))
+    ]
+    # every point in front of the camera projected at once (point by point, the same)
+    front = [k for k, (_, _, point, _) in enumerate(judged) if point is not None and point[2] > 0]
+    pixels: dict[int, tuple[float, float]] = {}
+    if front:
+        px = intrinsics.project(np.stack([judged[k][2] for k in front]))
+        pixels = {k: (float(p[0]), float(p[1])) for k, p in zip(front, px)}
+    corners = [
+        CornerAffordance(
+            name, None if point is None else tuple(float(v) for v in point), pixels.get(k),
+            state, free, how,
         )
+        for k, (name, (state, free, point, how)) in enumerate(zip(CORNERS, judged))
+    ]
     folds = () if maps is None else tuple(
         _seen_fold(maps, j, corners) for j in range(len(maps.folds))
     )
@@ -521,6 +606,7 @@ def bisector_through(
     if np.linalg.norm(d) < 1e-6:
         return ends
     mid = 0.5 * (a + b)
-    along = np.cross(up, d)
+    (u0, u1, u2), (d0, d1, d2) = np.asarray(up, dtype=float).tolist(), d.tolist()
+    along = np.array([u1 * d2 - u2 * d1, u2 * d0 - u0 * d2, u0 * d1 - u1 * d0])  # up x d
     along /= np.linalg.norm(along)
     return tuple(mid + ((e - mid) @ along) * along for e in ends)  # type: ignore[return-value]

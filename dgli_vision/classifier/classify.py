@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from ..core.classes import LIFTED_MM
 from ..core.dgli import pair_indices
-from ..core.distance import pairwise_spearman
+from ..core.distance import spearman_to_ranked
 from ..core.errors import DetectionError
 from .references import ReferenceSet
 
@@ -350,7 +350,7 @@ def reference_terms(
             f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
             f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
-    dgli = pairwise_spearman(x[known][None, :], ref[:, known])[0]
+    dgli = spearman_to_ranked(x[known], references.ranked(known))
     dist = np.zeros_like(dgli)
     if visible is not None:
         rates = references.visible_rates()
@@ -363,7 +363,7 @@ def reference_terms(
     if lifted is not None:
         dist = dist + LIFTED_WEIGHT * _rate_gap(lifted, references.lifted_rates())
     if heights_mm is not None:
-        dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_ranges())
+        dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_bounds())
     if past is not None:
         dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
     face, back_x = np.zeros_like(dgli), None
@@ -407,11 +407,23 @@ def _spread_gap(
     known, or where some reference keeps no range of a pair told."""
     lo, hi, kept = bounds
     d = np.asarray(spread_mm, dtype=np.float64)
-    idx = np.flatnonzero(np.isfinite(d))
-    if not len(idx) or not kept[idx].all():
-        return np.zeros(len(lo))
-    x = d[idx]
-    outside = np.maximum(lo.take(idx, axis=1) - x, x - hi.take(idx, axis=1))
+    told = np.isfinite(d)
+    if told.all():  # every pair seen: the ranges as they are, no copy
+        if not kept.all():
+            return np.zeros(len(lo))
+        x = d
+        outside = np.subtract(lo, x)
+        other = np.subtract(x, hi)
+    else:
+        idx = np.flatnonzero(told)
+        if not len(idx) or not kept[idx].all():
+            return np.zeros(len(lo))
+        x = d[idx]
+        outside = lo.take(idx, axis=1)
+        outside -= x
+        other = hi.take(idx, axis=1)
+        np.subtract(x, other, out=other)
+    np.maximum(outside, other, out=outside)  # max(lo - x, x - hi)
     outside -= SPREAD_SLACK_MM
     outside /= SPREAD_SCALE_MM
     return np.clip(outside, 0.0, 1.0, out=outside).mean(axis=1)
@@ -421,22 +433,35 @@ def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64
     """Mean ``|back - rate|`` over the corners told both in the observation and in each
     reference (``rates`` shape (k, 4), NaN where not told); 0 when none is."""
     x = np.asarray(back, dtype=np.float64)
-    both = np.isfinite(x)[None, :] & np.isfinite(rates)
-    diff = np.where(both, np.abs(np.nan_to_num(x)[None, :] - np.nan_to_num(rates)), 0.0)
+    cols = np.flatnonzero(np.isfinite(x))  # the corners the observation tells
+    r = rates[:, cols]
+    both = np.isfinite(r)
+    diff = np.abs(x[cols] - r)
+    diff[~both] = 0.0
     return diff.sum(axis=1) / np.maximum(both.sum(axis=1), 1)
 
 
-def _height_gap(heights_mm: ArrayLike, ranges: NDArray[np.float64]) -> NDArray[np.float64]:
+def _height_gap(
+    heights_mm: ArrayLike,
+    bounds: tuple[NDArray[np.float64], NDArray[np.float64], bool],
+) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the stickers' heights with each reference's ranges
-    (shape (k, 16, 2)); 0 where a reference keeps no ranges."""
+    (``bounds``: :meth:`.ReferenceSet.height_bounds`); 0 where a reference keeps no
+    ranges."""
+    lo_all, hi_all, all_kept = bounds
     h = np.asarray(heights_mm, dtype=np.float64)
     told = np.isfinite(h)
     if not told.any():
-        return np.zeros(len(ranges))
-    lo, hi = ranges[:, told, 0], ranges[:, told, 1]
-    outside = np.maximum(lo - h[told], h[told] - hi) - HEIGHT_SLACK_MM
-    gap = np.clip(outside / HEIGHT_SCALE_MM, 0.0, 1.0)
-    return np.where(np.isfinite(gap), gap, 0.0).mean(axis=1)
+        return np.zeros(len(lo_all))
+    x = h[told]
+    gap = np.subtract(lo_all[:, told], x)  # max(lo - h, h - hi), in place
+    np.maximum(gap, np.subtract(x, hi_all[:, told]), out=gap)
+    gap -= HEIGHT_SLACK_MM
+    gap /= HEIGHT_SCALE_MM
+    np.clip(gap, 0.0, 1.0, out=gap)
+    if not all_kept:
+        gap[~np.isfinite(gap)] = 0.0
+    return gap.mean(axis=1)
 
 
 def classify_coordinates(
@@ -500,11 +525,12 @@ def classify_coordinates(
     order = np.argsort(dist, kind="stable")
     best = references.references[order[0]]
     runner = None
-    for k in order[1:]:
+    codes = references.class_codes()[order]
+    other = codes != codes[0]
+    if other.any():  # the nearest reference of another class
+        k = int(order[int(np.argmax(other))])
         r = references.references[k]
-        if r.class_id != best.class_id:
-            runner = RunnerUp(r.class_id, r.name, r.variant, float(dist[k]))
-            break
+        runner = RunnerUp(r.class_id, r.name, r.variant, float(dist[k]))
     d = float(dist[order[0]])
     margin = (runner.distance - d) if runner else float("inf")
     n_unknown = 0

@@ -117,9 +117,10 @@ def depth_scale_hint(detections: StickerDetections, depth_mm: NDArray[np.uint16]
     depth_mm : ndarray of uint16, shape (H, W)
     """
     hints = []
-    valid = depth_mm > 0
-    if valid.any():
-        stuck = float((depth_mm[valid] == np.iinfo(np.uint16).max).mean())
+    n_valid = np.count_nonzero(depth_mm > 0)
+    if n_valid:
+        # the share of the valid readings stuck at the largest value (counted, not copied)
+        stuck = float(np.count_nonzero(depth_mm == np.iinfo(np.uint16).max) / n_valid)
         if stuck > 0.5:
             hints.append(f"the depth image reads 65535 at {100 * stuck:.0f}% of its pixels")
     ratios = [

@@ -241,13 +241,12 @@ def _candidates(
     distances: NDArray[np.float64], references: ReferenceSet, k: int = 3
 ) -> tuple[tuple[str, str | None, float], ...]:
     """The nearest reference of each of the ``k`` nearest classes, nearest first."""
-    out: list[tuple[str, str | None, float]] = []
-    for i in np.argsort(distances, kind="stable"):
+    order = np.argsort(distances, kind="stable")
+    first = np.unique(references.class_codes()[order], return_index=True)[1]  # each class's
+    out = []
+    for i in order[np.sort(first)[:k]]:
         r = references.references[i]
-        if all(r.class_id != c for c, _, _ in out):
-            out.append((r.class_id, r.variant, round(float(distances[i]), 6)))
-            if len(out) == k:
-                break
+        out.append((r.class_id, r.variant, round(float(distances[i]), 6)))
     return tuple(out)
 
 

@@ -17,7 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.classes import CLASS_NAMES, VARIANTS
-from ..core.distance import pairwise_spearman
+from ..core.distance import centred_unit_ranks, pairwise_spearman
 from ..core.errors import ReferenceError_, UnreadableInputError
 from ..core.io import guard_outputs, read_json, record_outputs, write_json
 from ..core.layout import layout_of_size, sticker_spreads_mm
@@ -122,6 +122,7 @@ class ReferenceSet:
     references: tuple[Reference, ...]
     provenance: dict[str, Any] = field(default_factory=dict)
     _stacks: dict[str, NDArray] = field(default_factory=dict, init=False, repr=False)
+    _ranked: dict[bytes, NDArray] = field(default_factory=dict, init=False, repr=False)
 
     def _stacked(self, name: str) -> NDArray[np.float64]:
         """The references' ``name`` stacked, shape (k, ...), read-only; built once (the
@@ -147,6 +148,25 @@ class ReferenceSet:
         """Coordinates of all references, shape (k, 28)."""
         return self._stacked("coordinates")
 
+    def ranked(self, known: NDArray[np.bool_]) -> NDArray[np.float64]:
+        """The references' coordinates ``known`` (bool, shape (28,)) ranked, centred and
+        scaled (:func:`~dgli_vision.core.distance.centred_unit_ranks`), shape
+        (k, known.sum()), read-only: what every frame with these coordinates known is
+        correlated with. Kept per mask (a camera sees the same few masks frame after
+        frame)."""
+        key = np.asarray(known, dtype=bool).tobytes()
+        out = self._ranked.get(key)
+        if out is None:
+            sub = self.matrix()[:, np.asarray(known, dtype=bool)]
+            if np.isnan(sub).any():
+                raise ValueError("references contain NaN coordinates")
+            out = centred_unit_ranks(sub)
+            out.flags.writeable = False
+            if len(self._ranked) >= 64:  # at most ~4 MB (64 x 304 x 28 floats)
+                self._ranked.clear()
+            self._ranked[key] = out
+        return out
+
     def visible_rates(self) -> NDArray[np.float64]:
         """Sticker visibility rates of all references, shape (k, 16)."""
         return self._stacked("visible_rate")
@@ -162,6 +182,31 @@ class ReferenceSet:
     def height_ranges(self) -> NDArray[np.float64]:
         """Lowest and highest height of each sticker, mm, shape (k, 16, 2)."""
         return self._stacked("height_range_mm")
+
+    def class_codes(self) -> NDArray[np.intp]:
+        """A number for each reference's class (equal numbers, equal classes), shape (k,),
+        read-only; built once."""
+        if "class_codes" not in self._stacks:
+            ids = [r.class_id for r in self.references]
+            a = np.unique(np.array(ids, dtype=object), return_inverse=True)[1].ravel()
+            a.flags.writeable = False
+            self._stacks["class_codes"] = a
+        return self._stacks["class_codes"]
+
+    def height_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
+        """The height ranges split for the classifier's per-frame use: lows and highs,
+        shape (k, 16) each (contiguous), and whether every range is known; built once."""
+        if "height_lo" not in self._stacks:
+            r = self.height_ranges()
+            for name, a in (
+                ("height_lo", np.ascontiguousarray(r[..., 0])),
+                ("height_hi", np.ascontiguousarray(r[..., 1])),
+                ("height_kept", np.asarray(np.isfinite(r).all())),
+            ):
+                a.flags.writeable = False
+                self._stacks[name] = a
+        s = self._stacks
+        return s["height_lo"], s["height_hi"], bool(s["height_kept"])
 
     def footprint_ranges(self) -> NDArray[np.float64]:
         """Smallest and largest footprint (fraction of the napkin's area), shape (k, 2)."""

@@ -10,6 +10,7 @@ rate, from states seen from above) and by perception (the turn in an image:
 
 from __future__ import annotations
 
+from functools import lru_cache
 from itertools import combinations
 
 import numpy as np
@@ -38,11 +39,15 @@ def _turns(points: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(longest > 0, cross / longest, 0.0)
 
 
+@lru_cache(maxsize=32)
 def _triangles(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.float64]]:
     """Sticker ids of every triangle of three stickers around one corner, shape
-    (4, 4, 3), and the printed turn of each, shape (4, 4)."""
+    (4, 4, 3), and the printed turn of each, shape (4, 4); read-only, once per layout."""
     ids = np.array([list(combinations(c, 3)) for c in CORNER_STICKERS])
-    return ids, _turns(np.asarray(layout.sticker_uv, dtype=float)[ids])
+    printed = _turns(np.asarray(layout.sticker_uv, dtype=float)[ids])
+    ids.flags.writeable = False
+    printed.flags.writeable = False
+    return ids, printed
 
 
 def corner_turns(points_xy: NDArray[np.float64], layout: NapkinLayout) -> NDArray[np.float64]:

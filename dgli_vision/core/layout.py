@@ -244,9 +244,14 @@ def parse_size(text: str) -> tuple[float, float]:
     return w, h
 
 
+@lru_cache(maxsize=8)
 def sticker_pairs(n_stickers: int = 16) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Sticker ids (i, j), i < j, of every pair, in row order (120 pairs for 16)."""
-    return np.triu_indices(n_stickers, k=1)
+    """Sticker ids (i, j), i < j, of every pair, in row order (120 pairs for 16);
+    read-only, made once."""
+    i, j = np.triu_indices(n_stickers, k=1)
+    i.flags.writeable = False
+    j.flags.writeable = False
+    return i, j
 
 
 def sticker_spreads_mm(points_mm: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -14,6 +14,7 @@ napkin. A sticker that breaks this with others is a false detection and is dropp
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -158,6 +159,16 @@ class StickerEvidence:
         return ", ".join(f"{k} sticker{'s' if k > 1 else ''} {why}" for why, k in counts.items())
 
 
+@lru_cache(maxsize=32)
+def _flat_distances_mm(layout: NapkinLayout) -> NDArray[np.float64]:
+    """Distances between every two stickers on the flat napkin, mm, shape (16, 16);
+    read-only, once per layout."""
+    uv = layout.sticker_uv
+    out = np.linalg.norm(uv[:, None] - uv[None], axis=2)
+    out.flags.writeable = False
+    return out
+
+
 def drop_inconsistent(
     markers: Markers3D, layout: NapkinLayout, params: EvidenceParams | None = None
 ) -> tuple[Markers3D, NDArray[np.bool_]]:
@@ -172,8 +183,7 @@ def drop_inconsistent(
     p = params or EvidenceParams()
     pts = markers.points.copy()
     found = markers.found.copy()
-    uv = layout.sticker_uv
-    flat_mm = np.linalg.norm(uv[:, None] - uv[None], axis=2)
+    flat_mm = _flat_distances_mm(layout)
     dropped = np.zeros(len(pts), dtype=bool)
     while found.sum() > 2:
         d3 = np.linalg.norm(pts[:, None] - pts[None], axis=2) * 1e3
@@ -338,10 +348,15 @@ def _covered_from_above(
     out = np.zeros(len(flat), dtype=bool)
     ok = np.isfinite(flat).all(axis=1)
     step = 10.0
-    for height in np.arange(min_mm, top_mm + step, step):
-        above = flat[ok] + height * 1e-3 * up
-        seen = masks.height_at(intrinsics.project(above))
-        out[ok] |= np.isfinite(seen) & (np.abs(seen - height) <= step / 2)
+    heights = np.arange(min_mm, top_mm + step, step)
+    if not ok.any() or not len(heights):
+        return out
+    # every height at once: (heights, points) places above the points, projected and
+    # read in one call each (point by point, as one height at a time would)
+    above = flat[ok][None] + (heights * 1e-3)[:, None, None] * up
+    seen = masks.height_at(intrinsics.project(above.reshape(-1, 3))).reshape(above.shape[:2])
+    hit = np.isfinite(seen) & (np.abs(seen - heights[:, None]) <= step / 2)
+    out[ok] = hit.any(axis=0)
     return out
 
 

@@ -3,6 +3,7 @@ lie if its part of the cloth lay like the rest (folding is isometric)."""
 
 from __future__ import annotations
 
+from functools import lru_cache
 from itertools import combinations
 
 import numpy as np
@@ -25,6 +26,18 @@ def kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
     return r, t
 
 
+#: Triples tried before the rest (see :func:`rigid_prediction`).
+_FIRST_TRIPLES = 8
+
+
+@lru_cache(maxsize=32)
+def _triples(n: int) -> NDArray[np.intp]:
+    """Every triple of 0..n-1 in :func:`itertools.combinations` order, (T, 3), read-only."""
+    out = np.array(list(combinations(range(n), 3)), dtype=np.intp).reshape(-1, 3)
+    out.flags.writeable = False
+    return out
+
+
 def rigid_prediction(
     uv_m: NDArray, pts: NDArray, use: NDArray[np.bool_], tol_m: float
 ) -> tuple[NDArray, NDArray[np.bool_]] | None:
@@ -34,15 +47,24 @@ def rigid_prediction(
     ids = np.flatnonzero(use)
     if ids.size < 3:
         return None
-    triples = np.array(list(combinations(ids, 3)))  # (T, 3)
+    triples = ids[_triples(ids.size)]  # (T, 3), as combinations(ids, 3)
     a, b, c = (uv_m[triples[:, k]] for k in range(3))
     area = np.abs(np.cross(b - a, c - a)[:, 2])
     triples = triples[area > 1e-4]  # not nearly collinear (m^2)
     if len(triples) == 0:
         return None
-    r, t = kabsch(uv_m[triples], pts[triples])  # (T, 3, 3), (T, 3)
-    pred = np.einsum("tij,nj->tni", r, uv_m[ids]) + t[:, None, :]
-    inl = np.linalg.norm(pred - pts[ids][None], axis=2) < tol_m  # (T, n)
+    # The first few triples, then the rest: a triple that has every point as an inlier is
+    # the best (the first such, as argmax over all would pick), and on a napkin lying
+    # rigid one of the first few usually has; each triple's fit is its own.
+    inl = np.zeros((0, ids.size), dtype=bool)
+    for chunk in (triples[:_FIRST_TRIPLES], triples[_FIRST_TRIPLES:]):
+        if not len(chunk):
+            continue
+        r, t = kabsch(uv_m[chunk], pts[chunk])  # (T, 3, 3), (T, 3)
+        pred = np.einsum("tij,nj->tni", r, uv_m[ids]) + t[:, None, :]
+        inl = np.concatenate([inl, np.linalg.norm(pred - pts[ids][None], axis=2) < tol_m])
+        if inl.all(axis=1).any():
+            break
     best = inl[int(np.argmax(inl.sum(axis=1)))]
     if best.sum() < 3:
         return None

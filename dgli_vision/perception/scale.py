@@ -15,6 +15,7 @@ the state. Their ratio to the flat napkin's says:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -54,16 +55,22 @@ class NapkinRuler:
     worst_against_scale: float = 0.0
 
 
-def _corner_pairs(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
-    """Ids (i, j) of every pair of stickers around the same corner (24 pairs)."""
-    del layout  # the pairing is the same for every napkin size (SPEC's sticker order)
-    i, j = [], []
-    for ids in CORNER_STICKERS:
+@lru_cache(maxsize=1)
+def _pairs_by_corner() -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.intp]]:
+    """Ids (i, j) of every pair of stickers around the same corner, and that corner
+    (0-3), 24 pairs (the same for every napkin size: SPEC's sticker order); read-only,
+    made once."""
+    i, j, k = [], [], []
+    for corner, ids in enumerate(CORNER_STICKERS):
         for a in range(4):
             for b in range(a + 1, 4):
                 i.append(ids[a])
                 j.append(ids[b])
-    return np.array(i), np.array(j)
+                k.append(corner)
+    out = np.array(i), np.array(j), np.array(k)
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def measure_napkin(
@@ -85,7 +92,7 @@ def measure_napkin(
     NapkinRuler or None
         None with fewer than ``min_pairs`` pairs located.
     """
-    i, j = _corner_pairs(layout)
+    i, j, pair_corner = _pairs_by_corner()
     found = markers.found
     use = found[i] & found[j]
     if use.sum() < min_pairs:
@@ -97,8 +104,7 @@ def measure_napkin(
     ratio = d_mm / flat_mm
     scale = median(ratio)
     spread = median(np.abs(ratio - scale))
-    corner_of = {s: k for k, ids in enumerate(CORNER_STICKERS) for s in ids}
-    corners = np.array([corner_of[int(a)] for a in i])
+    corners = pair_corner[use]
     of_corner = [ratio[corners == k] for k in np.unique(corners)]
     medians = [median(r) for r in of_corner]
     worst = float(max(abs(m - 1.0) for m in medians))
