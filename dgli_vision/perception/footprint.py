@@ -428,7 +428,7 @@ def measure_footprint(
     high = low
     occ = None
     if napkin.occluder.any():
-        occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), cv2.INTER_NEAREST)
+        occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)
     raised = None if occ is None else cv2.dilate(occ, np.ones((3, 3), np.uint8)).view(bool)
     shaded = _in_shade(color, cloth, regions, raised, p)
     if shaded is not None:
