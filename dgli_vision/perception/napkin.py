@@ -329,19 +329,20 @@ def _nearest_in_blocks(depth_mm: NDArray[np.uint16], s: int) -> NDArray[np.uint1
     """
     import cv2
 
-    d1 = depth_mm - np.uint16(1)
-    hh = d1.shape[0]
+    one = np.uint16(1)
+    hh = depth_mm.shape[0]
     nh, first = -(-hh // s), s - s // 2  # blocks; rows of the first (the edge cuts it)
     whole = max(min(nh - 1, (hh - first) // s), 0)  # blocks after it with all s rows
-    rows = [d1[:first].min(axis=0, keepdims=True)]
-    if whole > 0:
-        body = d1[first : first + s * whole]
-        mid = body[0::s]
+    rows = [(depth_mm[:first] - one).min(axis=0, keepdims=True)]
+    if whole > 0:  # (each row of the blocks less one into a buffer that stays in cache)
+        body = depth_mm[first : first + s * whole]
+        mid = body[0::s] - one
+        row = np.empty_like(mid)
         for k in range(1, s):
-            mid = cv2.min(mid, body[k::s])
+            cv2.min(mid, np.subtract(body[k::s], one, out=row), dst=mid)
         rows.append(mid)
     if whole < nh - 1:  # the last block, cut by the image's edge
-        rows.append(d1[first + s * whole :].min(axis=0, keepdims=True))
+        rows.append((depth_mm[first + s * whole :] - one).min(axis=0, keepdims=True))
     return cv2.erode(np.concatenate(rows), np.ones((1, s), np.uint8))[:, ::s]
 
 
@@ -498,11 +499,17 @@ class _Samples:
         """Per-channel median (3,) of the samples ``which`` (non-empty): the linear
         value of each channel's median 8-bit level (the levels' lookup only grows, so it
         is the median of the linear values, found by counting 256 levels rather than by
-        sorting; the mean of the two middle ones for an even count)."""
+        sorting, with ``cv2.calcHist`` under the mask rather than gathering the samples;
+        the mean of the two middle ones for an even count)."""
+        import cv2
+
         n = int(np.count_nonzero(which))
         lut, out = _linear8(), np.empty(3)
+        mask = np.ascontiguousarray(which, dtype=bool).view(np.uint8).reshape(self.shape)
         for k in range(3):
-            ranks = np.cumsum(np.bincount(self.codes[k][which], minlength=256))
+            plane = self.codes[k].reshape(self.shape)
+            counts = cv2.calcHist([plane], [0], mask, [256], [0, 256]).ravel()
+            ranks = np.cumsum(counts, dtype=np.int64)
             lo, hi = np.searchsorted(ranks, [(n - 1) // 2, n // 2], side="right")
             out[k] = lut[lo] if lo == hi else (lut[lo] + lut[hi]) / np.float32(2)
         return out
@@ -571,6 +578,8 @@ def _held_up_cloth(
     import cv2
 
     s = p.stride
+    if not len(raised_px):  # (every fold laid flat: nothing held up)
+        return np.zeros(shape, dtype=bool), np.zeros(0, dtype=bool)
     held_up = np.zeros(shape, dtype=np.uint8)
     cell = (raised_px[:, 1] // s, raised_px[:, 0] // s)
     held_up[cell] = 1
