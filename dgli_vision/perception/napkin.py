@@ -485,9 +485,11 @@ class _Samples:
 
     @classmethod
     def of(cls, color: NDArray[np.uint8], p: NapkinParams) -> _Samples:
+        import cv2
+
         sub = color[:: p.stride, :: p.stride]
         codes = np.ascontiguousarray(np.moveaxis(sub, -1, 0)).reshape(3, -1)
-        r, g, b = _linear8()[codes]
+        r, g, b = cv2.LUT(codes, _linear8())  # (the float table gives float32 planes)
         clipped = (
             (codes[0] >= p.clipped_level)
             & (codes[1] >= p.clipped_level)
