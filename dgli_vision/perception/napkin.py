@@ -463,9 +463,11 @@ def find_napkin(
     )
     raised_cloth, keep = _held_up_cloth(raised_px, samples.shape, p)
     height_mm[d <= 0] = np.nan
+    if not keep.all():  # (a flap held up keeps every pixel: no copy of them then)
+        raised_px, raised_height = raised_px[keep], raised_height[keep]
     return NapkinView(
-        white, lut, highlight, occluder, s, cloth, raised_cloth, height_mm,
-        raised_px[keep], raised_height[keep],
+        white, lut, highlight, occluder, s, cloth, raised_cloth, height_mm, raised_px,
+        raised_height,
     )
 
 
