@@ -349,7 +349,7 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
     edge is also elongated, but flat.
     """
     p = image.params
-    q, angle = _ellipse_of(blob.moments)
+    q = _axis_ratio(blob.moments)
     if q > p.flat_foreshortening:  # round enough: face-on
         return 1.0, 0.0
     x, y, w, h = blob.box
@@ -357,7 +357,7 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
     roi = blob.inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
     tilt = _foreshortening(image.depth_mm[y : y + h, x : x + w], roi, x, y, image.intrinsics)
     if tilt <= p.flat_foreshortening and abs(q - tilt) <= p.tilt_agreement:
-        return q, angle
+        return q, _minor_angle(blob.moments)
     return 1.0, 0.0
 
 
@@ -499,17 +499,28 @@ class _DiscPixels:
 
     def label_counts(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
         """Pixels of each label ``where`` holds, per blob, shape (n_blobs, n_labels)."""
-        keys = self.blob[where] * self.n_labels + self.labels[where]
+        keys = (self._by_label + self.labels)[where]
         return np.bincount(keys, minlength=self.n_blobs * self.n_labels).reshape(
             self.n_blobs, self.n_labels
         )
+
+    @cached_property
+    def _by_label(self) -> NDArray[np.uint32]:
+        """Each pixel's blob times ``n_labels``: plus its label, a key per (blob, label)
+        for one count (uint32: narrow integers are added and gathered faster)."""
+        return self.blob.astype(np.uint32) * np.uint32(self.n_labels)
+
+    @cached_property
+    def _by_level(self) -> NDArray[np.uint32]:
+        """Each pixel's blob times 256: plus an 8-bit value, a key per (blob, value)."""
+        return self.blob.astype(np.uint32) << np.uint32(8)
 
     def upper_medians(self, values: NDArray[np.uint8], where: NDArray[np.bool_]) -> NDArray:
         """Per blob, the upper median of the 8-bit ``values`` ``where`` holds (as
         :func:`_median`: the (n // 2)-th smallest of n); -1 for a blob with none.
         Shape (n_blobs,)."""
         counts = np.bincount(
-            self.blob[where] * 256 + values[where], minlength=self.n_blobs * 256
+            (self._by_level + values)[where], minlength=self.n_blobs * 256
         ).reshape(self.n_blobs, 256)
         at_most = np.cumsum(counts, axis=1)  # values <= each level, per blob
         n = at_most[:, -1]
@@ -727,14 +738,19 @@ def _plane_normal(pts: NDArray) -> NDArray:
     return np.linalg.eigh(centred.T @ centred)[1][:, 0]
 
 
-def _ellipse_of(m: dict) -> tuple[float, float]:
-    """Minor / major axis ratio of a blob's moment ellipse and the image angle of its
-    minor axis (radians)."""
+def _axis_ratio(m: dict) -> float:
+    """Minor / major axis ratio of a blob's moment ellipse (Python floats: ``math.sqrt``
+    rounds as ``np.sqrt`` does, without making arrays)."""
     mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
-    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    common = math.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
     major, minor = mu20 + mu02 + common, max(mu20 + mu02 - common, 1e-9)
-    major_angle = 0.5 * np.arctan2(2 * mu11, mu20 - mu02)
-    return float(np.sqrt(minor / major)), float(major_angle + np.pi / 2)
+    return math.sqrt(minor / major)
+
+
+def _minor_angle(m: dict) -> float:
+    """The image angle (radians) of the minor axis of a blob's moment ellipse."""
+    major_angle = 0.5 * np.arctan2(2 * m["mu11"], m["mu20"] - m["mu02"])
+    return float(major_angle + np.pi / 2)
 
 
 def _median(values: NDArray) -> float:
