@@ -419,13 +419,15 @@ def _raised_cloth_pixels(
         return empty, np.zeros(0, dtype=np.float32)
     at = _block_pixels(bi, bj, s, hh, ww)
     # colour first (a gripper's or an arm's pixels go no further), one channel at a time
+    # (np.take: the values of fancy indexing, several times faster for many pixels)
     lut, wt = srgb_lut(), np.maximum(white, 1e-4)
-    px = color.reshape(-1, 3)[at]  # (n, 3) uint8
-    r, g, b = ((lut / wt[k])[px[:, k]] for k in range(3))  # balanced: 256 divisions, not n
+    px = np.take(color.reshape(-1, 3), at, axis=0)  # (n, 3) uint8
+    r, g, b = (np.take(lut / wt[k], px[:, k]) for k in range(3))  # balanced: 256 divisions
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
-    ys, xs = np.divmod(at[~_not_napkin(lum, chroma, p)], ww)
-    d = depth_mm[ys, xs]
+    at = at[~_not_napkin(lum, chroma, p)]
+    ys, xs = np.divmod(at, ww)
+    d = np.take(depth_mm.reshape(-1), at)
     height = _height_above_table(intrinsics, normal, offset_m, xs, ys, d)
     up_high = (d > 0) & (height > p.raised_cloth_mm)
     return np.column_stack([xs[up_high], ys[up_high]]), height[up_high]
@@ -606,9 +608,9 @@ def _held_up_cloth(
     if not len(raised_px):  # (every fold laid flat: nothing held up)
         return np.zeros(shape, dtype=bool), np.zeros(0, dtype=bool)
     held_up = np.zeros(shape, dtype=np.uint8)
-    cell = (raised_px[:, 1] // s, raised_px[:, 0] // s)
-    held_up[cell] = 1
+    cell = (raised_px[:, 1] // s) * shape[1] + raised_px[:, 0] // s  # (flat: np.put, np.take)
+    np.put(held_up, cell, 1)
     _, lab, stats, _ = cv2.connectedComponentsWithStats(held_up, connectivity=8)
     big = np.flatnonzero(stats[:, cv2.CC_STAT_AREA] >= p.min_raised_samples)
     raised_cloth = np.isin(lab, big[big > 0])
-    return raised_cloth, raised_cloth[cell]
+    return raised_cloth, np.take(raised_cloth, cell)
