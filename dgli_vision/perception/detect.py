@@ -75,6 +75,7 @@ def detect_stickers(
     napkin: NapkinView | None = None,
     colours: dict[str, tuple[int, int, int]] | None = None,
     roi: NDArray[np.bool_] | None = None,
+    report: NDArray[np.bool_] | None = None,
 ) -> StickerDetections:
     """Find the 16 stickers in an RGB image.
 
@@ -94,6 +95,11 @@ def detect_stickers(
         Calibrated sticker colours (``dgli calibrate``), sRGB per colour name.
     roi : ndarray of bool, keyword-only, optional
         Where to look, on any grid over the image (scaled to it); default: everywhere.
+    report : ndarray of bool, shape (16,), keyword-only, optional
+        The sticker ids wanted (default: all). The others are given to blobs as ever (a
+        blob taken for one keeps it from the rest), but they are reported as not found
+        and their blobs' centres are measured at full resolution only where that can
+        change a wanted id (see :func:`_to_measure`). Their rejections are not reported.
 
     Returns
     -------
@@ -110,17 +116,52 @@ def detect_stickers(
     candidates, rejected = candidate_blobs(image)
     full = None
     if image.halved:
+        measured = candidates if report is None else _to_measure(candidates, layout, names, report)
         full = FullResolution(
-            _refine_all(color, napkin.lut, lut, params, candidates), params, intrinsics.fx,
+            _refine_all(color, napkin.lut, lut, params, measured), params, intrinsics.fx,
             image.disc_radius_mm,
         )
     ids = identify(candidates, layout, names, full)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
         rejected = [_at_full_resolution(r) for r in rejected]
+    if report is not None:
+        return _reported(ids, report)
     return StickerDetections(
         ids.centroids, ids.areas, ids.scores, ids.depths, tuple(rejected), ids.fores
     )
+
+
+def _to_measure(
+    candidates: list[Candidate], layout: NapkinLayout, names: list[str],
+    report: NDArray[np.bool_],
+) -> list[Candidate]:
+    """The candidates whose centres at full resolution can change the stickers
+    ``report`` wants (:func:`identify`): those named for a wanted sticker; every one
+    whose dot is washed out (it takes the one sticker of its disc colour left); and
+    those named for any sticker of such a disc colour (whether they keep it, or are too
+    small at full resolution and leave it free, decides what is left). The others only
+    keep unwanted stickers from each other."""
+    pending = {names[c.disc - 1] for c in candidates if c.dot is None}
+    out = []
+    for c in candidates:
+        if c.dot is None:
+            out.append(c)
+            continue
+        sid = layout.sticker_id(names[c.disc - 1], names[c.dot - 1])
+        if sid is not None and (report[sid] or layout.sticker_disc[sid] in pending):
+            out.append(c)
+    return out
+
+
+def _reported(ids: Identities, report: NDArray[np.bool_]) -> StickerDetections:
+    """The stickers ``report`` wants of ``ids``; the others as not found."""
+    centroids, areas, depths, fores = (
+        np.where(report[:, None] if v.ndim == 2 else report, v, np.nan)
+        for v in (ids.centroids, ids.areas, ids.depths, ids.fores)
+    )
+    scores = np.where(report & ~np.isnan(centroids[:, 0]), ids.scores, 0.0)
+    return StickerDetections(centroids, areas, scores, depths, (), fores)
 
 
 def _check_images(color: NDArray, depth_mm: NDArray) -> None:
@@ -402,7 +443,7 @@ class FullResolution:
     def measure(self, c: Candidate) -> tuple[tuple[float, float], float] | Rejection:
         """Centre (u, v) and area of ``c`` at full resolution, or its rejection
         (search-image pixels) as too small there."""
-        where, area = self.refined[c]
+        where, area = self.refined[c]  # (KeyError: not measured, see Identities.take)
         expected = np.pi * (self.disc_radius_mm * self.fx / c.z_mm) ** 2 * c.foreshortening
         if area < self.params.min_area_ratio * expected:
             return Rejection(
@@ -462,9 +503,14 @@ class Identities:
             self.rejected.append(Rejection(c.where, c.area, why))
 
     def take(self, sid: int, c: Candidate, score: float) -> None:
-        """Give sticker ``sid`` to ``c`` (unless too small at full resolution)."""
+        """Give sticker ``sid`` to ``c`` (unless too small at full resolution). A
+        candidate left unmeasured (:func:`_to_measure`) only keeps ``sid`` from the
+        others: no centre is given."""
         where, area = c.where, c.area
         if self.full is not None:
+            if c not in self.full.refined:
+                self.scores[sid] = score
+                return
             measured = self.full.measure(c)
             if isinstance(measured, Rejection):
                 self.rejected.append(measured)
@@ -681,9 +727,9 @@ def find_washed_out(
     if found.found.any() and cloth is not None:
         m = 2 * params.washed_margin_cells + 1
         roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
-    again = detect_stickers(
+    again = detect_stickers(  # (only the stickers not found yet can be merged)
         color, depth_mm, intrinsics, layout, pastel_params(params), napkin=lower,
-        colours=colours, roi=roi,
+        colours=colours, roi=roi, report=~found.found,
     )
     merged = merge_second_search(found, again)
     return with_unread(color, merged, layout, params, lower, colours, looks=looks)
