@@ -47,6 +47,24 @@ def test_discs_at_known_centres_are_found_with_identity_and_subpixel_centroids()
         np.testing.assert_allclose(det.centroids[sid], centre, atol=0.15)
 
 
+def test_only_the_stickers_asked_for_are_reported_as_a_full_search_finds_them():
+    rng = np.random.default_rng(1)
+    stickers = [
+        (sid, (100 + 70 * sid + rng.uniform(0, 1), 200 + rng.uniform(0, 300))) for sid in range(16)
+    ]
+    stickers.append((3, (640.0, 620.0)))  # a second blob for sticker 3 (lower score or not)
+    img, depth = synthetic(stickers)
+    every = detect_stickers(img, depth, INTR, LAYOUT)
+    wanted = np.zeros(16, bool)
+    wanted[[2, 3, 11]] = True
+    det = detect_stickers(img, depth, INTR, LAYOUT, report=wanted)
+    np.testing.assert_array_equal(det.found, wanted & every.found)
+    np.testing.assert_array_equal(det.centroids[wanted], every.centroids[wanted])
+    np.testing.assert_array_equal(det.areas[wanted], every.areas[wanted])
+    np.testing.assert_array_equal(det.scores[wanted], every.scores[wanted])
+    assert not det.scores[~wanted].any() and det.rejected == ()
+
+
 def test_an_identity_is_never_given_twice():
     img, depth = synthetic([(3, (300.2, 300.7)), (3, (700.0, 400.0))])
     det = detect_stickers(img, depth, INTR, LAYOUT)

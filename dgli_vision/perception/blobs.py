@@ -349,7 +349,7 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
     edge is also elongated, but flat.
     """
     p = image.params
-    q, angle = _ellipse_of(blob.moments)
+    q = _axis_ratio(blob.moments)
     if q > p.flat_foreshortening:  # round enough: face-on
         return 1.0, 0.0
     x, y, w, h = blob.box
@@ -357,7 +357,7 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
     roi = blob.inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w]
     tilt = _foreshortening(image.depth_mm[y : y + h, x : x + w], roi, x, y, image.intrinsics)
     if tilt <= p.flat_foreshortening and abs(q - tilt) <= p.tilt_agreement:
-        return q, angle
+        return q, _minor_angle(blob.moments)
     return 1.0, 0.0
 
 
@@ -471,26 +471,25 @@ class _DiscPixels:
     @classmethod
     def of(cls, shaped: list[_Shaped], image: SearchImage) -> _DiscPixels:
         """The pixels of the ``shaped`` blobs of ``image`` within 1.8 radii of each
-        blob's centre (:func:`_disc_box`), row by row."""
-        parts: dict[str, list[NDArray]] = {k: [] for k in ("r", "lab", "norm", "in", "w")}
-        counts = []
-        for s in shaped:
-            b = s.blob
-            x0, y0, x1, y1 = _disc_box(s)
+        blob's centre (:func:`_disc_box`), row by row (each box written once, in place,
+        into arrays made for all of them)."""
+        boxes = [_disc_box(s) for s in shaped]
+        counts = [(y1 - y0) * (x1 - x0) for x0, y0, x1, y1 in boxes]
+        n = sum(counts)
+        r, inside, washed = np.empty(n), np.empty(n, bool), np.zeros(n, bool)
+        labels, norm = np.empty(n, np.uint8), np.empty((n, 3), np.uint8)
+        at = 0
+        for s, (x0, y0, x1, y1), m in zip(shaped, boxes, counts):
+            b, hw = s.blob, (y1 - y0, x1 - x0)
             wx, wy = b.window[:2]
             in_window = np.s_[y0 - wy : y1 - wy, x0 - wx : x1 - wx]
-            parts["r"].append(_radii(s, x0, y0, x1, y1).ravel())
-            parts["lab"].append(image.labels[y0:y1, x0:x1].ravel())
-            parts["norm"].append(image.norm[y0:y1, x0:x1].reshape(-1, 3))
-            parts["in"].append(b.inside[in_window].ravel())
-            parts["w"].append(
-                np.zeros((y1 - y0) * (x1 - x0), bool) if b.washed is None
-                else b.washed[in_window].ravel()
-            )
-            counts.append((y1 - y0) * (x1 - x0))
-        r, inside, washed, labels, norm = (
-            np.concatenate(parts[k]) for k in ("r", "in", "w", "lab", "norm")
-        )
+            _radii(s, x0, y0, x1, y1, out=r[at : at + m].reshape(hw))
+            labels[at : at + m].reshape(hw)[...] = image.labels[y0:y1, x0:x1]
+            norm[at : at + m].reshape(*hw, 3)[...] = image.norm[y0:y1, x0:x1]
+            inside[at : at + m].reshape(hw)[...] = b.inside[in_window]
+            if b.washed is not None:
+                washed[at : at + m].reshape(hw)[...] = b.washed[in_window]
+            at += m
         blob = np.repeat(np.arange(len(shaped)), counts)
         return cls(blob, r, inside, washed, labels, norm, len(shaped), image.n_colours + 1)
 
@@ -500,29 +499,43 @@ class _DiscPixels:
 
     def label_counts(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
         """Pixels of each label ``where`` holds, per blob, shape (n_blobs, n_labels)."""
-        keys = self.blob[where] * self.n_labels + self.labels[where]
+        keys = (self._by_label + self.labels)[where]
         return np.bincount(keys, minlength=self.n_blobs * self.n_labels).reshape(
             self.n_blobs, self.n_labels
         )
+
+    @cached_property
+    def _by_label(self) -> NDArray[np.uint32]:
+        """Each pixel's blob times ``n_labels``: plus its label, a key per (blob, label)
+        for one count (uint32: narrow integers are added and gathered faster)."""
+        return self.blob.astype(np.uint32) * np.uint32(self.n_labels)
+
+    @cached_property
+    def _by_level(self) -> NDArray[np.uint32]:
+        """Each pixel's blob times 256: plus an 8-bit value, a key per (blob, value)."""
+        return self.blob.astype(np.uint32) << np.uint32(8)
 
     def upper_medians(self, values: NDArray[np.uint8], where: NDArray[np.bool_]) -> NDArray:
         """Per blob, the upper median of the 8-bit ``values`` ``where`` holds (as
         :func:`_median`: the (n // 2)-th smallest of n); -1 for a blob with none.
         Shape (n_blobs,)."""
         counts = np.bincount(
-            self.blob[where] * 256 + values[where], minlength=self.n_blobs * 256
+            (self._by_level + values)[where], minlength=self.n_blobs * 256
         ).reshape(self.n_blobs, 256)
         at_most = np.cumsum(counts, axis=1)  # values <= each level, per blob
         n = at_most[:, -1]
         return np.where(n > 0, np.argmax(at_most > (n // 2)[:, None], axis=1), -1)
 
     @cached_property
-    def covered(self) -> NDArray[np.intp]:
-        """Per blob, its pixels within one radius of its centre."""
-        return self.count(self.inside & (self.r < 1.0))
+    def covered(self) -> list[int]:
+        """Per blob, its pixels within one radius of its centre.
+
+        (This and the other per-blob figures are lists of Python numbers: each blob's
+        checks read a few of them, and indexing a list is cheaper than an array.)"""
+        return self.count(self.inside & (self.r < 1.0)).tolist()
 
     @cached_property
-    def surround_levels(self) -> tuple[NDArray, NDArray]:
+    def surround_levels(self) -> tuple[list[int], list[int]]:
         """Per blob, the median of the smallest channel on the ring (1.3-1.8 radii, off
         the blob) and of the largest channel of its coloured pixels within 0.95 radii
         (8-bit; -1 where there are none). The sRGB curve is increasing, so these are
@@ -532,34 +545,46 @@ class _DiscPixels:
         disc = self.inside & (self.labels > 0) & (r < 0.95)
         smallest = np.minimum(np.minimum(norm[:, 0], norm[:, 1]), norm[:, 2])
         largest = np.maximum(np.maximum(norm[:, 0], norm[:, 1]), norm[:, 2])
-        return self.upper_medians(smallest, ring), self.upper_medians(largest, disc)
+        return (
+            self.upper_medians(smallest, ring).tolist(), self.upper_medians(largest, disc).tolist()
+        )
 
     @cached_property
-    def disc_and_dot(self) -> tuple[NDArray, NDArray, NDArray, NDArray]:
+    def disc_and_dot(
+        self,
+    ) -> tuple[list[list[int]], list[list[int]], list[int], list[bool]]:
         """Per blob: label counts of the outer band (0.6-0.95 radii) and of the inner
         part (below 0.28 radii) of the blob's coloured pixels; pixels of the inner part
         of the window; whether a washed-out pixel lies there."""
         coloured = self.inside & (self.labels > 0)
         inner_area = self.r < 0.28
         return (
-            self.label_counts(coloured & (self.r > 0.6) & (self.r < 0.95)),
-            self.label_counts(coloured & inner_area),
-            self.count(inner_area),
-            self.count(self.washed & inner_area) > 0,
+            self.label_counts(coloured & (self.r > 0.6) & (self.r < 0.95)).tolist(),
+            self.label_counts(coloured & inner_area).tolist(),
+            self.count(inner_area).tolist(),
+            (self.count(self.washed & inner_area) > 0).tolist(),
         )
 
 
-def _radii(s: _Shaped, x0: int, y0: int, x1: int, y1: int) -> NDArray[np.float64]:
+def _radii(
+    s: _Shaped, x0: int, y0: int, x1: int, y1: int, *, out: NDArray[np.float64] | None = None
+) -> NDArray[np.float64]:
     """Distance of every pixel of the box (x0, y0, x1, y1) from the blob's centre, in
     radii of its disc (elliptic when foreshortened: the minor axis along its minor
-    angle), shape (y1 - y0, x1 - x0)."""
+    angle), shape (y1 - y0, x1 - x0), written into ``out`` when given.
+
+    Face-on, the square root of the summed squares (a third of ``np.hypot``'s time; the
+    two differ by a rounding, 1e-16 of a radius, which no threshold of the checks tells
+    apart)."""
     cu, cv = s.blob.where
     dx, dy = np.arange(x0, x1) - cu, (np.arange(y0, y1) - cv)[:, None]
     if s.fore < 1.0:
         ca, sa = np.cos(s.minor_angle), np.sin(s.minor_angle)
         along, across = dx * ca + dy * sa, -dx * sa + dy * ca
-        return np.hypot(along / s.fore, across) / s.radius
-    return np.hypot(dx, dy) / s.radius
+        return np.divide(np.hypot(along / s.fore, across), s.radius, out=out)
+    r = np.add(dx * dx, dy * dy, out=out)
+    np.sqrt(r, out=r)
+    return np.divide(r, s.radius, out=r)
 
 
 def _disc_box(s: _Shaped) -> tuple[int, int, int, int]:
@@ -592,7 +617,7 @@ def _surround_problem(discs: _DiscPixels, k: int, p: DetectorParams) -> str | No
     if white[k] < 0 or own[k] < 0:  # no ring, or no coloured pixel of the disc
         return None
     lin = srgb_lut()
-    white_k, own_k = lin[white[k]], lin[own[k]]
+    white_k, own_k = float(lin[white[k]]), float(lin[own[k]])
     if white_k < p.min_surround * own_k:
         return (
             f"not on the napkin (surround {white_k / max(own_k, 1e-6):.2f} as bright as "
@@ -605,22 +630,28 @@ def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | s
     """Disc and dot colours of the ``k``-th blob: majority labels of an outer band and
     of the inner part of the equivalent disc; or why they cannot be read."""
     outer_counts, inner_counts, inner_area, washed_inner = discs.disc_and_dot
-    disc_counts, outer = outer_counts[k], int(outer_counts[k].sum())
+    disc_counts = outer_counts[k]
+    outer = sum(disc_counts)
     if outer == 0:
         return "no disc colour inside"
-    disc = int(np.argmax(disc_counts))
+    disc = _first_largest(disc_counts)
     purity = disc_counts[disc] / outer
     dot: int | None = None
-    inner = int(inner_counts[k].sum())
+    inner = sum(inner_counts[k])
     if inner >= p.min_dot_seen * inner_area[k]:
         dot_counts = inner_counts[k]
-        dot = int(np.argmax(dot_counts))
+        dot = _first_largest(dot_counts)
         purity = min(purity, dot_counts[dot] / inner)
     elif not washed_inner[k]:
         return "no dot colour inside"
     if purity < p.min_purity:
         return f"mixed colours (purity {purity:.2f})"
     return _Colours(disc, dot, purity)
+
+
+def _first_largest(counts: list[int]) -> int:
+    """Index of the largest count, the first of equal ones (``np.argmax`` of a list)."""
+    return counts.index(max(counts))
 
 
 def _highlight_pixels(
@@ -707,14 +738,19 @@ def _plane_normal(pts: NDArray) -> NDArray:
     return np.linalg.eigh(centred.T @ centred)[1][:, 0]
 
 
-def _ellipse_of(m: dict) -> tuple[float, float]:
-    """Minor / major axis ratio of a blob's moment ellipse and the image angle of its
-    minor axis (radians)."""
+def _axis_ratio(m: dict) -> float:
+    """Minor / major axis ratio of a blob's moment ellipse (Python floats: ``math.sqrt``
+    rounds as ``np.sqrt`` does, without making arrays)."""
     mu20, mu02, mu11 = m["mu20"], m["mu02"], m["mu11"]
-    common = np.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
+    common = math.sqrt(4 * mu11**2 + (mu20 - mu02) ** 2)
     major, minor = mu20 + mu02 + common, max(mu20 + mu02 - common, 1e-9)
-    major_angle = 0.5 * np.arctan2(2 * mu11, mu20 - mu02)
-    return float(np.sqrt(minor / major)), float(major_angle + np.pi / 2)
+    return math.sqrt(minor / major)
+
+
+def _minor_angle(m: dict) -> float:
+    """The image angle (radians) of the minor axis of a blob's moment ellipse."""
+    major_angle = 0.5 * np.arctan2(2 * m["mu11"], m["mu20"] - m["mu02"])
+    return float(major_angle + np.pi / 2)
 
 
 def _median(values: NDArray) -> float:

@@ -75,6 +75,7 @@ def detect_stickers(
     napkin: NapkinView | None = None,
     colours: dict[str, tuple[int, int, int]] | None = None,
     roi: NDArray[np.bool_] | None = None,
+    report: NDArray[np.bool_] | None = None,
 ) -> StickerDetections:
     """Find the 16 stickers in an RGB image.
 
@@ -94,6 +95,11 @@ def detect_stickers(
         Calibrated sticker colours (``dgli calibrate``), sRGB per colour name.
     roi : ndarray of bool, keyword-only, optional
         Where to look, on any grid over the image (scaled to it); default: everywhere.
+    report : ndarray of bool, shape (16,), keyword-only, optional
+        The sticker ids wanted (default: all). The others are given to blobs as ever (a
+        blob taken for one keeps it from the rest), but they are reported as not found
+        and their blobs' centres are measured at full resolution only where that can
+        change a wanted id (see :func:`_to_measure`). Their rejections are not reported.
 
     Returns
     -------
@@ -110,17 +116,52 @@ def detect_stickers(
     candidates, rejected = candidate_blobs(image)
     full = None
     if image.halved:
+        measured = candidates if report is None else _to_measure(candidates, layout, names, report)
         full = FullResolution(
-            _refine_all(color, napkin.lut, lut, params, candidates), params, intrinsics.fx,
+            _refine_all(color, napkin.lut, lut, params, measured), params, intrinsics.fx,
             image.disc_radius_mm,
         )
     ids = identify(candidates, layout, names, full)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
         rejected = [_at_full_resolution(r) for r in rejected]
+    if report is not None:
+        return _reported(ids, report)
     return StickerDetections(
         ids.centroids, ids.areas, ids.scores, ids.depths, tuple(rejected), ids.fores
     )
+
+
+def _to_measure(
+    candidates: list[Candidate], layout: NapkinLayout, names: list[str],
+    report: NDArray[np.bool_],
+) -> list[Candidate]:
+    """The candidates whose centres at full resolution can change the stickers
+    ``report`` wants (:func:`identify`): those named for a wanted sticker; every one
+    whose dot is washed out (it takes the one sticker of its disc colour left); and
+    those named for any sticker of such a disc colour (whether they keep it, or are too
+    small at full resolution and leave it free, decides what is left). The others only
+    keep unwanted stickers from each other."""
+    pending = {names[c.disc - 1] for c in candidates if c.dot is None}
+    out = []
+    for c in candidates:
+        if c.dot is None:
+            out.append(c)
+            continue
+        sid = layout.sticker_id(names[c.disc - 1], names[c.dot - 1])
+        if sid is not None and (report[sid] or layout.sticker_disc[sid] in pending):
+            out.append(c)
+    return out
+
+
+def _reported(ids: Identities, report: NDArray[np.bool_]) -> StickerDetections:
+    """The stickers ``report`` wants of ``ids``; the others as not found."""
+    centroids, areas, depths, fores = (
+        np.where(report[:, None] if v.ndim == 2 else report, v, np.nan)
+        for v in (ids.centroids, ids.areas, ids.depths, ids.fores)
+    )
+    scores = np.where(report & ~np.isnan(centroids[:, 0]), ids.scores, 0.0)
+    return StickerDetections(centroids, areas, scores, depths, (), fores)
 
 
 def _check_images(color: NDArray, depth_mm: NDArray) -> None:
@@ -402,7 +443,7 @@ class FullResolution:
     def measure(self, c: Candidate) -> tuple[tuple[float, float], float] | Rejection:
         """Centre (u, v) and area of ``c`` at full resolution, or its rejection
         (search-image pixels) as too small there."""
-        where, area = self.refined[c]
+        where, area = self.refined[c]  # (KeyError: not measured, see Identities.take)
         expected = np.pi * (self.disc_radius_mm * self.fx / c.z_mm) ** 2 * c.foreshortening
         if area < self.params.min_area_ratio * expected:
             return Rejection(
@@ -462,9 +503,14 @@ class Identities:
             self.rejected.append(Rejection(c.where, c.area, why))
 
     def take(self, sid: int, c: Candidate, score: float) -> None:
-        """Give sticker ``sid`` to ``c`` (unless too small at full resolution)."""
+        """Give sticker ``sid`` to ``c`` (unless too small at full resolution). A
+        candidate left unmeasured (:func:`_to_measure`) only keeps ``sid`` from the
+        others: no centre is given."""
         where, area = c.where, c.area
         if self.full is not None:
+            if c not in self.full.refined:
+                self.scores[sid] = score
+                return
             measured = self.full.measure(c)
             if isinstance(measured, Rejection):
                 self.rejected.append(measured)
@@ -513,8 +559,9 @@ def _refine_all(
     pixels. A blob completed with a highlight's pale halo keeps its centre from the
     halved image (the halo is no sticker colour).
 
-    The boxes around the grown blobs are stacked into one image and labelled in one
-    call (labels are per pixel: the same as labelling each box).
+    The boxes around the grown blobs are laid side by side in one image and labelled in
+    one call (labels are per pixel: the same as labelling each box; side by side, the
+    image's rows are long, which OpenCV's row loops run fastest).
     """
     out: dict[Candidate, tuple[tuple[float, float], float]] = {}
     grown = []
@@ -525,13 +572,19 @@ def _refine_all(
             grown.append((c, _GrownBlob.of(c, color.shape[:2])))
     if not grown:
         return out
-    hits = _sticker_or_blown(_stacked([g.box_of(color) for _, g in grown]), lut, hue_lut, params)
-    top = 0
+    boxes = _side_by_side([g.box_of(color) for _, g in grown])
+    hits = _sticker_or_blown(boxes, lut, hue_lut, params)
+    left = 0
     for c, g in grown:
         h, w = g.up.shape
-        out[c] = _centre_of(g.within(hits[top : top + h, :w]), g, c)
-        top += h
+        out[c] = _centre_of(g.within(hits[:h, left : left + w]), g, c)
+        left += w
     return out
+
+
+#: A 5 x 5 square: dilation by two pixels.
+_SQUARE5 = np.ones((5, 5), np.uint8)
+_SQUARE5.flags.writeable = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -553,19 +606,16 @@ class _GrownBlob:
         reaches)."""
         import cv2
 
-        region = c.region.astype(np.uint8)
+        region = np.asarray(c.region, dtype=bool).view(np.uint8)  # (0 or 1)
         h, w = region.shape
         bx, by, bw, bh = cv2.boundingRect(region)
         ax0, ay0 = max(bx - 1, 0), max(by - 1, 0)
         ax1, ay1 = min(bx + bw + 1, w), min(by + bh + 1, h)
-        up = cv2.dilate(
-            region[ay0:ay1, ax0:ax1].repeat(2, axis=0).repeat(2, axis=1),
-            np.ones((5, 5), np.uint8),
-        )
+        up = cv2.dilate(region[ay0:ay1, ax0:ax1].repeat(2, axis=0).repeat(2, axis=1), _SQUARE5)
         x0, y0 = 2 * c.origin[0], 2 * c.origin[1]
         shape = (min(2 * h, frame_shape[0] - y0), min(2 * w, frame_shape[1] - x0))
         up = up[: shape[0] - 2 * ay0, : shape[1] - 2 * ax0]
-        return cls(up.astype(bool), (x0 + 2 * ax0, y0 + 2 * ay0), (x0, y0), shape)
+        return cls(up.view(bool), (x0 + 2 * ax0, y0 + 2 * ay0), (x0, y0), shape)
 
     def box_of(self, color: NDArray[np.uint8]) -> NDArray[np.uint8]:
         """The pixels of ``color`` in the box of ``up``."""
@@ -577,13 +627,13 @@ class _GrownBlob:
         return hits * self.up
 
 
-def _stacked(boxes: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
-    """Images (h_i, w_i, 3) stacked top to bottom, left-aligned, padded with zeros."""
-    out = np.zeros((sum(b.shape[0] for b in boxes), max(b.shape[1] for b in boxes), 3), np.uint8)
-    top = 0
+def _side_by_side(boxes: list[NDArray[np.uint8]]) -> NDArray[np.uint8]:
+    """Images (h_i, w_i, 3) laid left to right, top-aligned, padded with zeros."""
+    out = np.zeros((max(b.shape[0] for b in boxes), sum(b.shape[1] for b in boxes), 3), np.uint8)
+    left = 0
     for b in boxes:
-        out[top : top + b.shape[0], : b.shape[1]] = b
-        top += b.shape[0]
+        out[: b.shape[0], left : left + b.shape[1]] = b
+        left += b.shape[1]
     return out
 
 
@@ -613,7 +663,8 @@ def _centre_of(
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     (x, y), (x0, y0) = g.corner, g.origin
-    contour = max(contours, key=cv2.contourArea)  # (the area does not depend on where)
+    # (the area does not depend on where)
+    contour = contours[0] if len(contours) == 1 else max(contours, key=cv2.contourArea)
     m = cv2.moments(contour + np.array([x - x0, y - y0], contour.dtype))
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
@@ -676,9 +727,9 @@ def find_washed_out(
     if found.found.any() and cloth is not None:
         m = 2 * params.washed_margin_cells + 1
         roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
-    again = detect_stickers(
+    again = detect_stickers(  # (only the stickers not found yet can be merged)
         color, depth_mm, intrinsics, layout, pastel_params(params), napkin=lower,
-        colours=colours, roi=roi,
+        colours=colours, roi=roi, report=~found.found,
     )
     merged = merge_second_search(found, again)
     return with_unread(color, merged, layout, params, lower, colours, looks=looks)
