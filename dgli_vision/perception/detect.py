@@ -209,7 +209,7 @@ def search_image(
         intrinsics = _halved(intrinsics)
     box, inside, near = (0, 0, shape[1], shape[0]), None, None
     if roi is not None:  # (only the box that judging its blobs reads is computed)
-        inside = cv2.resize(roi.astype(np.uint8), shape[::-1], cv2.INTER_NEAREST)
+        inside = cv2.resize(roi.astype(np.uint8), shape[::-1], interpolation=cv2.INTER_NEAREST)
         box = _judged_box(
             cv2.boundingRect(inside), depth_mm, disc_r_mm * intrinsics.fx, med_depth
         )
