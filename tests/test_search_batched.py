@@ -132,7 +132,9 @@ def test_a_search_within_a_region_judges_its_blobs_as_a_search_of_the_whole_fram
     part = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names), roi)
     whole = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
     assert not part.norm[-20:].any()  # (far from the region: not computed)
-    inside = cv2.resize(roi.astype(np.uint8), whole.labels.shape[::-1], cv2.INTER_NEAREST)
+    inside = cv2.resize(
+        roi.astype(np.uint8), whole.labels.shape[::-1], interpolation=cv2.INTER_NEAREST
+    )
     masked = replace(whole, labels=whole.labels * inside)  # (labelled everywhere, then cut)
     np.testing.assert_array_equal(part.labels, masked.labels)
     found, rejected = candidate_blobs(part)
