@@ -64,13 +64,13 @@ def test_nanmedian_is_numpys_to_the_bit():
 def test_the_cloth_regions_order_statistics_of_sorted_cells_are_numpys(q):
     """The white regions take the bright level and the table's median from sorted cells
     (8-bit levels through a table: many ties), image sized and tiny, NaN included."""
-    from dgli_vision.perception.footprint import _sorted_median, _sorted_quantile
+    from dgli_vision.core.order_stats import sorted_median, sorted_quantile
 
     rng = np.random.default_rng(4)
     for n in (1, 2, 7, 14400, 14401):
         x = rng.integers(0, 256, n) / 255.0 * rng.uniform(0.5, 2.0)
         s = np.sort(x)
-        assert _sorted_quantile(s, q) == float(np.quantile(x, q))
-        assert _sorted_median(s) == float(np.median(x))
+        assert sorted_quantile(s, q) == float(np.quantile(x, q))
+        assert sorted_median(s) == float(np.median(x))
     x[3] = np.nan
-    assert np.isnan(_sorted_quantile(np.sort(x), q)) and np.isnan(_sorted_median(np.sort(x)))
+    assert np.isnan(sorted_quantile(np.sort(x), q)) and np.isnan(sorted_median(np.sort(x)))

@@ -23,6 +23,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
+from ..core.order_stats import sorted_median, sorted_quantile
 from .napkin import NapkinParams, NapkinView
 from .shade import into_shade, shadow_suspected
 
@@ -236,54 +237,19 @@ def cloth_regions(
     linear = cv2.LUT(small, srgb_lut())
     r, g, b = linear[..., 0], linear[..., 1], linear[..., 2]
     white = np.maximum(white_rgb, 1e-4)
-    level = _sorted_quantile(np.sort(((r + g + b) / 3).ravel()), 1.0 - q.bright_fraction)
+    level = sorted_quantile(np.sort(((r + g + b) / 3).ravel()), 1.0 - q.bright_fraction)
     white = white * max(1.0, level / float(white.mean()))
     r, g, b = r / white[0], g / white[1], b / white[2]  # the napkin at 1
     lum = (r + g + b) / 3
     chroma = np.maximum(np.maximum(r, g), b) - np.minimum(np.minimum(r, g), b)
     # Most of the view is table: a table nearly as bright as the napkin raises the bar.
-    table = _sorted_median(np.sort(lum.ravel()))
+    table = sorted_median(np.sort(lum.ravel()))
     floor = max(q.min_napkin_brightness, table + p.table_margin)
     cloth = (lum >= floor) & (chroma <= q.neutral_chroma * lum)
     kernel = np.ones((p.close_cells, p.close_cells), np.uint8)
     closed = cv2.morphologyEx(cloth.view(np.uint8), cv2.MORPH_CLOSE, kernel)
     _, labels = cv2.connectedComponents(closed, connectivity=8)
     return ClothRegions(labels, c, small, lum, cloth, chroma, table)
-
-
-def _sorted_quantile(ordered: NDArray[np.float64], q: float) -> float:
-    """:func:`~dgli_vision.core.order_stats.quantile` of an array already sorted (NaN
-    last, as ``np.sort`` leaves it), to the bit. The cells' values repeat (8-bit levels
-    through a table): a partition about the few order statistics wanted costs two to
-    three times a sort of them."""
-    n = ordered.size
-    virtual = (n - 1) * q
-    lo = int(np.floor(virtual))
-    hi = lo + 1
-    if virtual >= n - 1:
-        lo = hi = n - 1
-    elif virtual < 0:
-        lo = hi = 0
-    if np.isnan(ordered[n - 1]):
-        return float("nan")
-    a, b = ordered[lo], ordered[hi]
-    gamma = float(virtual - lo)
-    diff = b - a
-    if gamma >= 0.5:
-        return float(b - diff * (1 - gamma))
-    return float(a + diff * gamma)
-
-
-def _sorted_median(ordered: NDArray[np.float64]) -> float:
-    """:func:`~dgli_vision.core.order_stats.median` of an array already sorted (NaN
-    last), to the bit."""
-    n = ordered.size
-    k = n // 2
-    if np.isnan(ordered[n - 1]):
-        return float("nan")
-    if n % 2:
-        return float(ordered[k])
-    return float((ordered[k - 1] + ordered[k]) / ordered.dtype.type(2))
 
 
 def cloth_cells(
