@@ -22,7 +22,7 @@ from ..perception.detect import (
     detect_stickers,
     find_washed_out,
 )
-from ..perception.evidence import HELD_UP, StickerEvidence, assess_stickers, drop_inconsistent
+from ..perception.evidence import StickerEvidence, assess_stickers, drop_inconsistent
 from ..perception.flaps import flap_angles
 from ..perception.footprint import ClothRegions, Footprint, cloth_regions, measure_footprint
 from ..perception.handedness import back_face_up, image_turns
@@ -132,7 +132,7 @@ class ClothObservation:
             return None
         out = np.where(self.visible, (self.heights_mm > LIFTED_MM).astype(float), np.nan)
         if self.evidence is not None:
-            held = np.array([why == HELD_UP for why in self.evidence.reasons]) & self.unknown
+            held = self.evidence.held_up
             if self.flap_deg is not None:
                 told = ~self.evidence.near_object | np.isfinite(self.flap_deg)
             else:
@@ -342,10 +342,9 @@ def _tips(
     if footprint is None or footprint.cells is None or regions is None:
         return None
     cloth = footprint.cells | (regions.labels > 0)
-    held_up = np.array([why == HELD_UP for why in evidence.reasons]) & evidence.unknown
     return corner_tips(
-        markers.points, heights, evidence.unknown, held_up, turns, layout, frame.intrinsics,
-        up, cloth, regions.cell_px, napkin.occluder, napkin.stride,
+        markers.points, heights, evidence.unknown, evidence.held_up, turns, layout,
+        frame.intrinsics, up, cloth, regions.cell_px, napkin.occluder, napkin.stride,
     )
 
 

@@ -110,6 +110,14 @@ class NapkinLayout:
         """Number of stickers (16)."""
         return len(self.sticker_uv)
 
+    @property
+    def sticker_corners(self) -> NDArray[np.intp]:
+        """The corner (index into ``corner_names``) each sticker belongs to, shape (16,):
+        that of its segment."""
+        return np.array(
+            [self.corner_names.index(self.segment_corners[k // 2]) for k in range(self.n_stickers)]
+        )
+
     def sticker_id(self, disc: str, dot: str) -> int | None:
         """Sticker id with this (disc, dot) colour pair, or None if there is none."""
         for k, pair in enumerate(zip(self.sticker_disc, self.sticker_dot)):

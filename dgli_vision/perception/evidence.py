@@ -150,6 +150,11 @@ class StickerEvidence:
         """Stickers neither seen nor evidence of a fold, shape (16,)."""
         return self.status == UNKNOWN
 
+    @property
+    def held_up(self) -> NDArray[np.bool_]:
+        """Unknown stickers that may be on cloth held up (:data:`HELD_UP`), shape (16,)."""
+        return self.unknown & np.array([why == HELD_UP for why in self.reasons])
+
     def summary(self) -> str:
         """``"2 stickers under an object above the napkin, 1 in a highlight"`` or ``""``."""
         counts: dict[str, int] = {}
@@ -270,9 +275,7 @@ def _predict_missing(
     uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(n)])
     pts = markers.points
     tol = p.fit_tolerance_mm * 1e-3
-    corner_of = np.argmin(
-        np.linalg.norm(layout.sticker_uv[:, None] - layout.corner_uv[None], axis=2), axis=1
-    )
+    corner_of = layout.sticker_corners
     pred3 = np.full((n, 3), np.nan)
     group_support = np.zeros(n, dtype=int)
     for corner in range(len(layout.corner_uv)):

@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.order_stats import median
-from .evidence import HELD_UP, StickerEvidence
+from .evidence import StickerEvidence
 from .napkin import NapkinView
 
 __all__ = ["FlapParams", "flap_angles"]
@@ -195,7 +195,7 @@ def _held_and_inside(
     nowhere = np.full(3, np.nan)
     if evidence is None or napkin is None or napkin.raised is None:
         return None, nowhere
-    held = evidence.unknown & np.array([why == HELD_UP for why in evidence.reasons])
+    held = evidence.held_up
     lying = np.isfinite(heights_mm) & (heights_mm < lying_mm)
     if not held.any() or not napkin.raised.any() or lying.sum() < 3:
         return None, nowhere

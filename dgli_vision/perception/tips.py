@@ -72,12 +72,6 @@ class TipParams:
     min_table_share: float = 0.25
 
 
-def _corner_of(layout: NapkinLayout) -> NDArray[np.intp]:
-    """The corner (0-3) nearest each sticker, shape (16,)."""
-    d = np.linalg.norm(layout.sticker_uv[:, None] - layout.corner_uv[None], axis=2)
-    return np.argmin(d, axis=1)
-
-
 def _tip_samples(layout: NapkinLayout, k: int, p: TipParams) -> NDArray[np.float64]:
     """Material points (n, 2), mm, of corner ``k``'s band."""
     c = layout.corner_uv
@@ -154,7 +148,7 @@ def _stay_fit(
     not extrapolated from one corner's stickers 80 mm apart), front face up (every flap
     folded over lies face down, and a flap folded under is out of sight); None
     otherwise."""
-    corner_of = _corner_of(layout)
+    corner_of = layout.sticker_corners
     uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(len(points))])
     fit = rigid_prediction(uv_m, points, lying, p.fit_tolerance_mm * 1e-3)
     if fit is None or len(set(corner_of[fit[1]].tolist())) < 2:
@@ -226,7 +220,7 @@ def corner_tips(
     out = np.full(len(layout.corner_uv), np.nan)
     if cloth is None:
         return out
-    corner_of = _corner_of(layout)
+    corner_of = layout.sticker_corners
     found = np.isfinite(points).all(axis=1)
     lying = found & (np.nan_to_num(heights_mm, nan=np.inf) < LIFTED_MM)
     if turns is not None:
