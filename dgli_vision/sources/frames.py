@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import struct
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -14,6 +13,7 @@ from numpy.typing import NDArray
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
 from ..core.io import check_input_file, read_json, write_png
+from .png_decode import PNG_SIGNATURE, PngFile, inflate_rows, stored_png, unfilter, walk_png
 
 __all__ = [
     "MAX_IMAGE_BYTES",
@@ -64,7 +64,6 @@ MAX_IMAGE_PIXELS = 50_000_000
 #: The largest image file read, in bytes.
 MAX_IMAGE_BYTES = 1 << 30
 
-_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 #: JPEG start-of-frame markers (baseline, progressive, lossless, arithmetic...): they carry
 #: the image size. 0xC4 (DHT), 0xC8 (JPG) and 0xCC (DAC) are not frames.
 _JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
@@ -72,43 +71,12 @@ _JPEG_SOF = frozenset(range(0xC0, 0xD0)) - {0xC4, 0xC8, 0xCC}
 
 @dataclass(frozen=True, eq=False)
 class _EncodedImage:
-    """An image file's bytes and the size its header gives (None: not PNG or JPEG)."""
+    """An image file's bytes, the size its header gives (None: not PNG or JPEG) and, for a
+    PNG, its walked chunks."""
 
-    data: NDArray[np.uint8]
+    data: bytes
     size: tuple[int, int] | None
-
-
-def _png_size(buf: bytes, where: str) -> tuple[int, int]:
-    """(width, height) of a PNG from its IHDR, after walking its chunks: a file that ends
-    before IEND or a critical chunk that fails its checksum is refused here, rather than
-    by libpng, which prints its own lines before failing."""
-    if len(buf) < 33 or buf[12:16] != b"IHDR":
-        raise UnreadableInputError(f"{where} is a damaged PNG (no IHDR header)")
-    width, height = struct.unpack(">II", buf[16:24])
-    pos = len(_PNG_SIGNATURE)
-    while True:
-        if pos + 12 > len(buf):
-            raise UnreadableInputError(
-                f"{where} is truncated: the PNG ends after {len(buf)} bytes, before its IEND"
-            )
-        (length,) = struct.unpack(">I", buf[pos : pos + 4])
-        kind = buf[pos + 4 : pos + 8]
-        end = pos + 12 + length
-        if end > len(buf):
-            raise UnreadableInputError(
-                f"{where} is truncated: the PNG ends after {len(buf)} bytes, inside its "
-                f"{kind.decode('latin-1')!r} chunk"
-            )
-        critical = not kind[0] & 0x20  # ancillary chunks have a lower-case first letter
-        (crc,) = struct.unpack(">I", buf[end - 4 : end])
-        if critical and zlib.crc32(buf[pos + 4 : end - 4]) != crc:
-            raise UnreadableInputError(
-                f"{where} is damaged: its PNG chunk {kind.decode('latin-1')!r} at byte {pos} "
-                "fails its checksum"
-            )
-        if kind == b"IEND":
-            return width, height
-        pos = end
+    png: PngFile | None = None
 
 
 def _jpeg_size(buf: bytes, where: str) -> tuple[int, int] | None:
@@ -163,14 +131,21 @@ def image_size(data: bytes, where: str = "image") -> tuple[int, int] | None:
     InvalidInputError
         A header that gives no pixels, or more than :data:`MAX_IMAGE_PIXELS`.
     """
-    if data.startswith(_PNG_SIGNATURE):
-        size: tuple[int, int] | None = _png_size(data, where)
+    return _header(data, where)[0]
+
+
+def _header(data: bytes, where: str) -> tuple[tuple[int, int] | None, PngFile | None]:
+    """:func:`image_size`, and a PNG's walked chunks."""
+    png = None
+    if data.startswith(PNG_SIGNATURE):
+        png = walk_png(data, where)
+        size: tuple[int, int] | None = (png.width, png.height)
     elif data.startswith(b"\xff\xd8"):
         size = _jpeg_size(data, where)
     else:
-        return None
+        return None, None
     if size is None:
-        return None
+        return None, None
     width, height = size
     if width == 0 or height == 0:
         raise InvalidInputError(f"{where} is {width}x{height} pixels: an empty image")
@@ -179,7 +154,7 @@ def image_size(data: bytes, where: str = "image") -> tuple[int, int] | None:
             f"{where} is {width}x{height} pixels ({width * height / 1e6:.0f} megapixels); "
             f"images of up to {MAX_IMAGE_PIXELS / 1e6:.0f} megapixels are read"
         )
-    return size
+    return size, png
 
 
 def _check_file(p: Path, what: str) -> int:
@@ -200,19 +175,10 @@ def _read_encoded(p: Path, what: str) -> _EncodedImage:
     """An image file's bytes, with its header checked against the limits."""
     _check_file(p, what)
     try:
-        data = np.fromfile(str(p), dtype=np.uint8)
+        data = p.read_bytes()
     except OSError as exc:
         raise UnreadableInputError(f"cannot read {what} '{p}': {exc.strerror or exc}") from None
-    return _EncodedImage(data, image_size(data.tobytes(), f"{what} '{p}'"))
-
-
-def _plain_rgb_png(data: NDArray[np.uint8]) -> bool:
-    """Whether the bytes are an 8-bit RGB PNG (IHDR: bit depth 8, colour type 2), the
-    colour image every camera export and renderer writes."""
-    return bool(
-        len(data) > 26 and data[:8].tobytes() == _PNG_SIGNATURE and data[24] == 8
-        and data[25] == 2
-    )
+    return _EncodedImage(data, *_header(data, f"{what} '{p}'"))
 
 
 def _decode(image: _EncodedImage, p: Path, what: str) -> NDArray:
@@ -227,7 +193,8 @@ def _decode_color(image: _EncodedImage, p: Path) -> NDArray[np.uint8]:
     import cv2
 
     flag = getattr(cv2, "IMREAD_COLOR_RGB", None)  # OpenCV >= 4.10
-    if flag is not None and _plain_rgb_png(image.data):
+    png = image.png
+    if flag is not None and png and (png.bit_depth, png.colour_type) == (8, 2):
         return _decode_as(image, p, "colour image", flag)
     return _color_of(_decode(image, p, "colour image"), p)
 
@@ -235,9 +202,19 @@ def _decode_color(image: _EncodedImage, p: Path) -> NDArray[np.uint8]:
 def _decode_as(image: _EncodedImage, p: Path, what: str, flag: int | None) -> NDArray:
     import cv2
 
+    data: bytes | bytearray = image.data
+    png = image.png
+    rows = inflate_rows(data, png) if png is not None else None
+    if png is not None and rows is not None:
+        # unfilter's pixels are OpenCV's when RGB is asked of an RGB file, or grey as stored
+        if (flag is None) == (png.colour_type == 0):
+            pixels = unfilter(rows, png)
+            if pixels is not None:
+                return pixels
+        data = stored_png(data, png, rows)
     flag = cv2.IMREAD_UNCHANGED if flag is None else flag
     try:
-        decoded = cv2.imdecode(image.data, flag)  # None instead of raising
+        decoded = cv2.imdecode(np.frombuffer(data, np.uint8), flag)  # None, not raising
     except cv2.error as exc:
         raise UnreadableInputError(f"{what} '{p}' cannot be decoded ({exc.err})") from None
     if decoded is None:
