@@ -19,6 +19,7 @@ original file.
 from __future__ import annotations
 
 import struct
+import sys
 import zlib
 from dataclasses import dataclass
 
@@ -193,9 +194,13 @@ def unfilter(rows: bytes, png: PngFile) -> NDArray | None:
         return None
     bpp = png.bytes_per_pixel
     data = table[:, 1:].reshape(png.height, png.width, bpp)
+    if png.bit_depth == 16 and sys.byteorder == "little":
+        # the filters work on each byte alone, so the two bytes of a big-endian sample
+        # are swapped on the way in, and the result is native uint16 as it comes out
+        data = data[..., ::-1]
     if (kinds == 1).all():  # OpenCV's writer: every row Sub
         return _as_pixels(np.cumsum(data, axis=1, dtype=np.uint8), png)
-    out = np.empty_like(data)
+    out = np.empty(data.shape, np.uint8)
     for r, kind in enumerate(kinds.tolist()):
         if kind == 1:  # Sub: a running sum along the row, per byte of the pixel
             np.cumsum(data[r], axis=0, dtype=np.uint8, out=out[r])
@@ -207,9 +212,10 @@ def unfilter(rows: bytes, png: PngFile) -> NDArray | None:
 
 
 def _as_pixels(data: NDArray[np.uint8], png: PngFile) -> NDArray:
-    """Unfiltered bytes (H, W, bytes per pixel) as pixels."""
+    """Unfiltered bytes (H, W, bytes per pixel), C-contiguous, as pixels (16-bit samples
+    already in the machine's byte order)."""
     if png.bit_depth == 16:
-        return data.view(">u2")[..., 0].astype(np.uint16)
+        return data.view(np.uint16)[..., 0]
     return data[..., 0] if png.colour_type == 0 else data
 
 
