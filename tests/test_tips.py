@@ -7,13 +7,24 @@ import numpy as np
 import pytest
 
 from dgli_vision.classifier import pipeline
-from dgli_vision.classifier.classify import TIP_SLACK, TIP_WEIGHT, reference_terms
+from dgli_vision.classifier.classify import (
+    TIP_SLACK,
+    TIP_WEIGHT,
+    classify_coordinates,
+    confidence_of,
+    reference_terms,
+)
 from dgli_vision.classifier.references import load_references
 from dgli_vision.core.camera import DEFAULT_INTRINSICS
 from dgli_vision.core.classes import VARIANTS
 from dgli_vision.core.fold_lines import CORNER_LEG_RANGES, nominal_folds
 from dgli_vision.core.layout import default_layout
-from dgli_vision.perception.tips import TipParams, corner_tips, expected_tip_clear
+from dgli_vision.perception.tips import (
+    TipParams,
+    corner_tips,
+    expected_tip_clear,
+    settled_stickers,
+)
 from dgli_vision.sim.dataset import render_sample
 from dgli_vision.sources.frames import RGBDFrame
 
@@ -128,3 +139,74 @@ def test_a_corner_under_the_gripper_is_read(class_id, k, seed, condition):
     result = pipeline.classify_frame(frame, load_references(None))
     assert result.prediction is not None, result.reason
     assert result.prediction.class_id == class_id
+
+
+def _pairs() -> list[tuple[int, int]]:
+    """The two stickers along each edge of each corner (20 mm in from that edge)."""
+    uv, corner_of = LAYOUT.sticker_uv, LAYOUT.sticker_corners
+    gap = np.abs(uv - LAYOUT.corner_uv[corner_of])
+    out = []
+    for k in range(4):
+        for axis in (0, 1):  # the stickers 20 mm from the edge across ``axis``
+            ids = np.flatnonzero((corner_of == k) & np.isclose(gap[:, 1 - axis], 20.0))
+            assert len(ids) == 2
+            out.append((int(ids[0]), int(ids[1])))
+    return out
+
+
+def test_every_fold_moves_both_stickers_of_an_edge_pair_or_neither():
+    uv = LAYOUT.sticker_uv
+    for class_id, variants in VARIANTS.items():
+        for variant in variants:
+            for fold in nominal_folds(class_id, variant, LAYOUT):
+                side = fold.on_flap(uv)
+                for i, j in _pairs():
+                    assert side[i] == side[j], (class_id, variant, fold.word, i, j)
+    # and at every size: a corner fold's line (u / legs + v / legs = 1) with legs of
+    # 150 mm or more, a strip 125 mm or more in, pass beyond every sticker of the corner
+    tip_gap = np.abs(uv - LAYOUT.corner_uv[LAYOUT.sticker_corners])
+    smallest = min(lo for pair in CORNER_LEG_RANGES.values() for lo, _ in pair)
+    assert tip_gap.sum(axis=1).max() < smallest
+    assert tip_gap.max() < 125.0
+
+
+def _flat_stickers(seen: list[int], moved: dict[int, np.ndarray] | None = None):
+    pts = _camera_points(LAYOUT.sticker_uv)
+    for k, shift_m in (moved or {}).items():
+        pts[k] = pts[k] + shift_m
+    hidden = np.setdiff1d(np.arange(16), seen)
+    pts[hidden] = np.nan
+    heights = np.where(np.isfinite(pts[:, 0]), 2.0, np.nan)
+    return settled_stickers(pts, heights, np.array([0.0, 1, 1, 0]), LAYOUT, UP)
+
+
+def test_a_sticker_at_its_flat_place_settles_the_one_beside_it():
+    # corner A under an object but sticker 0; the other corners' stickers seen
+    seen = [0, *range(2, 14)]
+    settled = _flat_stickers(seen)
+    assert settled[[0, 1]].all()  # sticker 1 lies along the same edge
+    assert not settled[[14, 15]].any()  # A's other edge: a diagonal crease may part them
+    # a sticker displaced (on a flap laid over, say) settles nothing
+    settled = _flat_stickers(seen, moved={0: np.array([0.06, 0.05, 0.0])})
+    assert not settled[[0, 1, 14, 15]].any()
+    # a napkin lying face down (as the front-up fit sees a mirror) settles nothing
+    pts = _camera_points(LAYOUT.sticker_uv, mirrored=True)
+    assert not settled_stickers(pts, np.full(16, 2.0), None, LAYOUT, UP).any()
+
+
+def test_settled_stickers_do_not_count_as_unknown_for_the_confidence():
+    refs = load_references(None)
+    coords = np.asarray(LAYOUT.flat_coordinates())
+    unknown = np.zeros(16, bool)
+    unknown[[1, 14, 15]] = True
+    visible = ~unknown
+    loose = classify_coordinates(coords, refs, visible, unknown)
+    settled = np.zeros(16, bool)
+    settled[[0, 1]] = True
+    firm = classify_coordinates(coords, refs, visible, unknown, settled=settled)
+    # the same verdict and margin; only 14 and 15 (A's other edge) stay unknown
+    assert (firm.class_id, firm.variant, firm.margin) == (loose.class_id, loose.variant,
+                                                          loose.margin)
+    known = 15  # coordinates of the 6 segments with both stickers seen
+    assert loose.confidence == confidence_of(loose.margin, 3, 16, known)
+    assert firm.confidence == confidence_of(firm.margin, 2, 16, known) > loose.confidence

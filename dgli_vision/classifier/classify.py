@@ -478,6 +478,7 @@ def classify_coordinates(
     *,
     distances: ArrayLike | None = None,
     unsure: ArrayLike | None = None,
+    settled: ArrayLike | None = None,
 ) -> Prediction:
     """Nearest reference of an observation (see :func:`reference_distances`).
 
@@ -540,6 +541,8 @@ def classify_coordinates(
             still = still & ~np.isfinite(np.asarray(past, dtype=np.float64))
         if unsure is not None:
             still = still | np.asarray(unsure, dtype=bool)
+        if settled is not None:
+            still = still & ~np.asarray(settled, dtype=bool)
         n_unknown = int(still.sum())
     x = np.asarray(coords, dtype=np.float64)
     n_known = int(np.isfinite(x).sum())

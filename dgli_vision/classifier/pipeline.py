@@ -30,7 +30,7 @@ from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from ..perception.napkin import NapkinView, find_napkin
 from ..perception.partial import confirm_partly_hidden
 from ..perception.scale import NapkinRuler, measure_napkin
-from ..perception.tips import corner_tips
+from ..perception.tips import corner_tips, settled_stickers
 from ..sources.frames import RGBDFrame
 from .affordances import Affordances, affordances_of
 from .classify import (
@@ -454,9 +454,16 @@ def _judge(
     front = terms.total()
     near = _candidates(front, references)
     unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
-    guess = classify_coordinates(
-        coords, references, **evidence, distances=front, unsure=unsure
-    )
+    guess = classify_coordinates(coords, references, **evidence, distances=front, unsure=unsure)
+    placed = obs.points_m is not None and obs.heights_mm is not None
+    if guess.confidence < min_confidence and placed:
+        # stickers an object hides beside one lying at its flat place are not unknown
+        settled = settled_stickers(obs.points_m, obs.heights_mm, obs.turns, layout, obs.up)
+        if settled.any():
+            guess = classify_coordinates(
+                coords, references, **evidence, distances=front, unsure=unsure,
+                settled=settled,
+            )
     clock.lap("classify")
     area = layout.width_mm * layout.height_mm
     doubt = mirror_problem(

@@ -32,7 +32,9 @@ from ..core.fold_lines import fold_for_word, nominal_folds, reflect_uv
 from ..core.layout import NapkinLayout
 from .rigid import kabsch, rigid_prediction
 
-__all__ = ["TipParams", "corner_tips", "expected_tip_clear", "stage_tip_clear"]
+__all__ = [
+    "TipParams", "corner_tips", "expected_tip_clear", "settled_stickers", "stage_tip_clear"
+]
 
 
 @dataclass(frozen=True)
@@ -157,6 +159,60 @@ def _stay_fit(
     if float(r[:, 2] @ up) < p.min_face_cos:
         return None
     return r, t
+
+
+def settled_stickers(
+    points: NDArray[np.float64],
+    heights_mm: NDArray[np.float64],
+    turns: NDArray[np.float64] | None,
+    layout: NapkinLayout,
+    up: NDArray[np.float64],
+    params: TipParams | None = None,
+) -> NDArray[np.bool_]:
+    """Stickers whose place a sticker beside them tells: one of the two stickers along the
+    same edge of a corner lies at its flat place, an inlier of the rigid fit of the
+    napkin that stays (front face up) fitted with stickers of two other corners.
+
+    Every fold of the twelve states moves both stickers of such a pair or neither: a
+    corner fold (legs of 150 mm or more) and a strip (125 mm or more) take every sticker
+    of the corner (within 100 mm of its tip along an edge, 20 mm in), and a diagonal
+    crease through the corner leaves each edge's pair on one side. So the other sticker
+    of the pair lies flat at its place too, seen or not.
+
+    Returns
+    -------
+    ndarray of bool, shape (16,)
+        True for both stickers of each pair with one at its flat place.
+    """
+    p = params or TipParams()
+    corner_of = layout.sticker_corners
+    found = np.isfinite(points).all(axis=1)
+    lying = found & (np.nan_to_num(heights_mm, nan=np.inf) < LIFTED_MM)
+    if turns is not None:
+        lying &= np.asarray(turns)[corner_of] >= 0
+    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(len(points))])
+    fit = rigid_prediction(uv_m, points, lying, p.fit_tolerance_mm * 1e-3)
+    out = np.zeros(len(points), dtype=bool)
+    if fit is None:
+        return out
+    inliers = fit[1]
+    r, _ = kabsch(uv_m[inliers], points[inliers])
+    if float(r[:, 2] @ up) < p.min_face_cos:
+        return out
+    pair = _edge_pairs(layout)
+    for k in np.flatnonzero(inliers):
+        others = set(corner_of[inliers & (corner_of != corner_of[k])].tolist())
+        if len(others) >= 2:
+            out |= pair == pair[k]
+    return out
+
+
+def _edge_pairs(layout: NapkinLayout) -> NDArray[np.int64]:
+    """Each sticker's pair (the stickers along the same edge of the same corner), as
+    2 * corner + the edge (0: the one its u runs along)."""
+    corner_of = layout.sticker_corners
+    gap = np.abs(layout.sticker_uv - layout.corner_uv[corner_of])
+    return 2 * corner_of + (gap[:, 0] < gap[:, 1]).astype(np.int64)
 
 
 def corner_tips(
