@@ -84,6 +84,10 @@ class SearchImage:
         blobs lying wholly within it are judged, each as in a search of the whole
         image (the images are computed as far beyond it as their windows reach).
         None: everywhere.
+    traced : (ndarray, list), optional
+        The ``labels`` array and the outer contours of its blobs to judge, as
+        :func:`.detect.search_image` traced them (read only while ``labels`` is that
+        array); None: traced when judged.
     """
 
     color: NDArray[np.uint8]
@@ -101,6 +105,7 @@ class SearchImage:
     n_colours: int
     params: DetectorParams
     within: tuple[int, int, int, int] | None = None
+    traced: tuple[NDArray[np.uint8], list[NDArray[np.int32]]] | None = None
 
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as

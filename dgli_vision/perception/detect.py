@@ -207,34 +207,100 @@ def search_image(
         shape = (color.shape[0] // 2, color.shape[1] // 2)
         depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
         intrinsics = _halved(intrinsics)
-    box, inside, near = (0, 0, shape[1], shape[0]), None, None
-    if roi is not None:  # (only the box that judging its blobs reads is computed)
+    disc_mm_px = disc_r_mm * intrinsics.fx
+    inside, near = None, None
+    if roi is not None:
         inside = cv2.resize(roi.astype(np.uint8), shape[::-1], interpolation=cv2.INTER_NEAREST)
-        box = _judged_box(
-            cv2.boundingRect(inside), depth_mm, disc_r_mm * intrinsics.fx, med_depth
-        )
+        x, y, w, h = cv2.boundingRect(inside)
+        box = (x, y, x + w, y + h)  # (no pixel beyond it is labelled)
     else:
-        near = _napkin_box(
-            napkin, shape, 0.5 if halve else 1.0, disc_r_mm * intrinsics.fx, med_depth,
-            params,
-        )
-        if near is not None:
-            x0, y0, x1, y1 = near
-            box = _judged_box(
-                (x0, y0, x1 - x0, y1 - y0), depth_mm, disc_r_mm * intrinsics.fx, med_depth
-            )
-    color = _halved_within(color, box) if halve else color
-    norm, labels, hsv = _labelled_within(color, napkin.lut, lut, params, box)
-    if inside is not None:
-        labels = labels * inside
+        near = _napkin_box(napkin, shape, 0.5 if halve else 1.0, disc_mm_px, med_depth, params)
+        box = (0, 0, shape[1], shape[0]) if near is None else _grown(near, 1, shape)
+    planes = _Planes(color, halve, napkin.lut, lut, params, box)
+    labels = planes.labels if inside is None else planes.labels * inside
+    outer = _judged_contours(labels, near)
+    if box != (0, 0, shape[1], shape[0]):  # the rest of the box judging the blobs reads
+        rect = cv2.boundingRect(np.concatenate(outer)) if outer else (0, 0, 0, 0)
+        planes.extend(_judged_box(rect, depth_mm, disc_mm_px, med_depth))
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
-    min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
+    min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
     return SearchImage(
-        color, norm, hsv, labels, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
-        bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
+        planes.color, planes.norm, planes.hsv, labels, depth_mm, intrinsics, med_depth,
+        disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
-        params, near,
+        params, near, (labels, outer),
     )
+
+
+def _grown(
+    box: tuple[int, int, int, int], by: int, shape: tuple[int, int]
+) -> tuple[int, int, int, int]:
+    """``box`` (x0, y0, x1, y1) grown by ``by`` pixels, cut to an image of ``shape``."""
+    x0, y0, x1, y1 = box
+    return max(x0 - by, 0), max(y0 - by, 0), min(x1 + by, shape[1]), min(y1 + by, shape[0])
+
+
+def _judged_contours(
+    labels: NDArray[np.uint8], near: tuple[int, int, int, int] | None
+) -> list[NDArray[np.int32]]:
+    """The outer contours of the labelled pixels (:func:`outer_contours`) whose blobs
+    are judged: those lying wholly within ``near`` (x0, y0, x1, y1; None: all).
+
+    Labelled within ``near`` grown by one pixel, they are those of the whole image: a
+    blob within ``near`` is the same blob, and one reaching beyond it has a pixel in
+    that one-pixel ring."""
+    import cv2
+
+    mask = cv2.threshold(labels, 0, 1, cv2.THRESH_BINARY)[1]
+    # Outer boundaries of every component, also those inside holes of others (a
+    # saturated surround never hides what lies inside it).
+    outer = outer_contours(mask)
+    if near is not None:  # (blobs not wholly within it are not judged)
+        outer = [c for c in outer if _lies_within(cv2.boundingRect(c), near)]
+    return outer
+
+
+class _Planes:
+    """The search image's planes (RGB, balanced RGB, HSV, colour labels), computed in
+    ``box`` (x0, y0, x1, y1) and extended as needed (:meth:`extend`); 0 elsewhere.
+    Every pixel is computed on its own (its 2 x 2 block averaged when ``halve``, looked
+    up in ``balance``, converted, labelled by ``lut``), so it is the same whichever box
+    it is computed in."""
+
+    def __init__(
+        self, color: NDArray[np.uint8], halve: bool, balance: NDArray[np.uint8],
+        lut: NDArray[np.uint8], params: DetectorParams, box: tuple[int, int, int, int],
+    ) -> None:
+        self.frame, self.halve = color, halve
+        self.balance, self.lut, self.params, self.box = balance, lut, params, box
+        self.color = _halved_within(color, box) if halve else color
+        self.norm, self.labels, self.hsv = _labelled_within(
+            self.color, balance, lut, params, box
+        )
+
+    def extend(self, box: tuple[int, int, int, int]) -> None:
+        """Compute the pixels of ``box`` (x0, y0, x1, y1) not computed yet: the part of
+        it outside the box computed, at most four strips."""
+        x0, y0, x1, y1 = box
+        bx0, by0, bx1, by1 = self.box
+        if x1 <= x0 or y1 <= y0:
+            return
+        my0, my1 = max(y0, by0), min(y1, by1)
+        strips = [
+            (x0, y0, x1, min(by0, y1)), (x0, max(by1, y0), x1, y1),  # above, below
+            (x0, my0, min(bx0, x1), my1), (max(bx1, x0), my0, x1, my1),  # left, right
+        ]
+        for sx0, sy0, sx1, sy1 in strips:
+            if sx1 > sx0 and sy1 > sy0:
+                self._compute(np.s_[sy0:sy1, sx0:sx1], (sx0, sy0, sx1, sy1))
+
+    def _compute(self, inner: tuple[slice, slice], box: tuple[int, int, int, int]) -> None:
+        import cv2
+
+        if self.halve:
+            _halved_within(self.frame, box, out=self.color)
+        norm = cv2.LUT(self.color[inner], self.balance, dst=self.norm[inner])
+        colour_labels(norm, self.lut, self.params, out=(self.labels[inner], self.hsv[inner]))
 
 
 def _judged_box(
@@ -302,17 +368,20 @@ def _napkin_box(
 
 
 def _halved_within(
-    color: NDArray[np.uint8], box: tuple[int, int, int, int]
+    color: NDArray[np.uint8], box: tuple[int, int, int, int],
+    out: NDArray[np.uint8] | None = None,
 ) -> NDArray[np.uint8]:
     """The frame halved by pixel-area averaging (each pixel the mean of a 2 x 2 block),
-    within ``box`` (x0, y0, x1, y1, halved pixels); 0 elsewhere."""
+    within ``box`` (x0, y0, x1, y1, halved pixels); 0 elsewhere (``out``: the halved
+    image to write the box into, the rest left as it is)."""
     import cv2
 
     h2, w2 = color.shape[0] // 2, color.shape[1] // 2
     x0, y0, x1, y1 = box
-    if box == (0, 0, w2, h2):
+    if box == (0, 0, w2, h2) and out is None:
         return cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
-    out = np.zeros((h2, w2, 3), np.uint8)
+    if out is None:
+        out = np.zeros((h2, w2, 3), np.uint8)
     if x1 > x0 and y1 > y0:  # (written in place, into the box of ``out``)
         cv2.resize(
             color[2 * y0 : 2 * y1, 2 * x0 : 2 * x1], (x1 - x0, y1 - y0),
@@ -362,16 +431,13 @@ def _halved(intrinsics: Intrinsics) -> Intrinsics:
 def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection]]:
     """Every blob of the colour mask judged (:func:`.blobs.judge_blobs`): the candidate
     stickers, and the rejected blobs with the reason, search-image pixels."""
-    import cv2
-
-    mask = cv2.threshold(image.labels, 0, 1, cv2.THRESH_BINARY)[1]
-    # Outer boundaries of every component, also those inside holes of others (a
-    # saturated surround never hides what lies inside it).
-    outer = outer_contours(mask)
+    traced = image.traced
+    if traced is not None and traced[0] is image.labels:
+        outer = traced[1]
+    else:  # (labels changed since they were traced)
+        outer = _judged_contours(image.labels, image.within)
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
-    if image.within is not None:  # (blobs not wholly within it are not judged)
-        outer = [c for c in outer if _lies_within(cv2.boundingRect(c), image.within)]
     for judged in judge_blobs(outer, image):
         if isinstance(judged, Candidate):
             candidates.append(judged)
