@@ -195,7 +195,8 @@ def search_image(
     import cv2
 
     coarse = depth_mm[::8, ::8]
-    med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
+    read = coarse[coarse > 0]
+    med_depth = _median_of(read) if read.size else np.nan  # (as np.median)
     disc_r_mm = layout.disc_diameter_mm / 2
     halve = (
         bool(med_depth > 0)
@@ -218,7 +219,7 @@ def search_image(
         box = (0, 0, shape[1], shape[0]) if near is None else _grown(near, 1, shape)
     planes = _Planes(color, halve, napkin.lut, lut, params, box)
     labels = planes.labels if inside is None else planes.labels * inside
-    outer = _judged_contours(labels, near)
+    outer = _judged_contours(labels, near, box)
     if box != (0, 0, shape[1], shape[0]):  # the rest of the box judging the blobs reads
         rect = cv2.boundingRect(np.concatenate(outer)) if outer else (0, 0, 0, 0)
         planes.extend(_judged_box(rect, depth_mm, disc_mm_px, med_depth))
@@ -232,6 +233,18 @@ def search_image(
     )
 
 
+def _median_of(values: NDArray) -> float:
+    """``np.median`` of a non-empty 1-d array (the mean of the two middle values of an
+    even count), by one partial sort for integers."""
+    if not np.issubdtype(values.dtype, np.integer):
+        return float(np.median(values))
+    k = values.size // 2
+    part = np.partition(values, k)
+    if values.size % 2:
+        return float(part[k])
+    return (float(part[:k].max()) + float(part[k])) / 2
+
+
 def _grown(
     box: tuple[int, int, int, int], by: int, shape: tuple[int, int]
 ) -> tuple[int, int, int, int]:
@@ -241,20 +254,26 @@ def _grown(
 
 
 def _judged_contours(
-    labels: NDArray[np.uint8], near: tuple[int, int, int, int] | None
+    labels: NDArray[np.uint8], near: tuple[int, int, int, int] | None,
+    box: tuple[int, int, int, int] | None = None,
 ) -> list[NDArray[np.int32]]:
     """The outer contours of the labelled pixels (:func:`outer_contours`) whose blobs
     are judged: those lying wholly within ``near`` (x0, y0, x1, y1; None: all).
+    ``box`` (x0, y0, x1, y1): where pixels may be labelled (0 elsewhere; None: anywhere);
+    only the box and a pixel around it are traced.
 
     Labelled within ``near`` grown by one pixel, they are those of the whole image: a
     blob within ``near`` is the same blob, and one reaching beyond it has a pixel in
     that one-pixel ring."""
     import cv2
 
-    mask = cv2.threshold(labels, 0, 1, cv2.THRESH_BINARY)[1]
+    x0, y0, x1, y1 = _grown(box, 1, labels.shape) if box else (0, 0, *labels.shape[::-1])
+    if x1 <= x0 or y1 <= y0:
+        return []
+    mask = cv2.threshold(labels[y0:y1, x0:x1], 0, 1, cv2.THRESH_BINARY)[1]
     # Outer boundaries of every component, also those inside holes of others (a
     # saturated surround never hides what lies inside it).
-    outer = outer_contours(mask)
+    outer = outer_contours(mask, offset=(x0, y0))
     if near is not None:  # (blobs not wholly within it are not judged)
         outer = [c for c in outer if _lies_within(cv2.boundingRect(c), near)]
     return outer
@@ -451,7 +470,8 @@ _MANY_PIXELS = 8000
 
 
 def outer_contours(
-    mask: NDArray[np.uint8], *, by_level: bool | None = None
+    mask: NDArray[np.uint8], *, by_level: bool | None = None,
+    offset: tuple[int, int] = (0, 0),
 ) -> list[NDArray[np.int32]]:
     """The outer contour of every 8-connected component of a 0/1 ``mask``, also of
     those inside holes of others: ``cv2.findContours``' (``RETR_CCOMP``, all points)
@@ -462,14 +482,16 @@ def outer_contours(
     is traced level by level instead: the outermost components' outer contours
     (``RETR_EXTERNAL``, no hole traced), those components removed (flood-filled), the
     components that were inside their holes next: the same contours.
-    ``by_level`` forces either way.
+    ``by_level`` forces either way. ``offset`` (x, y) is added to every point.
     """
     import cv2
 
     if by_level is None:
         by_level = cv2.countNonZero(mask) > _MANY_PIXELS
     if not by_level:
-        contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+        contours, hierarchy = cv2.findContours(
+            mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE, offset=offset
+        )
         if hierarchy is None:
             return []
         return [contours[k] for k in np.flatnonzero(hierarchy[0][:, 3] < 0).tolist()]
@@ -485,6 +507,9 @@ def outer_contours(
             seed = (int(contour[0, 0, 0]), int(contour[0, 0, 1]))
             cv2.floodFill(rest, filled, seed, 0, flags=8)
     out.sort(key=lambda c: (int(c[0, 0, 1]), int(c[0, 0, 0])), reverse=True)
+    if offset != (0, 0):
+        for contour in out:
+            contour += np.array(offset, contour.dtype)
     return out
 
 
@@ -725,13 +750,15 @@ def _centre_of(
     always was: its box is all of the window that can hold a pixel of the blob."""
     import cv2
 
-    contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    (x, y), (x0, y0) = g.corner, g.origin
+    contours, _ = cv2.findContours(
+        region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE, offset=(x - x0, y - y0)
+    )
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
-    (x, y), (x0, y0) = g.corner, g.origin
     # (the area does not depend on where)
     contour = contours[0] if len(contours) == 1 else max(contours, key=cv2.contourArea)
-    m = cv2.moments(contour + np.array([x - x0, y - y0], contour.dtype))
+    m = cv2.moments(contour)
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     return (m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0), float(m["m00"])
