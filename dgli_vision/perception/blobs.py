@@ -110,15 +110,26 @@ class SearchImage:
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
         taken (every channel at least ``highlight_min``), or near-white once balanced
-        (HSV value at least that, saturation at most 10)."""
+        (HSV value at least that, saturation at most 10).
+
+        Each test runs only where the window's largest value reaches ``highlight_min``
+        (no pixel can pass it otherwise; one reduction is cheaper, and near every
+        sticker the largest value falls short)."""
         import cv2
 
         x0, y0, x1, y1 = window
         least = self.params.highlight_min
+        color, hsv = self.color[y0:y1, x0:x1], self.hsv[y0:y1, x0:x1]
+        if not color.size:
+            return False
         return bool(
-            cv2.countNonZero(cv2.inRange(self.color[y0:y1, x0:x1], (least,) * 3, (255,) * 3))
-            or cv2.countNonZero(
-                cv2.inRange(self.hsv[y0:y1, x0:x1], (0, 0, least), (180, 10, 255))
+            (
+                color.max() >= least
+                and cv2.countNonZero(cv2.inRange(color, (least,) * 3, (255,) * 3))
+            )
+            or (
+                hsv.max() >= least
+                and cv2.countNonZero(cv2.inRange(hsv, (0, 0, least), (180, 10, 255)))
             )
         )
 
