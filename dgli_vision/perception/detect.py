@@ -738,7 +738,8 @@ def _sticker_or_blown(
 
     labels, _ = colour_labels(cv2.LUT(image, lut), hue_lut, params)
     blown = cv2.inRange(image, (params.highlight_min,) * 3, (255, 255, 255))
-    return cv2.bitwise_or((labels > 0).astype(np.uint8), blown // 255)
+    either = cv2.bitwise_or(labels, blown, dst=labels)  # (a label, 255, or 0)
+    return cv2.threshold(either, 0, 1, cv2.THRESH_BINARY, dst=either)[1]
 
 
 def _centre_of(
