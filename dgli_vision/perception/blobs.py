@@ -35,7 +35,9 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from .detections import DetectorParams, Rejection
 
-__all__ = ["Candidate", "SearchImage", "judge_blob", "judge_blobs", "window_pad"]
+__all__ = [
+    "Candidate", "SearchImage", "judge_blob", "judge_blobs", "least_area", "window_pad",
+]
 
 #: A 3 x 3 square: erosion by one pixel.
 _SQUARE3 = np.ones((3, 3), np.uint8)
@@ -314,7 +316,7 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     import cv2
 
     area = cv2.contourArea(contour)
-    if area < max(image.min_area_px, 12.0):
+    if area < least_area(image.min_area_px):
         return None
     m = cv2.moments(contour)
     if m["m00"] <= 0:
@@ -334,6 +336,13 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     inside = np.zeros((y1 - y0, x1 - x0), bool)
     inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi
     return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
+
+
+def least_area(min_area_px: float) -> float:
+    """The least contour area (pixels) of a blob that is judged, for a search image's
+    ``min_area_px``: a smaller one is a speck, neither judged nor reported (no pixel of
+    its window is read)."""
+    return max(min_area_px, 12.0)
 
 
 def window_pad(r_exp_px: float) -> int:

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
-from .blobs import Candidate, SearchImage, judge_blobs, window_pad
+from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
@@ -217,14 +217,16 @@ def search_image(
     else:
         near = _napkin_box(napkin, shape, 0.5 if halve else 1.0, disc_mm_px, med_depth, params)
         box = (0, 0, shape[1], shape[0]) if near is None else _grown(near, 1, shape)
+    # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
+    min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
     planes = _Planes(color, halve, napkin.lut, lut, params, box)
     labels = planes.labels if inside is None else planes.labels * inside
     outer = _judged_contours(labels, near, box)
     if box != (0, 0, shape[1], shape[0]):  # the rest of the box judging the blobs reads
-        rect = cv2.boundingRect(np.concatenate(outer)) if outer else (0, 0, 0, 0)
+        least = least_area(min_px)  # (specks are not judged: their windows are not read)
+        read = [c for c in outer if cv2.contourArea(c) >= least]
+        rect = cv2.boundingRect(np.concatenate(read)) if read else (0, 0, 0, 0)
         planes.extend(_judged_box(rect, depth_mm, disc_mm_px, med_depth))
-    # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
-    min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
     return SearchImage(
         planes.color, planes.norm, planes.hsv, labels, depth_mm, intrinsics, med_depth,
         disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
