@@ -87,9 +87,9 @@ class SearchImage:
         image (the images are computed as far beyond it as their windows reach).
         None: everywhere.
     traced : (ndarray, list), optional
-        The ``labels`` array and the outer contours of its blobs to judge, as
-        :func:`.detect.search_image` traced them (read only while ``labels`` is that
-        array); None: traced when judged.
+        The ``labels`` array and the outer contours of its blobs to judge, specks left
+        out (:func:`least_area`), as :func:`.detect.search_image` traced them (read
+        only while ``labels`` is that array); None: traced when judged.
     """
 
     color: NDArray[np.uint8]

@@ -221,11 +221,10 @@ def search_image(
     min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
     planes = _Planes(color, halve, napkin.lut, lut, params, box)
     labels = planes.labels if inside is None else planes.labels * inside
-    outer = _judged_contours(labels, near, box)
+    least = least_area(min_px)  # (smaller blobs are specks: not judged, no window read)
+    outer = [c for c in _judged_contours(labels, near, box) if cv2.contourArea(c) >= least]
     if box != (0, 0, shape[1], shape[0]):  # the rest of the box judging the blobs reads
-        least = least_area(min_px)  # (specks are not judged: their windows are not read)
-        read = [c for c in outer if cv2.contourArea(c) >= least]
-        rect = cv2.boundingRect(np.concatenate(read)) if read else (0, 0, 0, 0)
+        rect = cv2.boundingRect(np.concatenate(outer)) if outer else (0, 0, 0, 0)
         planes.extend(_judged_box(rect, depth_mm, disc_mm_px, med_depth))
     return SearchImage(
         planes.color, planes.norm, planes.hsv, labels, depth_mm, intrinsics, med_depth,
