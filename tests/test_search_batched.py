@@ -222,3 +222,46 @@ def test_outer_contours_traced_level_by_level_are_those_of_one_search():
     assert len(alone) == len(together)
     assert all(np.array_equal(a, b) for a, b in zip(alone, together))
     assert len(outer_contours(mask)) == len(together)
+
+
+def test_a_search_near_the_napkin_computes_its_images_only_as_far_as_its_blobs_reach():
+    """The search image is computed in the box near the napkin and a pixel around it,
+    then only as far as the windows of the blobs judged reach: nothing beyond the box
+    while every blob lies well inside it; a blob by its edge is judged as in a search of
+    the whole image, and the rows its window reaches are computed, no more."""
+    from dataclasses import replace
+
+    from dgli_vision.perception.blobs import window_pad
+
+    img, depth = _scene()
+    img[:150], img[520:], img[:, :40], img[:, 1240:] = 95, 95, 95, 95  # a grey table
+    params = DetectorParams()
+    lut, names = hue_lut(LAYOUT, params, None)
+    napkin = find_napkin(img, depth, INTR)
+
+    def near_and_whole():
+        near = search_image(img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+        whole = search_image(
+            img, depth, INTR, LAYOUT, replace(params, napkin_margin=None), napkin, lut,
+            len(names),
+        )
+        return near, whole
+
+    near, _ = near_and_whole()
+    _, y0, _, y1 = near.within
+    assert near.halved and 0 < y0 and y1 + 30 < near.labels.shape[0]
+    assert near.norm[y0 - 1 : y1 + 1].any()
+    assert not near.norm[: y0 - 1].any() and not near.norm[y1 + 1 :].any()
+    r = LAYOUT.disc_diameter_mm / 2 * INTR.fx / 500  # (full resolution)
+    edge = (700, 2 * y1 - int(r) - 6)  # a sticker on the table, by the box's edge
+    cv2.circle(img, edge, int(r), LAYOUT.colours_srgb["blue"], -1, cv2.LINE_AA)
+    cv2.circle(img, edge, int(0.4 * r), LAYOUT.colours_srgb["red"], -1, cv2.LINE_AA)
+    near, whole = near_and_whole()
+    found, rejected = candidate_blobs(near)
+    found_all, rejected_all = candidate_blobs(whole)
+    assert len(found) == 16 and all(_same(a, b) for a, b in zip(found, found_all))
+    by_edge = [j for j in rejected if j.centroid[1] > y1 - r]
+    assert len(by_edge) == 1 and by_edge[0] in rejected_all  # (judged alike: off the cloth)
+    assert "not on the napkin" in by_edge[0].reason
+    bottom = (edge[1] + r) / 2 + window_pad(r / 2) + 2  # (its window's last row, and more)
+    assert near.norm[y1 + 1 : int(bottom)].any() and not near.norm[int(bottom) + 1 :].any()

@@ -35,7 +35,9 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from .detections import DetectorParams, Rejection
 
-__all__ = ["Candidate", "SearchImage", "judge_blob", "judge_blobs", "window_pad"]
+__all__ = [
+    "Candidate", "SearchImage", "judge_blob", "judge_blobs", "least_area", "window_pad",
+]
 
 #: A 3 x 3 square: erosion by one pixel.
 _SQUARE3 = np.ones((3, 3), np.uint8)
@@ -84,6 +86,10 @@ class SearchImage:
         blobs lying wholly within it are judged, each as in a search of the whole
         image (the images are computed as far beyond it as their windows reach).
         None: everywhere.
+    traced : (ndarray, list), optional
+        The ``labels`` array and the outer contours of its blobs to judge, specks left
+        out (:func:`least_area`), as :func:`.detect.search_image` traced them (read
+        only while ``labels`` is that array); None: traced when judged.
     """
 
     color: NDArray[np.uint8]
@@ -101,19 +107,31 @@ class SearchImage:
     n_colours: int
     params: DetectorParams
     within: tuple[int, int, int, int] | None = None
+    traced: tuple[NDArray[np.uint8], list[NDArray[np.int32]]] | None = None
 
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
         taken (every channel at least ``highlight_min``), or near-white once balanced
-        (HSV value at least that, saturation at most 10)."""
+        (HSV value at least that, saturation at most 10).
+
+        Each test runs only where the window's largest value reaches ``highlight_min``
+        (no pixel can pass it otherwise; one reduction is cheaper, and near every
+        sticker the largest value falls short)."""
         import cv2
 
         x0, y0, x1, y1 = window
         least = self.params.highlight_min
+        color, hsv = self.color[y0:y1, x0:x1], self.hsv[y0:y1, x0:x1]
+        if not color.size:
+            return False
         return bool(
-            cv2.countNonZero(cv2.inRange(self.color[y0:y1, x0:x1], (least,) * 3, (255,) * 3))
-            or cv2.countNonZero(
-                cv2.inRange(self.hsv[y0:y1, x0:x1], (0, 0, least), (180, 10, 255))
+            (
+                color.max() >= least
+                and cv2.countNonZero(cv2.inRange(color, (least,) * 3, (255,) * 3))
+            )
+            or (
+                hsv.max() >= least
+                and cv2.countNonZero(cv2.inRange(hsv, (0, 0, least), (180, 10, 255)))
             )
         )
 
@@ -298,7 +316,7 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     import cv2
 
     area = cv2.contourArea(contour)
-    if area < max(image.min_area_px, 12.0):
+    if area < least_area(image.min_area_px):
         return None
     m = cv2.moments(contour)
     if m["m00"] <= 0:
@@ -318,6 +336,13 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     inside = np.zeros((y1 - y0, x1 - x0), bool)
     inside[y - y0 : y - y0 + h, x - x0 : x - x0 + w] = roi
     return _Blob(where, area, contour, m, (x, y, w, h), (x0, y0, x1, y1), inside, z_mm, r_exp)
+
+
+def least_area(min_area_px: float) -> float:
+    """The least contour area (pixels) of a blob that is judged, for a search image's
+    ``min_area_px``: a smaller one is a speck, neither judged nor reported (no pixel of
+    its window is read)."""
+    return max(min_area_px, 12.0)
 
 
 def window_pad(r_exp_px: float) -> int:

@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.layout import NapkinLayout
-from .blobs import Candidate, SearchImage, judge_blobs, window_pad
+from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
@@ -195,7 +195,8 @@ def search_image(
     import cv2
 
     coarse = depth_mm[::8, ::8]
-    med_depth = float(np.median(coarse[coarse > 0])) if (coarse > 0).any() else np.nan
+    read = coarse[coarse > 0]
+    med_depth = _median_of(read) if read.size else np.nan  # (as np.median)
     disc_r_mm = layout.disc_diameter_mm / 2
     halve = (
         bool(med_depth > 0)
@@ -207,34 +208,119 @@ def search_image(
         shape = (color.shape[0] // 2, color.shape[1] // 2)
         depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
         intrinsics = _halved(intrinsics)
-    box, inside, near = (0, 0, shape[1], shape[0]), None, None
-    if roi is not None:  # (only the box that judging its blobs reads is computed)
+    disc_mm_px = disc_r_mm * intrinsics.fx
+    inside, near = None, None
+    if roi is not None:
         inside = cv2.resize(roi.astype(np.uint8), shape[::-1], interpolation=cv2.INTER_NEAREST)
-        box = _judged_box(
-            cv2.boundingRect(inside), depth_mm, disc_r_mm * intrinsics.fx, med_depth
-        )
+        x, y, w, h = cv2.boundingRect(inside)
+        box = (x, y, x + w, y + h)  # (no pixel beyond it is labelled)
     else:
-        near = _napkin_box(
-            napkin, shape, 0.5 if halve else 1.0, disc_r_mm * intrinsics.fx, med_depth,
-            params,
-        )
-        if near is not None:
-            x0, y0, x1, y1 = near
-            box = _judged_box(
-                (x0, y0, x1 - x0, y1 - y0), depth_mm, disc_r_mm * intrinsics.fx, med_depth
-            )
-    color = _halved_within(color, box) if halve else color
-    norm, labels, hsv = _labelled_within(color, napkin.lut, lut, params, box)
-    if inside is not None:
-        labels = labels * inside
+        near = _napkin_box(napkin, shape, 0.5 if halve else 1.0, disc_mm_px, med_depth, params)
+        box = (0, 0, shape[1], shape[0]) if near is None else _grown(near, 1, shape)
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
-    min_px = 0.3 * np.pi * (disc_r_mm * intrinsics.fx / (2.0 * max(med_depth, 1.0))) ** 2
+    min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
+    planes = _Planes(color, halve, napkin.lut, lut, params, box)
+    labels = planes.labels if inside is None else planes.labels * inside
+    least = least_area(min_px)  # (smaller blobs are specks: not judged, no window read)
+    outer = [c for c in _judged_contours(labels, near, box) if cv2.contourArea(c) >= least]
+    if box != (0, 0, shape[1], shape[0]):  # the rest of the box judging the blobs reads
+        rect = cv2.boundingRect(np.concatenate(outer)) if outer else (0, 0, 0, 0)
+        planes.extend(_judged_box(rect, depth_mm, disc_mm_px, med_depth))
     return SearchImage(
-        color, norm, hsv, labels, depth_mm, intrinsics, med_depth, disc_r_mm, min_px,
-        bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
+        planes.color, planes.norm, planes.hsv, labels, depth_mm, intrinsics, med_depth,
+        disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
-        params, near,
+        params, near, (labels, outer),
     )
+
+
+def _median_of(values: NDArray) -> float:
+    """``np.median`` of a non-empty 1-d array (the mean of the two middle values of an
+    even count), by one partial sort for integers."""
+    if not np.issubdtype(values.dtype, np.integer):
+        return float(np.median(values))
+    k = values.size // 2
+    part = np.partition(values, k)
+    if values.size % 2:
+        return float(part[k])
+    return (float(part[:k].max()) + float(part[k])) / 2
+
+
+def _grown(
+    box: tuple[int, int, int, int], by: int, shape: tuple[int, int]
+) -> tuple[int, int, int, int]:
+    """``box`` (x0, y0, x1, y1) grown by ``by`` pixels, cut to an image of ``shape``."""
+    x0, y0, x1, y1 = box
+    return max(x0 - by, 0), max(y0 - by, 0), min(x1 + by, shape[1]), min(y1 + by, shape[0])
+
+
+def _judged_contours(
+    labels: NDArray[np.uint8], near: tuple[int, int, int, int] | None,
+    box: tuple[int, int, int, int] | None = None,
+) -> list[NDArray[np.int32]]:
+    """The outer contours of the labelled pixels (:func:`outer_contours`) whose blobs
+    are judged: those lying wholly within ``near`` (x0, y0, x1, y1; None: all).
+    ``box`` (x0, y0, x1, y1): where pixels may be labelled (0 elsewhere; None: anywhere);
+    only the box and a pixel around it are traced.
+
+    Labelled within ``near`` grown by one pixel, they are those of the whole image: a
+    blob within ``near`` is the same blob, and one reaching beyond it has a pixel in
+    that one-pixel ring."""
+    import cv2
+
+    x0, y0, x1, y1 = _grown(box, 1, labels.shape) if box else (0, 0, *labels.shape[::-1])
+    if x1 <= x0 or y1 <= y0:
+        return []
+    mask = cv2.threshold(labels[y0:y1, x0:x1], 0, 1, cv2.THRESH_BINARY)[1]
+    # Outer boundaries of every component, also those inside holes of others (a
+    # saturated surround never hides what lies inside it).
+    outer = outer_contours(mask, offset=(x0, y0))
+    if near is not None:  # (blobs not wholly within it are not judged)
+        outer = [c for c in outer if _lies_within(cv2.boundingRect(c), near)]
+    return outer
+
+
+class _Planes:
+    """The search image's planes (RGB, balanced RGB, HSV, colour labels), computed in
+    ``box`` (x0, y0, x1, y1) and extended as needed (:meth:`extend`); 0 elsewhere.
+    Every pixel is computed on its own (its 2 x 2 block averaged when ``halve``, looked
+    up in ``balance``, converted, labelled by ``lut``), so it is the same whichever box
+    it is computed in."""
+
+    def __init__(
+        self, color: NDArray[np.uint8], halve: bool, balance: NDArray[np.uint8],
+        lut: NDArray[np.uint8], params: DetectorParams, box: tuple[int, int, int, int],
+    ) -> None:
+        self.frame, self.halve = color, halve
+        self.balance, self.lut, self.params, self.box = balance, lut, params, box
+        self.color = _halved_within(color, box) if halve else color
+        self.norm, self.labels, self.hsv = _labelled_within(
+            self.color, balance, lut, params, box
+        )
+
+    def extend(self, box: tuple[int, int, int, int]) -> None:
+        """Compute the pixels of ``box`` (x0, y0, x1, y1) not computed yet: the part of
+        it outside the box computed, at most four strips."""
+        x0, y0, x1, y1 = box
+        bx0, by0, bx1, by1 = self.box
+        if x1 <= x0 or y1 <= y0:
+            return
+        my0, my1 = max(y0, by0), min(y1, by1)
+        strips = [
+            (x0, y0, x1, min(by0, y1)), (x0, max(by1, y0), x1, y1),  # above, below
+            (x0, my0, min(bx0, x1), my1), (max(bx1, x0), my0, x1, my1),  # left, right
+        ]
+        for sx0, sy0, sx1, sy1 in strips:
+            if sx1 > sx0 and sy1 > sy0:
+                self._compute(np.s_[sy0:sy1, sx0:sx1], (sx0, sy0, sx1, sy1))
+
+    def _compute(self, inner: tuple[slice, slice], box: tuple[int, int, int, int]) -> None:
+        import cv2
+
+        if self.halve:
+            _halved_within(self.frame, box, out=self.color)
+        norm = cv2.LUT(self.color[inner], self.balance, dst=self.norm[inner])
+        colour_labels(norm, self.lut, self.params, out=(self.labels[inner], self.hsv[inner]))
 
 
 def _judged_box(
@@ -302,17 +388,20 @@ def _napkin_box(
 
 
 def _halved_within(
-    color: NDArray[np.uint8], box: tuple[int, int, int, int]
+    color: NDArray[np.uint8], box: tuple[int, int, int, int],
+    out: NDArray[np.uint8] | None = None,
 ) -> NDArray[np.uint8]:
     """The frame halved by pixel-area averaging (each pixel the mean of a 2 x 2 block),
-    within ``box`` (x0, y0, x1, y1, halved pixels); 0 elsewhere."""
+    within ``box`` (x0, y0, x1, y1, halved pixels); 0 elsewhere (``out``: the halved
+    image to write the box into, the rest left as it is)."""
     import cv2
 
     h2, w2 = color.shape[0] // 2, color.shape[1] // 2
     x0, y0, x1, y1 = box
-    if box == (0, 0, w2, h2):
+    if box == (0, 0, w2, h2) and out is None:
         return cv2.resize(color[: 2 * h2, : 2 * w2], (w2, h2), interpolation=cv2.INTER_AREA)
-    out = np.zeros((h2, w2, 3), np.uint8)
+    if out is None:
+        out = np.zeros((h2, w2, 3), np.uint8)
     if x1 > x0 and y1 > y0:  # (written in place, into the box of ``out``)
         cv2.resize(
             color[2 * y0 : 2 * y1, 2 * x0 : 2 * x1], (x1 - x0, y1 - y0),
@@ -362,16 +451,13 @@ def _halved(intrinsics: Intrinsics) -> Intrinsics:
 def candidate_blobs(image: SearchImage) -> tuple[list[Candidate], list[Rejection]]:
     """Every blob of the colour mask judged (:func:`.blobs.judge_blobs`): the candidate
     stickers, and the rejected blobs with the reason, search-image pixels."""
-    import cv2
-
-    mask = cv2.threshold(image.labels, 0, 1, cv2.THRESH_BINARY)[1]
-    # Outer boundaries of every component, also those inside holes of others (a
-    # saturated surround never hides what lies inside it).
-    outer = outer_contours(mask)
+    traced = image.traced
+    if traced is not None and traced[0] is image.labels:
+        outer = traced[1]
+    else:  # (labels changed since they were traced)
+        outer = _judged_contours(image.labels, image.within)
     candidates: list[Candidate] = []
     rejected: list[Rejection] = []
-    if image.within is not None:  # (blobs not wholly within it are not judged)
-        outer = [c for c in outer if _lies_within(cv2.boundingRect(c), image.within)]
     for judged in judge_blobs(outer, image):
         if isinstance(judged, Candidate):
             candidates.append(judged)
@@ -385,7 +471,8 @@ _MANY_PIXELS = 8000
 
 
 def outer_contours(
-    mask: NDArray[np.uint8], *, by_level: bool | None = None
+    mask: NDArray[np.uint8], *, by_level: bool | None = None,
+    offset: tuple[int, int] = (0, 0),
 ) -> list[NDArray[np.int32]]:
     """The outer contour of every 8-connected component of a 0/1 ``mask``, also of
     those inside holes of others: ``cv2.findContours``' (``RETR_CCOMP``, all points)
@@ -396,14 +483,16 @@ def outer_contours(
     is traced level by level instead: the outermost components' outer contours
     (``RETR_EXTERNAL``, no hole traced), those components removed (flood-filled), the
     components that were inside their holes next: the same contours.
-    ``by_level`` forces either way.
+    ``by_level`` forces either way. ``offset`` (x, y) is added to every point.
     """
     import cv2
 
     if by_level is None:
         by_level = cv2.countNonZero(mask) > _MANY_PIXELS
     if not by_level:
-        contours, hierarchy = cv2.findContours(mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE)
+        contours, hierarchy = cv2.findContours(
+            mask, cv2.RETR_CCOMP, cv2.CHAIN_APPROX_NONE, offset=offset
+        )
         if hierarchy is None:
             return []
         return [contours[k] for k in np.flatnonzero(hierarchy[0][:, 3] < 0).tolist()]
@@ -419,6 +508,9 @@ def outer_contours(
             seed = (int(contour[0, 0, 0]), int(contour[0, 0, 1]))
             cv2.floodFill(rest, filled, seed, 0, flags=8)
     out.sort(key=lambda c: (int(c[0, 0, 1]), int(c[0, 0, 0])), reverse=True)
+    if offset != (0, 0):
+        for contour in out:
+            contour += np.array(offset, contour.dtype)
     return out
 
 
@@ -647,7 +739,8 @@ def _sticker_or_blown(
 
     labels, _ = colour_labels(cv2.LUT(image, lut), hue_lut, params)
     blown = cv2.inRange(image, (params.highlight_min,) * 3, (255, 255, 255))
-    return cv2.bitwise_or((labels > 0).astype(np.uint8), blown // 255)
+    either = cv2.bitwise_or(labels, blown, dst=labels)  # (a label, 255, or 0)
+    return cv2.threshold(either, 0, 1, cv2.THRESH_BINARY, dst=either)[1]
 
 
 def _centre_of(
@@ -659,13 +752,15 @@ def _centre_of(
     always was: its box is all of the window that can hold a pixel of the blob."""
     import cv2
 
-    contours, _ = cv2.findContours(region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    (x, y), (x0, y0) = g.corner, g.origin
+    contours, _ = cv2.findContours(
+        region, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE, offset=(x - x0, y - y0)
+    )
     if not contours:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
-    (x, y), (x0, y0) = g.corner, g.origin
     # (the area does not depend on where)
     contour = contours[0] if len(contours) == 1 else max(contours, key=cv2.contourArea)
-    m = cv2.moments(contour + np.array([x - x0, y - y0], contour.dtype))
+    m = cv2.moments(contour)
     if m["m00"] <= 0:
         return (2 * c.where[0] + 0.5, 2 * c.where[1] + 0.5), 4 * c.area
     return (m["m10"] / m["m00"] + x0, m["m01"] / m["m00"] + y0), float(m["m00"])
