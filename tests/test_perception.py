@@ -171,6 +171,30 @@ def test_table_plane_through_a_lens_is_the_true_plane_for_every_camera_and_frame
             assert abs(abs(found) - abs(offset)) < 0.002
 
 
+
+def test_table_plane_samples_coarsely_only_where_depth_is_dense():
+    """A dense frame is fitted on every 24th pixel, at the plane every 16th pixel gives
+    (within noise); a frame with few readings keeps the finer sampling, plane and all."""
+    from dgli_vision.perception.lift import estimate_table_plane
+
+    rng = np.random.default_rng(3)
+    normal = np.array([0.0, -np.sin(np.radians(10)), -np.cos(np.radians(10))])
+    vv, uu = np.mgrid[0:720, 0:1280]
+    rays = np.stack([(uu - INTR.cx) / INTR.fx, (vv - INTR.cy) / INTR.fy, np.ones(uu.shape)], -1)
+    depth = -0.55 / (rays @ normal) * 1e3 + rng.normal(0.0, 1.5, uu.shape)
+    depth[200:420, 500:760] -= 40.0  # a box on the table
+    depth = np.rint(depth).astype(np.uint16)
+    fine = estimate_table_plane(depth, INTR, coarse_stride=None)
+    coarse = estimate_table_plane(depth, INTR)
+    assert np.degrees(np.arccos(min(1.0, coarse[0] @ fine[0]))) < 0.05
+    assert abs(coarse[1] - fine[1]) < 2e-4
+    assert np.degrees(np.arccos(min(1.0, abs(coarse[0] @ normal)))) < 0.1
+    sparse = depth.copy()
+    sparse[rng.random(depth.shape) < 0.6] = 0  # 40% of readings: 650 every 24th pixel
+    fine = estimate_table_plane(sparse, INTR, coarse_stride=None)
+    kept = estimate_table_plane(sparse, INTR)
+    assert np.array_equal(kept[0], fine[0]) and kept[1] == fine[1]
+
 def test_a_sliver_of_a_covered_sticker_is_rejected_a_mostly_visible_one_kept():
     img, depth = synthetic([(7, (300.0, 300.0)), (9, (700.0, 300.0))])
     radius = LAYOUT.disc_diameter_mm / 2 * INTR.fx / 500

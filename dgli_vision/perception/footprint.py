@@ -205,6 +205,36 @@ class ClothRegions:
     table_lum: float = float("nan")
 
 
+def _cell_means(color: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
+    """The mean of every ``c`` x ``c`` cell of an 8-bit image (H, W, channels), shape
+    ``(H // c, W // c, channels)``: ``cv2.resize(..., INTER_AREA)`` of the image's
+    top-left ``H // c * c`` x ``W // c * c`` pixels, to the bit.
+
+    For an integer factor OpenCV averages each cell pixel by pixel; for a cell side a
+    power of two from 4 to 16 the sums are found here instead by whole rows (the ``c``
+    rows of each row of cells added as 16-bit numbers, one addition per row of the cell)
+    and then by halves of each cell's row (log2 ``c`` additions), and rounded as OpenCV
+    rounds (the nearest integer, ties to even). Other sides are left to OpenCV (its
+    2 x 2 average rounds ties up).
+    """
+    import cv2
+
+    h, w = color.shape[0] // c, color.shape[1] // c
+    crop = color[: h * c, : w * c]
+    if crop.ndim != 3 or crop.dtype != np.uint8 or c not in (4, 8, 16):
+        return cv2.resize(crop, (w, h), interpolation=cv2.INTER_AREA)
+    ch = crop.shape[2]
+    rows = crop.reshape(h, c, w * c * ch)  # (a copy only for a cropped frame)
+    sums = np.add(rows[:, 0], rows[:, 1], dtype=np.uint16)  # at most 16 x 16 x 255
+    for k in range(2, c):
+        np.add(sums, rows[:, k], out=sums)
+    cells = sums.reshape(h * w, c * ch)  # each cell's row of sums: c pixels of ch values
+    while cells.shape[1] > ch:
+        half = cells.shape[1] // 2
+        cells = cv2.add(cells[:, :half], cells[:, half:])
+    return cv2.convertScaleAbs(cells, alpha=1.0 / (c * c)).reshape(h, w, ch)
+
+
 def cloth_regions(
     color: NDArray[np.uint8],
     white_rgb: NDArray[np.float64],
@@ -228,7 +258,7 @@ def cloth_regions(
     h, w = color.shape[0] // c, color.shape[1] // c
     if h < 4 or w < 4:
         return None
-    small = cv2.resize(color[: h * c, : w * c], (w, h), interpolation=cv2.INTER_AREA)
+    small = _cell_means(color, c)
     # The napkin's white; where the napkin is blown out the estimate falls on the next
     # brightest surface (the table), so the level is at least that of the brightest
     # few per cent of the cells, clipped ones included. (One channel at a time: the

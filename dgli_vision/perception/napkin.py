@@ -531,22 +531,32 @@ class _Samples:
         import cv2
 
         n = int(np.count_nonzero(which))
-        lut, out = _linear8(), np.empty(3)
+        lut = _linear8()
         mask = np.ascontiguousarray(which, dtype=bool).view(np.uint8).reshape(self.shape)
+        counts = np.empty((3, 256), np.float32)
         for k in range(3):
             plane = self.codes[k].reshape(self.shape)
-            counts = cv2.calcHist([plane], [0], mask, [256], [0, 256]).ravel()
-            ranks = np.cumsum(counts, dtype=np.int64)
-            lo, hi = np.searchsorted(ranks, [(n - 1) // 2, n // 2], side="right")
-            out[k] = lut[lo] if lo == hi else (lut[lo] + lut[hi]) / np.float32(2)
-        return out
+            cv2.calcHist([plane], [0], mask, [256], [0, 256], hist=counts[k, :, None])
+        ranks = np.cumsum(counts, axis=1, dtype=np.int64)
+        # each channel's levels of ranks (n - 1) // 2 and n // 2: how many levels hold
+        # fewer samples (``searchsorted(..., side="right")``)
+        lo = np.count_nonzero(ranks <= (n - 1) // 2, axis=1)
+        hi = np.count_nonzero(ranks <= n // 2, axis=1)
+        a, b = lut[lo], lut[hi]
+        return np.where(lo == hi, a, (a + b) / np.float32(2)).astype(np.float64)
 
     def balanced(self, white: NDArray) -> tuple[NDArray, NDArray]:
         """Brightness and chroma (n,) of every sample balanced to ``white``."""
         w = np.maximum(white, 1e-4).astype(np.float32)
         br, bg, bb = self.r / w[0], self.g / w[1], self.b / w[2]
-        lum = (br + bg + bb) / 3
-        chroma = np.maximum(np.maximum(br, bg), bb) - np.minimum(np.minimum(br, bg), bb)
+        lum = br + bg  # ((br + bg) + bb) / 3, in place
+        lum += bb
+        lum /= 3
+        chroma = np.maximum(br, bg)
+        np.maximum(chroma, bb, out=chroma)
+        np.minimum(br, bg, out=br)  # (br is not needed any more)
+        np.minimum(br, bb, out=br)
+        chroma -= br
         return lum, chroma
 
 

@@ -74,8 +74,10 @@ class TipParams:
     min_table_share: float = 0.25
 
 
+@lru_cache(maxsize=64)
 def _tip_samples(layout: NapkinLayout, k: int, p: TipParams) -> NDArray[np.float64]:
-    """Material points (n, 2), mm, of corner ``k``'s band."""
+    """Material points (n, 2), mm, of corner ``k``'s band (read-only: made once per
+    layout and corner)."""
     c = layout.corner_uv
     here = c[k]
     e1 = (c[(k + 1) % 4] - here) / np.linalg.norm(c[(k + 1) % 4] - here)
@@ -85,7 +87,9 @@ def _tip_samples(layout: NapkinLayout, k: int, p: TipParams) -> NDArray[np.float
     s = np.arange(p.inset_mm, leg, p.step_mm)
     a, b = np.meshgrid(s, s)
     keep = ((a + b) <= leg) & ((a + b) >= near)
-    return here + a[keep][:, None] * e1 + b[keep][:, None] * e2
+    q = here + a[keep][:, None] * e1 + b[keep][:, None] * e2
+    q.flags.writeable = False
+    return q
 
 
 @lru_cache(maxsize=512)
@@ -110,18 +114,18 @@ def expected_tip_clear(
     p = params or TipParams()
     folds = nominal_folds(class_id, variant, layout)
     size = np.array([layout.width_mm, layout.height_mm])
-    out = []
-    for k in range(len(layout.corner_uv)):
-        q = _tip_samples(layout, k, p)
-        clear = np.zeros(len(q), dtype=bool)
-        for f in folds:
-            clear |= f.on_flap(q, 2.0)
-        for f in folds:  # a flap laid down over the place covers it again
-            src = reflect_uv(q, f)
-            inside = np.all((src >= 0) & (src <= size), axis=1)
-            clear &= ~(inside & f.on_flap(src, 2.0))
-        out.append(float(clear.mean()))
-    return tuple(out)
+    # the four bands at once (each point is judged on its own), then each band's share
+    bands = [_tip_samples(layout, k, p) for k in range(len(layout.corner_uv))]
+    q = np.concatenate(bands)
+    clear = np.zeros(len(q), dtype=bool)
+    for f in folds:
+        clear |= f.on_flap(q, 2.0)
+    for f in folds:  # a flap laid down over the place covers it again
+        src = reflect_uv(q, f)
+        inside = np.all((src >= 0) & (src <= size), axis=1)
+        clear &= ~(inside & f.on_flap(src, 2.0))
+    ends = np.cumsum([len(b) for b in bands])
+    return tuple(float(part.mean()) for part in np.split(clear, ends[:-1]))
 
 
 def stage_tip_clear(
@@ -133,9 +137,16 @@ def stage_tip_clear(
     base = list(expected_tip_clear(class_id, variant, layout))
     if stage:
         word = stage.split(",")[0].split(" ", 1)[1]
-        for name in fold_for_word(word, class_id, layout).moved_corners:
+        for name in _moved_corners(word, class_id, layout):
             base[layout.corner_names.index(name)] = 1.0
     return tuple(base)
+
+
+@lru_cache(maxsize=256)
+def _moved_corners(word: str, class_id: str, layout: NapkinLayout) -> tuple[str, ...]:
+    """The corners the fold ``word`` of class ``class_id`` moves (the references share a
+    few dozen folds: each is made once)."""
+    return fold_for_word(word, class_id, layout).moved_corners
 
 
 def _stay_fit(
