@@ -192,10 +192,19 @@ class NapkinMasks:
         out = np.full(len(uv), np.nan)
         if self.height_mm is None:
             return out
-        for k, (u, v) in enumerate(np.asarray(uv, dtype=np.float64)):
-            if not (np.isfinite(u) and np.isfinite(v)):
-                continue
-            i, j = round(v / self.stride), round(u / self.stride)
+        uv = np.asarray(uv, dtype=np.float64).reshape(-1, 2)
+        ok = np.isfinite(uv).all(axis=1)
+        hh, ww = self.height_mm.shape
+        s = self.stride
+        near = ok & (np.abs(uv) < 1e9).all(axis=1)  # (an int, once rounded)
+        ij = np.zeros((len(uv), 2), dtype=np.intp)
+        ij[near] = np.rint(uv[near, ::-1] / s)  # round half to even, as round() does
+        inside = near & (ij >= 1).all(axis=1) & (ij[:, 0] < hh - 1) & (ij[:, 1] < ww - 1)
+        if inside.any():  # whole 3 x 3 windows, all at once
+            out[inside] = _window_medians(self.height_mm, ij[inside])
+        for k in np.flatnonzero(ok & ~inside):  # windows the grid's edge cuts
+            u, v = uv[k]
+            i, j = round(v / s), round(u / s)
             win = self.height_mm[max(i - 1, 0) : i + 2, max(j - 1, 0) : j + 2]
             told = win[np.isfinite(win)]
             if told.size:
@@ -222,6 +231,23 @@ class NapkinMasks:
             us, vs = np.arange(j0, j1) * s, np.arange(i0, i1) * s
             mine[i0:i1, j0:j1] |= np.hypot(us[None, :] - u, vs[:, None] - v) <= reach
         return replace(self, occluder=self.occluder & ~mine)
+
+
+def _window_medians(grid: NDArray[np.floating], ij: NDArray[np.intp]) -> NDArray[np.float64]:
+    """The median of the finite values of the 3 x 3 window of ``grid`` around each
+    sample (i, j) of ``ij`` (n, 2), windows inside the grid; NaN where none is finite.
+    ``np.nanmedian``'s value: the middle one, or the mean of the two middle ones in the
+    grid's dtype."""
+    d = np.arange(-1, 2)
+    rows = (ij[:, 0, None] + d)[:, :, None]
+    cols = (ij[:, 1, None] + d)[:, None, :]
+    win = np.sort(grid[rows, cols].reshape(len(ij), 9), axis=1)  # NaN last
+    n = np.count_nonzero(np.isfinite(win), axis=1)
+    k = np.arange(len(ij))
+    hi = win[k, n // 2 % 9]
+    lo = win[k, np.maximum(n - 1, 0) // 2]
+    mid = np.where(n % 2 == 1, hi, (lo + hi) / grid.dtype.type(2))
+    return np.where(n > 0, mid, np.nan).astype(np.float64)
 
 
 def _near(
