@@ -241,12 +241,17 @@ def _candidates(
     distances: NDArray[np.float64], references: ReferenceSet, k: int = 3
 ) -> tuple[tuple[str, str | None, float], ...]:
     """The nearest reference of each of the ``k`` nearest classes, nearest first."""
-    order = np.argsort(distances, kind="stable")
-    first = np.unique(references.class_codes()[order], return_index=True)[1]  # each class's
-    out = []
-    for i in order[np.sort(first)[:k]]:
+    codes = references.class_codes()
+    out: list[tuple[str, str | None, float]] = []
+    classes: set[int] = set()
+    for i in np.argsort(distances, kind="stable").tolist():  # stops at the k-th class
+        if codes[i] in classes:
+            continue
+        classes.add(codes[i])
         r = references.references[i]
         out.append((r.class_id, r.variant, round(float(distances[i]), 6)))
+        if len(out) == k:
+            break
     return tuple(out)
 
 
