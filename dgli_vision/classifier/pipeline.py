@@ -424,6 +424,12 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
+def _unknown_summary(obs: ClothObservation) -> str:
+    """What the stickers neither seen nor evidence of a fold are (for a "cannot tell":
+    only worked out when one is said)."""
+    return obs.evidence.summary() if obs.evidence is not None else ""
+
+
 def _judge(
     frame: RGBDFrame,
     references: ReferenceSet,
@@ -437,7 +443,6 @@ def _judge(
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
-    unknown = obs.evidence.summary() if obs.evidence is not None else ""
     problem = scale_problem(obs.ruler, layout) or rigidity_problem(
         obs.ruler, lens_known=frame.intrinsics.distorted
     )
@@ -450,6 +455,7 @@ def _judge(
         terms = reference_terms(coords, references, **evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
+        unknown = _unknown_summary(obs)
         if unknown:
             reason += f" ({unknown})"
         depth_hint = depth_scale_hint(detections, frame.depth_mm)
@@ -496,6 +502,7 @@ def _judge(
         )
     if obs.evidence is not None and obs.evidence.occluded:
         why.append("the napkin is partly covered by an object above it")
+    unknown = _unknown_summary(obs)
     if unknown:
         why.append(unknown)
     if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():
