@@ -220,6 +220,29 @@ def test_cloth_coordinates_large_batch_spans_blocks():
     np.testing.assert_allclose(out[-1], dgli(s[i, 0], s[i, 1], s[j, 0], s[j, 1]), rtol=1e-12)
 
 
+def test_one_state_gets_bit_for_bit_the_coordinates_of_a_batch():
+    # a frame alone goes through the stacked kernel for few pairs, the references were
+    # built in batches by the blocked one: the two must agree to the last bit, also on
+    # touching, zero-length, coplanar and missing segments
+    rng = np.random.default_rng(RNG_SEED + 17)
+    segs = rng.normal(size=(40, 8, 2, 3))
+    segs[1, 1, 0] = segs[1, 0, 1]  # touching at an end
+    segs[2, ..., 2] = 0.0  # all coplanar
+    segs[3, 2, 1] = segs[3, 2, 0]  # zero length
+    segs[4, 5] = np.nan  # missing
+    segs[5] = np.round(segs[5], 0)  # crossings on a grid
+    segs[6, :, :, 2] = 0.0
+    segs[6, 0] = [[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]]
+    segs[6, 1] = [[0.0, -1.0, 0.0], [0.0, 1.0, 0.0]]  # crossing interiors
+    up = np.array([0.1, -0.2, 0.97])
+    batch = cloth_coordinates(np.repeat(segs, 50, axis=0), up)[::50]
+    for k, s in enumerate(segs):
+        alone = cloth_coordinates(s, up)
+        assert np.array_equal(alone, batch[k], equal_nan=True), k
+        assert np.array_equal(np.signbit(alone), np.signbit(batch[k])), k
+    assert (cloth_coordinates(segs[6], up)[0] == 0.0) and np.isnan(batch[4]).any()
+
+
 def test_missing_segment_gives_nan_only_for_its_pairs():
     rng = np.random.default_rng(RNG_SEED + 10)
     segs = rng.normal(size=(8, 2, 3))

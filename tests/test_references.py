@@ -200,3 +200,15 @@ def test_reference_ranks_are_kept_per_mask_and_give_the_same_distances(fresh, sh
     spearman = pairwise_spearman(coords[known][None], shipped.matrix()[:, known])[0]
     got = reference_distances(coords, shipped)
     np.testing.assert_array_equal(got, spearman)  # no other term given
+
+
+def test_loaded_references_come_with_the_tables_every_frame_reads(tmp_path, shipped):
+    # the first frame of a process must not build them (milliseconds in a real-time loop)
+    path = tmp_path / "refs.json"
+    write_references(path, shipped)
+    refs = load_references(path)
+    for name in ("coordinates", "visible_rate", "lifted_rate", "class_codes", "spread_lo",
+                 "height_lo", "back_rate", "past_rate", "footprint_range", "tip_clear"):
+        assert name in refs._stacks, name
+    assert np.array_equal(refs.matrix(), shipped.matrix())
+    assert np.array_equal(refs.tip_clear(), shipped.tip_clear())

@@ -69,7 +69,7 @@ class RigidMap:
 
     def __call__(self, uv_mm: NDArray[np.float64]) -> NDArray[np.float64]:
         """Camera-frame points (k, 3) of material points (k, 2) in mm."""
-        uv = np.atleast_2d(np.asarray(uv_mm, dtype=float))
+        uv = np.asarray(uv_mm, dtype=float).reshape(-1, 2)
         src = np.zeros((len(uv), 3))
         src[:, :2] = uv * 1e-3
         return src @ self.rotation.T + self.translation
@@ -103,24 +103,28 @@ def fit_map(
     uv_all = np.asarray(uv_mm, dtype=float)
     lift = 0.05  # m: the virtual points along the normal
     along = face * lift * up
+    every = bool(keep.all())  # (then no rows to pick)
     for _ in range(3):
-        n = int(np.count_nonzero(keep))
+        n = len(keep) if every else int(np.count_nonzero(keep))
         if n < 2:
             return None
-        pts = points[keep]
+        pts = points if every else points[keep]
         src = np.zeros((2 * n, 3))  # the points on the napkin, then lifted along z
-        src[:n, :2] = src[n:, :2] = uv_all[keep] * 1e-3
+        src[:n, :2] = src[n:, :2] = (uv_all if every else uv_all[keep]) * 1e-3
         src[n:, 2] = lift
         dst = np.concatenate([pts, pts + along], axis=0)
         r, t = _kabsch(src, dst)
         m = RigidMap(r, t)
         # the residuals of the points on the napkin: m(uv) of those points, whose
-        # material coordinates are the first n rows of src
-        res = np.linalg.norm(src[:n] @ r.T + t - pts, axis=1)
+        # material coordinates are the first n rows of src (their lengths as
+        # np.linalg.norm takes them, without its overhead)
+        res = src[:n] @ r.T + t - pts
+        res = np.sqrt(np.add.reduce(res * res, axis=1))
         worst = int(np.argmax(res))
         if res[worst] <= FIT_TOLERANCE_M or n <= 2:
             return m
         keep[np.flatnonzero(keep)[worst]] = False
+        every = False
     return m
 
 
@@ -405,8 +409,8 @@ def _own_fit(
     pts = np.where(obs.visible[ids][:, None], pts, np.nan)
     uv = np.asarray(layout.sticker_uv, dtype=float)[ids]
     corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
-    ok = np.isfinite(pts).all(axis=1)
     if face == 0:
+        ok = np.isfinite(pts).all(axis=1)
         if ok.sum() < 3:
             return None
         src = np.column_stack([uv[ok] * 1e-3, np.zeros(int(ok.sum()))])

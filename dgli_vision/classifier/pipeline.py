@@ -241,12 +241,17 @@ def _candidates(
     distances: NDArray[np.float64], references: ReferenceSet, k: int = 3
 ) -> tuple[tuple[str, str | None, float], ...]:
     """The nearest reference of each of the ``k`` nearest classes, nearest first."""
-    order = np.argsort(distances, kind="stable")
-    first = np.unique(references.class_codes()[order], return_index=True)[1]  # each class's
-    out = []
-    for i in order[np.sort(first)[:k]]:
+    codes = references.class_codes()
+    out: list[tuple[str, str | None, float]] = []
+    classes: set[int] = set()
+    for i in np.argsort(distances, kind="stable").tolist():  # stops at the k-th class
+        if codes[i] in classes:
+            continue
+        classes.add(codes[i])
         r = references.references[i]
         out.append((r.class_id, r.variant, round(float(distances[i]), 6)))
+        if len(out) == k:
+            break
     return tuple(out)
 
 
@@ -419,6 +424,12 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
+def _unknown_summary(obs: ClothObservation) -> str:
+    """What the stickers neither seen nor evidence of a fold are (for a "cannot tell":
+    only worked out when one is said)."""
+    return obs.evidence.summary() if obs.evidence is not None else ""
+
+
 def _judge(
     frame: RGBDFrame,
     references: ReferenceSet,
@@ -432,7 +443,6 @@ def _judge(
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
-    unknown = obs.evidence.summary() if obs.evidence is not None else ""
     problem = scale_problem(obs.ruler, layout) or rigidity_problem(
         obs.ruler, lens_known=frame.intrinsics.distorted
     )
@@ -445,6 +455,7 @@ def _judge(
         terms = reference_terms(coords, references, **evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
+        unknown = _unknown_summary(obs)
         if unknown:
             reason += f" ({unknown})"
         depth_hint = depth_scale_hint(detections, frame.depth_mm)
@@ -491,6 +502,7 @@ def _judge(
         )
     if obs.evidence is not None and obs.evidence.occluded:
         why.append("the napkin is partly covered by an object above it")
+    unknown = _unknown_summary(obs)
     if unknown:
         why.append(unknown)
     if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():

@@ -525,7 +525,27 @@ def load_references(path: str | Path | None = None) -> ReferenceSet:
             raise UnreadableInputError(
                 f"no reference set at '{path}': give --references FILE or set DGLI_REFERENCES"
             )
-    return read_references(path)
+    return _warmed(read_references(path))
+
+
+def _warmed(refs: ReferenceSet) -> ReferenceSet:
+    """``refs`` with what a frame classified would otherwise build or import on its first
+    use, in the middle of a real-time loop: the stacked per-reference arrays the
+    classifier reads (about 3 ms), ``numpy.ma`` (about 9 ms: ``np.unique``, which the
+    perception calls every frame, imports it on its first call) and the tips' table
+    (:meth:`ReferenceSet.tip_clear`, about 9 ms, read by the first frame that tells its
+    corners' tip places: it doubled that frame's time)."""
+    import numpy.ma  # noqa: F401
+
+    for name in ("coordinates", "visible_rate", "lifted_rate", "past_rate", "back_rate",
+                 "footprint_range"):
+        refs._stacked(name)
+    refs.class_codes()
+    refs.height_bounds()
+    refs.spread_bounds()
+    layout_of_size(refs.napkin_mm)
+    refs.tip_clear()
+    return refs
 
 
 def read_references(path: str | Path) -> ReferenceSet:

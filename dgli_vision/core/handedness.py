@@ -29,12 +29,19 @@ MIN_SHAPE = 0.08
 def _turns(points: NDArray[np.float64]) -> NDArray[np.float64]:
     """Twice the signed area of triangles (..., 3, 2) over their squared longest side
     (x right, y up: counter-clockwise positive); 0 for a degenerate triangle."""
-    a, b, c = points[..., 0, :], points[..., 1, :], points[..., 2, :]
-    cross = (b[..., 0] - a[..., 0]) * (c[..., 1] - a[..., 1]) - (b[..., 1] - a[..., 1]) * (
-        c[..., 0] - a[..., 0]
-    )
-    sides = np.stack([((p - q) ** 2).sum(axis=-1) for p, q in ((a, b), (b, c), (c, a))])
-    longest = sides.max(axis=0)
+    return _turns_of_edges(points[..., _EDGE_END, :] - points[..., _EDGE_START, :])
+
+
+#: The edges b - a, c - a and c - b of a triangle (a, b, c): their ends and starts.
+_EDGE_END = np.array([1, 2, 2])
+_EDGE_START = np.array([0, 0, 1])
+
+
+def _turns_of_edges(edges: NDArray[np.float64]) -> NDArray[np.float64]:
+    """:func:`_turns` of triangles given by their edges b - a, c - a, c - b (..., 3, 2)."""
+    ab, ac = edges[..., 0, :], edges[..., 1, :]
+    cross = ab[..., 0] * ac[..., 1] - ab[..., 1] * ac[..., 0]
+    longest = np.square(edges).sum(axis=-1).max(axis=-1)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(longest > 0, cross / longest, 0.0)
 
@@ -48,6 +55,21 @@ def _triangles(layout: NapkinLayout) -> tuple[NDArray[np.intp], NDArray[np.float
     ids.flags.writeable = False
     printed.flags.writeable = False
     return ids, printed
+
+
+@lru_cache(maxsize=32)
+def _triangle_edges(
+    layout: NapkinLayout,
+) -> tuple[NDArray[np.intp], NDArray[np.intp], NDArray[np.bool_], NDArray[np.float64]]:
+    """For :func:`corner_turns`, once per layout (read-only): the sticker ids at the ends
+    and at the starts of the edges of every triangle, shape (4, 4, 3) each, whether its
+    printed turn counts (not edge on), and its sign, shape (4, 4)."""
+    ids, printed = _triangles(layout)
+    out = (ids[..., _EDGE_END], ids[..., _EDGE_START], np.abs(printed) >= MIN_SHAPE,
+           np.sign(printed))
+    for a in out:
+        a.flags.writeable = False
+    return out
 
 
 def corner_turns(points_xy: NDArray[np.float64], layout: NapkinLayout) -> NDArray[np.float64]:
@@ -69,11 +91,11 @@ def corner_turns(points_xy: NDArray[np.float64], layout: NapkinLayout) -> NDArra
         of its stickers are located, the triangles are seen edge on, or they disagree
         evenly.
     """
-    ids, printed = _triangles(layout)
-    pts = np.asarray(points_xy, dtype=float)[..., ids, :]  # (..., 4, 4, 3, 2)
-    turn = _turns(pts)
-    counts = np.isfinite(turn) & (np.abs(turn) >= MIN_SHAPE) & (np.abs(printed) >= MIN_SHAPE)
-    votes = np.where(counts, np.sign(np.nan_to_num(turn)) * np.sign(printed), 0.0).sum(axis=-1)
+    ends, starts, printed_counts, printed_sign = _triangle_edges(layout)
+    pts = np.asarray(points_xy, dtype=float)
+    turn = _turns_of_edges(pts[..., ends, :] - pts[..., starts, :])  # (..., 4, 4)
+    counts = np.isfinite(turn) & (np.abs(turn) >= MIN_SHAPE) & printed_counts
+    votes = np.where(counts, np.sign(turn) * printed_sign, 0.0).sum(axis=-1)
     return np.sign(votes)
 
 

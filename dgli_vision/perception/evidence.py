@@ -174,6 +174,15 @@ def _flat_distances_mm(layout: NapkinLayout) -> NDArray[np.float64]:
     return out
 
 
+@lru_cache(maxsize=32)
+def _stretch_limit_mm(layout: NapkinLayout, tolerance_mm: float) -> NDArray[np.float64]:
+    """The farthest two stickers may lie apart, mm, shape (16, 16): their distance on the
+    flat napkin plus ``tolerance_mm``; read-only, once per layout."""
+    out = _flat_distances_mm(layout) + tolerance_mm
+    out.flags.writeable = False
+    return out
+
+
 def drop_inconsistent(
     markers: Markers3D, layout: NapkinLayout, params: EvidenceParams | None = None
 ) -> tuple[Markers3D, NDArray[np.bool_]]:
@@ -188,12 +197,13 @@ def drop_inconsistent(
     p = params or EvidenceParams()
     pts = markers.points.copy()
     found = markers.found.copy()
-    flat_mm = _flat_distances_mm(layout)
+    limit = _stretch_limit_mm(layout, p.stretch_tolerance_mm)
     dropped = np.zeros(len(pts), dtype=bool)
     while found.sum() > 2:
-        d3 = np.linalg.norm(pts[:, None] - pts[None], axis=2) * 1e3
-        bad = (d3 > flat_mm + p.stretch_tolerance_mm) & found[:, None] & found[None]
-        counts = bad.sum(axis=1)
+        diff = pts[:, None] - pts[None]
+        d3 = np.sqrt(np.add.reduce(diff * diff, axis=2)) * 1e3  # as np.linalg.norm takes it
+        # (a sticker not located has NaN distances, which compare False)
+        counts = np.count_nonzero(d3 > limit, axis=1)
         if counts.max() == 0:
             break
         worst = int(np.argmax(counts))

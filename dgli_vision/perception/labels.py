@@ -70,8 +70,10 @@ def colour_labels(
     import cv2
 
     labels_out, hsv_out = out if out is not None else (None, None)
-    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV)  # (its own: split copies a view first)
-    h, s, v = cv2.split(hsv)  # (planes of their own: each is overwritten below)
+    hsv = cv2.cvtColor(norm, cv2.COLOR_RGB2HSV, dst=hsv_out)
+    # planes of their own (each is overwritten below); three extractChannel calls cost
+    # a fraction of one cv2.split of the same image
+    h, s, v = (cv2.extractChannel(hsv, k) for k in range(3))
     needed, v_least = least_saturation(
         params.min_saturation, params.min_value, params.min_chroma
     )
@@ -81,9 +83,6 @@ def colour_labels(
         cv2.bitwise_and(coloured, v, dst=coloured)
     labels = cv2.LUT(h, _hue_table(lut), dst=h)
     labels = cv2.bitwise_and(labels, coloured, dst=h if labels_out is None else labels_out)
-    if hsv_out is not None:
-        hsv_out[...] = hsv
-        hsv = hsv_out
     return labels, hsv
 
 
