@@ -30,6 +30,7 @@ __all__ = [
     "CameraPose",
     "Intrinsics",
     "look_at_table",
+    "undistort_points",
 ]
 
 
@@ -111,12 +112,9 @@ class Intrinsics:
         px = np.asarray(pixels, dtype=np.float64).reshape(-1, 2)
         if not self.distorted or not len(px):
             return px.copy()
-        import cv2
 
         k = self.matrix()
-        out = cv2.undistortPoints(
-            px[:, None, :], k, self._coefficients(), P=k, criteria=_UNDISTORT_CRITERIA
-        )
+        out = undistort_points(px[:, None, :], k, self._coefficients(), _UNDISTORT_CRITERIA)
         return out.reshape(-1, 2).astype(np.float64)
 
     def distort_pixels(self, pixels: ArrayLike) -> NDArray[np.float64]:
@@ -152,6 +150,38 @@ class Intrinsics:
 
 #: Iterations of the inverse distortion: 40 or until it moves less than 1e-6 (normalised).
 _UNDISTORT_CRITERIA = (3, 40, 1e-6)  # cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS
+
+
+def undistort_points(
+    points: NDArray, matrix: NDArray, coefficients: NDArray, criteria: tuple[int, int, float]
+) -> NDArray:
+    """OpenCV's ``undistortPoints`` with ``P = K``, iterated until ``criteria``.
+
+    OpenCV 4 offers the iteration as ``undistortPointsIter``; OpenCV 5 dropped that name
+    and takes ``criteria`` in ``undistortPoints``. Both give the same points.
+
+    Parameters
+    ----------
+    points : ndarray, shape (n, 1, 2)
+        Pixels of the distorted image.
+    matrix : ndarray, shape (3, 3)
+        Camera matrix.
+    coefficients : ndarray
+        OpenCV's distortion coefficients.
+    criteria : tuple
+        OpenCV's termination criteria (type, count, eps).
+
+    Returns
+    -------
+    ndarray, shape (n, 1, 2)
+        The ideal pinhole pixels.
+    """
+    import cv2
+
+    if hasattr(cv2, "undistortPointsIter"):
+        return cv2.undistortPointsIter(points, matrix, coefficients, None, matrix, criteria)
+    return cv2.undistortPoints(points, matrix, coefficients, P=matrix, criteria=criteria)
+
 
 #: Lengths of OpenCV's distortion vectors.
 DISTORTION_LENGTHS = (4, 5, 8, 12, 14)

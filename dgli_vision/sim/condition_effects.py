@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.camera import Intrinsics
+from ..core.camera import Intrinsics, undistort_points
 
 if TYPE_CHECKING:
     from .condition_params import Conditions
@@ -201,7 +201,7 @@ def apply_lens_distortion(
     pts = np.stack([uu.ravel(), vv.ravel()], 1)[:, None, :]
     k = intrinsics.matrix()
     criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-6)
-    und = cv2.undistortPoints(pts, k, dist, P=k, criteria=criteria)
+    und = undistort_points(pts, k, dist, criteria)
     mx = und[:, 0, 0].reshape(h, w).astype(np.float32)
     my = und[:, 0, 1].reshape(h, w).astype(np.float32)
     color = cv2.remap(color, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)

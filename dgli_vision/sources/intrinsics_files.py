@@ -238,12 +238,16 @@ def load_calibration_text(text: str, source: str) -> Any:
     import cv2
 
     flags = cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY
+    # OpenCV 4 reads YAML only after its "%YAML" directive (ROS writes plain YAML)
+    head = text.lstrip()[:1]
+    added = 0 if head in ("%", "{", "[", "<") else 1
     try:
-        storage = cv2.FileStorage(text, flags)
+        storage = cv2.FileStorage("%YAML:1.0\n" * added + text, flags)
     except (cv2.error, SystemError) as exc:
         message = str(exc.__cause__ or exc).strip().splitlines()
         where = re.search(r"\((\d+)\): (.*?)'?$", message[-1] if message else "")
-        why = f"line {where.group(1)}: {where.group(2)}" if where else "unknown format"
+        line = int(where.group(1)) - added if where else 0
+        why = f"line {line}: {where.group(2)}" if where else "unknown format"
         raise CalibrationError(
             f"intrinsics '{source}' are neither JSON nor YAML/XML that OpenCV can read ({why})"
         ) from None
