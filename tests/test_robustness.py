@@ -128,6 +128,15 @@ def test_with_a_gripper_over_the_napkin_the_answer_is_right_or_cannot_tell(class
 
 # --- the pieces -------------------------------------------------------------------------
 
+def test_a_gripper_holding_a_corner_over_a_blob_too_small_for_a_dot_is_read_not_a_crash():
+    # A speck at the fingers' edge had no pixel in its inner part: the dot's purity was
+    # a division by zero, which stopped the whole frame (seed 32, flat, pair 4).
+    s = render_sample("01", 4, 32, conditions=("grasp",))
+    result = classify_frame(frame_of(s), REFS)
+    assert result.prediction is not None, result.reason
+    assert result.prediction.class_id == "01"
+
+
 
 def test_the_napkin_white_is_found_under_a_colour_cast():
     state = sample_state("01", None, np.random.default_rng(0), placement=False)

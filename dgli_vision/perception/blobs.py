@@ -663,7 +663,7 @@ def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | s
     purity = disc_counts[disc] / outer
     dot: int | None = None
     inner = sum(inner_counts[k])
-    if inner >= p.min_dot_seen * inner_area[k]:
+    if inner and inner >= p.min_dot_seen * inner_area[k]:
         dot_counts = inner_counts[k]
         dot = _first_largest(dot_counts)
         purity = min(purity, dot_counts[dot] / inner)
