@@ -80,7 +80,9 @@ class ClothMesh:
         ).reshape(-1, 2)  # (samples^2 (ny-1) (nx-1), 2)
         cells = np.floor((pts - pts.min(axis=0)) / cell_mm).astype(np.int64)
         keys = cells[:, 0] * (int(cells[:, 1].max()) + 1) + cells[:, 1]
-        return float(np.unique(keys).size * cell_mm**2)
+        occupied = np.zeros(int(keys.max()) + 1, dtype=bool)  # the raster, flattened
+        occupied[keys] = True
+        return float(np.count_nonzero(occupied) * cell_mm**2)
 
     def interpolate(self, uv: NDArray[np.float64]) -> NDArray[np.float64]:
         """World positions of material points by bilinear interpolation.

@@ -8,6 +8,7 @@ straight above can see.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -340,14 +341,15 @@ def sticker_visibility(
     tree = cKDTree(mesh.xyz[:, :2])
     radius = 1.0 * max(mesh.spacing_mm) * 1e-3
     far_mm = 3.0 * max(mesh.spacing_mm)
+    # every (disc point, vertex near it) pair at once: the vertices, and whose they are
+    near = tree.query_ball_point(pts[:, :2], radius)
+    counts = np.fromiter(map(len, near), dtype=np.intp, count=len(near))
+    vertex = np.fromiter(itertools.chain.from_iterable(near), dtype=np.intp, count=counts.sum())
+    point = np.repeat(np.arange(len(pts)), counts)
+    above = mesh.xyz[vertex, 2] > pts[point, 2] + 0.5 * thickness_m
+    other = np.linalg.norm(mesh.uv[vertex] - uv[point], axis=1) > far_mm
     covered = np.zeros(len(pts), dtype=bool)
-    for k, near in enumerate(tree.query_ball_point(pts[:, :2], radius)):
-        if not near:
-            continue
-        near = np.asarray(near)
-        above = mesh.xyz[near, 2] > pts[k, 2] + 0.5 * thickness_m
-        other = np.linalg.norm(mesh.uv[near] - uv[k], axis=1) > far_mm
-        covered[k] = bool(np.any(above & other))
+    covered[point[above & other]] = True
     return 1.0 - covered.reshape(len(layout.sticker_uv), -1).mean(axis=1)
 
 
