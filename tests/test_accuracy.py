@@ -15,7 +15,7 @@ from dgli_vision.sources.frames import RGBDFrame
 def test_class_accuracy_on_fresh_noisy_renders():
     refs = load_references()
     hits, hits_all_visible = [], []
-    for sample in render_samples(3, seed=4242):
+    for sample in render_samples(2, seed=4242):  # 24 pairs (the bench renders 240 more)
         r = sample.result
         frame = RGBDFrame(r.color, r.depth_mm, r.intrinsics)
         p = classify_frame(frame, refs).prediction
@@ -23,6 +23,6 @@ def test_class_accuracy_on_fresh_noisy_renders():
         hits.append(ok)
         if r.visible.all():
             hits_all_visible.append(ok)
-    assert len(hits) == 36 and len(hits_all_visible) >= 15
+    assert len(hits) == 24 and len(hits_all_visible) >= 10
     assert np.mean(hits_all_visible) >= 0.98
     assert np.mean(hits) >= 0.90
