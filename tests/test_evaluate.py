@@ -271,3 +271,24 @@ def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
     assert "confusion.png" in parser.images and len(parser.images) == 3
     assert all((report / src).is_file() for src in parser.images)
     assert "right 1, cannot tell 1, wrong 0, unreadable 0" in page
+
+
+def test_a_bug_met_on_one_pair_is_that_pairs_failure_and_the_batch_goes_on(
+    small_folder, monkeypatch
+):
+    from dgli_vision.classifier import pipeline
+
+    real = pipeline.classify_frame
+
+    def buggy(frame, *args, **kwargs):
+        if "02_000" in frame.color_path:
+            raise ZeroDivisionError("division by zero")
+        return real(frame, *args, **kwargs)
+
+    monkeypatch.setattr(pipeline, "classify_frame", buggy)
+    data = json.loads(run([str(small_folder), "--json", "-j", "1"]).output.splitlines()[0])
+    assert data["n"] == 5 and data["classified"] == 3  # the three others as before
+    errors = {Path(f["color"]).name: f["error"] for f in data["failures"]}
+    bad = errors["02_000_color.png"]
+    assert "internal error (ZeroDivisionError: division by zero)" in bad
+    assert "please report it" in bad and "labels.csv line" in bad and "\n" not in bad

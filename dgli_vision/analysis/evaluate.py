@@ -75,6 +75,24 @@ class PairOutcome:
         return self.correct and self.predicted_variant == self.pair.variant
 
 
+def _internal_error(name: str, exc: Exception) -> str:
+    """The one line a frame that met a bug of this tool gets in a batch's report: the
+    frame, the exception, and what to do.
+
+    Parameters
+    ----------
+    name : str
+        The frame (its colour image's name).
+    exc : Exception
+
+    Returns
+    -------
+    str
+    """
+    what = f"{type(exc).__name__}: {exc}".strip().splitlines()[0]
+    return f"{name}: internal error ({what}); please report it with this frame"
+
+
 def _classify_pair(
     pair: LabelledPair,
     refs: ReferenceSet | None = None,
@@ -94,6 +112,9 @@ def _classify_pair(
     except DgliError as exc:
         where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
         return PairOutcome(pair.light(), error=f"{exc}{where}")
+    except Exception as exc:  # a bug met on one frame: the batch (a robot's run) goes on
+        where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
+        return PairOutcome(pair.light(), error=_internal_error(pair.color, exc) + where)
     p = result.prediction
     coords = tuple(float(v) for v in result.coordinates)
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
