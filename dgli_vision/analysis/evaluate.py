@@ -109,12 +109,10 @@ def _classify_pair(
     try:
         frame = pair.load()  # one thread: one pair per core
         result = classify_frame(frame, refs, colours=colours)
-    except DgliError as exc:
+    except Exception as exc:  # a bug met on one frame too: the batch (a robot's run) goes on
+        what = str(exc) if isinstance(exc, DgliError) else _internal_error(pair.color, exc)
         where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
-        return PairOutcome(pair.light(), error=f"{exc}{where}")
-    except Exception as exc:  # a bug met on one frame: the batch (a robot's run) goes on
-        where = f" (labels.csv line {pair.line})" if pair.line is not None else ""
-        return PairOutcome(pair.light(), error=_internal_error(pair.color, exc) + where)
+        return PairOutcome(pair.light(), error=f"{what}{where}")
     p = result.prediction
     coords = tuple(float(v) for v in result.coordinates)
     cents = tuple((float(u), float(v)) for u, v in result.detections.centroids)
