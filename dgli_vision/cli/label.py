@@ -144,24 +144,23 @@ def label_cmd(
 
 def _write_stdout(text: str) -> None:
     """Write ``text`` to standard output and make sure all of it went: a full disk or a
-    closed pipe is an error (exit 2), never a truncated answer and exit 0. (A buffered
-    write that the disk takes only in part can lose the rest without an error.)"""
-    import os
-
+    closed pipe is an error (exit 2), never a truncated answer and exit 0. (A text
+    stream over an unbuffered file drops what a short write did not take, without an
+    error, so the bytes go to the raw stream, each write's count checked.)"""
     from ..core.errors import OutputError
 
-    try:
-        fd = sys.stdout.fileno()
-    except (AttributeError, OSError, ValueError):  # not a file (a test's capture)
+    buffer = getattr(sys.stdout, "buffer", None)
+    if buffer is None:  # not a byte stream underneath: as any other output
         click.echo(text)
         return
-    data = (text + "\n").encode(sys.stdout.encoding or "utf-8", errors="replace")
+    raw = getattr(buffer, "raw", buffer)  # (unbuffered, PYTHONUNBUFFERED: the raw file)
+    data = memoryview((text + "\n").encode(sys.stdout.encoding or "utf-8", errors="replace"))
     try:
         sys.stdout.flush()
-        while data:
-            n = os.write(fd, data)
-            if n <= 0:
-                raise OSError(28, os.strerror(28))
+        while len(data):
+            n = raw.write(data[: 1 << 20])
+            if not n:  # None (would block) or 0: nothing more goes
+                raise OSError(28, "No space left on device")
             data = data[n:]
     except OSError as exc:
         raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
