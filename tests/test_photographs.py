@@ -5,6 +5,7 @@ small to read, and an uncorrected lens near the image border."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 from functools import lru_cache
 
 import cv2
@@ -19,7 +20,7 @@ from dgli_vision.classifier.capture_limits import (
 from dgli_vision.classifier.pipeline import classify_frame
 from dgli_vision.classifier.references import load_references
 from dgli_vision.core.camera import DEFAULT_INTRINSICS
-from dgli_vision.core.colour import srgb_to_linear
+from dgli_vision.core.colour import linear_to_srgb, srgb_to_linear
 from dgli_vision.core.layout import default_layout
 from dgli_vision.perception.detect import detect_stickers
 from dgli_vision.perception.napkin import find_napkin
@@ -185,5 +186,36 @@ def test_an_uncorrected_lens_lowers_the_confidence_near_the_border_only():
     # continuous: a sticker moving outwards lowers it step by step
     xs = np.linspace(intr.cx, 0.0, 50)
     factors = [border_factor(np.array([[x, intr.cy]]), intr, 35.0) for x in xs]
-    assert all(b <= a + 1e-12 for a, b in zip(factors, factors[1:]))
-    assert max(abs(b - a) for a, b in zip(factors, factors[1:])) < 0.05
+    assert all(b <= a + 1e-12 for a, b in itertools.pairwise(factors))
+    assert max(abs(b - a) for a, b in itertools.pairwise(factors)) < 0.05
+
+
+# --- light falling off across the napkin is no highlight ------------------------------
+
+
+def _fall_off(color: np.ndarray, ratio: float, angle: float, top: int = 240) -> np.ndarray:
+    """The image under a lamp whose light falls off ``ratio`` times across it (in linear
+    light, along ``angle``), exposed again so its brightest pixels reach ``top``."""
+    h, w, _ = color.shape
+    y, x = np.mgrid[0:h, 0:w]
+    t = ((x - w / 2) * np.cos(angle) + (y - h / 2) * np.sin(angle)) / (0.25 * np.hypot(w, h))
+    lin = srgb_to_linear(color / 255.0) * (ratio ** np.clip(t, -1, 1))[..., None]
+    lin *= srgb_to_linear(top / 255.0) / np.quantile(lin.max(axis=2), 0.995)
+    return np.clip(np.rint(linear_to_srgb(lin) * 255), 0, 255).astype(np.uint8)
+
+
+@pytest.mark.parametrize(("class_id", "k", "angle"), [("01", 1, 0.5), ("06", 0, 2.0)])
+def test_the_bright_side_of_a_napkin_under_a_lamp_is_no_highlight(class_id, k, angle):
+    """A lamp's light falling off twice over across the image: once balanced to the
+    napkin's white its bright side passes 250 with no saturation, but nothing is blown
+    out. It hides no sticker ("in a highlight") and merges none with the cloth."""
+    s = _sample(class_id, k, 14, ("far",))
+    color = _fall_off(s.result.color, 2.0, angle)
+    assert (color.min(axis=2) >= 250).mean() < 0.001  # nothing blown out as taken
+    result = classify_frame(_frame(s, color=color), REFS)
+    reasons = result.observation.evidence.reasons if result.observation.evidence else ()
+    assert not any(r and "highlight" in r for r in reasons), reasons
+    assert result.detections.found[s.result.visible].all(), [
+        r.reason for r in result.detections.rejected
+    ]
+    assert result.prediction is not None and result.prediction.class_id == class_id

@@ -306,8 +306,7 @@ def _judge_disc(
     why = _fill_problem(discs, k, s, p) or _surround_problem(discs, k, p)
     if why:
         return Rejection(blob.where, blob.area, why)
-    small = not image.halved and s.radius < p.small_radius_px
-    colours = (small and _dot_by_difference(s, image, discs, k)) or _disc_and_dot(discs, k, p)
+    colours = _read_colours(s, k, discs, image)
     if isinstance(colours, str):
         return Rejection(blob.where, blob.area, colours)
     score = float(colours.purity * min(s.ratio, 1 / s.ratio) * s.solidity)
@@ -745,6 +744,31 @@ def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | s
     return _Colours(disc, dot, purity)
 
 
+def _read_colours(
+    s: _Shaped, k: int, discs: _DiscPixels, image: SearchImage
+) -> _Colours | str:
+    """Disc and dot colours of the ``k``-th shaped blob, or why they cannot be read.
+
+    Large stickers are read by their labels (:func:`_disc_and_dot`). A small one (disc
+    radius under ``small_radius_px`` in the search image) has its dot blurred into its
+    disc: in a search at full resolution it is read by unmixing the dot's colour
+    (:func:`_dot_by_difference`); in a halved search the labels are kept unless they
+    cannot be read or the unmixing reads another dot colour without doubt.
+    """
+    p = image.params
+    colours = _disc_and_dot(discs, k, p)
+    if s.radius >= p.small_radius_px:
+        return colours
+    unmixed = _dot_by_difference(s, image, discs, k)
+    if unmixed is None:
+        return colours
+    if not image.halved or isinstance(colours, str):
+        return unmixed
+    if unmixed.dot is not None and unmixed.disc == colours.disc and unmixed.dot != colours.dot:
+        return unmixed
+    return colours
+
+
 def _dot_by_difference(
     s: _Shaped, image: SearchImage, discs: _DiscPixels, k: int
 ) -> _Colours | None:
@@ -827,13 +851,19 @@ def _highlight_pixels(
     halo_px: int,
 ) -> NDArray[np.bool_]:
     """Pixels a glossy sticker's highlight washed out, in a window around a blob: small
-    blown-out spots (in the image as taken, or brighter than white cloth once balanced),
-    grown into the pale, tinted halo around them. Shape (h, w) of the window."""
+    blown-out spots (in the image as taken, or, once balanced, brighter than white cloth
+    can be and than the cloth around them: a specular lobe, not the brighter side of a
+    napkin under a lamp's fall-off), grown into the pale, tinted halo around them.
+    Shape (h, w) of the window."""
     import cv2
 
     core = cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min
     norm_min = cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2])
-    core |= norm_min >= params.highlight_min
+    sat = hsv[..., 1]
+    # the cloth around: its near-neutral pixels (a quarter brighter than this level)
+    cloth = (sat < params.halo_min_saturation) & ~core
+    level = float(np.quantile(norm_min[cloth], 0.75)) if np.count_nonzero(cloth) >= 8 else 0.0
+    core |= norm_min >= max(params.highlight_min, level + params.specular_margin)
     if not core.any():
         return core
     # A highlight is smaller than a sticker; a large blown-out area is cloth.
@@ -843,14 +873,14 @@ def _highlight_pixels(
     core = small[lab]
     if not core.any():
         return core
-    sat = hsv[..., 1]
+    near_white = max(params.halo_min_value + 80, level + params.specular_margin / 2)
     allowed = (
         (
             (sat >= params.halo_min_saturation)
             & (sat < params.min_saturation)
             & (hsv[..., 2] >= params.halo_min_value)
         )
-        | (norm_min >= params.halo_min_value + 80)
+        | (norm_min >= near_white)
         | core
     )
     grown = core.astype(np.uint8)

@@ -567,7 +567,10 @@ class FullResolution:
         """Centre (u, v) and area of ``c`` at full resolution, or its rejection
         (search-image pixels) as too small there."""
         where, area = self.refined[c]  # (KeyError: not measured, see Identities.take)
-        expected = np.pi * (self.disc_radius_mm * self.fx / c.z_mm) ** 2 * c.foreshortening
+        # a threshold cuts a blurred rim of about a pixel off the disc (see
+        # DetectorParams.full_rim_px): the disc expected is that much smaller
+        radius = max(self.disc_radius_mm * self.fx / c.z_mm - self.params.full_rim_px, 1.0)
+        expected = np.pi * radius**2 * c.foreshortening
         if area < self.params.min_area_ratio * expected:
             return Rejection(
                 ((where[0] - 0.5) / 2, (where[1] - 0.5) / 2),

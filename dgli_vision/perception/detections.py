@@ -71,6 +71,11 @@ class DetectorParams:
         How much nearer (per channel) the dot's colour must be than the next one for
         the dot to be read; otherwise it is left unread. Default 0.15: the palette's
         directions differ by 0.7 or more (red and yellow: in green).
+    full_rim_px : float
+        Rim (pixels) a saturation threshold cuts off a blurred disc, allowed for when a
+        candidate of a halved search is measured again at full resolution. Default
+        1.5: a real camera's blur (sigma 1-1.6 px) leaves a pale sticker 13 px in
+        radius 0.53 of its disc above the threshold.
     rim_min_chroma : float
         Smallest chroma (linear, balanced to a napkin white of 0.75) of a pixel that
         tells a rim's colour. Default 0.08: the napkin's noise and a residual tint stay
@@ -103,6 +108,12 @@ class DetectorParams:
     highlight_min : int
         Smallest channel (0-255) of a washed-out pixel, in the image as taken or balanced
         to the napkin. Default 250: blown out, or brighter than white cloth can be.
+    specular_margin : int
+        How much brighter (8-bit levels, balanced image) than the cloth around it a
+        pixel must be to count as a highlight when it is not blown out as taken; and
+        half of it for a near-white halo pixel. Default 15 (about 1.15 times in linear
+        light): a napkin's brighter side under a lamp's fall-off reaches 250 once
+        balanced and is no highlight; a mirror highlight stands well above the cloth.
     highlight_halo_px : int
         Width of the pale halo around a blown-out highlight counted with it, pixels
         (pale: bright and below ``min_saturation``). Default 8: a mirror highlight fades
@@ -186,6 +197,7 @@ class DetectorParams:
     dot_min_share: float = 0.3
     dot_max_distance: float = 0.35
     dot_margin: float = 0.15
+    full_rim_px: float = 1.5
     rim_min_chroma: float = 0.08
     rim_direction: float = 0.25
     min_fill: float = 0.6
@@ -195,6 +207,7 @@ class DetectorParams:
     min_surround: float = 0.55
     min_dot_seen: float = 0.35
     highlight_min: int = 250
+    specular_margin: int = 15
     highlight_halo_px: int = 8
     halo_min_saturation: int = 30
     halo_min_value: int = 150
