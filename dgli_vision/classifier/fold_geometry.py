@@ -342,9 +342,10 @@ def fit_folds(
             big += count >= 2
     fixed = n_stay >= 2 or (n_stay == 1 and big >= 1) or big >= 3
     if active and not fixed:
+        seen_stay = "no sticker" if n_stay == 0 else "only one sticker"
         reason = (
-            f"{n_stay} sticker{'' if n_stay == 1 else 's'} seen on the napkin under the "
-            "flap (two are needed to place it, or three flaps seen): the crease is not fixed"
+            f"{seen_stay} seen on the napkin under the flap (two are needed to place it, "
+            "or three flaps seen): the crease is not fixed"
         )
         why.update({j: reason for j in active})
         active = []
