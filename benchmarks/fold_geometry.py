@@ -39,7 +39,9 @@ from dgli_vision.core.layout import layout_of_size
 from dgli_vision.sources.frames import read_frame
 
 
-def _errors(word: str, got: dict[str, Any], truth: dict[str, Any]) -> list[tuple[str, float, float | None]]:
+def _errors(
+    word: str, got: dict[str, Any], truth: dict[str, Any]
+) -> list[tuple[str, float, float | None]]:
     """(quantity, error, sd) of every value of one fold measured (None sd: not given)."""
     out = []
     for key, want in truth.items():
@@ -130,8 +132,11 @@ def main() -> None:
     args = ap.parse_args()
     refs = load_references(args.references)
     report: dict[str, Any] = {}
-    lines = ["| set | folds measured | null | length median / p90 / max (mm) | angle median / p90 (deg) | within 2 sd | geometry ms/frame (median / max) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "| set | folds measured | null | length median / p90 / max (mm) "
+        "| angle median / p90 (deg) | within 2 sd | geometry ms/frame (median / max) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     per_class: dict[str, list] = defaultdict(list)
     for folder in args.folders:
         m = measure(folder, refs, args.repeat)
@@ -146,15 +151,18 @@ def main() -> None:
         n_null = sum(m["nulls"].values())
         lines.append(
             f"| {folder.name} | {len({(r['pair'], r['fold']) for r in m['rows']})} | {n_null} | "
-            f"{s['median_mm']} / {s['p90_mm']} / {s['max_mm']} | {s['median_deg']} / {s['p90_deg']} | "
+            f"{s['median_mm']} / {s['p90_mm']} / {s['max_mm']} | "
+            f"{s['median_deg']} / {s['p90_deg']} | "
             f"{s['coverage_2sd']} | {s['ms_median']} / {s['ms_max']} |"
         )
-    lines += ["", "| class | values | length median / p90 (mm) | within 2 sd |", "|---|---|---|---|"]
+    lines += ["", "| class | values | length median / p90 (mm) | within 2 sd |",
+              "|---|---|---|---|"]
     report["per_class"] = {}
     for cid in sorted(per_class):
         s = summary(per_class[cid])
         report["per_class"][cid] = s
-        lines.append(f"| {cid} | {s['n_lengths']} | {s['median_mm']} / {s['p90_mm']} | {s['coverage_2sd']} |")
+        lines.append(f"| {cid} | {s['n_lengths']} | {s['median_mm']} / {s['p90_mm']} | "
+                     f"{s['coverage_2sd']} |")
     text = "\n".join(lines)
     print(text)
     for name, s in report.items():

@@ -62,9 +62,9 @@ def _panel(word: str, title: str, lines: list[str], **sizes) -> np.ndarray:
             d = np.subtract(other, moved) / 400.0
             end = np.asarray(moved) + leg * d
             p0, p1 = _px(moved), _px(end)
-            shift = (int(-12 * d[1]), int(-12 * d[0])) if True else (0, 0)
-            cv2.line(img, (p0[0] + shift[0], p0[1] + shift[1]), (p1[0] + shift[0], p1[1] + shift[1]),
-                     (0, 140, 0), 3)
+            shift = (int(-12 * d[1]), int(-12 * d[0]))
+            cv2.line(img, (p0[0] + shift[0], p0[1] + shift[1]),
+                     (p1[0] + shift[0], p1[1] + shift[1]), (0, 140, 0), 3)
             mid = ((p0[0] + p1[0]) // 2 + 3 * shift[0], (p0[1] + p1[1]) // 2 + 3 * shift[1])
             _text(img, f"legs_mm.{edge}", (mid[0] - 40, mid[1]), (0, 120, 0))
     _text(img, title, (PAD, 30), size=0.7)
