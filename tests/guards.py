@@ -40,13 +40,14 @@ def require_extra(module: str, extra: str | None = None) -> ModuleType:
     try:
         return importlib.import_module(module)
     except ImportError as exc:
-        reason = (
-            f"{module} is missing ({exc}): the '{extra}' extra, "
-            f"pip install '.[{extra}]' (scripts/setup.sh installs it)"
-        )
-        if os.environ.get("CI") == "true":
-            pytest.fail(f"{reason}; CI must install every extra", pytrace=False)
-        pytest.skip(reason, allow_module_level=True)
+        missing = str(exc)
+    reason = (
+        f"{module} is missing ({missing}): the '{extra}' extra, "
+        f"pip install '.[{extra}]' (scripts/setup.sh installs it)"
+    )
+    if os.environ.get("CI") == "true":
+        pytest.fail(f"{reason}; CI must install every extra", pytrace=False)
+    pytest.skip(reason, allow_module_level=True)
 
 
 def read_only(obj: object, seen: set[int] | None = None) -> None:
