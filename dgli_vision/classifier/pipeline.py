@@ -12,10 +12,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.classes import LIFTED_MM, PAST_BAND_DEG
+from ..core.classes import CLASS_NAMES, LIFTED_MM, PAST_BAND_DEG
 from ..core.dgli import cloth_coordinates
 from ..core.errors import DetectionError
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
+from ..perception.agreement import edge_on_heights, edge_on_problem
 from ..perception.detect import (
     DetectorParams,
     StickerDetections,
@@ -89,6 +90,9 @@ class ClothObservation:
     tips : ndarray, shape (4,), optional
         For each corner A-D, the share of its tip's flat place seen as bare table (NaN
         not told: :func:`~dgli_vision.perception.tips.corner_tips`).
+    edge_on_mm : ndarray, shape (n,), optional
+        Heights above the table (mm) of the blobs seen edge-on in colour
+        (:func:`~dgli_vision.perception.agreement.edge_on_heights`).
     """
 
     segments: NDArray[np.float64]
@@ -105,6 +109,7 @@ class ClothObservation:
     objects: NDArray[np.bool_] | None = None
     objects_stride: int = 8
     tips: NDArray[np.float64] | None = None
+    edge_on_mm: NDArray[np.float64] | None = None
 
     @property
     def spread_mm(self) -> NDArray[np.float64] | None:
@@ -328,6 +333,7 @@ def observe(
     return detections, markers, ClothObservation(
         segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
         turns, markers.points, napkin.occluder, napkin.stride, tips,
+        edge_on_heights(detections, napkin.masks()),
     )
 
 
@@ -425,6 +431,29 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
+#: Pairs of classes that differ only in where a flap lands: while a flap of the frame is
+#: held up, the nearest two being such a pair is "cannot tell" (two adjacent corners
+#: folded: side by side, 04, or crossing, 05, as the second flap lies down).
+LANDING_PAIRS = (frozenset({"04", "05"}),)
+
+
+def _landing_unknown(
+    obs: ClothObservation, near: tuple[tuple[str, str | None, float], ...]
+) -> str | None:
+    """Why the nearest two classes cannot be told apart yet, or None: a flap is held up
+    and they differ only in where it will land (:data:`LANDING_PAIRS`)."""
+    if obs.flap_deg is None or not np.isfinite(obs.flap_deg).any() or len(near) < 2:
+        return None
+    (a, va, da), (b, vb, db) = near[0], near[1]
+    if frozenset({a, b}) not in LANDING_PAIRS:
+        return None
+    lean = float(np.nanmedian(obs.flap_deg))
+    return (
+        f"a flap held up at about {lean:.0f} degrees: {a} {CLASS_NAMES[a]} ({va}, {da:.3f}) "
+        f"and {b} {CLASS_NAMES[b]} ({vb}, {db:.3f}) differ only in where it lands"
+    )
+
+
 def _too_small(
     detections: StickerDetections, frame: RGBDFrame, napkin_mm: float, layout: NapkinLayout
 ) -> str | None:
@@ -477,6 +506,7 @@ def _judge(
     napkin_mm = _napkin_depth(detections, frame.depth_mm)
     problem = (
         _too_small(detections, frame, napkin_mm, layout)
+        or (edge_on_problem(obs.edge_on_mm) if obs.edge_on_mm is not None else None)
         or scale_problem(obs.ruler, layout)
         or rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
     )
@@ -528,6 +558,12 @@ def _judge(
         return FrameResult(
             detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted,
             why=WHY_KINDS[2], candidates=near, distances=front,
+        )
+    landing = _landing_unknown(obs, near)
+    if landing is not None and guess.confidence >= min_confidence:
+        return FrameResult(
+            detections, markers, obs, coords, None, f"cannot tell: {landing}",
+            replace(guess, confidence=0.0), why=WHY_KINDS[3], candidates=near, distances=front,
         )
     if guess.confidence >= min_confidence:
         return FrameResult(
