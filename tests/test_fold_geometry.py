@@ -169,13 +169,16 @@ def test_verify_tells_a_fold_made_well_from_one_made_badly(refs, case):
     if case.endswith("as planned"):
         assert check.success is True, check.line()
         assert check.errors["crease_mm"] < 10.0
-    else:
-        assert check.success is False, check.line()  # never a success for a bad fold
+    else:  # never a success for a bad fold: failed, or "cannot tell" for a state that
+        # is none of the twelve (a strip's crease skewed 15 degrees)
+        assert check.success is not True, check.line()
+        assert check.success is False or "cannot tell" in check.line(), check.line()
     if case == "corner 40 mm short":
         assert check.errors["tip_short_mm"] == pytest.approx(40.0, abs=8.0)
         assert "short of its target" in check.line()
     if "skewed" in case:
-        assert "crease" in check.line() or "wrong state" in check.line()
+        line = check.line()
+        assert "crease" in line or "wrong state" in line or "cannot tell" in line
 
 
 def test_verify_cli_exit_codes(refs, tmp_path):
