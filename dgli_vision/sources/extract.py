@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from ..core.camera import Intrinsics
-from ..core.errors import DgliError, InvalidInputError, OutputError
+from ..core.errors import DgliError, InvalidInputError, OutputError, UnreadableInputError
 from ..core.io import csv_table, guard_outputs, record_outputs, write_json, write_text
 from .frames import RGBDFrame, write_color, write_depth
 from .labelled import LabelledPair
@@ -89,22 +89,32 @@ def extract_recording(
     window = {"every": every, "start": start, "end": end}
     done = _write_frames(recording, root, window, overwrite, command, on_progress, result, written)
     if not done.rows:
+        if done.failure is not None:
+            raise done.failure
         raise InvalidInputError(_nothing_to_extract(recording, done.seen, start, end, result))
     _write_listing(root, recording, done, written)
     record_outputs(written, command)
     result.written = len(done.rows)
     result.frames_csv = root / "frames.csv"
+    if done.failure is not None:  # what was read is a listed folder, never an unlisted half
+        n = len(done.rows)
+        raise UnreadableInputError(
+            f"{done.failure}; the {n} frame{'s' if n != 1 else ''} read before it "
+            f"{'are' if n != 1 else 'is'} written to '{root}' and listed in frames.csv"
+        )
     return result
 
 
 @dataclass(frozen=True)
 class _FramesWritten:
     """The image pairs written: one row ``(colour, depth, time, label, variant)`` each,
-    the recording's intrinsics (None when no frame decoded) and the frames read."""
+    the recording's intrinsics (None when no frame decoded), the frames read and, when
+    the recording could not be read to its end (truncated, corrupt), why."""
 
     rows: list[tuple[str, str, str, str, str]]
     intrinsics: Intrinsics | None
     seen: int
+    failure: UnreadableInputError | None = None
 
 
 def _same_intrinsics(pair: LabelledPair, frame: RGBDFrame, intr: Intrinsics | None) -> Intrinsics:
@@ -130,14 +140,24 @@ def _write_frames(
     written: list[Path],
 ) -> _FramesWritten:
     """Decode the frames in ``window`` (``every``, ``start``, ``end``) one at a time and
-    write their PNGs with two threads; undecodable frames go to ``result.skipped``."""
+    write their PNGs with two threads; undecodable frames go to ``result.skipped``; a
+    recording that cannot be read further ends the frames (its error is kept)."""
     rows: list[tuple[str, str, str, str, str]] = []
     intr = None
     seen = 0
+    failure = None
     jobs: list[tuple[Future, Path]] = []
+    selected = select_frames(recording.frames, **window)
     with ThreadPoolExecutor(2) as pool:
         try:
-            for index, pair in select_frames(recording.frames, **window):
+            while True:
+                try:
+                    index, pair = next(selected)
+                except StopIteration:
+                    break
+                except UnreadableInputError as exc:
+                    failure = exc
+                    break
                 seen += 1
                 if on_progress:
                     on_progress(1)
@@ -160,7 +180,7 @@ def _write_frames(
                 _finish(jobs.pop(0), written)
         except OutputError as exc:
             raise _kept_frames(exc, jobs, written, root, command) from None
-    return _FramesWritten(rows, intr, seen)
+    return _FramesWritten(rows, intr, seen, failure)
 
 
 def _write_listing(
