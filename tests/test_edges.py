@@ -8,6 +8,8 @@ must name frames that exist; napkin sizes out of range are refused with the rang
 from __future__ import annotations
 
 import csv
+import json
+import os
 import shutil
 import subprocess
 import sys
@@ -138,3 +140,97 @@ def test_extract_of_a_bag_that_fails_part_way_lists_what_it_wrote(corrupt_bag, t
     on_disk = sorted(p.name for p in out.glob("frame_*.png"))
     assert on_disk == sorted(name for pair in listed for name in pair)  # nothing unlisted
     assert run("track", out, "-j", "1", "--json").exit_code in (0, 1)  # a folder to read
+
+
+# --- standard output: flushed and checked, a closed pipe quiet ----------------------------
+
+
+def _limited_to(n_bytes: int):
+    """A child's start: files it writes may grow to ``n_bytes`` (RLIMIT_FSIZE), as on a
+    disk with that much space left; a longer write is cut short, the next one fails."""
+
+    def limit() -> None:
+        import resource
+
+        resource.setrlimit(resource.RLIMIT_FSIZE, (n_bytes, n_bytes))
+
+    return limit
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["classify", SAMPLES / "05_000_color.png", SAMPLES / "05_000_depth.png", "--json"],
+        ["track", "{folder}", "--json", "-j", "1"],
+        ["evaluate", "{folder}", "--json", "-j", "1"],
+    ],
+    ids=["classify", "track", "evaluate"],
+)
+def test_json_to_a_full_disk_is_one_line_naming_the_file(args, tmp_path):
+    folder = sample_folder(tmp_path / "pairs")
+    args = [str(a).replace("{folder}", str(folder)) for a in args]
+    with open("/dev/full", "w") as full:
+        proc = run_process(args, stdout=full)
+    assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+    assert "cannot write to standard output: No space left on device" in proc.stderr
+    # a disk that fills up part-way (the interpreter unbuffered, as under python -u):
+    # exit 2, not 0 with the answer cut, and the error names the file
+    for room in (0, 200):
+        out = tmp_path / f"answer{room}.json"
+        with out.open("w") as fh:
+            proc = run_process(
+                args, stdout=fh, preexec_fn=_limited_to(room),
+                env={**os.environ, "PYTHONUNBUFFERED": "1"},
+            )
+        assert proc.returncode == 2, (room, proc.stderr)
+        lines = proc.stderr.strip().splitlines()
+        assert lines[-1] == f"error: cannot write to standard output ('{out}'): File too large"
+        assert "Traceback" not in proc.stderr
+
+
+def _first_line_then_close(args: list[object]) -> tuple[int, str]:
+    """Run ``dgli ARGS``, read its first line of standard output and close the pipe, as
+    ``| head -1`` does: the exit code and standard error."""
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dgli_vision", *map(str, args)],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )
+    assert json.loads(proc.stdout.readline())["frame"] == 0
+    proc.stdout.close()
+    with proc.stderr:
+        err = proc.stderr.read().decode()
+    return proc.wait(timeout=60), err
+
+
+def test_a_pipe_closed_by_its_reader_ends_quietly(tmp_path):
+    """`dgli watch --jsonl | head -1`: no message, the exit code of a Unix tool that
+    SIGPIPE ended."""
+    folder = sample_folder(tmp_path / "pairs", ("05_000", "09_000", "01_000"))
+    (folder / "frames.csv").write_text(
+        "color,depth,time\n05_000_color.png,05_000_depth.png,0\n"
+        "09_000_color.png,09_000_depth.png,1.5\n01_000_color.png,01_000_depth.png,3\n"
+    )
+    code, err = _first_line_then_close(["watch", "--bag", folder, "--jsonl"])
+    assert code == 141 and err == "", err
+
+
+def test_watch_into_a_closed_pipe_stops_the_realsense_playback_first(tmp_path):
+    """The SDK's threads still playing when the process ends abort it ("FATAL: exception
+    not rethrown", exit 134): the playback is stopped first, then the quiet end."""
+    pytest.importorskip("pyrealsense2")
+    import cv2
+
+    from dgli_vision.core.camera import Intrinsics
+    from dgli_vision.sources.frames import read_frame
+    from dgli_vision.sources.realsense_writer import write_realsense_recording
+
+    frame = read_frame(SAMPLES / "05_000_color.png", SAMPLES / "05_000_depth.png")
+    color = cv2.resize(frame.color, (320, 180), interpolation=cv2.INTER_AREA)
+    depth = cv2.resize(frame.depth_mm, (320, 180), interpolation=cv2.INTER_NEAREST)
+    k = frame.intrinsics
+    intr = Intrinsics(320, 180, k.fx / 4, k.fy / 4, k.cx / 4, k.cy / 4)
+    data = ((1000.0 + i * 0.2, color, depth) for i in range(30))
+    db3 = write_realsense_recording(tmp_path / "rs.db3", data, intr)
+    code, err = _first_line_then_close(["watch", "--bag", db3, "--jsonl"])
+    assert code == 141, err
+    assert "FATAL" not in err and "error" not in err and "Traceback" not in err

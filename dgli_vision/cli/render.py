@@ -16,7 +16,7 @@ from .options import (
     per_class_option,
     size_option,
 )
-from .output import command_line, napkin_provenance, package_version, progress
+from .output import command_line, echo, napkin_provenance, package_version, progress
 from .runs import Stop, folder_lock, stop_signals
 
 
@@ -178,7 +178,7 @@ def _render_set(
             err=True,
         )
         sys.exit(stop.exit_code)
-    click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
+    echo(f"wrote {done} pairs to {out} (labels: {labels})")
 
 
 def _render_case(task: tuple[tuple[str, int], int, dict[str, Any]]) -> Any:
