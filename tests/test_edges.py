@@ -234,3 +234,63 @@ def test_watch_into_a_closed_pipe_stops_the_realsense_playback_first(tmp_path):
     code, err = _first_line_then_close(["watch", "--bag", db3, "--jsonl"])
     assert code == 141, err
     assert "FATAL" not in err and "error" not in err and "Traceback" not in err
+
+
+# --- files written whole or not at all ------------------------------------------------------
+
+
+def test_simulate_on_a_full_disk_is_one_line_and_leaves_no_partial_mesh(tmp_path):
+    out = tmp_path / "db"
+    proc = run_process(
+        ["simulate", out, "--per-class", "1", "--in-progress", "0"],
+        stdout=subprocess.PIPE, preexec_fn=_limited_to(100_000),  # a mesh is 324 kB
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.splitlines() == [
+        f"error: cannot write '{out / 'meshes' / '01_000.ply'}': File too large; "
+        "nothing was written before it"
+    ]  # no RPly lines
+    assert [p.name for p in out.rglob("*") if p.is_file()] == []
+
+
+def test_a_file_that_cannot_be_written_whole_leaves_the_earlier_one(tmp_path):
+    """A report file replaced on a disk that fills up: the earlier file stays as it was
+    (it was cut to what fitted, or removed)."""
+    target = tmp_path / "summary.json"
+    target.write_text("the earlier run's summary\n")
+    code = (
+        "import sys\n"
+        "from dgli_vision.core.errors import OutputError\n"
+        "from dgli_vision.core.io import write_text\n"
+        "try:\n"
+        f"    write_text({str(target)!r}, 'x' * 100_000)\n"
+        "except OutputError as exc:\n"
+        "    sys.exit(str(exc))\n"
+    )
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, stderr=subprocess.PIPE, text=True,
+        preexec_fn=_limited_to(50_000), timeout=60,
+    )
+    assert proc.stderr.strip() == f"cannot write '{target}': File too large"
+    assert target.read_text() == "the earlier run's summary\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]
+
+
+def test_meshes_are_the_ply_files_open3d_reads(tmp_path):
+    import open3d as o3d
+
+    from dgli_vision.core.io import mesh_ply_bytes, read_mesh_ply, write_mesh_ply
+
+    xyz = np.random.default_rng(0).normal(size=(9, 3))
+    tri = np.array([[0, 1, 2], [2, 3, 4], [6, 7, 8]], np.int32)
+    write_mesh_ply(tmp_path / "m.ply", xyz, tri)
+    v, t = read_mesh_ply(tmp_path / "m.ply")
+    np.testing.assert_array_equal(v, xyz)
+    np.testing.assert_array_equal(t, tri)
+    mesh = o3d.geometry.TriangleMesh(
+        o3d.utility.Vector3dVector(xyz), o3d.utility.Vector3iVector(tri)
+    )
+    o3d.io.write_triangle_mesh(str(tmp_path / "o.ply"), mesh, write_ascii=False)
+    assert (tmp_path / "m.ply").read_bytes() == mesh_ply_bytes(xyz, tri)
+    ours = mesh_ply_bytes(xyz, tri).replace(b"dgli_vision", b"Open3D")
+    assert ours == (tmp_path / "o.ply").read_bytes()  # the layout Open3D writes
