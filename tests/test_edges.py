@@ -294,3 +294,66 @@ def test_meshes_are_the_ply_files_open3d_reads(tmp_path):
     assert (tmp_path / "m.ply").read_bytes() == mesh_ply_bytes(xyz, tri)
     ours = mesh_ply_bytes(xyz, tri).replace(b"dgli_vision", b"Open3D")
     assert ours == (tmp_path / "o.ply").read_bytes()  # the layout Open3D writes
+
+
+# --- workers die with their parent ---------------------------------------------------------
+
+
+def _children(pid: int) -> set[int]:
+    """The processes whose parent is ``pid`` (from /proc)."""
+    found = set()
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                stat = (entry / "stat").read_text()
+            except OSError:
+                continue
+            if int(stat.rsplit(")", 1)[1].split()[1]) == pid:
+                found.add(int(entry.name))
+    return found
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie waiting for a parent to reap it has ended)."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    return stat.rsplit(")", 1)[1].split()[0] != "Z"
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").exists(), reason="reads /proc")
+def test_workers_die_with_their_parent_killed_outright():
+    """SIGKILL of `dgli evaluate -j 3` (as the out-of-memory killer sends it): its
+    worker processes are gone within seconds (they lived on, 86-854 MB each)."""
+    import signal
+    import time
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dgli_vision", "evaluate", str(SAMPLES), "-j", "3"],
+        cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+    )
+    try:
+        deadline = time.monotonic() + 60
+        workers: set[int] = set()
+        while time.monotonic() < deadline and proc.poll() is None:
+            workers = {
+                c for c in _children(proc.pid)
+                if b"multiprocessing" in Path(f"/proc/{c}/cmdline").read_bytes()
+            }
+            if len(workers) >= 2:
+                break
+            time.sleep(0.05)
+        assert len(workers) >= 2, "the workers did not start"
+        time.sleep(1.0)  # at work (or still loading)
+        descendants = workers | {g for w in workers for g in _children(w)}
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and any(_alive(p) for p in descendants):
+            time.sleep(0.1)
+        assert not [p for p in descendants if _alive(p)]
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
