@@ -357,3 +357,37 @@ def test_workers_die_with_their_parent_killed_outright():
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+
+
+# --- a resume re-classifies images captured again under the same names ---------------------
+
+
+def test_resume_classifies_again_the_pairs_captured_again(tmp_path, monkeypatch):
+    from dgli_vision.analysis import evaluate as evaluate_module
+
+    folder = sample_folder(tmp_path / "pairs", ("05_000", "09_000"))
+    report = tmp_path / "report"
+    assert run("evaluate", folder, "--report", report, "-j", "1").exit_code == 0
+    summary = json.loads((report / "summary.json").read_text())
+    assert summary["outcomes"]["right"] == 2
+    for part in ("color", "depth"):  # 09_000 captured again: the flat napkin now
+        shutil.copy(SAMPLES / f"01_000_{part}.png", folder / f"09_000_{part}.png")
+
+    classified: list[str] = []
+    real = evaluate_module.evaluate_pairs
+
+    def recording(pairs, *args, **kwargs):
+        def seen():
+            for p in pairs:
+                classified.append(Path(p.color).name)
+                yield p
+
+        return real(seen(), *args, **kwargs)
+
+    monkeypatch.setattr(evaluate_module, "evaluate_pairs", recording)
+    r = run("evaluate", folder, "--report", report, "--resume", "-j", "1")
+    assert r.exit_code == 0, r.output
+    assert classified == ["09_000_color.png"]  # the other pair's verdict is kept
+    assert "note: 1 pair has changed since the interrupted run" in r.output
+    summary = json.loads((report / "summary.json").read_text())
+    assert summary["outcomes"]["right"] == 1 and summary["outcomes"]["wrong"] == 1
