@@ -391,3 +391,63 @@ def test_resume_classifies_again_the_pairs_captured_again(tmp_path, monkeypatch)
     assert "note: 1 pair has changed since the interrupted run" in r.output
     summary = json.loads((report / "summary.json").read_text())
     assert summary["outcomes"]["right"] == 1 and summary["outcomes"]["wrong"] == 1
+
+
+# --- a rerun removes what the earlier run listed; labels rows name frames that exist ------
+
+
+def test_extract_again_with_every_3_leaves_no_earlier_frame(tmp_path):
+    bag = _tiny_episode_bag(tmp_path / "ep")
+    out = tmp_path / "out"
+    assert run("extract", bag, out).exit_code == 0
+    assert len(list(out.glob("frame_*_color.png"))) == 30
+    assert run("extract", bag, out, "--every", "3").exit_code == 0
+    with (out / "frames.csv").open() as fh:
+        listed = {name for r in csv.DictReader(fh) for name in (r["color"], r["depth"])}
+    assert len(listed) == 20
+    assert {p.name for p in out.glob("frame_*.png")} == listed
+    manifest = json.loads((out / ".dgli-outputs.json").read_text())["files"]
+    assert not [n for n in manifest if n.startswith("frame_") and n not in listed]
+    # a file the user put there, not listed by the earlier run, is left alone
+    (out / "frame_999999_color.png").write_bytes(b"mine")
+    edited = out / "frame_000003_color.png"  # listed, then changed by the user: theirs
+    edited.write_bytes(edited.read_bytes() + b"\0")
+    assert run("extract", bag, out, "--every", "5").exit_code == 0
+    assert (out / "frame_999999_color.png").read_bytes() == b"mine"
+    assert edited.exists() and len(list(out.glob("frame_*_depth.png"))) == 6
+    (out / "frames.csv").write_text(  # the listing names it again; --overwrite removes it
+        "color,depth,time\nframe_000003_color.png,frame_000003_depth.png,0.3\n"
+    )
+    assert run("extract", bag, out, "--every", "5", "--overwrite").exit_code == 0
+    assert not edited.exists()
+    assert (out / "frame_999999_color.png").read_bytes() == b"mine"  # never listed
+
+
+def test_a_smaller_render_into_the_same_folder_leaves_no_earlier_pair(tmp_path):
+    out = tmp_path / "r"
+    assert run("render", out, "--sequence", "I", "--frames", "4", "--seed", "2").exit_code == 0
+    edited = out / "I_003_color.png"  # the user's edit of a rendered image: theirs now
+    edited.write_bytes(edited.read_bytes() + b"\0")
+    assert run("render", out, "--sequence", "I", "--frames", "2", "--seed", "2").exit_code == 0
+    on_disk = sorted(p.name for p in out.glob("*.png"))
+    assert on_disk == [
+        "I_000_color.png", "I_000_depth.png", "I_001_color.png", "I_001_depth.png",
+        "I_003_color.png",  # kept: the user's now (--overwrite removes it: see extract)
+    ]
+
+
+def test_labels_rows_naming_frames_that_do_not_exist_are_errors(tmp_path):
+    bag = _tiny_episode_bag(tmp_path / "ep")
+    labels = tmp_path / "labels.csv"
+    labels.write_text("frame,label\n" + "".join(f"{k},01\n" for k in range(30)) + "999,02\n")
+    line = one_error_line(run("track", bag, "--labels", labels, "-j", "1"))
+    assert line == (
+        f"error: labels file '{labels}' line 32: frame 999 does not exist; the recording "
+        "has 30 frames (0 to 29)"
+    )
+    by_time = tmp_path / "by_time.csv"
+    by_time.write_text("time,label\n" + "".join(f"{k * 0.1:.1f},01\n" for k in range(30))
+                       + "12.5,02\n")
+    line = one_error_line(run("evaluate", bag, "--labels", by_time, "-j", "1"))
+    assert f"labels file '{by_time}' line 32: no frame of the recording within 20 ms of " \
+        "time 12.5 s" in line

@@ -40,6 +40,7 @@ __all__ = [
     "read_jsonl",
     "read_mesh_ply",
     "record_outputs",
+    "remove_earlier_outputs",
     "write_files",
     "write_json",
     "write_mesh_ply",
@@ -337,6 +338,71 @@ def record_outputs(paths: Iterable[str | Path], command: str) -> None:
             folder / MANIFEST_NAME,
             {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
         )
+
+
+def remove_earlier_outputs(
+    folder: str | Path, names: Iterable[str], *, overwrite: bool = False
+) -> list[Path]:
+    """Remove the files an earlier run listed in ``folder`` (``names``, relative to it)
+    that dgli wrote and that are unchanged since (any of them with ``overwrite``), and
+    drop them from their folders' records: a rerun that writes fewer files (``extract
+    --every 3``, a smaller ``render``) leaves none of the earlier ones beside its new
+    list. A name outside ``folder``, a file dgli did not write (without ``overwrite``) or
+    one that is not there is left alone.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+
+    Raises
+    ------
+    OutputError
+        A file that cannot be removed (no permission...), naming it.
+    """
+    root = Path(folder)
+    try:
+        base = root.resolve()
+    except OSError:
+        return []
+    by_folder: dict[Path, list[Path]] = {}
+    for name in dict.fromkeys(names):
+        p = root / name
+        try:
+            inside = p.resolve().is_relative_to(base) and p.resolve() != base
+            if not inside or p.is_symlink() or not p.is_file():
+                continue
+        except (OSError, ValueError):
+            continue
+        by_folder.setdefault(p.parent, []).append(p)
+    removed: list[Path] = []
+    for sub, files in by_folder.items():
+        listed = _manifest(sub)
+        gone = []
+        for p in files:
+            entry = listed.get(p.name)
+            ours = isinstance(entry, dict) and entry.get("sha256") == file_sha256(p)
+            if not (ours or overwrite):
+                continue
+            try:
+                p.unlink()
+            except FileNotFoundError:
+                pass
+            except OSError as exc:
+                raise OutputError(
+                    f"cannot remove '{display_path(p)}', listed by the earlier run: "
+                    f"{exc.strerror or exc}"
+                ) from None
+            gone.append(p)
+        if gone and listed:
+            for p in gone:
+                listed.pop(p.name, None)
+            write_json(
+                sub / MANIFEST_NAME,
+                {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
+            )
+        removed += gone
+    return removed
 
 
 def _kept(written: list[Path]) -> str:

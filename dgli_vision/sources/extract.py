@@ -15,9 +15,16 @@ from typing import Any
 
 from ..core.camera import Intrinsics
 from ..core.errors import DgliError, InvalidInputError, OutputError, UnreadableInputError
-from ..core.io import csv_table, guard_outputs, record_outputs, write_json, write_text
+from ..core.io import (
+    csv_table,
+    guard_outputs,
+    record_outputs,
+    remove_earlier_outputs,
+    write_json,
+    write_text,
+)
 from .frames import RGBDFrame, write_color, write_depth
-from .labelled import LabelledPair
+from .labelled import LabelledPair, listed_files
 from .recording import Recording, select_frames
 
 __all__ = ["ExtractResult", "extract_recording"]
@@ -66,7 +73,10 @@ def extract_recording(
     start, end : float, keyword-only, optional
         Seconds from the start of the recording.
     overwrite : bool, keyword-only
-        Replace files dgli did not write.
+        Replace files dgli did not write. The files an earlier run listed in ``out``'s
+        ``frames.csv`` and ``labels.csv`` (and those lists) are removed first when dgli
+        wrote them (any of them with ``overwrite``), so that a rerun that keeps fewer
+        frames leaves none of the earlier ones beside its list.
     command : str, keyword-only
         Recorded beside the files.
     on_progress : callable, keyword-only
@@ -84,6 +94,8 @@ def extract_recording(
     root = Path(out)
     listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
     guard_outputs(listing, overwrite=overwrite)  # and makes OUT: an impossible OUT fails here
+    # an earlier extract's frames and lists go first: none is left beside the new list
+    remove_earlier_outputs(root, listed_files(root), overwrite=overwrite)
     result = ExtractResult()
     written: list[Path] = []
     window = {"every": every, "start": start, "end": end}
