@@ -451,3 +451,16 @@ def test_labels_rows_naming_frames_that_do_not_exist_are_errors(tmp_path):
     line = one_error_line(run("evaluate", bag, "--labels", by_time, "-j", "1"))
     assert f"labels file '{by_time}' line 32: no frame of the recording within 20 ms of " \
         "time 12.5 s" in line
+
+
+# --- napkin sizes out of range -------------------------------------------------------------
+
+
+@pytest.mark.parametrize("command", ["render", "simulate", "stickers"])
+@pytest.mark.parametrize("size", ["1e30", "100x1e30", "1e-30", "1001"])
+def test_a_size_out_of_range_is_refused_with_the_range(command, size, tmp_path):
+    out = tmp_path / ("kit.svg" if command == "stickers" else "out")
+    line = one_error_line(run(command, "--size", size, out))
+    assert line.startswith("Error: Invalid value for '--size': ")
+    assert f"napkin size '{size}'" in line and "each side must be 240 to 1000 mm" in line
+    assert not out.exists()
