@@ -236,6 +236,25 @@ def test_watch_into_a_closed_pipe_stops_the_realsense_playback_first(tmp_path):
     assert "FATAL" not in err and "error" not in err and "Traceback" not in err
 
 
+
+def test_a_report_folder_on_a_disk_with_no_room_is_one_line_naming_the_file(tmp_path):
+    """With 0 bytes free, the first file a run writes is its lock: the error named no
+    path ('error: No space left on device') and left the empty lock file."""
+    folder = sample_folder(tmp_path / "pairs")
+    for command in ("evaluate", "track"):
+        report = tmp_path / f"report_{command}"
+        proc = run_process(
+            [command, folder, "--report", report, "-j", "1"],
+            stdout=subprocess.PIPE, preexec_fn=_limited_to(0),
+        )
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.splitlines() == [
+            f"error: cannot write '{report / '.dgli-lock'}': File too large; nothing was "
+            "written"
+        ]
+        assert list(report.iterdir()) == []
+
+
 # --- files written whole or not at all ------------------------------------------------------
 
 

@@ -28,7 +28,7 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from .errors import DgliError
+from .errors import DgliError, OutputError
 
 __all__ = [
     "LOCK_NAME",
@@ -97,6 +97,8 @@ class RunLock:
     ------
     RunBusyError
         From :meth:`acquire`: a live process holds the folder's lock.
+    OutputError
+        From :meth:`acquire`: the lock file cannot be written (a full disk), naming it.
     """
 
     def __init__(self, folder: str | Path, command: str = "") -> None:
@@ -145,8 +147,15 @@ class RunLock:
                 "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
                 "command": self.command,
             }
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, (json.dumps(record) + "\n").encode(), 0)
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, (json.dumps(record) + "\n").encode(), 0)
+            except OSError as exc:  # a full disk: not even the lock's line fits
+                self._fd = fd
+                self.release()
+                raise OutputError(
+                    f"cannot write '{self.path}': {exc.strerror or exc}; nothing was written"
+                ) from None
             self._fd = fd
             return
         raise RunBusyError(f"cannot take the lock '{self.path}': it keeps changing")
