@@ -9,6 +9,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+from guards import read_only
 from numpy.typing import NDArray
 
 from dgli_vision.core.camera import Intrinsics
@@ -23,8 +24,11 @@ SMALL = Intrinsics(640, 360, 302.5, 302.5, 319.5, 179.5)
 
 @lru_cache(maxsize=16)
 def render_small(class_id: str, k: int, seed: int, conditions: tuple[str, ...] = ()):
-    """Sample ``k`` of a class at a quarter of SPEC's pixels (cached: tests share them)."""
-    return render_sample(class_id, k, seed, conditions=conditions, intrinsics=SMALL)
+    """Sample ``k`` of a class at a quarter of SPEC's pixels (cached: tests share them;
+    read-only)."""
+    sample = render_sample(class_id, k, seed, conditions=conditions, intrinsics=SMALL)
+    read_only(sample)
+    return sample
 
 
 def disc_ring(result, sid: int, fraction: float = 0.75) -> tuple[NDArray, NDArray]:

@@ -9,6 +9,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from guards import read_only
 
 from dgli_vision.classifier.pipeline import classify_frame, observe
 from dgli_vision.classifier.references import load_references
@@ -30,12 +31,16 @@ AREA = LAYOUT.width_mm * LAYOUT.height_mm
 
 @lru_cache(maxsize=32)
 def small(class_id: str, k: int = 0, seed: int = 5, conditions: tuple[str, ...] = ()):
-    return render_sample(class_id, k, seed, conditions=conditions, intrinsics=SMALL)
+    """A render at :data:`SMALL`, cached (tests share it) and read-only."""
+    sample = render_sample(class_id, k, seed, conditions=conditions, intrinsics=SMALL)
+    read_only(sample)
+    return sample
 
 
 def frame(sample, *, mirror: bool = False, depth_scale: float = 1.0) -> RGBDFrame:
+    """The sample's frame, on copies of its images: the frame is the test's to change."""
     r = sample.result
-    color, depth = r.color, r.depth_mm
+    color, depth = r.color.copy(), r.depth_mm.copy()
     if mirror:
         color, depth = color[:, ::-1].copy(), depth[:, ::-1].copy()
     if depth_scale != 1.0:

@@ -284,6 +284,30 @@ def test_dgli_stays_bounded_near_a_crossing():
     assert above == pytest.approx(-0.5, abs=1e-5) and below == pytest.approx(0.5, abs=1e-5)
 
 
+@pytest.mark.parametrize(
+    ("gap", "c", "d"),
+    [
+        # c -> d passes over the interior of a -> b: the GLI tends to -+1/2 as gap -> 0
+        (1e-3, [0.2, -1, 1], [0.1, 1, 1]),
+        # c lies just off the interior of a -> b (a T): it tends to -+1/4 and more
+        (1e-2, [0.3, 0, 1], [0.1, 1, 0.5]),
+        # c lies just off b, the end of a -> b
+        (1e-2, [1, 0, 1], [1.5, 1, -0.5]),
+    ],
+    ids=["cross", "on-segment", "touch"],
+)
+def test_near_degenerate_gli_matches_quadrature_of_the_double_integral(gap, c, d):
+    # the near-degenerate kinds of the property test above, at gaps quadrature resolves
+    a, b = np.array([-1, 0, 0.0]), np.array([1, 0, 0.0])
+    c, d = np.array(c, float), np.array(d, float)
+    c[2] *= gap
+    exact = gauss_integral_quadrature(a, b, c, d)
+    assert abs(exact) > 0.1
+    assert gli(a, b, c, d) == pytest.approx(exact, abs=1e-12)
+    _, raw = unclipped_gli(a, b, c, d)
+    assert raw == pytest.approx(exact, abs=1e-12)
+
+
 def test_degenerate_inputs_have_defined_values():
     a, b, c, d = (np.array(p, float) for p in ([0, 0, 0], [1, 0, 0], [1, 0, 0], [1, 1, 0.3]))
     # Touching (b == c): GLI exactly 0, dGLI defined as 0.
@@ -336,13 +360,48 @@ def near_degenerate_pair(draw):
     return a, b, c, d
 
 
+def unclipped_gli(a, b, c, d):
+    """``gli(a, b, c, d)`` and the value it had before its final clip to [-1/2, 1/2]
+    (``gli`` clips, so a check of its result against the bound cannot fail)."""
+    real_clip = np.clip
+    seen = []
+
+    def spy(x, lo, hi, *args, **kwargs):
+        if (lo, hi) == (-0.5, 0.5):
+            seen.append(np.array(x, dtype=float, copy=True))
+        return real_clip(x, lo, hi, *args, **kwargs)
+
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(np, "clip", spy)
+        g = gli(a, b, c, d)
+    assert len(seen) == 1, "gli no longer clips with np.clip(..., -0.5, 0.5)"
+    return g, seen[0]
+
+
+def rounding_allowance(a, b, c, d):
+    """How far rounding may take the unclipped GLI past 1/2: about 1e-16 L / gap near a
+    crossing (L: the segments' lengths, gap: the distance of their lines; unbounded when
+    the lines are parallel or meet)."""
+    t1, t2 = b - a, d - c
+    normal = np.cross(t1, t2)
+    size = np.linalg.norm(normal)
+    gap = abs(float((c - a) @ normal)) / size if size > 0 else 0.0
+    length = np.linalg.norm(t1) + np.linalg.norm(t2)
+    return 1e-12 + (np.inf if gap == 0 else 1e-14 * length / gap)
+
+
 @settings(max_examples=400, deadline=None)
 @given(near_degenerate_pair(), st.sampled_from([(0, 0, 1.0), (0.3, -0.2, 0.9)]))
 def test_near_degenerate_inputs_never_give_nan_or_inf(pair, up):
     a, b, c, d = pair
-    g = gli(a, b, c, d)
+    g, raw = unclipped_gli(a, b, c, d)
     dg = dgli(a, b, c, d, up)
-    assert np.isfinite(g) and abs(g) <= 0.5
+    assert np.isfinite(g)
+    # where the pair is not set to 0 as touching or coplanar, the clip only takes off
+    # rounding: the solid-angle formula itself stays within |GLI| < 1/2
+    assert g == 0.0 or abs(raw) <= 0.5 + rounding_allowance(a, b, c, d), (g, raw)
+    if a[2] == b[2] == c[2] == d[2]:  # the four points in one plane z = eps, exactly
+        assert g == 0.0
     assert np.isfinite(dg)
     coords = cloth_coordinates(np.stack([np.stack([a, b]), np.stack([c, d])]), up)
     assert np.isfinite(coords).all()

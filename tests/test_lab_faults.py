@@ -19,6 +19,7 @@ import cv2
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from guards import require_extra
 
 import dgli_vision
 from dgli_vision.cli import main
@@ -419,7 +420,7 @@ def test_input_path_that_is_a_symlink_loop_is_named(tmp_path):
 @pytest.fixture(scope="module")
 def small_bag(tmp_path_factory) -> Path:
     """Three frames of 64 x 48 pixels, 0.1 s apart, in a ROS 2 bag."""
-    pytest.importorskip("rosbags")
+    require_extra("rosbags")
     from dgli_vision.sources.bag_writer import write_bag
 
     rng = np.random.default_rng(29)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from guards import require_extra
 
 from dgli_vision.cli import main
 from dgli_vision.core.parallel import FileSpan, SharedSlots
@@ -22,7 +23,7 @@ from dgli_vision.sources.mcap_file import plan
 from dgli_vision.sources.recording import open_recording
 from dgli_vision.sources.ros_bags import RosBag
 
-pytest.importorskip("rosbags")  # the 'recordings' extra; scripts/setup.sh installs it
+require_extra("rosbags")  # the 'recordings' extra: skipped without it, failed in CI
 
 STRING, IMAGE = "std_msgs/msg/String", "sensor_msgs/msg/Image"
 

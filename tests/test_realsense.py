@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from guards import require_extra
 
 from dgli_vision.cli import main
 from dgli_vision.core.camera import Intrinsics
@@ -58,7 +59,7 @@ def _one_line_error(args: list[str], *needles: str) -> str:
 
 @pytest.fixture(scope="module")
 def rs():
-    return pytest.importorskip("pyrealsense2")  # the 'realsense' extra; setup.sh installs it
+    return require_extra("pyrealsense2")  # the 'realsense' extra: failed in CI if missing
 
 
 @pytest.fixture(scope="module")
@@ -287,7 +288,7 @@ def test_the_camera_path_gives_aligned_frames_in_mm_with_the_stream_intrinsics(p
     pace, it plays like one)."""
     from dgli_vision.sources.realsense import _camera_frames
 
-    rs = pytest.importorskip("pyrealsense2")
+    rs = require_extra("pyrealsense2")
     config = rs.config()
     config.enable_device_from_file(str(pattern_db3), repeat_playback=True)  # endless
     pipeline = rs.pipeline()

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from click.testing import CliRunner
+from guards import require_extra
 
 from dgli_vision.analysis.evaluate import evaluate_pairs
 from dgli_vision.classifier.references import load_references
@@ -24,7 +25,7 @@ from dgli_vision.sources.recording import open_recording, read_recording
 from dgli_vision.sources.ros_bags import IMAGE, INFO, choose_topics
 from dgli_vision.sources.ros_images import ImagePayload, decode_color, decode_depth
 
-pytest.importorskip("rosbags")  # the 'recordings' extra; scripts/setup.sh installs it
+require_extra("rosbags")  # the 'recordings' extra: skipped without it, failed in CI
 
 T0 = 1_700_000_000.0  # a driver's stamps: seconds since 1970
 
@@ -458,7 +459,7 @@ def test_lens_distortion_is_noted(episode, tmp_path):
 def test_a_file_that_is_not_a_realsense_recording_is_refused_in_one_line(tmp_path):
     from dgli_vision.sources.realsense import is_realsense_recording
 
-    pytest.importorskip("pyrealsense2")  # the 'realsense' extra; scripts/setup.sh installs it
+    require_extra("pyrealsense2")  # the 'realsense' extra
     fake = tmp_path / "rs.bag"
     fake.write_bytes(b"#ROSBAG V2.0\n" + b"\0" * 64 + b"/device_0/sensor_0/Depth_0" + b"\0" * 64)
     assert is_realsense_recording(fake)

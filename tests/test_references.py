@@ -15,7 +15,12 @@ from dgli_vision.classifier.references import (
     references_to_dict,
     write_references,
 )
-from dgli_vision.core.errors import DetectionError, ReferenceError_
+from dgli_vision.core.errors import (
+    DetectionError,
+    InvalidInputError,
+    ReferenceError_,
+    UnreadableInputError,
+)
 from dgli_vision.sim.database import records_from_states, simulate_states
 
 
@@ -156,28 +161,43 @@ def test_height_tells_a_half_fold_from_a_strip_held_up_at_the_same_angle(shipped
 
 
 @pytest.mark.parametrize(
-    ("content", "message"),
+    ("content", "error", "message"),
     [
-        ("{", "not valid JSON"),
-        ('{"format": "other"}', "not a dgli reference set"),
-        ('{"format": "dgli-references", "version": 9}', "version 9"),
+        # not JSON at all: the JSON reader's error, as for any JSON file dgli reads
+        ("{", InvalidInputError, r"reference set '.*bad\.json' is not valid JSON \(line 1, "),
+        (
+            '{"format": "other"}',
+            ReferenceError_,
+            r"'.*bad\.json' is not a dgli reference set \(no \"format\": \"dgli-references\"\)",
+        ),
+        (
+            '{"format": "dgli-references", "version": 9}',
+            ReferenceError_,
+            r"'.*bad\.json' has reference format version 9; expected 1$",
+        ),
         (
             '{"format": "dgli-references", "version": 1, "references": [{"class": "02"}]}',
-            "reference 0 is malformed",
+            ReferenceError_,
+            r"'.*bad\.json': reference 0 is malformed \('coordinates'\)$",
         ),
     ],
 )
-def test_bad_reference_files_name_the_file(tmp_path, content, message):
+def test_bad_reference_files_name_the_file(tmp_path, content, error, message):
     path = tmp_path / "bad.json"
     path.write_text(content)
-    with pytest.raises((ReferenceError_, Exception), match=message) as info:
+    with pytest.raises(error, match=message) as info:
         read_references(path)
-    assert "bad.json" in str(info.value)
+    assert type(info.value) is error  # not a subclass standing in for it
+    assert str(path) in str(info.value)
+    assert info.value.exit_code == 2
 
 
 def test_missing_reference_file(tmp_path):
-    with pytest.raises(Exception, match="does not exist"):
-        load_references(tmp_path / "nope.json")
+    path = tmp_path / "nope.json"
+    message = r"^reference set '.*nope\.json' does not exist$"
+    with pytest.raises(UnreadableInputError, match=message) as info:
+        load_references(path)
+    assert type(info.value) is UnreadableInputError and info.value.exit_code == 2
 
 
 def test_reference_json_records_provenance(shipped):

@@ -158,8 +158,13 @@ def test_a_second_run_into_a_busy_report_folder_is_refused_naming_the_first(
     assert len(r.output.strip().splitlines()) == 1
     assert t.exit_code == 2 and f"pid {holder.pid}" in t.output
     assert not (report / "results.jsonl").exists()
-    again = run("evaluate", str(folder), "--report", str(report))  # its lock died with it
-    assert "in use" not in again.output
+    monkeypatch.undo()  # classifying allowed again
+    # its lock died with it: the folder is free, the run goes through
+    again = run("evaluate", str(folder), "--report", str(report), "-j", "1")
+    assert again.exit_code == 0, again.output
+    assert "in use" not in again.output and again.exception is None
+    assert json.loads((report / "summary.json").read_text())["n"] == 2
+    assert not (report / LOCK_NAME).exists()
 
 
 def test_a_stale_lock_of_a_killed_run_is_taken_over_and_released(folder, tmp_path):

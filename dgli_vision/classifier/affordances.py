@@ -19,7 +19,7 @@ folded over, with no flap lying over it.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
 
@@ -31,6 +31,7 @@ from ..core.classes import CORNERS, LIFTED_MM
 from ..core.fold_lines import NominalFold, nominal_folds, reflect_uv
 from ..core.layout import CORNER_STICKERS, NapkinLayout
 from ..core.order_stats import median
+from .fold_geometry import FoldGeometry, fit_folds
 
 __all__ = [
     "CORNER_STATES",
@@ -334,6 +335,9 @@ class SeenFold:
     under : bool
     line : tuple of two 3D points, or None
         Its two ends on the table, camera frame, metres.
+    geometry : FoldGeometry or None
+        Its sizes on the flat napkin (legs and tip, inset and skew, offset and turn),
+        fitted to the stickers (:mod:`dgli_vision.classifier.fold_geometry`).
     """
 
     fold: str
@@ -341,15 +345,19 @@ class SeenFold:
     side: str | None
     under: bool
     line: tuple[tuple[float, float, float], tuple[float, float, float]] | None
+    geometry: FoldGeometry | None = None
 
     def to_json(self) -> dict[str, Any]:
-        """The JSON form (``{"fold", "corner" or "side", "under", "line"}``)."""
+        """The JSON form (``{"fold", "corner" or "side", "under", "line"}`` and the
+        geometry's keys: :meth:`FoldGeometry.to_json`)."""
         out: dict[str, Any] = {"fold": self.fold}
         out["corner" if self.corner else "side"] = self.corner or self.side
         out["under"] = self.under
         out["line"] = None if self.line is None else [
             [round(v, 5) for v in p] for p in self.line
         ]
+        if self.geometry is not None:
+            out.update(self.geometry.to_json())
         return out
 
 
@@ -566,9 +574,13 @@ def affordances_of(
         )
         for k, (name, (state, free, point, how)) in enumerate(zip(CORNERS, judged))
     ]
-    folds = () if maps is None else tuple(
-        _seen_fold(maps, j, corners) for j in range(len(maps.folds))
-    )
+    folds: tuple[SeenFold, ...] = ()
+    if maps is not None and plan is not None:
+        sizes = fit_folds(obs, maps.folds, plan.sticker_part, layout)
+        folds = tuple(
+            replace(_seen_fold(maps, j, corners), geometry=sizes[j])
+            for j in range(len(maps.folds))
+        )
     return Affordances(tuple(corners), folds)
 
 

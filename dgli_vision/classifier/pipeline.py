@@ -33,6 +33,7 @@ from ..perception.scale import NapkinRuler, measure_napkin
 from ..perception.tips import corner_tips, settled_stickers
 from ..sources.frames import RGBDFrame
 from .affordances import Affordances, affordances_of
+from .capture_limits import border_factor, sticker_px, sticker_size_problem
 from .classify import (
     MIN_CONFIDENCE,
     Prediction,
@@ -424,6 +425,36 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
+def _too_small(
+    detections: StickerDetections, frame: RGBDFrame, napkin_mm: float, layout: NapkinLayout
+) -> str | None:
+    """Why the stickers are too small to be read, or None. With three stickers located
+    their size is measured in the image (whatever the depth's units), otherwise it
+    follows from the depth, unless the depth itself looks wrong (then the depth is
+    blamed, in the detection's message)."""
+    found = detections.found
+    if found.sum() >= 3:
+        fore = detections.foreshortening
+        fore = fore[found] if fore is not None else 1.0
+        across = float(np.median(2 * np.sqrt(detections.areas[found] / (np.pi * fore))))
+        depth_mm = layout.disc_diameter_mm * frame.intrinsics.fx / max(across, 1e-6)
+        return sticker_size_problem(depth_mm, frame.intrinsics, layout.disc_diameter_mm)
+    if depth_scale_hint(detections, frame.depth_mm):
+        return None
+    return sticker_size_problem(napkin_mm, frame.intrinsics, layout.disc_diameter_mm)
+
+
+def _napkin_depth(detections: StickerDetections, depth_mm: NDArray[np.uint16]) -> float:
+    """The napkin's distance from the camera, mm: the median depth of the stickers
+    located (at least three), else of the frame's readings (NaN with none)."""
+    z = detections.depth_mm[np.isfinite(detections.depth_mm)]
+    if len(z) >= 3:
+        return float(np.median(z))
+    read = depth_mm[::8, ::8]
+    read = read[read > 0]
+    return float(np.median(read)) if read.size else float("nan")
+
+
 def _unknown_summary(obs: ClothObservation) -> str:
     """What the stickers neither seen nor evidence of a fold are (for a "cannot tell":
     only worked out when one is said)."""
@@ -443,8 +474,11 @@ def _judge(
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
-    problem = scale_problem(obs.ruler, layout) or rigidity_problem(
-        obs.ruler, lens_known=frame.intrinsics.distorted
+    napkin_mm = _napkin_depth(detections, frame.depth_mm)
+    problem = (
+        _too_small(detections, frame, napkin_mm, layout)
+        or scale_problem(obs.ruler, layout)
+        or rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
     )
     if problem is not None:
         return FrameResult(
@@ -475,6 +509,13 @@ def _judge(
                 coords, references, **evidence, distances=front, unsure=unsure,
                 settled=settled,
             )
+    border = border_factor(
+        detections.centroids,
+        frame.intrinsics,
+        sticker_px(napkin_mm, frame.intrinsics, layout.disc_diameter_mm),
+    )
+    if border < 1.0:  # an uncorrected lens may have moved the stickers near the border
+        guess = replace(guess, confidence=round(guess.confidence * border, 4))
     clock.lap("classify")
     area = layout.width_mm * layout.height_mm
     doubt = mirror_problem(
@@ -502,6 +543,11 @@ def _judge(
         )
     if obs.evidence is not None and obs.evidence.occluded:
         why.append("the napkin is partly covered by an object above it")
+    if border < 1.0:
+        why.append(
+            "stickers near the image border, lens distortion unknown (confidence "
+            f"x{border:.2f}: give the lens with --intrinsics)"
+        )
     unknown = _unknown_summary(obs)
     if unknown:
         why.append(unknown)

@@ -89,7 +89,7 @@ def overlay_of(frame: Any, result: Any) -> Any:
     ones would be (hidden or unknown, and why), the objects over the napkin, the
     verdict."""
     from ..analysis.report import overlay_evidence, overlay_image
-    from ..planning.overlay import draw_corners
+    from ..planning.overlay import draw_corners, draw_folds
 
     obs = result.observation
     evidence = overlay_evidence(result)
@@ -98,7 +98,8 @@ def overlay_of(frame: Any, result: Any) -> Any:
         frame.color, result.detections.centroids, verdict_line(result), detail=detail,
         evidence=evidence,
     )
-    return draw_corners(image, result.affordances)
+    return draw_folds(draw_corners(image, result.affordances), result.affordances,
+                      frame.intrinsics)
 
 
 def verdict_line(result: Any) -> str:

@@ -81,6 +81,13 @@ def _cloth_size(
     help="Run on a Dask distributed cluster (its scheduler's address, tcp://host:8786); "
     "needs the 'dask' extra.",
 )
+@click.option(
+    "--resume",
+    is_flag=True,
+    help="Go on with an interrupted run: keep the episodes already in -o DIR's "
+    "results.jsonl and label the rest (refused when the run differs: inputs, references, "
+    "options).",
+)
 @references_option
 @overwrite_option
 @handle_errors
@@ -96,6 +103,7 @@ def label_cmd(
     jobs: int,
     dask_address: str | None,
     references_path: str | None,
+    resume: bool,
     overwrite: bool,
 ) -> None:
     """Label every frame of cloth episodes from other simulators.
@@ -105,80 +113,235 @@ def label_cmd(
     folder of .obj/.ply meshes, one per frame in name order. Each frame gets its state
     (class, variant, fold in progress, confidence), smoothed over the episode; a bad
     episode is reported (one line) and the others go on (exit 2 at the end).
+
+    With -o DIR, each episode's files are written, and it is recorded in results.jsonl,
+    as soon as it is labelled; one run at a time writes into DIR. Ctrl-C or SIGTERM
+    writes summary.json of what is done and exits 130 (143); --resume goes on from there.
     """
+    from ..core.errors import InvalidInputError
     from ..core.io import guard_outputs
     from ..labelling.episodes import ReadOptions, parse_up_axis
-    from ..labelling.outputs import episode_names
-    from ..labelling.run import LabelJob, label_episodes
 
     parse_up_axis(up_axis)  # a bad axis stops before any work
+    if resume and not out_dir:
+        raise InvalidInputError("--resume needs -o DIR, where results.jsonl is kept")
     options = ReadOptions(fmt, up_axis, units, size_mm, rest)
-    job = LabelJob(tuple(inputs), options, references_path, jobs, dask_address)
-    names = episode_names(inputs)
-    out = Path(out_dir) if out_dir else None
-    if out is not None:
-        planned = [out / "summary.json"]
-        for n in names:
-            planned += [out / f"{n}.jsonl", out / f"{n}.csv", out / f"{n}_timeline.png"]
-        guard_outputs(planned, overwrite=overwrite)
-    results = []
-    for name, result in zip(names, label_episodes(job)):
-        results.append(result)
-        _report_episode(result, name, out, as_json, overwrite)
-    _finish(results, out, as_json, overwrite)
-
-
-def _report_episode(
-    result: Any, name: str, out: Path | None, as_json: bool, overwrite: bool
-) -> None:
-    from ..core.io import write_outputs
-    from ..labelling.label import EpisodeFailure, state_text
-    from ..labelling.outputs import episode_files
-
-    if isinstance(result, EpisodeFailure):
-        click.echo(f"error: {result.error}", err=True)
+    run = _LabelRun(tuple(inputs), options, references_path, jobs, dask_address, as_json)
+    if out_dir is None:
+        run.go(None, None, overwrite=overwrite)
         return
-    if out is not None:
-        files = episode_files(out, name, result)
-        write_outputs(files, overwrite=overwrite, command=command_line())
-    if as_json:
+    from .runs import folder_lock, open_journal
+
+    out = Path(out_dir)
+    planned = [out / "summary.json"]  # results.jsonl: open_journal's to check
+    for n in run.names:
+        planned += [out / f"{n}.jsonl", out / f"{n}.csv", out / f"{n}_timeline.png"]
+    with folder_lock(out):  # before anything is checked or written there
+        guard_outputs(planned, overwrite=overwrite or resume)
+        journal = open_journal(out / "results.jsonl", run.header(), resume, overwrite)
+        run.go(out, journal, overwrite=overwrite or resume)
+
+
+def _write_stdout(text: str) -> None:
+    """Write ``text`` to standard output and make sure all of it went: a full disk or a
+    closed pipe is an error (exit 2), never a truncated answer and exit 0. (A text
+    stream over an unbuffered file drops what a short write did not take, without an
+    error, so the bytes go to the raw stream, each write's count checked.)"""
+    from ..core.errors import OutputError
+
+    buffer = getattr(sys.stdout, "buffer", None)
+    if buffer is None:  # not a byte stream underneath: as any other output
+        click.echo(text)
         return
-    frames = result.frames
-    answered = sum(f.class_id is not None for f in frames)
-    first = (frames[0].smoothed_class, frames[0].smoothed_variant)
-    click.echo(
-        f"{result.path}: {len(frames)} frames ({answered} with a class); starts as "
-        f"{state_text(first)}"
-    )
-    for t, a, b in result.changes:
-        click.echo(f"  frame {t}: {state_text(a)} -> {state_text(b)}")
+    raw = getattr(buffer, "raw", buffer)  # (unbuffered, PYTHONUNBUFFERED: the raw file)
+    data = memoryview((text + "\n").encode(sys.stdout.encoding or "utf-8", errors="replace"))
+    try:
+        sys.stdout.flush()
+        while len(data):
+            n = raw.write(data[: 1 << 20])
+            if not n:  # None (would block) or 0: nothing more goes
+                raise OSError(28, "No space left on device")
+            data = data[n:]
+    except OSError as exc:
+        raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
 
 
-def _finish(results: list, out: Path | None, as_json: bool, overwrite: bool) -> None:
-    from ..analysis.evaluate import json_ready
-    from ..core.io import write_outputs
-    from ..labelling.label import EpisodeLabels
-    from ..labelling.outputs import summary_of
+class _LabelRun:
+    """``dgli label`` once its inputs are known: label, write, print, sum up."""
 
-    summary = summary_of(results)
-    if out is not None:
-        write_outputs(
-            {out / "summary.json": {"command": command_line(), **summary}},
-            overwrite=overwrite,
-            command=command_line(),
+    def __init__(
+        self,
+        inputs: tuple[str, ...],
+        options: Any,
+        references_path: str | None,
+        jobs: int,
+        dask_address: str | None,
+        as_json: bool,
+    ) -> None:
+        from ..labelling.outputs import episode_names
+
+        self.inputs, self.options = inputs, options
+        self.references_path, self.jobs, self.dask = references_path, jobs, dask_address
+        self.as_json = as_json
+        self.names = episode_names(inputs)
+
+    def header(self) -> dict[str, Any]:
+        """What defines this run, for results.jsonl: each input by its files' names,
+        sizes and times, the references and rest file by checksum, the options."""
+        from ..classifier.references import default_references_path
+        from ..core.run_lock import file_digest, listing_digest, run_header
+
+        def files_of(path: str) -> list[tuple[str, int, int]]:
+            p = Path(path)
+            found = sorted(p.iterdir()) if p.is_dir() else [p]
+            rows = []
+            for f in found:
+                try:
+                    st = f.stat()
+                    rows.append((str(f.resolve()), st.st_size, st.st_mtime_ns))
+                except OSError:
+                    rows.append((str(f), -1, -1))
+            return rows
+
+        inputs = listing_digest(row for path in self.inputs for row in files_of(path))
+        refs = self.references_path or default_references_path()
+        o = self.options
+        return run_header(
+            "label",
+            {
+                "input": inputs,
+                "references": file_digest(refs),
+                "options": {
+                    "format": o.format,
+                    "up_axis": o.up_axis,
+                    "units": o.units,
+                    "size_mm": list(o.size_mm) if o.size_mm else None,
+                    "rest": listing_digest(files_of(o.rest)) if o.rest else None,
+                },
+            },
         )
-    if as_json:
-        episodes = [r.to_dict() for r in results if isinstance(r, EpisodeLabels)]
-        click.echo(json.dumps(json_ready({"episodes": episodes, "summary": summary})))
-    else:
-        failed = len(summary["failed"])
+
+    def go(self, out: Path | None, journal: Any, *, overwrite: bool) -> None:
+        """Label the episodes not in ``journal`` (its writer and the objects already in
+        it), write and print each as it comes, then the summary; exit as it says."""
+        from ..analysis.evaluate import json_ready
+        from ..labelling.label import EpisodeFailure
+        from ..labelling.run import LabelJob, label_episodes
+        from .runs import stop_signals
+
+        writer, earlier = journal if journal else (None, [])
+        done: dict[str, dict[str, Any]] = {}
+        for line in earlier:
+            if isinstance(line, dict) and line.get("episode") in self.names:
+                done[line["episode"]] = line
+        todo = [(n, p) for n, p in zip(self.names, self.inputs) if n not in done]
+        job = LabelJob(tuple(p for _, p in todo), self.options, self.references_path,
+                       self.jobs, self.dask)
+        for name in self.names:  # what an earlier run did, in order, as it said it
+            if name in done:
+                self._print_episode(done[name])
+        from concurrent.futures.process import BrokenProcessPool
+
+        with stop_signals() as stop:
+            try:
+                for (name, _), result in zip(todo, label_episodes(job)):
+                    if isinstance(result, EpisodeFailure):
+                        entry = {"episode": name, "path": result.path, "error": result.error}
+                    else:
+                        entry = {"episode": name, "path": result.path,
+                                 "result": result.to_dict()}
+                    with stop.holding():  # its files and its journal line, or neither
+                        if out is not None:
+                            self._write_episode(out, name, result, overwrite)
+                        if writer:
+                            writer.write(json_ready(entry))
+                        done[name] = entry
+                    self._print_episode(entry)
+            except (KeyboardInterrupt, SystemError) as exc:
+                if not stop.cut_short(exc):
+                    raise
+                stop.stopped = True
+            except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+                if not stop.stopped:
+                    raise
+            finally:
+                if writer:
+                    writer.close()
+        entries = [done[n] for n in self.names if n in done]
+        self._finish(entries, out, overwrite, complete=not stop.stopped)
+        if stop.stopped:
+            click.echo(
+                f"interrupted: {len(entries)} of {len(self.names)} episodes done"
+                + ("; go on with the same command and --resume" if out else ""),
+                err=True,
+            )
+            sys.exit(stop.exit_code)
+
+    def _write_episode(self, out: Path, name: str, result: Any, overwrite: bool) -> None:
+        from ..core.io import write_outputs
+        from ..labelling.label import EpisodeLabels
+        from ..labelling.outputs import episode_files
+
+        if isinstance(result, EpisodeLabels):
+            files = episode_files(out, name, result)
+            write_outputs(files, overwrite=overwrite, command=command_line())
+
+    def _print_episode(self, entry: dict[str, Any]) -> None:
+        from ..labelling.label import state_text
+
+        if "error" in entry:
+            click.echo(f"error: {entry['error']}", err=True)
+            return
+        ep = entry["result"]
+        if ep.get("note"):
+            click.echo(f"note: '{ep['path']}': {ep['note']}", err=True)
+        if self.as_json:
+            return
+        frames = ep["frames"]
+        answered = sum(f["class"] is not None for f in frames)
+        first = frames[0]["smoothed"] if frames else {"class": "01", "variant": None}
         click.echo(
-            f"{summary['labelled']} of {summary['episodes']} episodes labelled, "
-            f"{summary['frames']} frames, {summary['changes']} state changes"
-            + (f"; {failed} failed (above)" if failed else "")
-            + (f"; written to {out}" if out else "")
+            f"{ep['path']}: {len(frames)} frames ({answered} with a class); starts as "
+            f"{state_text((first['class'], first['variant']))}"
         )
-    if summary["failed"]:
-        sys.exit(2)
-    if summary["frames"] and not summary["frames_with_class"]:
-        sys.exit(1)
+        for c in ep["changes"]:
+            a, b = c["from"], c["to"]
+            click.echo(
+                f"  frame {c['frame']}: {state_text((a['class'], a['variant']))} -> "
+                f"{state_text((b['class'], b['variant']))}"
+            )
+
+    def _finish(
+        self, entries: list[dict[str, Any]], out: Path | None, overwrite: bool, complete: bool
+    ) -> None:
+        from ..analysis.evaluate import json_ready
+        from ..core.io import record_outputs, write_outputs
+        from ..labelling.outputs import summary_of_entries
+
+        summary = summary_of_entries(entries)
+        if not complete:
+            summary["interrupted"] = {"done": len(entries), "of": len(self.names)}
+        if out is not None:
+            write_outputs(
+                {out / "summary.json": {"command": command_line(), **summary}},
+                overwrite=overwrite,
+                command=command_line(),
+            )
+            record_outputs([out / "results.jsonl"], command_line())
+        if self.as_json:
+            episodes = [e["result"] for e in entries if "result" in e]
+            _write_stdout(json.dumps(json_ready({"episodes": episodes, "summary": summary})))
+        else:
+            failed = len(summary["failed"])
+            click.echo(
+                f"{summary['labelled']} of {summary['episodes']} episodes labelled, "
+                f"{summary['frames']} frames, {summary['changes']} state changes"
+                + (f"; {failed} failed (above)" if failed else "")
+                + (f"; written to {out}" if out else "")
+            )
+        if not complete:
+            return
+        if summary["failed"]:
+            sys.exit(2)
+        if summary["frames"] and not summary["frames_with_class"]:
+            sys.exit(1)

@@ -26,6 +26,7 @@ from .render import render_cmd
 from .robustness import robustness
 from .simulate import simulate
 from .track import track
+from .verify import verify_cmd
 from .watch import watch
 
 
@@ -60,6 +61,7 @@ for _command in (
     label_cmd,
     watch,
     plan_cmd,
+    verify_cmd,
 ):
     main.add_command(_command)
 

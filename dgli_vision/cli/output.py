@@ -94,7 +94,8 @@ def command_line() -> str:
     for param in ctx.command.params:
         value = ctx.params.get(param.name)
         if isinstance(param, click.Argument):
-            words.append(shlex.quote(str(value)))
+            values = value if isinstance(value, (tuple, list)) else (value,)
+            words += [shlex.quote(str(v)) for v in values]  # nargs=-1: each on its own
         elif (
             value is not None
             and value is not False

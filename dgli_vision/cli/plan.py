@@ -83,6 +83,11 @@ def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> 
 @click.option("--seed", type=int, default=0, show_default=True, help="--check: the seed.")
 @click.option("--every", type=click.IntRange(1, None), default=None,
               help="--check: only every N-th (start, goal) pair (a quicker check).")
+@click.option("--verify", "verify_pair", nargs=2, type=click.Path(),
+              help="AFTER_COLOR AFTER_DEPTH: the frame after the plan's first step; check "
+                   "it made the expected state and the planned crease (dgli verify).")
+@click.option("--tolerance", type=click.FloatRange(0, 1000, min_open=True), default=20.0,
+              show_default=True, help="--verify: how far (mm) the planned sizes may be missed.")
 @intrinsics_option
 @references_option
 @json_option("Print the plan (or the check's table) as one JSON object.")
@@ -99,6 +104,8 @@ def plan_cmd(
     per_pair: int,
     seed: int,
     every: int | None,
+    verify_pair: tuple[str, str] | None,
+    tolerance: float,
     intrinsics: str | None,
     references_path: str | None,
     as_json: bool,
@@ -125,6 +132,10 @@ def plan_cmd(
         raise click.UsageError("give --goal STATE (or --check)")
     if start is None and (color is None or depth is None):
         raise click.UsageError("give COLOR and DEPTH, or --from STATE")
+    if verify_pair and not verify_pair[0]:
+        verify_pair = None
+    if verify_pair and start is not None:
+        raise click.UsageError("--verify checks a plan made from an image: give COLOR DEPTH")
     if start is not None and (color is not None or overlay):
         raise click.UsageError("--from plans without an image: give no COLOR, DEPTH or --overlay")
     layout = layout_of_size(refs.napkin_mm)
@@ -150,7 +161,36 @@ def plan_cmd(
         else:
             echo(f"no plan: {exc}" if not str(exc).startswith("no plan") else str(exc))
         sys.exit(1)
+    if verify_pair:
+        _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json)
+        return
     echo(json.dumps(plan.to_json()) if as_json else _plan_line(plan))
+
+
+def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: bool) -> None:
+    """``--verify``: the frame after the plan's first step against its expected state
+    and planned crease; exit 1 unless the step succeeded."""
+    from ..classifier.pipeline import classify_frame
+    from ..core.fold_measure import Crease
+    from ..planning.verify import verify_fold
+    from ..sources.frames import read_frame
+    from .verify import report
+
+    if not plan.steps:
+        raise click.UsageError("--verify: the plan has no step (already at the goal)")
+    step = plan.steps[0]
+    frame = read_frame(pair[0], pair[1], intrinsics)
+    result = classify_frame(frame, refs, layout=layout)
+    crease = Crease.through(*step.crease_mm) if step.crease_mm is not None else None
+    check = verify_fold(result, step.expect, layout, fold=step.fold if crease else None,
+                        crease=crease, tolerance_mm=tolerance)
+    if as_json:
+        echo_json({"plan": plan.to_json(), "verify": check.to_json()})
+        if not check.success:
+            sys.exit(1)
+        return
+    echo(_plan_line(plan))
+    report(check, False)
 
 
 def _overlay(frame, result, plan):

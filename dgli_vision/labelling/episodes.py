@@ -36,6 +36,13 @@ FORMATS = ("npz", "mat", "meshes")
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 #: Mesh file types a mesh folder may hold (one file per frame, in name order).
 MESH_SUFFIXES = (".obj", ".ply")
+#: An NPZ member that would inflate beyond this many bytes is refused (before reading).
+MAX_NPZ_BYTES = 4_000_000_000
+#: ... as is one (over 1 MB) that inflates more than this many times its stored size:
+#: positions compress 1-3 times, a zero-filled bomb a thousand times.
+MAX_NPZ_RATIO = 200
+#: Positions beyond this (in any unit) are refused: scaled to metres and mm they overflow.
+MAX_ABS_VALUE = 1e12
 
 
 @dataclass(frozen=True)
@@ -156,16 +163,25 @@ def detect_format(path: str | Path, given: str | None = None) -> str:
 
 
 def _check_positions(path: str, pos: NDArray, first: int = 0) -> NDArray:
-    """Positions (T, N, 3) as floats, refusing NaN or infinite values (naming the frame)."""
+    """Positions (T, N, 3) as floats, refusing complex or non-numeric values and NaN or
+    infinite ones (naming the frame)."""
     pos = np.asarray(pos)
+    if np.iscomplexobj(pos):
+        raise InvalidInputError(f"'{path}': positions are complex numbers, not real ones")
+    if pos.dtype.kind not in "fiub":
+        raise InvalidInputError(f"'{path}': positions are not numbers (dtype {pos.dtype})")
     if not np.issubdtype(pos.dtype, np.floating):
         pos = pos.astype(np.float64)
     if pos.shape[0] == 0:
         raise InvalidInputError(f"'{path}': the episode has no frames")
-    bad = ~np.isfinite(pos).all(axis=(1, 2))
+    with np.errstate(over="ignore", invalid="ignore"):
+        bad = ~np.isfinite(pos).all(axis=(1, 2))
+        # beyond MAX_ABS_M a conversion to metres and millimetres overflows
+        bad |= (np.abs(np.nan_to_num(pos)) > MAX_ABS_VALUE).any(axis=(1, 2))
     if bad.any():
         raise InvalidInputError(
-            f"'{path}': frame {first + int(np.argmax(bad))}: positions are NaN or infinite"
+            f"'{path}': frame {first + int(np.argmax(bad))}: positions are NaN, infinite "
+            f"or beyond {MAX_ABS_VALUE:.0e}"
         )
     if pos.shape[1] < 4:
         raise InvalidInputError(f"'{path}': {pos.shape[1]} vertices is not a cloth mesh")
@@ -181,12 +197,45 @@ def _check_faces(path: str, faces: NDArray, n: int) -> NDArray[np.int64]:
     return f.astype(np.int64)
 
 
-def _read_npz(path: str) -> ClothEpisode:
+def _npz_members(path: str) -> dict[str, NDArray]:
+    """The arrays of an NPZ file that ``dgli label`` uses (``positions``, ``grid``,
+    ``faces``), after checking the sizes its zip directory declares: no member is
+    inflated that is not used, and none that would inflate beyond :data:`MAX_NPZ_BYTES`
+    or more than :data:`MAX_NPZ_RATIO` times its stored size (a zip bomb)."""
+    import zipfile
+    import zlib
+
     try:
-        with np.load(path, allow_pickle=False) as data:
-            arrays = {k: data[k] for k in data.files}
-    except (OSError, ValueError, EOFError) as exc:
+        with zipfile.ZipFile(path) as zf:
+            infos = {i.filename.removesuffix(".npy"): i for i in zf.infolist()}
+            used = {k: infos[k] for k in ("positions", "grid", "faces") if k in infos}
+            if "positions" not in used:
+                raise InvalidInputError(
+                    f"'{path}': no 'positions' array (has {sorted(infos)})"
+                )
+            for name, info in used.items():
+                big = info.file_size > MAX_NPZ_BYTES
+                bomb = info.file_size > 1 << 20 and (
+                    info.file_size > MAX_NPZ_RATIO * max(info.compress_size, 1)
+                )
+                if big or bomb:
+                    raise InvalidInputError(
+                        f"'{path}': its '{name}' array would inflate to "
+                        f"{info.file_size / 1e9:.1f} GB from {info.compress_size / 1e6:.1f} MB "
+                        f"stored; refused (limit {MAX_NPZ_BYTES / 1e9:.0f} GB, "
+                        f"{MAX_NPZ_RATIO}x)"
+                    )
+            arrays = {}
+            for name, info in used.items():
+                with zf.open(info) as fh:
+                    arrays[name] = np.lib.format.read_array(fh, allow_pickle=False)
+            return arrays
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise UnreadableInputError(f"'{path}': cannot read as NPZ: {exc}") from None
+
+
+def _read_npz(path: str) -> ClothEpisode:
+    arrays = _npz_members(path)
     if "positions" not in arrays:
         raise InvalidInputError(f"'{path}': no 'positions' array (has {sorted(arrays)})")
     pos = arrays["positions"]
@@ -202,6 +251,8 @@ def _read_npz(path: str) -> ClothEpisode:
     grid = None
     if "grid" in arrays:
         g = np.asarray(arrays["grid"]).ravel()
+        if g.dtype.kind not in "iuf" or not np.isfinite(g).all() or (g != np.round(g)).any():
+            raise InvalidInputError(f"'{path}': grid must be two whole numbers (rows, cols)")
         if g.size != 2 or int(g[0]) * int(g[1]) != n or min(int(g[0]), int(g[1])) < 2:
             raise InvalidInputError(
                 f"'{path}': grid {g.tolist()} does not match the {n} vertices (rows x cols)"
@@ -221,7 +272,10 @@ def _read_mat(path: str) -> ClothEpisode:
 
     try:
         data = scipy.io.loadmat(path)
-    except (OSError, ValueError, TypeError, NotImplementedError) as exc:
+    except (
+        OSError, ValueError, TypeError, NotImplementedError, EOFError, IndexError, KeyError,
+        scipy.io.matlab.MatReadError,
+    ) as exc:
         raise UnreadableInputError(f"'{path}': cannot read as a MATLAB file: {exc}") from None
     for key in ("phiPositions", "Eb"):
         if key not in data:
@@ -229,7 +283,12 @@ def _read_mat(path: str) -> ClothEpisode:
     cells = np.asarray(data["phiPositions"], dtype=object).ravel()
     frames = []
     for t, cell in enumerate(cells):
-        x = cell.toarray() if scipy.sparse.issparse(cell) else np.asarray(cell, dtype=float)
+        x = cell.toarray() if scipy.sparse.issparse(cell) else np.asarray(cell)
+        if np.iscomplexobj(x) or x.dtype.kind not in "fiub":
+            raise InvalidInputError(
+                f"'{path}': frame {t}: positions are not real numbers (dtype {x.dtype})"
+            )
+        x = x.astype(np.float64)
         if x.ndim != 2 or x.shape[1] != 3 or (frames and x.shape != frames[0].shape):
             raise InvalidInputError(f"'{path}': frame {t}: positions of shape {x.shape}")
         frames.append(x)

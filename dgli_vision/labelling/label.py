@@ -24,11 +24,14 @@ from ..core.classes import CLASS_NAMES
 from ..core.errors import DgliError
 from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
-from .material import cloth_material
+from .material import cloth_material, front_share
 from .observe import BLOCK, observe_frames, place_stickers
 from .predicates import hull_area_diagonal, predicates
 
 __all__ = [
+    "BACK_UP_SHARE",
+    "BELOW_TABLE_SHARE",
+    "TABLE_TOLERANCE_MM",
     "EpisodeFailure",
     "EpisodeLabels",
     "FrameLabel",
@@ -57,6 +60,11 @@ class PartResult:
         The episode's frames, vertices, grid and size.
     omnigibson : ndarray of bool, shape (stop - start, 2), optional
         OmniGibson's ``Folded`` and ``Unfolded`` of each frame (:mod:`.predicates`).
+    below_mm : ndarray, shape (stop - start,), optional
+        How far each frame's lowest point lies below the table (the rest frame's lowest
+        point), mm (0 or less: on or above it).
+    front : ndarray, shape (stop - start,), optional
+        Each frame's :func:`~.material.front_share` (-1: the cloth lies turned over).
     error : str or None
         The one-line error that stopped the episode.
     """
@@ -71,6 +79,8 @@ class PartResult:
     info: dict[str, Any] | None = None
     error: str | None = None
     omnigibson: NDArray[np.bool_] | None = None
+    below_mm: NDArray[np.float64] | None = None
+    front: NDArray[np.float64] | None = None
 
 
 @lru_cache(maxsize=4)
@@ -110,9 +120,15 @@ def label_part(
         return PartResult(str(path), part, error=f"'{path}': {exc}; are --units right?")
     start, stop = _blocks(episode.n_frames, part, n_parts)
     rest = episode.frames(0, 1)[0] if rest is None else rest
-    area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
+    table = float(rest[:, 2].min()) * material.scale
+    if material.rest_turned:  # the flat cloth's outline: its material rectangle
+        w, h = material.size_mm
+        corners = np.array([[[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]]) * 1e-3
+        area, diagonal = hull_area_diagonal(corners)
+    else:
+        area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
     flat = (float(area[0]), float(diagonal[0]))
-    dist, n_unknown, n_known, og = [], [], [], []
+    dist, n_unknown, n_known, og, below, front = [], [], [], [], [], []
     for a in range(start, stop, BLOCK):
         b = min(a + BLOCK, stop)
         frames = episode.frames(a, b) * material.scale
@@ -120,8 +136,11 @@ def label_part(
         dist.append(frame_distances(ev, refs))
         n_unknown.append((ev.unknown & ~np.isfinite(ev.past)).sum(axis=1))
         n_known.append(ev.known_coordinates().sum(axis=1))
-        pred = predicates(frames[:, material.coarse_ids], material.coarse_faces, flat)
+        coarse = frames[:, material.coarse_ids]
+        pred = predicates(coarse, material.coarse_faces, flat)
         og.append(np.column_stack([pred.folded, pred.unfolded]))
+        below.append((table - frames[..., 2].min(axis=1)) * 1e3)
+        front.append(front_share(coarse, material.coarse_faces))
     k = len(refs)
     info = {
         "n_frames": episode.n_frames,
@@ -129,18 +148,40 @@ def label_part(
         "grid": list(episode.grid) if episode.grid else None,
         "size_mm": list(material.size_mm),
     }
+    if material.rest_turned:
+        info["note"] = (
+            f"the rest frame is folded ({material.rest_turned:.0%} of the cloth lies turned "
+            "over): its front is taken to be the face most of it shows; give the flat cloth "
+            "with --rest FILE"
+        )
+
+    def joined(arrays: list, empty: NDArray) -> NDArray:
+        return np.concatenate(arrays) if arrays else empty
+
     return PartResult(
         str(path),
         part,
         start,
         stop,
-        np.concatenate(dist) if dist else np.zeros((0, k)),
-        np.concatenate(n_unknown) if n_unknown else np.zeros(0, np.intp),
-        np.concatenate(n_known) if n_known else np.zeros(0, np.intp),
+        joined(dist, np.zeros((0, k))),
+        joined(n_unknown, np.zeros(0, np.intp)),
+        joined(n_known, np.zeros(0, np.intp)),
         info,
-        omnigibson=np.concatenate(og) if og else np.zeros((0, 2), bool),
+        omnigibson=joined(og, np.zeros((0, 2), bool)),
+        below_mm=joined(below, np.zeros(0)),
+        front=joined(front, np.zeros(0)),
     )
 
+
+#: A frame whose lowest point lies more than this (mm) below the rest frame's lowest
+#: point (the table) is below the table: no cloth can be, unless the up axis's sign is
+#: wrong (flaps folded over then hang under the table, wrinkles point down).
+TABLE_TOLERANCE_MM = 1.0
+#: An episode with at least this share of its frames below the table fails.
+BELOW_TABLE_SHARE = 0.1
+#: A frame whose :func:`~.material.front_share` is below this lies back face up (more
+#: than 65% of it turned over: every fold turns at most half the cloth).
+BACK_UP_SHARE = -0.3
 
 _STAGE = re.compile(r"(settling|rising) (.+?), (\d+)-(\d+) deg")
 
@@ -257,8 +298,51 @@ def _note(conf: float, best: int, refs: ReferenceSet, n_known: int) -> str | Non
     return None
 
 
+def _frame_list(flags: NDArray[np.bool_], most: int = 5) -> str:
+    """``frames 3, 4, 9 and 2 more``."""
+    ids = np.flatnonzero(flags)
+    text = ", ".join(str(int(t)) for t in ids[:most])
+    more = f" and {len(ids) - most} more" if len(ids) > most else ""
+    return f"frame{'s' if len(ids) > 1 else ''} {text}{more}"
+
+
+def _layer_notes(
+    path: str, below: NDArray[np.float64], front: NDArray[np.float64]
+) -> tuple[list[str | None], str | None]:
+    """Each frame's note when the cloth lies below the table or turned over (None:
+    neither), and the episode's error when so many frames lie below the table that the
+    up axis's sign must be wrong."""
+    low = below > TABLE_TOLERANCE_MM
+    error = None
+    if low.sum() and low.mean() >= BELOW_TABLE_SHARE:
+        error = (
+            f"'{path}': {_frame_list(low)} ({int(low.sum())} of {len(low)}) lie up to "
+            f"{float(below.max()):.1f} mm below the table (the rest frame's lowest point): "
+            "is the sign of --up-axis right?"
+        )
+    notes: list[str | None] = []
+    for t in range(len(below)):
+        if low[t]:
+            notes.append(
+                f"cannot tell: the cloth lies {below[t]:.1f} mm below the table (the rest "
+                "frame's lowest point): is the sign of --up-axis right?"
+            )
+        elif front[t] < BACK_UP_SHARE:
+            notes.append(
+                f"cannot tell: back face up ({(1 - front[t]) / 2:.0%} of the cloth lies "
+                "turned over)"
+            )
+        else:
+            notes.append(None)
+    return notes, error
+
+
 def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels | EpisodeFailure:
-    """Join the parts of one episode (any order), classify and smooth its frames."""
+    """Join the parts of one episode (any order), classify and smooth its frames.
+
+    A frame lying below the table or turned over (back face up) gets no verdict (a note
+    says which); an episode with :data:`BELOW_TABLE_SHARE` of its frames below the table
+    fails (its up axis has the wrong sign)."""
     bad = next((p for p in parts if p.error is not None), None)
     if bad is not None:
         return EpisodeFailure(bad.path, bad.error)
@@ -267,21 +351,29 @@ def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels
     n_unknown = np.concatenate([p.n_unknown for p in parts])
     n_known = np.concatenate([p.n_known for p in parts])
     og = np.concatenate([p.omnigibson for p in parts])
+    below = np.concatenate([p.below_mm for p in parts])
+    front = np.concatenate([p.front for p in parts])
+    layer_notes, error = _layer_notes(parts[0].path, below, front)
+    if error is not None:
+        return EpisodeFailure(parts[0].path, error)
     v = verdicts(dist, references, n_unknown, n_known)
-    states, _ = smooth(dist, references)
+    refused = np.array([n is not None for n in layer_notes], dtype=bool)
+    states, _ = smooth(np.where(refused[:, None], np.nan, dist), references)
     frames = []
     for t in range(len(dist)):
         best, conf = int(v.best[t]), float(v.confidence[t])
-        note = _note(conf, best, references, int(n_known[t]))
+        note = layer_notes[t] or _note(conf, best, references, int(n_known[t]))
         ref = references.references[best] if best >= 0 else None
         answer = ref if note is None else None
+        if refused[t]:
+            best, conf = -1, 0.0
         frames.append(
             FrameLabel(
                 index=t,
                 class_id=answer.class_id if answer else None,
                 variant=answer.variant if answer else None,
                 progress=progress_of(answer.stage) if answer else None,
-                confidence=round(conf, 4) if best >= 0 else None,
+                confidence=round(conf, 4) if best >= 0 or refused[t] else None,
                 distance=round(float(v.distance[t]), 6) if best >= 0 else None,
                 smoothed_class=states[t][0],
                 smoothed_variant=states[t][1],

@@ -24,9 +24,12 @@ __all__ = [
     "FLAT_TOLERANCE",
     "MAX_SIDE_MM",
     "RECTANGLE_TOLERANCE",
+    "REST_FRONT_SHARE",
+    "REST_ORIENTED_SHARE",
     "VISIBILITY_VERTICES",
     "ClothMaterial",
     "cloth_material",
+    "front_share",
     "locate",
 ]
 
@@ -41,6 +44,13 @@ RECTANGLE_TOLERANCE = 0.06
 #: A cloth measured longer than this (mm) on a side is taken for wrong units (a napkin
 #: in mm read as metres measures hundreds of metres).
 MAX_SIDE_MM = 10_000.0
+#: A flat rest frame shows its front over this share of its area at least: the signed
+#: area of its triangles seen from above over their area (a flap folded over counts
+#: against it twice; wrinkles of a few mm leave it above 0.99).
+REST_FRONT_SHARE = 0.95
+#: A grid's rest frame folded so that less than this share shows one face (a half
+#: fold, four corners to the centre) cannot say which face is the front.
+REST_ORIENTED_SHARE = 0.5
 #: About this many vertices make the coarse mesh that is raycast for visibility: about
 #: 15 mm apart on a 400 mm napkin, half a sticker, and 0.3 ms a frame.
 VISIBILITY_VERTICES = 700
@@ -69,6 +79,9 @@ class ClothMaterial:
         Its triangles, indices into ``coarse_ids``.
     spacing_mm : float
         The coarse mesh's vertex spacing, mm.
+    rest_turned : float
+        Share of the rest frame's area lying turned over (0 for a flat rest frame; a
+        grid's rest frame may be folded, its front being the face most of it shows).
     """
 
     uv: NDArray[np.float64]
@@ -79,6 +92,7 @@ class ClothMaterial:
     coarse_ids: NDArray[np.int64]
     coarse_faces: NDArray[np.int64]
     spacing_mm: float
+    rest_turned: float = 0.0
 
 
 def locate(
@@ -162,21 +176,105 @@ def _check_up(path: str, rest: NDArray) -> None:
         )
 
 
-def _flatten(path: str, rest: NDArray) -> NDArray[np.float64]:
-    """The rest frame projected on its best plane, 2D (N, 2) metres, seen from above."""
+def _check_spread(path: str, rest: NDArray) -> None:
+    """Refuse a rest frame whose vertices all coincide or lie on one line."""
+    centred = rest - rest.mean(axis=0)
+    sv = np.linalg.svd(centred, compute_uv=False)
+    if not sv[0] > 1e-9:
+        raise InvalidInputError(
+            f"'{path}': all {len(rest)} vertices of the rest frame lie at one point"
+        )
+    if not sv[1] > 1e-6 * sv[0]:
+        raise InvalidInputError(f"'{path}': the rest frame's vertices lie on one line")
+
+
+def _plane(path: str, rest: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """The rest frame centred, and its best plane's axes (e1, normal up), after
+    checking that it is flat to :data:`FLAT_TOLERANCE` of its side."""
     centred = rest - rest.mean(axis=0)
     vt = np.linalg.svd(centred, full_matrices=False)[2]
     normal = vt[2] if vt[2][2] >= 0 else -vt[2]
-    e1 = vt[0]
-    e2 = np.cross(normal, e1)
     off = np.abs(centred @ normal).max()
-    extent = float(np.ptp(centred @ e1))
+    extent = float(np.ptp(centred @ vt[0]))
     if off > FLAT_TOLERANCE * extent:
         raise InvalidInputError(
             f"'{path}': the rest frame is not flat (points {off * 1e3:.0f} mm off its plane); "
             "give the flat cloth with --rest FILE"
         )
+    return centred, vt[0], normal
+
+
+def _flatten(path: str, rest: NDArray) -> NDArray[np.float64]:
+    """The rest frame projected on its best plane, 2D (N, 2) metres, seen from above."""
+    centred, e1, normal = _plane(path, rest)
+    e2 = np.cross(normal, e1)
     return np.column_stack([centred @ e1, centred @ e2])
+
+
+def front_share(positions: NDArray[np.float64], faces: NDArray[np.int64]) -> NDArray:
+    """Signed area of the triangles seen from above over their area, per frame: 1 for a
+    cloth lying flat with the face of its triangles' winding up, -1 turned over, about 0
+    folded in half.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (..., N, 3)
+        z up.
+    faces : ndarray of int, shape (F, 3)
+    """
+    a, b, c = (positions[..., faces[:, i], :] for i in range(3))
+    n = np.cross(b - a, c - a)
+    total = np.linalg.norm(n, axis=-1).sum(axis=-1)
+    up = n[..., 2].sum(axis=-1)
+    return np.divide(up, total, out=np.zeros_like(up), where=total > 0)
+
+
+def _oriented(faces: NDArray[np.int64]) -> NDArray[np.int64] | None:
+    """The triangles with one winding throughout (each edge inside the mesh run both
+    ways by its two triangles), turned from the first of each piece; None when the
+    mesh cannot be oriented."""
+    faces = np.asarray(faces, dtype=np.int64)
+    by_edge: dict[tuple[int, int], list[int]] = {}
+    for f, tri in enumerate(faces.tolist()):
+        for k in range(3):
+            a, b = tri[k], tri[(k + 1) % 3]
+            by_edge.setdefault((min(a, b), max(a, b)), []).append(f)
+    flip = np.full(len(faces), -1, dtype=np.int8)
+    for seed in range(len(faces)):
+        if flip[seed] >= 0:
+            continue
+        flip[seed] = 0
+        todo = [seed]
+        while todo:
+            f = todo.pop()
+            tri = faces[f][::-1] if flip[f] else faces[f]
+            for k in range(3):
+                a, b = int(tri[k]), int(tri[(k + 1) % 3])
+                for g in by_edge[(min(a, b), max(a, b))]:
+                    if g == f:
+                        continue
+                    other = faces[g].tolist()
+                    i = other.index(a)
+                    same_way = other[(i + 1) % 3] == b  # g runs a -> b too: turn it
+                    want = 1 if same_way else 0
+                    if flip[g] < 0:
+                        flip[g] = want
+                        todo.append(g)
+                    elif flip[g] != want:
+                        return None
+    out = faces.copy()
+    out[flip == 1] = out[flip == 1][:, ::-1]
+    return out
+
+
+def _rest_turned(path: str, rest: NDArray, faces: NDArray) -> float:
+    """Share of the rest frame's area that lies turned over (a fold), from its
+    triangles' winding made consistent (0 when it cannot be made so)."""
+    oriented = _oriented(faces)
+    if oriented is None:
+        return 0.0
+    share = abs(float(front_share(rest, oriented)))
+    return (1.0 - share) / 2.0
 
 
 def _border_loop(path: str, faces: NDArray, border: NDArray | None, n: int) -> NDArray:
@@ -365,11 +463,30 @@ def cloth_material(
             f"'{episode.path}': the rest frame has {len(rest)} vertices, the episode "
             f"{episode.n_vertices}"
         )
+    _check_spread(episode.path, rest)
     _check_up(episode.path, rest)
+    if size_mm is not None and not all(0 < s <= MAX_SIDE_MM for s in size_mm):
+        raise InvalidInputError(
+            f"'{episode.path}': --size {size_mm[0]:g} x {size_mm[1]:g} mm: a side must be "
+            f"above 0 and at most {MAX_SIDE_MM / 1000:.0f} m"
+        )
+    turned = _rest_turned(episode.path, rest, episode.faces) if len(episode.faces) else 0.0
     if episode.grid is not None:
+        _plane(episode.path, rest)
+        if 1.0 - 2.0 * turned < REST_ORIENTED_SHARE:
+            raise InvalidInputError(
+                f"'{episode.path}': the rest frame is folded ({turned:.0%} of the cloth lies "
+                "turned over): cannot tell its front from its back; give the flat cloth "
+                "with --rest FILE"
+            )
         uv, corners, size = _grid_material(episode, rest)
         faces = episode.faces
     else:
+        if 1.0 - 2.0 * turned < REST_FRONT_SHARE:
+            raise InvalidInputError(
+                f"'{episode.path}': the rest frame is folded ({turned:.0%} of the cloth lies "
+                "turned over); give the flat cloth with --rest FILE"
+            )
         uv, corners, size, faces = _mesh_material(episode, rest)
     if size_mm is None and max(size) > MAX_SIDE_MM:
         raise InvalidInputError(
@@ -391,4 +508,5 @@ def cloth_material(
         coarse_ids=ids,
         coarse_faces=_ccw(uv[ids], tri),
         spacing_mm=step,
+        rest_turned=round(turned, 4) if 1.0 - 2.0 * turned < REST_FRONT_SHARE else 0.0,
     )

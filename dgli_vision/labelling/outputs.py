@@ -16,7 +16,7 @@ from ..core.classes import CLASS_IDS, CLASS_NAMES
 from ..core.io import csv_table
 from .label import EpisodeFailure, EpisodeLabels
 
-__all__ = ["CSV_COLUMNS", "episode_files", "episode_names", "summary_of"]
+__all__ = ["CSV_COLUMNS", "episode_files", "episode_names", "summary_of", "summary_of_entries"]
 
 #: Columns of an episode's CSV file.
 CSV_COLUMNS = (
@@ -99,24 +99,31 @@ def episode_files(out: Path, name: str, ep: EpisodeLabels) -> dict[Path, Any]:
 def summary_of(results: Sequence[EpisodeLabels | EpisodeFailure]) -> dict[str, Any]:
     """Over all episodes: frames, frames with a verdict, the smoothed states' frame
     counts, state changes and the episodes that failed."""
-    done = [r for r in results if isinstance(r, EpisodeLabels)]
+    entries = [
+        {"path": r.path, "error": r.error}
+        if isinstance(r, EpisodeFailure)
+        else {"path": r.path, "result": r.to_dict()}
+        for r in results
+    ]
+    return summary_of_entries(entries)
+
+
+def summary_of_entries(entries: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """:func:`summary_of` from the episodes' records as ``dgli label -o`` keeps them in
+    results.jsonl: ``{"path", "result": the episode's JSON object}`` or ``{"path",
+    "error"}``."""
+    done = [e["result"] for e in entries if "result" in e]
     states: Counter[str] = Counter()
     for ep in done:
-        for f in ep.frames:
-            key = f.smoothed_class + (f" {f.smoothed_variant}" if f.smoothed_variant else "")
-            states[key] += 1
-    n_frames = sum(len(ep.frames) for ep in done)
-    answered = sum(f.class_id is not None for ep in done for f in ep.frames)
+        for f in ep["frames"]:
+            s = f["smoothed"]
+            states[s["class"] + (f" {s['variant']}" if s["variant"] else "")] += 1
     return {
-        "episodes": len(results),
+        "episodes": len(entries),
         "labelled": len(done),
-        "frames": n_frames,
-        "frames_with_class": answered,
-        "changes": sum(len(ep.changes) for ep in done),
+        "frames": sum(len(ep["frames"]) for ep in done),
+        "frames_with_class": sum(f["class"] is not None for ep in done for f in ep["frames"]),
+        "changes": sum(len(ep["changes"]) for ep in done),
         "smoothed_states": dict(sorted(states.items())),
-        "failed": [
-            {"path": r.path, "error": r.error}
-            for r in results
-            if isinstance(r, EpisodeFailure)
-        ],
+        "failed": [{"path": e["path"], "error": e["error"]} for e in entries if "error" in e],
     }

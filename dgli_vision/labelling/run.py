@@ -114,9 +114,14 @@ def label_episodes(job: LabelJob) -> Iterator[EpisodeLabels | EpisodeFailure]:
 
     tasks = _tasks(job, job.jobs)
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=job.jobs, mp_context=ctx) as pool:
+    pool = ProcessPoolExecutor(max_workers=job.jobs, mp_context=ctx)
+    try:
         futures: list[Future] = [
             pool.submit(label_part, job.paths[e], job.options, job.references_path, k, n)
             for e, k, n in tasks
         ]
         yield from _in_order(job, tasks, futures, lambda f: f.result())
+    except BaseException:  # stopped (Ctrl-C, SIGTERM): drop the queued parts at once
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown()

@@ -33,6 +33,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
+from ..core.order_stats import quantile
 from .detections import DetectorParams, Rejection
 
 __all__ = [
@@ -90,6 +91,10 @@ class SearchImage:
         The ``labels`` array and the outer contours of its blobs to judge, specks left
         out (:func:`least_area`), as :func:`.detect.search_image` traced them (read
         only while ``labels`` is that array); None: traced when judged.
+    palette : ndarray, shape (n_colours, 3), optional
+        The sticker colours, linear RGB in label order: a small sticker's dot blurred
+        into its disc is read by the colour it adds (:func:`_dot_by_difference`).
+        None: dots are read by their labels only.
     """
 
     color: NDArray[np.uint8]
@@ -108,6 +113,7 @@ class SearchImage:
     params: DetectorParams
     within: tuple[int, int, int, int] | None = None
     traced: tuple[NDArray[np.uint8], list[NDArray[np.int32]]] | None = None
+    palette: NDArray[np.float64] | None = None
 
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
@@ -272,6 +278,8 @@ def _judge_shape(contour: NDArray, image: SearchImage) -> _Shaped | Rejection | 
     blob = _measure_blob(contour, image)
     if blob is None or isinstance(blob, Rejection):
         return blob
+    if blob.area < image.params.min_area_ratio * np.pi * blob.r_exp**2:
+        blob = _grown_to_its_rim(blob, image)
     fore, minor_angle = _tilt(blob, image)
     if fore < image.params.min_foreshortening:
         why = f"seen too obliquely (foreshortened {fore:.2f})"
@@ -298,7 +306,7 @@ def _judge_disc(
     why = _fill_problem(discs, k, s, p) or _surround_problem(discs, k, p)
     if why:
         return Rejection(blob.where, blob.area, why)
-    colours = _disc_and_dot(discs, k, p)
+    colours = _read_colours(s, k, discs, image)
     if isinstance(colours, str):
         return Rejection(blob.where, blob.area, colours)
     score = float(colours.purity * min(s.ratio, 1 / s.ratio) * s.solidity)
@@ -384,6 +392,68 @@ def _tilt(blob: _Blob, image: SearchImage) -> tuple[float, float]:
     if tilt <= p.flat_foreshortening and abs(q - tilt) <= p.tilt_agreement:
         return q, _minor_angle(blob.moments)
     return 1.0, 0.0
+
+
+def _grown_to_its_rim(blob: _Blob, image: SearchImage) -> _Blob:
+    """The blob grown over the blurred rim its colour threshold cut off (a small
+    sticker in a real camera's image); the blob as it was where there is none.
+
+    A lens, a sensor's anti-aliasing filter and demosaicing blur a disc's edge over a
+    pixel or two; a saturation threshold on the 8-bit sRGB image keeps only the part of
+    the rim that is mostly sticker (a dark green or blue mixed half and half with white
+    cloth keeps a third of its saturation there), so a sticker 15 pixels across keeps
+    0.35-0.55 of its area, whatever its distance. In linear light a pixel of the rim is
+    the sticker's colour mixed with the napkin's white: its chroma (largest minus
+    smallest channel) is the sticker's times the share of sticker in the pixel, and its
+    chroma's direction (the channels less the smallest, over the chroma) is the
+    sticker's own. The pixels with at least half the sticker's chroma and its
+    direction, connected to the blob and within ``blur_rim_px`` of the disc expected
+    at its centre, are the disc as a sharp camera would have shown it (a half-covered
+    pixel lies on a blurred edge's true place). A sliver of a sticker under a flap
+    stays a sliver; cloth and table around it have little chroma or another direction.
+    """
+    import cv2
+
+    p = image.params
+    x0, y0, x1, y1 = blob.window
+    lin = srgb_lut()[image.norm[y0:y1, x0:x1]]  # (h, w, 3) linear, balanced
+    low = lin.min(axis=2)
+    chroma = lin.max(axis=2) - low
+    yy, xx = blob.grid
+    reach = blob.r_exp + p.blur_rim_px
+    near = (xx - blob.where[0]) ** 2 + (yy - blob.where[1]) ** 2 <= reach * reach
+    # the disc's colour: that of the coloured pixels around the blob within reach (the
+    # rim the threshold cut off, or the whole ring of a disc too pale to be labelled
+    # around a dot that was), else of the blob itself
+    around = near & ~blob.inside & (chroma >= p.rim_min_chroma)
+    source = around if around.sum() >= 4 else blob.inside & (chroma >= p.rim_min_chroma)
+    if not source.any():
+        return blob
+    direction = (lin - low[..., None]) / np.maximum(chroma, 1e-6)[..., None]
+    disc_dir = np.median(direction[source], axis=0)
+    alike = np.abs(direction - disc_dir).max(axis=2) <= p.rim_direction
+    mine = (blob.inside | near) & alike
+    pure = float(quantile(chroma[mine], 0.9)) if mine.any() else 0.0
+    if pure <= 0:
+        return blob
+    rim = (chroma >= 0.5 * pure) & alike & near
+    union = (blob.inside | rim).astype(np.uint8)
+    _, lab, _, _ = cv2.connectedComponentsWithStats(union, connectivity=8)
+    inside = lab == lab[blob.inside][0]
+    if inside.sum() <= blob.area:
+        return blob
+    cs, _ = cv2.findContours(inside.astype(np.uint8), cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
+    contour = max(cs, key=cv2.contourArea) + np.array([x0, y0], dtype=np.int32)
+    inside = np.zeros_like(inside)
+    cv2.drawContours(inside.view(np.uint8), [contour], -1, 1, thickness=-1, offset=(-x0, -y0))
+    m = cv2.moments(contour)
+    if m["m00"] <= 0:
+        return blob
+    where = (float(m["m10"] / m["m00"]), float(m["m01"] / m["m00"]))
+    return replace(
+        blob, where=where, area=float(m["m00"]), contour=contour, moments=m,
+        box=cv2.boundingRect(contour), inside=inside,
+    )
 
 
 def _repair_highlight(blob: _Blob, image: SearchImage) -> _Blob:
@@ -674,6 +744,99 @@ def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | s
     return _Colours(disc, dot, purity)
 
 
+def _read_colours(
+    s: _Shaped, k: int, discs: _DiscPixels, image: SearchImage
+) -> _Colours | str:
+    """Disc and dot colours of the ``k``-th shaped blob, or why they cannot be read.
+
+    Large stickers are read by their labels (:func:`_disc_and_dot`). A small one (disc
+    radius under ``small_radius_px`` in the search image) has its dot blurred into its
+    disc: in a search at full resolution it is read by unmixing the dot's colour
+    (:func:`_dot_by_difference`); in a halved search the labels are kept unless they
+    cannot be read or the unmixing reads another dot colour without doubt.
+    """
+    p = image.params
+    colours = _disc_and_dot(discs, k, p)
+    if s.radius >= p.small_radius_px:
+        return colours
+    unmixed = _dot_by_difference(s, image, discs, k)
+    if unmixed is None:
+        return colours
+    if not image.halved or isinstance(colours, str):
+        return unmixed
+    if unmixed.dot is not None and unmixed.disc == colours.disc and unmixed.dot != colours.dot:
+        return unmixed
+    return colours
+
+
+def _dot_by_difference(
+    s: _Shaped, image: SearchImage, discs: _DiscPixels, k: int
+) -> _Colours | None:
+    """Disc and dot colours of a small sticker whose dot the blur mixed into its disc,
+    read by the colour the dot adds at the centre; None where that cannot be read.
+
+    A 12 mm dot 4-6 pixels across, blurred over 1-1.6 pixels (demosaicing blurs the red
+    and blue channels more than the green one), keeps no pixel of its own colour: the
+    centre is the disc's colour mixed with the dot's. In linear light the disc is the
+    median of the most saturated quarter of the outer band (0.6-0.95 radii: the rest is
+    mixed with the cloth's white) and the centre the mean within 0.2 radii;
+    the dot's colour is unmixed from them (every sticker colour has a channel near 0),
+    and its chroma direction compared with the palette's: the nearest (within
+    ``dot_max_distance`` and ``dot_margin`` nearer than the next) is the dot, the disc's
+    own colour meaning a plain disc; a dot two colours fit alike is left unread (dot
+    None), which the identities may still settle.
+    """
+    palette = image.palette
+    if palette is None:
+        return None
+    p = image.params
+    disc_counts = discs.disc_and_dot[0][k]
+    if not sum(disc_counts):
+        return None
+    disc = _first_largest(disc_counts)  # a label: colour disc - 1 of the palette
+    purity = disc_counts[disc] / sum(disc_counts)
+    if purity < p.min_purity or disc == 0:
+        return None
+    x0, y0, x1, y1 = _disc_box(s)
+    r = _radii(s, x0, y0, x1, y1)
+    lin = srgb_lut()[image.norm[y0:y1, x0:x1]]
+    band, centre = (r > 0.6) & (r < 0.95), r < 0.2
+    if band.sum() < 4 or not centre.any():
+        return None
+    # the disc: the least mixed of the band's pixels (the blur mixes its outer part
+    # with the cloth's white), the most saturated quarter
+    ring = lin[band]
+    ring_chroma = ring.max(axis=1) - ring.min(axis=1)
+    disc_seen = np.median(ring[ring_chroma >= np.quantile(ring_chroma, 0.75)], axis=0)
+    added = lin[centre].mean(axis=0) - disc_seen
+    # Unmix: centre = (1 - b) disc + b dot, both lit alike and with the same white light
+    # w added; every sticker colour has a channel near 0, so the dot's smallest channel
+    # is the disc's (w). The least share b that keeps every channel of the dot at or
+    # above it is the share (at most 1: the centre is then the dot).
+    floor = float(disc_seen.min())
+    falls = added < 0
+    room = disc_seen - floor
+    # (the disc's own smallest channels carry noise only)
+    need = np.where(falls & (room > 0.05), -added / np.maximum(room, 1e-6), 0.0)
+    share = float(np.clip(need.max(), p.dot_min_share, 1.0))
+    dot_seen = disc_seen + added / share
+    distances = np.abs(_directions(palette) - _directions(dot_seen[None, :])).max(axis=1)
+    order = np.argsort(distances)
+    best, second = int(order[0]), float(distances[order[1]])
+    if distances[best] <= p.dot_max_distance and second - distances[best] >= p.dot_margin:
+        return _Colours(disc, best + 1, purity)  # (label best + 1; the disc's: plain)
+    # a dot is there but two colours fit it alike: unread (the identity may still
+    # follow from the stickers of its disc colour left, as for a dot under a highlight)
+    return _Colours(disc, None, purity)
+
+
+def _directions(rgb: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Chroma directions (n, 3) of linear colours (n, 3): the channels less the
+    smallest, over the chroma (white light added or the light's level leave it)."""
+    low = rgb.min(axis=1, keepdims=True)
+    return (rgb - low) / np.maximum(rgb.max(axis=1, keepdims=True) - low, 1e-6)
+
+
 def _first_largest(counts: list[int]) -> int:
     """Index of the largest count, the first of equal ones (``np.argmax`` of a list)."""
     return counts.index(max(counts))
@@ -688,13 +851,19 @@ def _highlight_pixels(
     halo_px: int,
 ) -> NDArray[np.bool_]:
     """Pixels a glossy sticker's highlight washed out, in a window around a blob: small
-    blown-out spots (in the image as taken, or brighter than white cloth once balanced),
-    grown into the pale, tinted halo around them. Shape (h, w) of the window."""
+    blown-out spots (in the image as taken, or, once balanced, brighter than white cloth
+    can be and than the cloth around them: a specular lobe, not the brighter side of a
+    napkin under a lamp's fall-off), grown into the pale, tinted halo around them.
+    Shape (h, w) of the window."""
     import cv2
 
     core = cv2.min(cv2.min(color[..., 0], color[..., 1]), color[..., 2]) >= params.highlight_min
     norm_min = cv2.min(cv2.min(norm[..., 0], norm[..., 1]), norm[..., 2])
-    core |= norm_min >= params.highlight_min
+    sat = hsv[..., 1]
+    # the cloth around: its near-neutral pixels (a quarter brighter than this level)
+    cloth = (sat < params.halo_min_saturation) & ~core
+    level = float(np.quantile(norm_min[cloth], 0.75)) if np.count_nonzero(cloth) >= 8 else 0.0
+    core |= norm_min >= max(params.highlight_min, level + params.specular_margin)
     if not core.any():
         return core
     # A highlight is smaller than a sticker; a large blown-out area is cloth.
@@ -704,14 +873,14 @@ def _highlight_pixels(
     core = small[lab]
     if not core.any():
         return core
-    sat = hsv[..., 1]
+    near_white = max(params.halo_min_value + 80, level + params.specular_margin / 2)
     allowed = (
         (
             (sat >= params.halo_min_saturation)
             & (sat < params.min_saturation)
             & (hsv[..., 2] >= params.halo_min_value)
         )
-        | (norm_min >= params.halo_min_value + 80)
+        | (norm_min >= near_white)
         | core
     )
     grown = core.astype(np.uint8)

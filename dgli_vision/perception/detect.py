@@ -39,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
-from ..core.colour import srgb_lut
+from ..core.colour import srgb_lut, srgb_to_linear
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
@@ -111,7 +111,8 @@ def detect_stickers(
         napkin = find_napkin(color, depth_mm, intrinsics)
     lut, names = hue_lut(layout, params, colours)
     image = search_image(
-        color, depth_mm, intrinsics, layout, params, napkin, lut, len(names), roi
+        color, depth_mm, intrinsics, layout, params, napkin, lut, len(names), roi,
+        palette=_palette(layout, names, colours),
     )
     candidates, rejected = candidate_blobs(image)
     full = None
@@ -130,6 +131,14 @@ def detect_stickers(
     return StickerDetections(
         ids.centroids, ids.areas, ids.scores, ids.depths, tuple(rejected), ids.fores
     )
+
+
+def _palette(
+    layout: NapkinLayout, names: list[str], colours: dict[str, tuple[int, int, int]] | None
+) -> NDArray[np.float64]:
+    """Linear RGB (n, 3) of the sticker colours in label order (calibrated where given)."""
+    source = {**layout.colours_srgb, **(colours or {})}
+    return srgb_to_linear(np.array([source[n] for n in names], dtype=np.float64) / 255.0)
 
 
 def _to_measure(
@@ -181,12 +190,16 @@ def search_image(
     lut: NDArray[np.uint8],
     n_colours: int,
     roi: NDArray[np.bool_] | None = None,
+    *,
+    palette: NDArray[np.float64] | None = None,
 ) -> SearchImage:
     """The image stickers are searched in, with its colour labels.
 
     It is the frame halved (pixel-area averaging) while a sticker at the median depth
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
-    ``lut`` is :func:`.labels.hue_lut`'s table. Outside ``roi`` (scaled to the search
+    ``lut`` is :func:`.labels.hue_lut`'s table; ``palette`` the sticker colours (linear
+    RGB, in label order) that the dots of small stickers are read against (see
+    :func:`.blobs.judge_blobs`). Outside ``roi`` (scaled to the search
     image) no pixel is labelled, and the images are computed only where judging the
     blobs within it reads them (elsewhere they are 0). Without ``roi``, stickers are
     searched near the napkin (:func:`_napkin_box`, ``SearchImage.within``): the images
@@ -219,7 +232,8 @@ def search_image(
         box = (0, 0, shape[1], shape[0]) if near is None else _grown(near, 1, shape)
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
-    planes = _Planes(color, halve, napkin.lut, lut, params, box)
+    label_params = _label_params(params, disc_mm_px, med_depth, halve)
+    planes = _Planes(color, halve, napkin.lut, lut, label_params, box)
     labels = planes.labels if inside is None else planes.labels * inside
     least = least_area(min_px)  # (smaller blobs are specks: not judged, no window read)
     outer = [c for c in _judged_contours(labels, near, box) if cv2.contourArea(c) >= least]
@@ -230,7 +244,24 @@ def search_image(
         planes.color, planes.norm, planes.hsv, labels, depth_mm, intrinsics, med_depth,
         disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
-        params, near, (labels, outer),
+        params, near, (labels, outer), palette,
+    )
+
+
+def _label_params(
+    params: DetectorParams, disc_mm_px: float, median_depth_mm: float, halved: bool
+) -> DetectorParams:
+    """The thresholds pixels are labelled with: ``params``, or for small stickers (a
+    full-resolution search whose disc at the median depth is under ``small_radius_px``)
+    saturation and chroma lowered to ``small_saturation`` and ``small_chroma``: a real
+    camera's blur mixes a thin ring around a dot of another colour with white cloth and
+    with the dot, and at the usual thresholds it breaks into specks."""
+    if halved or not (disc_mm_px / max(median_depth_mm, 1.0) < params.small_radius_px):
+        return params
+    return replace(
+        params,
+        min_saturation=min(params.min_saturation, params.small_saturation),
+        min_chroma=min(params.min_chroma, params.small_chroma),
     )
 
 
@@ -536,7 +567,10 @@ class FullResolution:
         """Centre (u, v) and area of ``c`` at full resolution, or its rejection
         (search-image pixels) as too small there."""
         where, area = self.refined[c]  # (KeyError: not measured, see Identities.take)
-        expected = np.pi * (self.disc_radius_mm * self.fx / c.z_mm) ** 2 * c.foreshortening
+        # a threshold cuts a blurred rim of about a pixel off the disc (see
+        # DetectorParams.full_rim_px): the disc expected is that much smaller
+        radius = max(self.disc_radius_mm * self.fx / c.z_mm - self.params.full_rim_px, 1.0)
+        expected = np.pi * radius**2 * c.foreshortening
         if area < self.params.min_area_ratio * expected:
             return Rejection(
                 ((where[0] - 0.5) / 2, (where[1] - 0.5) / 2),

@@ -43,6 +43,48 @@ class DetectorParams:
         wrinkles keeps over 0.8; a sliver of a sticker mostly under a flap would give a
         centroid far from the sticker's centre, so it is better left out; two merged
         stickers are larger.
+    blur_rim_px : float
+        How far beyond the disc expected at a blob's centre, pixels, a blob smaller than
+        ``min_area_ratio`` of that disc is grown over the blurred rim its colour
+        threshold cut off (see :func:`.blobs` ``_grown_to_its_rim``). Default 3: a real
+        camera's blur (a lens, an anti-aliasing filter, demosaicing) spreads an edge
+        over a sigma of 1-1.6 pixels.
+    small_radius_px : float
+        Below this disc radius (pixels, in a search image at full resolution) a dot is
+        read by the colour it adds to the disc's centre (by its labels where that
+        cannot be read).
+        Default 12: the 12 mm dot is then under 10 pixels across, and a real camera's
+        blur leaves it few pixels of its own colour.
+    small_saturation, small_chroma : int
+        ``min_saturation`` and ``min_chroma`` of the pixels' labels in a search for
+        small stickers (see ``small_radius_px``). Defaults 80 (0.31) and 30: a ring
+        2-3 pixels wide between a dot and the cloth keeps 0.35-0.5 once blurred, a
+        light-wood table stays near 0.3 and lies off the napkin.
+    dot_min_share : float
+        Least share of the dot's colour at the centre of such a sticker assumed when
+        unmixing it (a plain disc's noise is not magnified more). Default 0.3: a 4-pixel
+        dot under a blur of 1.6 pixels keeps about 0.5.
+    dot_max_distance : float
+        Largest difference, per channel, between the chroma direction of a small
+        sticker's unmixed dot and the palette colour it is read as. Default 0.35.
+    dot_margin : float
+        How much nearer (per channel) the dot's colour must be than the next one for
+        the dot to be read; otherwise it is left unread. Default 0.15: the palette's
+        directions differ by 0.7 or more (red and yellow: in green).
+    full_rim_px : float
+        Rim (pixels) a saturation threshold cuts off a blurred disc, allowed for when a
+        candidate of a halved search is measured again at full resolution. Default
+        1.5: a real camera's blur (sigma 1-1.6 px) leaves a pale sticker 13 px in
+        radius 0.53 of its disc above the threshold.
+    rim_min_chroma : float
+        Smallest chroma (linear, balanced to a napkin white of 0.75) of a pixel that
+        tells a rim's colour. Default 0.08: the napkin's noise and a residual tint stay
+        below 0.04; a sticker's rim mixed half and half with white keeps 0.15-0.4.
+    rim_direction : float
+        Largest difference, per channel, between a rim pixel's chroma direction (its
+        linear channels less the smallest, over its chroma) and the blob's. Default
+        0.25: white light mixed in keeps the direction; another sticker colour or a
+        wood table differ by more than 0.4 in some channel.
     min_fill : float
         Minimum fraction of the expected disc, centred at the blob's centroid, that the
         blob covers. Default 0.6 (rejects crescents and slivers).
@@ -66,6 +108,12 @@ class DetectorParams:
     highlight_min : int
         Smallest channel (0-255) of a washed-out pixel, in the image as taken or balanced
         to the napkin. Default 250: blown out, or brighter than white cloth can be.
+    specular_margin : int
+        How much brighter (8-bit levels, balanced image) than the cloth around it a
+        pixel must be to count as a highlight when it is not blown out as taken; and
+        half of it for a near-white halo pixel. Default 15 (about 1.15 times in linear
+        light): a napkin's brighter side under a lamp's fall-off reaches 250 once
+        balanced and is no highlight; a mirror highlight stands well above the cloth.
     highlight_halo_px : int
         Width of the pale halo around a blown-out highlight counted with it, pixels
         (pale: bright and below ``min_saturation``). Default 8: a mirror highlight fades
@@ -142,6 +190,16 @@ class DetectorParams:
     max_hue_distance: int = 22
     min_area_ratio: float = 0.55
     max_area_ratio: float = 2.0
+    blur_rim_px: float = 3.0
+    small_radius_px: float = 12.0
+    small_saturation: int = 80
+    small_chroma: int = 30
+    dot_min_share: float = 0.3
+    dot_max_distance: float = 0.35
+    dot_margin: float = 0.15
+    full_rim_px: float = 1.5
+    rim_min_chroma: float = 0.08
+    rim_direction: float = 0.25
     min_fill: float = 0.6
     min_solidity: float = 0.8
     max_elongation: float = 2.5
@@ -149,6 +207,7 @@ class DetectorParams:
     min_surround: float = 0.55
     min_dot_seen: float = 0.35
     highlight_min: int = 250
+    specular_margin: int = 15
     highlight_halo_px: int = 8
     halo_min_saturation: int = 30
     halo_min_value: int = 150

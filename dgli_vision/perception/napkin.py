@@ -57,9 +57,13 @@ class NapkinParams:
     clipped_level : int
         8-bit level at which a channel counts as blown out. Default 250.
     highlight_level : float
-        Linear brightness, relative to the napkin's white, above which a near-white pixel
-        is a highlight (nothing can be seen there). Default 1.35: a matte napkin facing
-        the light is at most about 1.3 times its median brightness.
+        Linear brightness, relative to the napkin's own brightness around it (its white,
+        or more where a lamp's fall-off or a sheen brightens it: ``level_window``), above
+        which a near-white pixel is a highlight (nothing can be seen there). Default
+        1.35: matte cloth facing the light is at most about 1.3 times its surround.
+    level_window : int
+        Width (samples) of the window the napkin's own brightness is averaged over.
+        Default 9 (72 px at stride 8: two to five sticker diameters).
     highlight_chroma : float
         Largest chroma, relative to brightness, of a highlight pixel. Default 0.25: a
         mirror highlight is the lamp's colour (white once balanced), tinted at most
@@ -96,6 +100,7 @@ class NapkinParams:
     target_level: int = 225
     clipped_level: int = 250
     highlight_level: float = 1.35
+    level_window: int = 9
     highlight_chroma: float = 0.25
     occluder_height_mm: float = 15.0
     occluder_darkness: float = 0.2
@@ -495,7 +500,8 @@ def find_napkin(
     lum, chroma = lum.reshape(samples.shape), chroma.reshape(samples.shape)
     cloth = (lum >= p.min_napkin_brightness) & (chroma <= p.neutral_chroma * lum)
     highlight = samples.clipped.reshape(samples.shape) | (
-        (lum >= p.highlight_level) & (chroma <= p.highlight_chroma * lum)
+        (lum >= p.highlight_level * _local_level(lum, cloth, p))
+        & (chroma <= p.highlight_chroma * lum)
     )
     if table_normal is None or table_offset_m is None:
         occluder = np.zeros(samples.shape, dtype=bool)
@@ -590,6 +596,27 @@ class _Samples:
 def _linear8() -> NDArray[np.float32]:
     """Linear light of each 8-bit level, float32 (256,)."""
     return srgb_lut().astype(np.float32)
+
+
+def _local_level(
+    lum: NDArray[np.float32], cloth: NDArray[np.bool_], p: NapkinParams
+) -> NDArray[np.float32]:
+    """The napkin's own brightness around every sample, relative to its white (at least
+    1), shape of ``lum``: the mean of the cloth samples within ``level_window`` samples,
+    each capped at ``highlight_level`` (a lobe cannot raise its own surround much).
+
+    Light falls off across a napkin under a lamp (1.2-2 times from side to side) and a
+    fabric's sheen brightens a broad part of it; measured against this level, its
+    brighter side is no highlight, while a mirror highlight stands out of the cloth
+    around it."""
+    import cv2
+
+    k = (p.level_window, p.level_window)
+    weight = cloth.astype(np.float32)
+    capped = np.minimum(lum, p.highlight_level).astype(np.float32) * weight
+    total = cv2.blur(weight, k, borderType=cv2.BORDER_REPLICATE)
+    level = cv2.blur(capped, k, borderType=cv2.BORDER_REPLICATE) / np.maximum(total, 1e-6)
+    return np.maximum(np.where(total > 0, level, 1.0), 1.0).astype(np.float32)
 
 
 def _napkin_white(samples: _Samples, p: NapkinParams) -> NDArray[np.float64]:

@@ -8,7 +8,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["draw_corners", "draw_step"]
+__all__ = ["draw_corners", "draw_folds", "draw_step", "fold_caption"]
 
 #: BGR colours: a graspable corner (green ring), a corner not graspable (grey cross),
 #: the grasp (magenta), the place (cyan) and the fold line (white dashes).
@@ -50,6 +50,48 @@ def draw_corners(img: NDArray[np.uint8], affordances: Any) -> NDArray[np.uint8]:
             r = int(8 * s)
             cv2.line(img, (u - r, v - r), (u + r, v + r), NOT_GRASPABLE, 2, cv2.LINE_AA)
             cv2.line(img, (u - r, v + r), (u + r, v - r), NOT_GRASPABLE, 2, cv2.LINE_AA)
+    return img
+
+
+def fold_caption(fold: Any) -> str:
+    """A fold's sizes in a few words: ``"B: AB 178, BC 160 mm"``, ``"CD: inset 132 mm,
+    skew 1 deg"``, ``"B: offset 3 mm, turn -1 deg"``; ``"B: ?"`` when not measured."""
+    g = fold.geometry
+    name = fold.corner or fold.side
+    if g is None or g.why is not None:
+        return f"{name}: ?"
+    v = g.values
+    if "legs_mm" in v:
+        legs = ", ".join(f"{e} {x:.0f}" for e, x in v["legs_mm"].items() if x is not None)
+        return f"{name}: {legs} mm"
+    if "inset_mm" in v:
+        return f"{name}: inset {v['inset_mm']:.0f} mm, skew {round(v['skew_deg']):d} deg"
+    return f"{name}: offset {v['offset_mm']:.0f} mm, turn {round(v['turn_deg']):d} deg"
+
+
+def draw_folds(img: NDArray[np.uint8], affordances: Any, intrinsics: Any) -> NDArray[np.uint8]:
+    """Draw each fold's line on the table (thin white) with its sizes in mm beside its
+    middle (:func:`fold_caption`)."""
+    import cv2
+
+    if affordances is None:
+        return img
+    s = _scale(img)
+    for f in affordances.folds:
+        if f.line is None:
+            continue
+        ends = np.asarray(f.line, dtype=float)
+        if np.any(ends[:, 2] <= 0):
+            continue
+        a, b = (_px(p) for p in intrinsics.project(ends))
+        cv2.line(img, a, b, FOLD, max(1, int(s)), cv2.LINE_AA)
+        mid = ((a[0] + b[0]) // 2 + int(6 * s), (a[1] + b[1]) // 2 - int(6 * s))
+        text = fold_caption(f)
+        width = max(1, int(1.5 * s))
+        for dx, dy in ((-1, -1), (1, 1), (-1, 1), (1, -1), (0, 0)):  # a dark rim, then white
+            colour = FOLD if dx == dy == 0 else (0, 0, 0)
+            cv2.putText(img, text, (mid[0] + dx, mid[1] + dy), cv2.FONT_HERSHEY_SIMPLEX,
+                        0.55 * s, colour, width, cv2.LINE_AA)
     return img
 
 

@@ -193,6 +193,9 @@ class PlanStep:
         The fold line on the table, camera frame, metres.
     lift_height : float or None
         How high to lift the grasped point above the table, metres.
+    crease_mm : tuple of two (u, v) points or None
+        A fold's planned crease on the flat napkin (material mm): what ``dgli verify``
+        and ``dgli plan --verify`` check the fold made against.
     """
 
     action: str
@@ -206,6 +209,16 @@ class PlanStep:
     place_point: tuple[float, float, float] | None = None
     fold_line: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     lift_height: float | None = None
+    crease_mm: tuple[tuple[float, float], tuple[float, float]] | None = None
+
+    def target(self, layout: NapkinLayout) -> dict[str, Any] | None:
+        """A fold's planned sizes (legs and tip, inset and skew, offset and turn:
+        :func:`~dgli_vision.core.fold_measure.fold_measures`), None for an unfold."""
+        if self.crease_mm is None:
+            return None
+        from ..core.fold_measure import Crease, fold_measures
+
+        return fold_measures(self.fold, Crease.through(*self.crease_mm), layout)
 
     def to_json(self) -> dict[str, Any]:
         """The JSON form of a step (see docs/planning.md)."""
@@ -225,6 +238,8 @@ class PlanStep:
                 else [pt(p) for p in self.fold_line],
                 "lift_height": None if self.lift_height is None else round(self.lift_height, 4),
                 "expect": {"class": self.expect[0], "variant": self.expect[1]},
+                "crease_mm": None if self.crease_mm is None
+                else [pt(p, 1) for p in self.crease_mm],
             }
         )
         return out
@@ -327,7 +342,8 @@ def plan_geometry(
     steps = []
     here = start
     for i, ((action, word, after), f) in enumerate(zip(path, lines)):
-        step = PlanStep(action, word, f.corner, f.side, f.under, after)
+        step = PlanStep(action, word, f.corner, f.side, f.under, after,
+                        crease_mm=(f.p0, f.p1) if action == "fold" else None)
         if maps is not None:
             placed = _place_step(action, f, maps, affordances, i == 0, intrinsics, layout)
             if placed is None and i == 0:

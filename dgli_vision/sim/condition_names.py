@@ -24,6 +24,9 @@ CONDITION_NAMES: tuple[str, ...] = (
     "mirror",
     "backface",
     "depthscale",
+    "photo",
+    "far",
+    "head",
     "combo",
 )
 
@@ -70,5 +73,11 @@ CONDITION_HELP: dict[str, str] = {
     "backface": "the napkin lies back face up (turned over about a horizontal axis; "
     "stickers on both faces)",
     "depthscale": "depth in the wrong units: x0.8 or x1.25, or x0.75-0.85 or x1.2-1.3",
+    "photo": "the look of a photograph: a lamp at a finite distance (light falling off "
+    "1.2-2x across the napkin) and a fill light of another colour temperature, a fabric "
+    "sheen and laminated stickers, vignetting, auto exposure and white balance, a colour "
+    "mosaic demosaiced",
+    "far": "camera 0.7-1.0 m from the napkin, tilted up to 25 degrees",
+    "head": "a robot's head camera: 1.0-1.2 m from the napkin, tilted 20-35 degrees",
     "combo": "three of jpeg ... wood at once",
 }

@@ -8,6 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from .photo_effects import Photo
+
 __all__ = ["Conditions", "Grasp", "Sheen"]
 
 
@@ -116,6 +118,14 @@ class Conditions:
         Depth in the wrong units: every reading multiplied by this factor.
     grasp : Grasp or None
         A gripper holds the corner being folded (the state's ``params["held_corner"]``).
+    photo : Photo or None
+        The look of a photograph (a lamp's fall-off, two colour temperatures, sheen,
+        vignetting, auto exposure and white balance, a colour mosaic).
+    camera_range_m : tuple of float or None
+        Distance of the camera from the napkin along its axis (min, max), metres, with
+        ``tilt_range_deg``; None: the data set's heights.
+    tilt_range_deg : tuple of float
+        Tilt of the camera from the vertical (min, max), degrees, with ``camera_range_m``.
     """
 
     names: tuple[str, ...] = ()
@@ -139,6 +149,9 @@ class Conditions:
     backface_axis_deg: float | None = None
     depth_scale: float = 1.0
     grasp: Grasp | None = None
+    photo: Photo | None = None
+    camera_range_m: tuple[float, float] | None = None
+    tilt_range_deg: tuple[float, float] = (0.0, 12.0)
 
     @property
     def distortion_k1(self) -> float:

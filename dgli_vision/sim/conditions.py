@@ -46,6 +46,7 @@ from .condition_scene import (
     scene_objects,
     turn_over,
 )
+from .photo_effects import draw_photo
 
 __all__ = [
     "CONDITION_HELP",
@@ -144,6 +145,9 @@ _DRAWERS: dict[str, Callable[[Conditions, np.random.Generator], Conditions]] = {
     "backface": lambda c, rng: replace(c, backface_axis_deg=float(rng.uniform(0, 180))),
     "grasp": _draw_grasp,
     "depthscale": _draw_depthscale,
+    "photo": lambda c, rng: replace(c, photo=draw_photo(rng)),
+    "far": lambda c, rng: replace(c, camera_range_m=(0.7, 1.0), tilt_range_deg=(0.0, 25.0)),
+    "head": lambda c, rng: replace(c, camera_range_m=(1.0, 1.2), tilt_range_deg=(20.0, 35.0)),
 }
 
 

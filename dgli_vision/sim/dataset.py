@@ -64,11 +64,16 @@ def random_camera(
     nominal: bool = False,
     height_range_m: tuple[float, float] = (0.45, 0.70),
     max_tilt_deg: float = 12.0,
+    distance_range_m: tuple[float, float] | None = None,
+    min_tilt_deg: float = 0.0,
 ) -> tuple[CameraPose, dict[str, float]]:
     """A camera that sees the whole napkin: height, tilt and yaw drawn at random.
 
     The camera aims near the napkin's centre; draws that leave part of the napkin out of
-    view (20 px margin) are redrawn, higher up if need be.
+    view (20 px margin) are redrawn, higher up if need be. With ``distance_range_m`` the
+    camera's distance from the napkin along its axis is drawn instead of its height (a
+    robot's head camera: far and tilted), the tilt between ``min_tilt_deg`` and
+    ``max_tilt_deg``.
 
     Returns
     -------
@@ -88,9 +93,17 @@ def random_camera(
             }
         else:
             grow = min(1.0, attempt / 100)  # after many misses, favour higher cameras
+            if distance_range_m is None:
+                height = float(rng.uniform(lo + grow * (hi - lo) * 0.5, hi))
+                tilt = float(rng.uniform(min_tilt_deg, max_tilt_deg))
+            else:  # (the distance along the axis; the height follows from the tilt)
+                near, far = distance_range_m
+                distance = float(rng.uniform(near + grow * (far - near) * 0.5, far))
+                tilt = float(rng.uniform(min_tilt_deg, max_tilt_deg))
+                height = distance * float(np.cos(np.radians(tilt)))
             info = {
-                "height_m": float(rng.uniform(lo + grow * (hi - lo) * 0.5, hi)),
-                "tilt_deg": float(rng.uniform(0, max_tilt_deg)),
+                "height_m": height,
+                "tilt_deg": tilt,
                 "tilt_direction_deg": float(rng.uniform(0, 360)),
                 "yaw_deg": float(rng.uniform(0, 360)),
             }
@@ -223,6 +236,15 @@ def _camera_for(
     return intr, (lo * grow, hi * grow)
 
 
+def _camera_range(cond: Conditions) -> dict[str, Any]:
+    """:func:`random_camera`'s distance and tilt under ``far`` or ``head`` (nothing
+    otherwise: the data set's heights and tilts)."""
+    if cond.camera_range_m is None:
+        return {}
+    lo, hi = cond.tilt_range_deg
+    return {"distance_range_m": cond.camera_range_m, "min_tilt_deg": lo, "max_tilt_deg": hi}
+
+
 def render_sample(
     class_id: str,
     k: int,
@@ -250,7 +272,8 @@ def render_sample(
     if cond.backface_axis_deg is not None:
         state = turn_over(state, cond.backface_axis_deg, layout)
     pose, camera = random_camera(
-        state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights
+        state, rng, intrinsics=intr, nominal=nominal, height_range_m=heights,
+        **_camera_range(cond),
     )
     lighting = Lighting() if nominal else Lighting.random(rng)
     sensor = SensorModel(enabled=not clean)

@@ -33,6 +33,7 @@ from .conditions import (
     shadow_factor,
     wood_albedo,
 )
+from .photo_effects import auto_exposed, kelvin_rgb, mosaic_demosaic, photo_light, vignetting
 from .render_scene import Lighting, RaycastScene, sample_texture, sticker_texture
 from .render_sheen import SHEEN_EXPOSURE_PEAK, SheenLobes, sheen_lobes
 
@@ -242,6 +243,49 @@ def _lit(
     return surface.albedo * shade[:, None]
 
 
+def _photo_lit(
+    view: _ViewHits, surface: _Surface, cond: Conditions, pose: CameraPose, state: ClothState
+) -> NDArray[np.float64]:
+    """Linear light (n, 3) under ``photo``: a lamp at a finite distance and a fill light,
+    the fabric's sheen on the cloth and the laminate's lobe on the stickers."""
+    photo = cond.photo
+    hit = np.isfinite(view.t_hit)
+    t = np.where(hit, view.t_hit, 1.0)
+    points = pose.position + view.dirs * t[:, None]
+    to_camera = -view.dirs / np.linalg.norm(view.dirs, axis=1)[:, None]
+    normals = view.rays["primitive_normals"].astype(np.float64)
+    diffuse, sheen, gloss, mirrored = photo_light(
+        photo, points, normals, to_camera, state.mesh.xyz.mean(axis=0)
+    )
+    linear = surface.albedo * diffuse
+    lamp = kelvin_rgb(photo.lamp_kelvin) * (1 - photo.fill)
+    napkin = surface.tex[:, 3]  # 1 on bare cloth, 0 on a sticker
+    shine = photo.sheen * napkin * sheen[view.on_cloth] + photo.gloss * (1 - napkin) * gloss[
+        view.on_cloth
+    ]
+    linear[view.on_cloth] += shine[:, None] * lamp
+    room = photo.laminate * (1 - napkin) * mirrored[view.on_cloth]
+    linear[view.on_cloth] += room[:, None] * kelvin_rgb(photo.fill_kelvin)
+    linear[~hit] = 0.0
+    return linear
+
+
+def _photo_colour(
+    linear: NDArray, shape: tuple[int, int], cond: Conditions, sensor: SensorModel,
+    rng: np.random.Generator,
+) -> NDArray[np.uint8]:
+    """The 8-bit colour image under ``photo``: lens blur and vignetting, auto white
+    balance and exposure, a colour mosaic with shot noise, demosaicing, sRGB."""
+    import cv2
+
+    image = linear.reshape(*shape, 3)
+    if sensor.enabled:
+        image = cv2.GaussianBlur(image, (0, 0), cond.photo.blur_px)
+    image = image * vignetting(shape, cond.photo.vignetting)[..., None]
+    image = mosaic_demosaic(auto_exposed(image, cond.photo), rng)
+    return np.clip(np.rint(linear_to_srgb(image) * 255.0), 0, 255).astype(np.uint8)
+
+
 def _add_highlight(
     linear: NDArray,
     view: _ViewHits,
@@ -442,14 +486,20 @@ def render(
     scene = RaycastScene(state, _condition_objects(cond, state, pose, dirs, intrinsics, layout))
     view = _cast_view(scene, origins, dirs, pose, cond)
     surface = _surface(view, scene, cond, lighting, layout)
-    linear = _lit(view, surface, cond, lighting, state)
+    if cond.photo is not None:
+        linear = _photo_lit(view, surface, cond, pose, state)
+    else:
+        linear = _lit(view, surface, cond, lighting, state)
     sheen = sheen_lobes(cond, state, scene, pose, lighting, layout, view.rays, dirs, surface.tex)
     _add_highlight(linear, view, surface, cond, layout, state)
     linear, gain = _exposed(linear, cond, sensor, rng)
     if sheen is not None:
         linear = _add_sheen(linear, view.on_cloth, sheen, gain)
-    srgb = linear_to_srgb(linear).reshape(*shape, 3) * 255.0
-    color = _colour_sensor(srgb, sensor, cond, rng)
+    if cond.photo is not None:
+        color = _photo_colour(linear, shape, cond, sensor, rng)
+    else:
+        srgb = linear_to_srgb(linear).reshape(*shape, 3) * 255.0
+        color = _colour_sensor(srgb, sensor, cond, rng)
     depth_mm = _depth_image(view, surface.no_depth, shape, cond, sensor, rng)
     color, depth_mm = _camera_output(color, depth_mm, intrinsics, cond)
     return RenderResult(

@@ -290,6 +290,12 @@ def _steps_for(
         steps = [steps[i] for i in order]
         words = [words[i] for i in order]
     params["folds"] = words
+    # each fold's true crease (two material points, mm): the truth of its sizes
+    # (dgli_vision.core.fold_measure)
+    params["creases_mm"] = {
+        w: [[round(float(v), 4) for v in s.p0], [round(float(v), 4) for v in s.p1]]
+        for w, s in zip(words, steps)
+    }
     return steps, params
 
 

@@ -1,0 +1,112 @@
+"""The camera's working envelope: what a frame must give for a verdict to be trusted.
+
+Two limits of the images themselves, not of the cloth:
+
+* **Sticker size.** A sticker must be at least :data:`MIN_STICKER_PX` pixels across for
+  its 12 mm dot to keep a readable core after a real lens's and sensor's blur; smaller,
+  identities are guesses, so no verdict is given and the message says how small they
+  are and what is needed (a camera too far away, or a lens too wide).
+* **An uncorrected lens near the image border.** Without distortion coefficients, a
+  sticker near the border may be displaced by a large fraction of its own size (a
+  typical wide lens, k1 about 0.1, moves a point at the edge of a 1280 x 720 frame by
+  tens of pixels); missing or displaced stickers there turn into folds. The verdict's
+  confidence is scaled down smoothly with the displacement a typical lens would cause
+  at the outermost sticker, relative to the sticker's size (:func:`border_factor`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core.camera import Intrinsics
+
+__all__ = [
+    "BORDER_DOUBT",
+    "MIN_STICKER_PX",
+    "TYPICAL_K1",
+    "border_factor",
+    "sticker_px",
+    "sticker_size_problem",
+]
+
+#: Smallest sticker diameter (pixels) a verdict is given for: the 12 mm dot is then 4
+#: pixels across, and a blur of 1-1.6 pixels (a lens, demosaicing) leaves its centre
+#: readable. A robot's head camera (1.2 m, fx 605) sees 15.
+MIN_STICKER_PX = 10.0
+#: First radial coefficient of a typical uncorrected wide lens (the renderer's
+#: ``distortion`` condition draws 0.06-0.12).
+TYPICAL_K1 = 0.1
+#: Displacement a typical lens would cause at the outermost sticker, in sticker
+#: diameters, where the confidence starts to fall (first) and where it is halved (second).
+BORDER_DOUBT = (0.5, 1.5)
+
+
+def sticker_px(depth_mm: float, intrinsics: Intrinsics, disc_diameter_mm: float) -> float:
+    """Diameter (pixels) of a sticker face-on at ``depth_mm`` (NaN without a depth)."""
+    if not (depth_mm > 0):
+        return float("nan")
+    return disc_diameter_mm * intrinsics.fx / depth_mm
+
+
+def sticker_size_problem(
+    depth_mm: float, intrinsics: Intrinsics, disc_diameter_mm: float
+) -> str | None:
+    """Why the stickers are too small to be read at the napkin's depth, or None.
+
+    Parameters
+    ----------
+    depth_mm : float
+        The napkin's distance from the camera (the median depth of its stickers or of
+        the frame), mm.
+    intrinsics : Intrinsics
+    disc_diameter_mm : float
+        The stickers' printed diameter.
+
+    Returns
+    -------
+    str or None
+        ``"stickers 8 px across, need 10 (the napkin is 2300 mm from the camera: ...)"``.
+    """
+    size = sticker_px(depth_mm, intrinsics, disc_diameter_mm)
+    if not (size < MIN_STICKER_PX):
+        return None
+    farthest = disc_diameter_mm * intrinsics.fx / MIN_STICKER_PX
+    return (
+        f"stickers {size:.0f} px across, need {MIN_STICKER_PX:.0f} (the napkin is "
+        f"{depth_mm:.0f} mm from the camera; with this lens at most {farthest:.0f} mm)"
+    )
+
+
+def border_factor(
+    centroids_px: NDArray[np.float64], intrinsics: Intrinsics, sticker_diameter_px: float
+) -> float:
+    """Factor in [0.5, 1] on a verdict's confidence for stickers near the image border
+    of a lens whose distortion is not known (1 when it is known).
+
+    A typical uncorrected lens (:data:`TYPICAL_K1`) moves a point at normalised radius
+    ``r`` by ``k1 r^3`` focal lengths. At the located sticker farthest from the principal
+    point, that displacement in sticker diameters below :data:`BORDER_DOUBT`'s first
+    value leaves the confidence as it is; above it the factor falls linearly to 0.5 at
+    the second.
+
+    Parameters
+    ----------
+    centroids_px : ndarray, shape (n, 2)
+        Located stickers' centres, pixels (NaN rows are ignored).
+    intrinsics : Intrinsics
+    sticker_diameter_px : float
+        The stickers' diameter at the napkin's depth, pixels.
+    """
+    if intrinsics.distorted:
+        return 1.0
+    c = np.asarray(centroids_px, dtype=np.float64).reshape(-1, 2)
+    c = c[np.isfinite(c).all(axis=1)]
+    if not len(c) or not (sticker_diameter_px > 0):
+        return 1.0
+    x = (c[:, 0] - intrinsics.cx) / intrinsics.fx
+    y = (c[:, 1] - intrinsics.cy) / intrinsics.fy
+    r = float(np.sqrt(x * x + y * y).max())
+    moved = TYPICAL_K1 * r**3 * intrinsics.fx / sticker_diameter_px
+    lo, hi = BORDER_DOUBT
+    return float(np.clip(1.0 - 0.5 * (moved - lo) / (hi - lo), 0.5, 1.0))
