@@ -137,7 +137,9 @@ def dataset_matrices(
         import multiprocessing
 
         ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(jobs, mp_context=ctx) as pool:
+        from ..core.parallel import die_with_parent
+
+        with ProcessPoolExecutor(jobs, mp_context=ctx, initializer=die_with_parent) as pool:
             # the slow curve distances first, so that the workers end together
             order = sorted(range(len(tasks)), key=lambda k: tasks[k][1] not in _SLOW)
             futures = {pool.submit(_matrix, tasks[k]): k for k in order}

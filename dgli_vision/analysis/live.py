@@ -420,6 +420,13 @@ class _Worker:
         )
 
 
+#: How long the live loop waits, when it ends, for the capture thread to stop its source
+#: (a camera's pipeline, a recording's playback), s. A camera's driver waits up to 5 s
+#: for a frame; the source is stopped before the process ends, or the SDK's own threads
+#: abort it ("FATAL: exception not rethrown").
+CAPTURE_STOP_S = 6.0
+
+
 def watch(
     frames: Iterable[Any],
     references: ReferenceSet,
@@ -478,19 +485,22 @@ def watch(
     )
     worker = _Worker(references, colours, keep_path)
     capture.start()
-    while not stop.is_set():
-        got, arrival = slot.take()
-        if not got:
-            if slot.ended:
-                break
-            continue
-        update, frame, result = worker.step(arrival, slot.dropped)
-        if on_update is not None:
-            on_update(update, frame, result)
-        slot.done()
-    stopped = stop.is_set()
-    stop.set()
-    capture.join(timeout=1.0)
+    try:
+        while not stop.is_set():
+            got, arrival = slot.take()
+            if not got:
+                if slot.ended:
+                    break
+                continue
+            update, frame, result = worker.step(arrival, slot.dropped)
+            if on_update is not None:
+                on_update(update, frame, result)
+            slot.done()
+        stopped = stop.is_set()
+    finally:  # also when on_update fails (a closed pipe): the source is let go first
+        stop.set()
+        slot.close()  # a capture waiting to offer a frame goes on, sees the stop
+        capture.join(timeout=CAPTURE_STOP_S)
     if isinstance(counts["error"], Exception) and not stopped:
         raise counts["error"]
     return worker.summary(counts, slot.dropped, stopped)

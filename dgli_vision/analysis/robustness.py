@@ -168,8 +168,12 @@ _OVERLAYS = False
 
 
 def _init(refs: ReferenceSet, overlays: bool = False) -> None:
+    """A worker's start: its references, one OpenCV thread, and its end with its parent."""
     import cv2
 
+    from ..core.parallel import die_with_parent
+
+    die_with_parent()
     global _REFS, _OVERLAYS
     _REFS = refs
     _OVERLAYS = overlays

@@ -30,12 +30,16 @@ def init_worker(refs: Any, colours: dict | None = None) -> None:
 
     Workers ignore Ctrl-C: the parent stops the batch and lets running pairs finish, so a
     terminal's interrupt (sent to the whole process group) leaves no half-written state
-    and no worker tracebacks.
+    and no worker tracebacks. They die with their parent, however it ends
+    (:func:`~dgli_vision.core.parallel.die_with_parent`).
     """
     import signal
 
     import cv2
 
+    from ..core.parallel import die_with_parent
+
+    die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     global _WORKER_REFS, _WORKER_COLOURS
     _WORKER_REFS = refs

@@ -8,7 +8,7 @@ import click
 
 from .errors import handle_errors
 from .options import overwrite_option
-from .output import command_line
+from .output import command_line, echo
 
 
 def _format_figure(value: float, unit: str) -> str:
@@ -97,7 +97,7 @@ def bench(
         value = _format_figure(r.value, r.unit)
         verdict = "" if r.ok is None else ("ok" if r.ok else "MISSED")
         rows.append((r.name, value, r.goal, verdict))
-        click.echo(f"{r.name:<60} {value:>18}  {r.goal:<16} {verdict}")
+        echo(f"{r.name:<60} {value:>18}  {r.goal:<16} {verdict}")
     if markdown:
         _write_markdown(rows, markdown, overwrite)
     if any(r.ok is False for r in results):

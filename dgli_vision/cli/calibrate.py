@@ -9,7 +9,7 @@ import click
 
 from .errors import handle_errors
 from .options import intrinsics_option, overwrite_option
-from .output import command_line, package_version
+from .output import command_line, echo, package_version
 
 
 @click.command()
@@ -86,8 +86,8 @@ def _calibrate_colours(frame: Any, color: str, output: str, overwrite: bool) -> 
         overwrite=overwrite,
     )
     for name, rgb in colours.items():
-        click.echo(f"{name:<7} {rgb}")
-    click.echo(f"wrote {output}")
+        echo(f"{name:<7} {rgb}")
+    echo(f"wrote {output}")
 
 
 def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrite: bool) -> None:
@@ -110,7 +110,7 @@ def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrit
         source=color,
     )
     for line in _lens_lines(est):
-        click.echo(line)
+        echo(line)
     if est.problem is not None:
         click.echo(
             f"error: '{color}': lens poorly constrained, {lens_out} not written: {est.problem}",
@@ -119,7 +119,7 @@ def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrit
         sys.exit(1)
     text = intrinsics_text(est.intrinsics, lens_out)
     write_outputs({Path(lens_out): text}, overwrite=overwrite, command=command_line())
-    click.echo(f"wrote {lens_out}")
+    echo(f"wrote {lens_out}")
 
 
 def _lens_lines(est: Any) -> list[str]:

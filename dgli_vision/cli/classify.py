@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from typing import Any
 
@@ -17,7 +16,7 @@ from .options import (
     overwrite_option,
     references_option,
 )
-from .output import command_line
+from .output import command_line, echo, echo_json
 
 
 def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
@@ -169,8 +168,8 @@ def classify_cmd(
             command=command_line(),
         )
     if as_json:
-        click.echo(json.dumps(result_to_json(result, color, depth)))
+        echo_json(result_to_json(result, color, depth))
     else:
-        click.echo(verdict_line(result))
+        echo(verdict_line(result))
     if result.prediction is None:  # said once, on stdout: an answer, not an error
         sys.exit(1)

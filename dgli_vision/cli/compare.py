@@ -3,14 +3,13 @@ states of the database and of the three folding sequences."""
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import click
 
 from .errors import handle_errors
 from .options import jobs_option, json_option, overwrite_option, references_option, report_option
-from .output import command_line, progress_bar
+from .output import command_line, echo, echo_json, progress_bar
 
 
 @click.command()
@@ -105,13 +104,13 @@ def _print_compare_table(table: dict[str, Any], columns: list, rows: list, as_js
     from ..analysis.report import markdown_table
 
     if as_json:
-        click.echo(json.dumps(table))
+        echo_json(table)
     else:
-        click.echo("Davies-Bouldin index (lower is better)")
-        click.echo(markdown_table(columns, rows), nl=False)
-        click.echo("columns: " + "; ".join(f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()))
-        click.echo(_NO_SEPARATION_NOTE)
-        click.echo(_PAPER_NOTE)
+        echo("Davies-Bouldin index (lower is better)")
+        echo(markdown_table(columns, rows), nl=False)
+        echo("columns: " + "; ".join(f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()))
+        echo(_NO_SEPARATION_NOTE)
+        echo(_PAPER_NOTE)
 
 
 _PAPER_NOTE = (
@@ -247,7 +246,7 @@ def sequence(
     result = analyse_sequence(records, refs)
     summary = _sequence_summary(name, len(records), result)
     if as_json:
-        click.echo(json.dumps(summary))
+        echo_json(summary)
     else:
         _print_sequence(summary, result)
     if report_dir:
@@ -299,13 +298,13 @@ def _sequence_summary(name: str, n_frames: int, result: Any) -> dict[str, Any]:
 
 def _print_sequence(summary: dict[str, Any], result: Any) -> None:
     """``dgli sequence`` in words: the frames' classes and the state changes."""
-    click.echo(
+    echo(
         f"sequence {summary['sequence']}: {summary['description']} ({summary['frames']} frames)"
     )
-    click.echo(f"  truth:     {' '.join(result.truth)}")
-    click.echo(f"  per frame: {' '.join(result.predicted)}")
-    click.echo(f"  smoothed:  {' '.join(result.smoothed)}")
-    click.echo(
+    echo(f"  truth:     {' '.join(result.truth)}")
+    echo(f"  per frame: {' '.join(result.predicted)}")
+    echo(f"  smoothed:  {' '.join(result.smoothed)}")
+    echo(
         f"  state changes: true at frames {list(result.true_changes)}, "
         f"detected at {list(result.detected_changes)}; frame accuracy "
         f"{result.frame_accuracy:.0%} per frame, {result.smoothed_accuracy:.0%} smoothed"

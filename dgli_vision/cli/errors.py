@@ -10,6 +10,7 @@ from typing import Any, TypeVar
 import click
 
 from ..core.errors import DgliError
+from .output import StdoutClosed
 
 F = TypeVar("F", bound=Callable[..., Any])
 
@@ -23,7 +24,9 @@ def _os_error_message(exc: OSError) -> str:
     if exc.filename is not None:
         return f"'{display_path(exc.filename)}': {reason}"
     if _raised_writing_stdout(exc):
-        return f"cannot write to standard output: {reason}"
+        from .output import stdout_name
+
+        return f"cannot write to {stdout_name()}: {reason}"
     return reason
 
 
@@ -47,9 +50,9 @@ def _flush_stdout() -> None:
         if sys.stdout is not None:
             sys.stdout.flush()
     except OSError as exc:
-        from ..core.errors import OutputError
+        from .output import stdout_error
 
-        raise OutputError(f"cannot write to standard output: {exc.strerror or exc}") from None
+        raise stdout_error(exc) from None
 
 
 def _stdout_failed() -> bool:
@@ -62,17 +65,35 @@ def _stdout_failed() -> bool:
     return False
 
 
+#: The exit code of a command whose standard output was a pipe that its reader closed
+#: (``dgli watch --jsonl | head -1``): 128 + SIGPIPE, what a shell reports for a Unix tool
+#: that the signal ended. Nothing is printed.
+PIPE_CLOSED_EXIT = 141
+
+
+def _drop_stdout() -> None:
+    """Point standard output at /dev/null, so that the interpreter's last flush of what
+    it could not take succeeds instead of printing an error at exit."""
+    import os
+
+    try:
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def _quiet_exit() -> None:
+    """End as a Unix tool does when its output pipe is closed: no message, exit 141."""
+    _drop_stdout()
+    sys.exit(PIPE_CLOSED_EXIT)
+
+
 def _fail(message: str, code: int) -> None:
     """Print ``error: message`` on stderr (if stderr can take it) and exit with ``code``;
     output that standard output could not take is dropped, so that Python does not
     report it again at exit."""
     if _stdout_failed():
-        import os
-
-        try:  # point the descriptor at /dev/null: the interpreter's last flush succeeds
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        except (OSError, ValueError, AttributeError):
-            pass
+        _drop_stdout()
     try:
         click.echo(f"error: {message}", err=True)
     except (OSError, ValueError):
@@ -87,8 +108,11 @@ def handle_errors(fn: F) -> F:
     operating-system error that got through (a full disk, a closed or full standard
     output, a name too long) exits 2 naming the file; running out of memory exits 2.
     Standard output is flushed before the command counts as done, so that a full
-    ``/dev/full`` or a closed pipe is reported rather than lost. A closed standard output
-    (``>&-``) stops the command before any work: it is where the answer goes.
+    ``/dev/full`` is reported (naming the file standard output goes to) rather than lost.
+    A pipe whose reader has gone (``| head -1``) ends the command quietly with exit 141,
+    as it ends a Unix tool, after the command's own clean-up (``finally`` blocks: a
+    camera's pipeline stopped, files closed). A closed standard output (``>&-``) stops
+    the command before any work: it is where the answer goes.
     """
 
     @wraps(fn)
@@ -105,9 +129,13 @@ def handle_errors(fn: F) -> F:
                 raise
             _flush_stdout()
             return result
+        except StdoutClosed:
+            _quiet_exit()
         except DgliError as exc:
             _fail(str(exc), exc.exit_code)
         except OSError as exc:
+            if _pipe_closed(exc):
+                _quiet_exit()
             _fail(_os_error_message(exc), 2)
         except MemoryError:
             _fail("out of memory", 2)
@@ -115,10 +143,44 @@ def handle_errors(fn: F) -> F:
     return wrapper  # type: ignore[return-value]
 
 
+def _pipe_closed(exc: OSError) -> bool:
+    """Whether ``exc`` is standard output's pipe, closed by its reader."""
+    import errno
+
+    from .output import stdout_reader_gone
+
+    return exc.errno == errno.EPIPE and stdout_reader_gone()
+
+
+def _line_buffered_stdout() -> None:
+    """Under ``python -u`` (or PYTHONUNBUFFERED), standard output's text layer writes
+    straight to the file, and a short write (the last blocks a filling disk takes) is
+    dropped without an error: the answer is cut and the command exits 0. A buffered
+    writer between them, flushed at every line, writes the rest or raises."""
+    import io
+
+    stream = sys.stdout
+    raw = getattr(stream, "buffer", None)
+    if isinstance(stream, io.TextIOWrapper) and isinstance(raw, io.RawIOBase):
+        sys.stdout = io.TextIOWrapper(
+            io.BufferedWriter(raw),
+            encoding=stream.encoding,
+            errors=stream.errors,
+            line_buffering=True,
+            write_through=True,
+        )
+
+
 def guarded(run: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
     """Run click's ``main`` with an operating-system error outside any command (help or
-    a usage error written to a full or closed stream) as one line, exit 2."""
+    a usage error written to a full or closed stream) as one line, exit 2 (a closed pipe:
+    quietly, exit 141), and standard output that reports every failed write."""
+    _line_buffered_stdout()
     try:
         return run(*args, **kwargs)
+    except StdoutClosed:
+        _quiet_exit()
     except OSError as exc:
+        if _pipe_closed(exc):
+            _quiet_exit()
         _fail(_os_error_message(exc), 2)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Iterator
 from typing import Any
@@ -19,7 +18,7 @@ from .options import (
     references_option,
     report_option,
 )
-from .output import command_line, package_version
+from .output import command_line, echo, echo_json, package_version
 from .runs import (
     Stop,
     classify_into,
@@ -226,21 +225,21 @@ class _EvaluationRun:
         from ..analysis.evaluate import json_ready
 
         if self.as_json:
-            click.echo(json.dumps(json_ready({**result.to_dict(), "skipped": skipped})))
+            echo_json(json_ready({**result.to_dict(), "skipped": skipped}))
             return
         from ..analysis.report import markdown_table
 
-        click.echo(
+        echo(
             f"{result.n} pairs, {result.classified} classified, "
             f"{len(result.failures)} failed or unclassified"
         )
-        click.echo(result.outcomes_text())
-        click.echo(
+        echo(result.outcomes_text())
+        echo(
             f"class accuracy {result.accuracy:.2%}, "
             f"variant accuracy {result.variant_accuracy_text()}, "
             f"{result.seconds:.1f} s with {self.jobs} worker(s)"
         )
-        click.echo(
+        echo(
             markdown_table(
                 ["true \\ predicted", *result.labels, "none"],
                 [[lab, *row] for lab, row in zip(result.labels, result.confusion)],
@@ -248,7 +247,7 @@ class _EvaluationRun:
             nl=False,
         )
         for f in result.failures:
-            click.echo(f"failed: {f['color']}: {f['error']}")
+            echo(f"failed: {f['color']}: {f['error']}")
 
     def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
         from pathlib import Path

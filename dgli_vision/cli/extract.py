@@ -8,7 +8,7 @@ import click
 
 from .errors import handle_errors
 from .options import finite_seconds, overwrite_option, recording_options
-from .output import command_line, progress_bar
+from .output import command_line, echo, progress_bar
 from .runs import open_recording_with, recording_notes
 
 
@@ -71,4 +71,4 @@ def extract(
     recording_notes(recording)
     for line in result.skipped:
         click.echo(f"skipped: {line}", err=True)
-    click.echo(f"wrote {result.written} frames to {out} (frames: {result.frames_csv})")
+    echo(f"wrote {result.written} frames to {out} (frames: {result.frames_csv})")

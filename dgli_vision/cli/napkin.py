@@ -3,13 +3,11 @@ coordinates."""
 
 from __future__ import annotations
 
-import json
-
 import click
 
 from .errors import handle_errors
 from .options import json_option, overwrite_option, size_option
-from .output import command_line
+from .output import command_line, echo, echo_json
 
 
 @click.command()
@@ -41,7 +39,7 @@ def stickers(out: str, size_mm: tuple[float, float] | None, overwrite: bool) -> 
         overwrite=overwrite,
         command=command_line(),
     )
-    click.echo(f"wrote {svg} (print at 100 %, A3) and its preview {preview}")
+    echo(f"wrote {svg} (print at 100 %, A3) and its preview {preview}")
 
 
 @click.command()
@@ -56,8 +54,8 @@ def coords(as_json: bool) -> None:
     values = layout.flat_coordinates()
     i, j = pair_indices(layout.n_segments)
     if as_json:
-        click.echo(json.dumps({"state": "flat", "unit": "1/m", "coordinates": values.tolist()}))
+        echo_json({"state": "flat", "unit": "1/m", "coordinates": values.tolist()})
         return
-    click.echo("dGLI cloth coordinates of the flat napkin (1/m), segment pairs i-j:")
+    echo("dGLI cloth coordinates of the flat napkin (1/m), segment pairs i-j:")
     for a, b, v in zip(i, j, values):
-        click.echo(f"  {a}-{b}  {v + 0.0:+.6f}")
+        echo(f"  {a}-{b}  {v + 0.0:+.6f}")

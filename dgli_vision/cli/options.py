@@ -52,16 +52,10 @@ def _parse_size(
 
     if value is None:
         return None
-    try:
-        size = parse_size(value)
+    try:  # each side within the range, named with it when not (1e30 was too small for H)
+        return parse_size(value, largest_mm=MAX_NAPKIN_MM)
     except ValueError as exc:
         raise click.BadParameter(str(exc)) from None
-    if max(size) > MAX_NAPKIN_MM:
-        raise click.BadParameter(
-            f"napkin size {value!r}: each side is at most {MAX_NAPKIN_MM:g} mm (the stickers "
-            "and the simulated cloth are made for napkins, not tablecloths)"
-        )
-    return size
 
 
 #: ``--size W[xH]``: the napkin's size in mm (the stickers keep their distances from the

@@ -1,11 +1,87 @@
-"""What the commands share in their output: provenance records and progress bars."""
+"""What the commands share in their output: standard output written, flushed and
+checked (:func:`echo`, :func:`echo_json`), provenance records and progress bars."""
 
 from __future__ import annotations
 
+import errno
 import sys
 from typing import Any
 
 import click
+
+from ..core.errors import OutputError
+
+
+class StdoutClosed(Exception):
+    """Standard output is a pipe whose reader has gone (``dgli ... | head -1``): the
+    command ends quietly, as Unix tools do (:func:`~dgli_vision.cli.errors.handle_errors`)."""
+
+
+def stdout_name() -> str:
+    """``standard output``, with the file it is redirected to when it is a regular file
+    (``standard output ('/data/run.json')``), for messages."""
+    import os
+    import stat
+
+    from ..core.io import display_path
+
+    try:
+        fd = sys.stdout.fileno()
+        if stat.S_ISREG(os.fstat(fd).st_mode):
+            return f"standard output ('{display_path(os.readlink(f'/proc/self/fd/{fd}'))}')"
+    except (OSError, ValueError, AttributeError):
+        pass
+    return "standard output"
+
+
+def stdout_reader_gone() -> bool:
+    """Whether standard output is a pipe (or socket) that nobody reads any more."""
+    import select
+
+    try:
+        poller = select.poll()
+        poller.register(sys.stdout.fileno(), select.POLLOUT)
+        return any(ev & select.POLLERR for _, ev in poller.poll(0))
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
+def stdout_error(exc: OSError) -> Exception:
+    """What a failed write to standard output becomes: :class:`StdoutClosed` for a
+    pipe whose reader has gone, else an :class:`OutputError` naming standard output
+    (and its file) and the reason (a full disk, an I/O error)."""
+    if exc.errno == errno.EPIPE or isinstance(exc, BrokenPipeError) or stdout_reader_gone():
+        return StdoutClosed()
+    return OutputError(f"cannot write to {stdout_name()}: {exc.strerror or exc}")
+
+
+def echo(text: str = "", *, nl: bool = True) -> None:
+    """Write ``text`` (and a newline) to standard output and flush it: every command's
+    answer goes through here, so that a full disk or a closed pipe is never lost.
+
+    Raises
+    ------
+    OutputError
+        Standard output cannot take it (no space left on device, an I/O error): the
+        message names its file.
+    StdoutClosed
+        Standard output is a pipe whose reader has gone.
+    """
+    stream = sys.stdout
+    if stream is None:
+        raise OutputError("standard output is closed; dgli prints its answer there")
+    try:
+        stream.write(text + "\n" if nl else text)
+        stream.flush()
+    except OSError as exc:
+        raise stdout_error(exc) from None
+
+
+def echo_json(data: Any) -> None:
+    """``data`` as one line of JSON on standard output (:func:`echo`)."""
+    import json
+
+    echo(json.dumps(data))
 
 
 def command_line() -> str:

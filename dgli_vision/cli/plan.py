@@ -16,7 +16,7 @@ from .options import (
     overwrite_option,
     references_option,
 )
-from .output import command_line
+from .output import command_line, echo, echo_json
 
 
 def _state(ctx: click.Context, param: click.Parameter, value: str | None):
@@ -54,17 +54,17 @@ def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> 
     rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit))
     table = check_table(rows)
     if as_json:
-        click.echo(json.dumps(table))
+        echo_json(table)
         return
-    click.echo(f"{table['pairs']} trials, success {table['success']:.3f}")
-    click.echo("| steps to goal | right | cannot tell | refused | wrong |")
-    click.echo("|---|---|---|---|---|")
+    echo(f"{table['pairs']} trials, success {table['success']:.3f}")
+    echo("| steps to goal | right | cannot tell | refused | wrong |")
+    echo("|---|---|---|---|---|")
     for n, c in table["by_steps"].items():
-        click.echo(f"| {n} | {c['right']} | {c['cannot tell']} | {c['refused']} | {c['wrong']} |")
+        echo(f"| {n} | {c['right']} | {c['cannot tell']} | {c['refused']} | {c['wrong']} |")
     o = table["outcomes"]
-    click.echo(f"| all | {o['right']} | {o['cannot tell']} | {o['refused']} | {o['wrong']} |")
+    echo(f"| all | {o['right']} | {o['cannot tell']} | {o['refused']} | {o['wrong']} |")
     for r in table["not_right"]:
-        click.echo(
+        echo(
             f"{r['outcome']}: {r['start']} -> {r['goal']} (seen {r['seen']}, expected "
             f"{r['expect']}, got {r['after']}) {r['note']}".rstrip()
         )
@@ -157,14 +157,14 @@ def plan_cmd(
                               overwrite=overwrite, command=command_line())
     except PlanRefused as exc:
         if as_json:
-            click.echo(json.dumps({"plan": None, "reason": str(exc)}))
+            echo_json({"plan": None, "reason": str(exc)})
         else:
-            click.echo(f"no plan: {exc}" if not str(exc).startswith("no plan") else str(exc))
+            echo(f"no plan: {exc}" if not str(exc).startswith("no plan") else str(exc))
         sys.exit(1)
     if verify_pair:
         _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json)
         return
-    click.echo(json.dumps(plan.to_json()) if as_json else _plan_line(plan))
+    echo(json.dumps(plan.to_json()) if as_json else _plan_line(plan))
 
 
 def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: bool) -> None:
@@ -185,11 +185,11 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
     check = verify_fold(result, step.expect, layout, fold=step.fold if crease else None,
                         crease=crease, tolerance_mm=tolerance)
     if as_json:
-        click.echo(json.dumps({"plan": plan.to_json(), "verify": check.to_json()}))
+        echo_json({"plan": plan.to_json(), "verify": check.to_json()})
         if not check.success:
             sys.exit(1)
         return
-    click.echo(_plan_line(plan))
+    echo(_plan_line(plan))
     report(check, False)
 
 

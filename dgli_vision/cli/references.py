@@ -6,7 +6,7 @@ import click
 
 from .errors import handle_errors
 from .options import output_option, overwrite_option, size_option
-from .output import command_line, napkin_provenance, package_version
+from .output import command_line, echo, napkin_provenance, package_version
 
 
 @click.group()
@@ -51,4 +51,4 @@ def references_build(
     }
     refs = build_references(records, provenance=provenance)
     write_references(output, refs, overwrite=overwrite)
-    click.echo(f"wrote {len(refs)} references from {len(records)} states to {output}")
+    echo(f"wrote {len(refs)} references from {len(records)} states to {output}")

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from pathlib import Path
 from typing import Any
 
 import click
@@ -16,7 +17,7 @@ from .options import (
     per_class_option,
     size_option,
 )
-from .output import command_line, napkin_provenance, package_version, progress
+from .output import command_line, echo, napkin_provenance, package_version, progress
 from .runs import Stop, folder_lock, stop_signals
 
 
@@ -166,6 +167,8 @@ def _render_set(
     index = {n: k for k, n in enumerate(names)}
     times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
     labels = f"{out}/labels.csv"
+    if samples and not resume:  # an earlier render's pairs not rendered again go first
+        _remove_earlier_pairs(out, names, bool(sequence), overwrite)
     if samples:
         labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
     if kept:
@@ -178,7 +181,24 @@ def _render_set(
             err=True,
         )
         sys.exit(stop.exit_code)
-    click.echo(f"wrote {done} pairs to {out} (labels: {labels})")
+    echo(f"wrote {done} pairs to {out} (labels: {labels})")
+
+
+def _remove_earlier_pairs(out: str, names: list[str], sequence: bool, overwrite: bool) -> None:
+    """Remove the pairs an earlier render listed in ``out`` that this one does not
+    render again (a smaller set, another sequence), and its frames.csv when this one
+    writes none: none is left beside the new labels.csv."""
+    from ..core.io import remove_earlier_outputs
+    from ..sources.labelled import listed_files
+
+    suffixes = ("_color.png", "_depth.png")
+    again = set(names)
+    earlier = [
+        n for n in listed_files(out)
+        if not (n.endswith(suffixes) and Path(n).name[: -len("_color.png")] in again)
+        and n not in ("labels.csv", "frames.csv" if sequence else "")
+    ]
+    remove_earlier_outputs(out, earlier, overwrite=overwrite)
 
 
 def _render_case(task: tuple[tuple[str, int], int, dict[str, Any]]) -> Any:

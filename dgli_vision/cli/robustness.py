@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 import click
@@ -17,7 +16,7 @@ from .options import (
     references_option,
     report_option,
 )
-from .output import command_line, progress_bar
+from .output import command_line, echo, echo_json, progress_bar
 
 
 @click.command()
@@ -90,7 +89,7 @@ def robustness(
     )
     data = _robustness_json(seed, per_class, scores)
     if as_json:
-        click.echo(json.dumps(data))
+        echo_json(data)
     else:
         _print_robustness(table, reliability, scores)
     if markdown:
@@ -171,9 +170,9 @@ def _print_robustness(table: str, reliability: str, scores: list) -> None:
     from ..analysis.evaluate import outcomes_text
     from ..analysis.robustness_report import total_outcomes
 
-    click.echo(table, nl=False)
-    click.echo("all conditions: " + outcomes_text(total_outcomes(scores)["outcomes"]))
+    echo(table, nl=False)
+    echo("all conditions: " + outcomes_text(total_outcomes(scores)["outcomes"]))
     for s in scores:
         for case in s.wrong_cases:
-            click.echo(f"wrong under {s.condition}: {case}")
-    click.echo("\n" + reliability, nl=False)
+            echo(f"wrong under {s.condition}: {case}")
+    echo("\n" + reliability, nl=False)

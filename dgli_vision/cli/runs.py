@@ -141,16 +141,26 @@ def open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: boo
     """The writer of a run's results.jsonl and the objects already in it: with
     ``resume``, those of the same run (refused, naming the difference, when its header
     differs from ``header``); otherwise a new file starting with ``header`` (refused when
-    an earlier run's results are there, unless ``overwrite``)."""
+    an earlier run's results are there, unless ``overwrite``). A result whose images
+    have changed since (size or time: captured again under the same names) is left out
+    of those, with a note: it is classified again."""
     from ..core.errors import OverwriteError
     from ..core.io import JsonLinesWriter, read_jsonl
-    from ..core.run_lock import check_resume, repair_journal
+    from ..core.run_lock import check_resume, current_results, repair_journal
 
     earlier = read_jsonl(path) if resume else []
     if earlier:
         check_resume(path, earlier[0], header)
         repair_journal(path)
-        return JsonLinesWriter(path, append=True), earlier[1:]
+        kept, stale = current_results(earlier[1:])
+        if stale:
+            pairs = "1 pair has" if stale == 1 else f"{stale} pairs have"
+            click.echo(
+                f"note: {pairs} changed since the interrupted run (image size or time): "
+                "classified again",
+                err=True,
+            )
+        return JsonLinesWriter(path, append=True), kept
     if path.exists() and not (resume or overwrite):
         raise OverwriteError(
             f"'{path}' holds the results of an earlier run; use --resume to go on "
@@ -184,6 +194,7 @@ def classify_into(
     from concurrent.futures.process import BrokenProcessPool
 
     from ..analysis.evaluate import evaluate_pairs, outcome_to_dict, pair_key
+    from ..core.run_lock import files_stamp
 
     try:
         with progress_bar(count, label, quiet=run.as_json) as bar:
@@ -192,7 +203,9 @@ def classify_into(
             ):
                 with stop.holding():  # in the journal and counted, or neither
                     if writer:  # flushed at once: an interrupted run keeps its work
-                        writer.write(outcome_to_dict(outcome))
+                        pair = outcome.pair  # and the images it was read from, by stamp
+                        stamp = files_stamp(pair.color, pair.depth)
+                        writer.write({**outcome_to_dict(outcome), "files": stamp})
                     done[(key or pair_key)(outcome.pair)] = outcome
     except (KeyboardInterrupt, SystemError) as exc:
         if not stop.cut_short(exc):

@@ -8,7 +8,7 @@ import click
 
 from .errors import handle_errors
 from .options import make_jobs_option, overwrite_option, per_class_option, size_option
-from .output import command_line, napkin_provenance, package_version, progress
+from .output import command_line, echo, napkin_provenance, package_version, progress
 
 #: The most cloth ``dgli simulate`` holds, counted in states of the nominal 400 mm napkin
 #: (a state of a larger napkin counts by its area): about 3 GB.
@@ -93,7 +93,7 @@ def simulate(
         "package_version": package_version(),
     }
     index = write_database(out, states, provenance, overwrite=overwrite)
-    click.echo(f"wrote {len(states)} states to {index}")
+    echo(f"wrote {len(states)} states to {index}")
 
 
 def _simulate_part(task: tuple[int, int, str | None, dict[str, Any]]) -> list:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import sys
 from collections.abc import Iterator
 from typing import Any
@@ -19,7 +18,7 @@ from .options import (
     references_option,
     report_option,
 )
-from .output import command_line
+from .output import command_line, echo, echo_json
 from .runs import (
     Stop,
     classify_into,
@@ -207,14 +206,14 @@ class _TrackRun:
         from ..core.classes import CLASS_NAMES
 
         if self.as_json:
-            click.echo(json.dumps(data))
+            echo_json(data)
             return
 
         def state(key: tuple[str, str | None]) -> str:
             return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
 
         first = next((f for f in timeline.frames if not f.gap), None)
-        click.echo(
+        echo(
             f"{n} frames; "
             + (
                 f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
@@ -223,17 +222,17 @@ class _TrackRun:
             )
         )
         for t, a, b in timeline.changes:
-            click.echo(f"  frame {t}: {state(a)} -> {state(b)}")
+            echo(f"  frame {t}: {state(a)} -> {state(b)}")
         for f in timeline.frames:
             if f.gap:
-                click.echo(f"gap: frame {f.index} ({f.color}): {f.note}")
+                echo(f"gap: frame {f.index} ({f.color}): {f.note}")
         if "outcomes" in data:
             from ..analysis.evaluate import outcomes_text
 
-            click.echo("frames' own answers: " + outcomes_text(data["outcomes"]))
+            echo("frames' own answers: " + outcomes_text(data["outcomes"]))
         sc = timeline.score
         if sc is not None:
-            click.echo(
+            echo(
                 f"frame accuracy {sc.raw_accuracy:.0%} raw, {sc.smoothed_accuracy:.0%} "
                 f"smoothed; state changes true {list(sc.true_changes)}, found "
                 f"{list(sc.found_changes)} (precision {sc.precision:.2f}, recall "

@@ -10,6 +10,7 @@ import click
 
 from .errors import handle_errors
 from .options import intrinsics_option, json_option, references_option
+from .output import echo
 
 
 def _state(ctx: click.Context, param: click.Parameter, value: str | None):
@@ -50,7 +51,7 @@ def _tip(ctx: click.Context, param: click.Parameter, value: str | None):
 def report(check, as_json: bool) -> None:
     """Print a :class:`~dgli_vision.planning.verify.FoldCheck` and exit 1 unless it
     succeeded."""
-    click.echo(json.dumps(check.to_json()) if as_json else check.line())
+    echo(json.dumps(check.to_json()) if as_json else check.line())
     if not check.success:
         sys.exit(1)
 

@@ -3,7 +3,6 @@ one), as it comes."""
 
 from __future__ import annotations
 
-import json
 import shutil
 import sys
 from pathlib import Path
@@ -13,6 +12,7 @@ import click
 
 from .errors import handle_errors
 from .options import colours_option, overwrite_option, references_option
+from .output import echo, echo_json
 
 
 @click.command()
@@ -206,12 +206,11 @@ class _Printer:
 
             write_png(self.overlays / f"frame_{update.frame:06d}.png", overlay_of(frame, result))
         if self.jsonl:
-            click.echo(json.dumps(update.to_dict()))
-            sys.stdout.flush()
+            echo_json(update.to_dict())
         elif update.change is not None:
             self._clear()
             t = "" if update.time is None else f" ({update.time:.2f} s)"
-            click.echo(
+            echo(
                 f"frame {update.frame}{t}: {_state_text(update.change[0])} -> "
                 f"{_state_text(update.change[1])}"
             )
@@ -243,7 +242,7 @@ class _Printer:
         ]
         data["path"] = [{"class": c, "variant": v} for c, v in summary.path]
         if self.jsonl:
-            click.echo(json.dumps({"summary": data}))
+            echo_json({"summary": data})
         rate = summary.classified / summary.seconds if summary.seconds else 0.0
         last = summary.path[-1] if summary.path else None
         click.echo(

@@ -35,10 +35,12 @@ __all__ = [
     "failed_part_way",
     "file_sha256",
     "guard_outputs",
+    "mesh_ply_bytes",
     "read_json",
     "read_jsonl",
     "read_mesh_ply",
     "record_outputs",
+    "remove_earlier_outputs",
     "write_files",
     "write_json",
     "write_mesh_ply",
@@ -69,8 +71,11 @@ def _remove_partial(p: Path) -> None:
 
 
 def _write_bytes(p: Path, data: bytes) -> None:
-    """Write ``data`` to ``p``, creating parent folders; a failed write leaves no
-    truncated file behind.
+    """Write ``data`` to ``p``, creating parent folders, whole or not at all: into a
+    temporary file beside it, renamed over ``p`` once complete (a full disk, a kill
+    part-way leave the earlier file as it was, or none, and never a truncated one).
+    A device or FIFO (``/dev/stdout``) and what a symbolic link points to are written in
+    place.
 
     Raises
     ------
@@ -83,11 +88,47 @@ def _write_bytes(p: Path, data: bytes) -> None:
     except OSError as exc:
         raise _unwritable(p, f"cannot make its folder ({exc.strerror or exc})") from None
     try:
-        with p.open("wb") as fh:
-            fh.write(data)
+        st = p.lstat()
+    except OSError:
+        st = None
+    if st is not None and not stat.S_ISREG(st.st_mode):  # a device, FIFO or link
+        try:
+            with p.open("wb") as fh:
+                fh.write(data)
+        except OSError as exc:
+            _remove_partial(p)
+            raise _unwritable(p, exc.strerror or str(exc)) from None
+        return
+    _write_whole(p, data, None if st is None else stat.S_IMODE(st.st_mode))
+
+
+def _write_whole(p: Path, data: bytes, mode: int | None) -> None:
+    """``data`` into a temporary file in ``p``'s folder, renamed to ``p`` when complete;
+    the file gets ``mode`` (a replaced file's), or the usual mode of a new file."""
+    import tempfile
+
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{p.name[:100]}.", suffix=".part", dir=p.parent)
     except OSError as exc:
-        _remove_partial(p)
         raise _unwritable(p, exc.strerror or str(exc)) from None
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+        os.chmod(tmp, mode if mode is not None else 0o666 & ~_umask())
+        os.replace(tmp, p)
+    except OSError as exc:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise _unwritable(p, exc.strerror or str(exc)) from None
+
+
+def _umask() -> int:
+    """The process's file-creation mask (read by setting it and setting it back)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def write_text(path: str | Path, text: str) -> None:
@@ -160,33 +201,34 @@ def write_json(path: str | Path, data: Any) -> None:
 
 
 def write_mesh_ply(path: str | Path, xyz: NDArray, triangles: NDArray) -> None:
-    """Write a triangle mesh (vertices in metres) as a binary PLY through Open3D."""
-    import open3d as o3d
+    """Write a triangle mesh (vertices in metres) as a binary little-endian PLY: float64
+    x, y, z per vertex, a uchar count and uint32 indices per face (the layout Open3D
+    writes and reads), whole or not at all (:func:`_write_bytes`).
 
-    mesh = o3d.geometry.TriangleMesh(
-        o3d.utility.Vector3dVector(np.asarray(xyz, dtype=np.float64)),
-        o3d.utility.Vector3iVector(np.asarray(triangles, dtype=np.int32)),
+    Raises
+    ------
+    OutputError
+        Naming the file and the reason (a full disk...); no partial file is left.
+    """
+    data = mesh_ply_bytes(xyz, triangles)
+    _write_bytes(Path(path), data)
+
+
+def mesh_ply_bytes(xyz: NDArray, triangles: NDArray) -> bytes:
+    """The bytes of :func:`write_mesh_ply`'s file: ``xyz`` (n, 3) vertices and
+    ``triangles`` (k, 3) vertex indices."""
+    v = np.ascontiguousarray(xyz, dtype="<f8").reshape(-1, 3)
+    t = np.asarray(triangles).reshape(-1, 3)
+    faces = np.empty(len(t), dtype=[("n", "u1"), ("v", "<u4", (3,))])
+    faces["n"] = 3
+    faces["v"] = t
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment Created by dgli_vision\n"
+        f"element vertex {len(v)}\nproperty double x\nproperty double y\n"
+        f"property double z\nelement face {len(t)}\n"
+        "property list uchar uint vertex_indices\nend_header\n"
     )
-    p = Path(path)
-    try:
-        p.parent.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise _unwritable(p, f"cannot make its folder ({exc.strerror or exc})") from None
-    if not o3d.io.write_triangle_mesh(str(p), mesh, write_ascii=False, compressed=False):
-        _remove_partial(p)
-        raise _unwritable(p, _why_unwritable(p))
-
-
-def _why_unwritable(p: Path) -> str:
-    """The likely reason a writer that reports no error number (OpenCV, Open3D) failed."""
-    try:
-        if os.statvfs(p.parent).f_bavail == 0:
-            return "No space left on device"
-    except OSError as exc:
-        return exc.strerror or str(exc)
-    if not os.access(p.parent, os.W_OK):
-        return "Permission denied"
-    return "the writer failed"
+    return header.encode("ascii") + v.tobytes() + faces.tobytes()
 
 
 def read_mesh_ply(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
@@ -296,6 +338,71 @@ def record_outputs(paths: Iterable[str | Path], command: str) -> None:
             folder / MANIFEST_NAME,
             {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
         )
+
+
+def remove_earlier_outputs(
+    folder: str | Path, names: Iterable[str], *, overwrite: bool = False
+) -> list[Path]:
+    """Remove the files an earlier run listed in ``folder`` (``names``, relative to it)
+    that dgli wrote and that are unchanged since (any of them with ``overwrite``), and
+    drop them from their folders' records: a rerun that writes fewer files (``extract
+    --every 3``, a smaller ``render``) leaves none of the earlier ones beside its new
+    list. A name outside ``folder``, a file dgli did not write (without ``overwrite``) or
+    one that is not there is left alone.
+
+    Returns
+    -------
+    list of Path
+        The files removed.
+
+    Raises
+    ------
+    OutputError
+        A file that cannot be removed (no permission...), naming it.
+    """
+    root = Path(folder)
+    try:
+        base = root.resolve()
+    except OSError:
+        return []
+    by_folder: dict[Path, list[Path]] = {}
+    for name in dict.fromkeys(names):
+        p = root / name
+        try:
+            inside = p.resolve().is_relative_to(base) and p.resolve() != base
+            if not inside or p.is_symlink() or not p.is_file():
+                continue
+        except (OSError, ValueError):
+            continue
+        by_folder.setdefault(p.parent, []).append(p)
+    removed: list[Path] = []
+    for sub, files in by_folder.items():
+        listed = _manifest(sub)
+        gone = []
+        for p in files:
+            entry = listed.get(p.name)
+            ours = isinstance(entry, dict) and entry.get("sha256") == file_sha256(p)
+            if not (ours or overwrite):
+                continue
+            try:
+                p.unlink()
+            except FileNotFoundError:
+                pass
+            except OSError as exc:
+                raise OutputError(
+                    f"cannot remove '{display_path(p)}', listed by the earlier run: "
+                    f"{exc.strerror or exc}"
+                ) from None
+            gone.append(p)
+        if gone and listed:
+            for p in gone:
+                listed.pop(p.name, None)
+            write_json(
+                sub / MANIFEST_NAME,
+                {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
+            )
+        removed += gone
+    return removed
 
 
 def _kept(written: list[Path]) -> str:

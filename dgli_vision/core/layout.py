@@ -232,13 +232,29 @@ def layout_of_size(size_mm: tuple[float, float] | None) -> NapkinLayout:
     return load_layout(width_mm=float(size_mm[0]), height_mm=float(size_mm[1]))
 
 
-def parse_size(text: str) -> tuple[float, float]:
+def smallest_side_mm() -> float:
+    """The shortest napkin side the stickers fit on, mm: they sit ``segment_far_mm`` from
+    each corner and ``segment_inset_mm`` in from the edge (240 mm for the packaged
+    layout)."""
+    data = _packaged()
+    return 2 * float(data["segment_far_mm"]) + 2 * float(data["segment_inset_mm"])
+
+
+def parse_size(text: str, *, largest_mm: float | None = None) -> tuple[float, float]:
     """A napkin size from ``"W"`` (square) or ``"WxH"``, in mm.
+
+    Parameters
+    ----------
+    text : str
+    largest_mm : float, keyword-only, optional
+        The longest side taken: each side must then lie between
+        :func:`smallest_side_mm` and this, and a side out of that range is refused
+        with the range.
 
     Raises
     ------
     ValueError
-        Not one or two positive numbers, or too small for the stickers.
+        Not one or two positive numbers, too small for the stickers, or out of range.
     """
     bad = f"napkin size {text!r} is not W or WxH in mm (e.g. 400 or 500x700)"
     try:
@@ -248,6 +264,15 @@ def parse_size(text: str) -> tuple[float, float]:
     if len(values) not in (1, 2) or not all(np.isfinite(v) and v > 0 for v in values):
         raise ValueError(bad)
     w, h = values[0], values[-1]
+    if largest_mm is not None:
+        lo = smallest_side_mm()
+        if not all(lo <= v <= largest_mm for v in (w, h)):
+            raise ValueError(
+                f"napkin size {text!r} ({w:g} x {h:g} mm) is out of range: each side must "
+                f"be {lo:g} to {largest_mm:g} mm (at least {lo:g} mm for the stickers to "
+                f"fit, at most {largest_mm:g} mm: the stickers and the simulated cloth are "
+                "made for napkins, not tablecloths)"
+            )
     load_layout(width_mm=w, height_mm=h)  # checks the stickers fit
     return w, h
 

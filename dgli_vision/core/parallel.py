@@ -12,19 +12,82 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
-__all__ = ["FileSpan", "SharedSlots", "SlotRef", "ordered_map"]
+__all__ = ["FileSpan", "SharedSlots", "SlotRef", "die_with_parent", "ordered_map"]
 
 T = TypeVar("T")
 
+#: ``prctl`` option: the signal a process gets when its parent exits (linux/prctl.h).
+_PR_SET_PDEATHSIG = 1
+
+
+def die_with_parent() -> None:
+    """A worker process's first act: end when the process that started it ends, however
+    it ends (SIGKILL by the out-of-memory killer included), rather than live on holding
+    its memory and waiting for work that never comes.
+
+    Three ways, each enough alone: on Linux, ``prctl(PR_SET_PDEATHSIG)`` asks the kernel
+    for SIGUSR2 when the parent goes, and its handler exits when the parent is gone
+    (the kernel sends it when the parent *thread* that started the worker ends, which
+    for a pool started from a helper thread is not the end of the process: hence the
+    check, not SIGKILL); a daemon thread waits on the parent's end of the pipe
+    ``multiprocessing`` keeps to each spawned child (it reads end-of-file when the
+    parent is gone, on any system); and a parent already gone before these were set up
+    is seen at once. Nothing in a process not started by ``multiprocessing``.
+    """
+    import multiprocessing
+    import os
+    import signal
+    import threading
+
+    parent = multiprocessing.parent_process()
+    if parent is None:
+        return
+    parent_pid = parent.pid
+
+    def parent_gone() -> bool:
+        return os.getppid() != parent_pid
+
+    def on_signal(signum: int, frame: Any) -> None:
+        if parent_gone():
+            os._exit(1)
+
+    if hasattr(signal, "SIGUSR2") and threading.current_thread() is threading.main_thread():
+        try:
+            import ctypes
+
+            libc = ctypes.CDLL(None, use_errno=True)
+            signal.signal(signal.SIGUSR2, on_signal)
+            signal.siginterrupt(signal.SIGUSR2, False)  # a false alarm interrupts no read
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGUSR2), 0, 0, 0)
+        except (OSError, AttributeError, ValueError):
+            pass  # not Linux: the thread below is enough
+    sentinel = getattr(parent, "sentinel", None)
+    if sentinel is not None:
+
+        def watch() -> None:
+            import time
+            from multiprocessing.connection import wait
+
+            wait([sentinel])  # end of file: the parent is gone (or closed it, alive)
+            for _ in range(40):  # its files close before its children are handed on
+                if parent_gone():
+                    os._exit(1)
+                time.sleep(0.05)
+
+        threading.Thread(target=watch, name="dgli-parent-watch", daemon=True).start()
+    if parent_gone():  # gone before any of this was set up
+        os._exit(1)
+
 
 def _quiet_worker() -> None:
-    """Workers ignore Ctrl-C and run OpenCV on one thread: the parent stops the work
-    (a terminal's interrupt reaches the whole process group) and there is one process
-    per core."""
+    """Workers die with their parent (:func:`die_with_parent`), ignore Ctrl-C and run
+    OpenCV on one thread: the parent stops the work (a terminal's interrupt reaches the
+    whole process group) and there is one process per core."""
     import signal
 
     import cv2
 
+    die_with_parent()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     cv2.setNumThreads(1)
 

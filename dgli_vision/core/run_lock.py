@@ -11,7 +11,9 @@ A run's journal (``results.jsonl``) starts with a header that records what defin
 run (:func:`run_header`): the inputs, references, colours, labels and intrinsics by
 checksum, and the options that change the results. ``--resume`` goes on with a journal
 only when the header matches the run being started (:func:`check_resume`); otherwise it
-stops and names what differs.
+stops and names what differs. Each result in it records the size and modification time
+of the images it was read from (:func:`files_stamp`): a pair captured again under the
+same names since is classified again (:func:`current_results`).
 """
 
 from __future__ import annotations
@@ -20,12 +22,13 @@ import hashlib
 import json
 import os
 import socket
+import stat
 import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from .errors import DgliError
+from .errors import DgliError, OutputError
 
 __all__ = [
     "LOCK_NAME",
@@ -34,7 +37,9 @@ __all__ = [
     "RunBusyError",
     "RunLock",
     "check_resume",
+    "current_results",
     "file_digest",
+    "files_stamp",
     "intrinsics_digest",
     "listing_digest",
     "repair_journal",
@@ -92,6 +97,8 @@ class RunLock:
     ------
     RunBusyError
         From :meth:`acquire`: a live process holds the folder's lock.
+    OutputError
+        From :meth:`acquire`: the lock file cannot be written (a full disk), naming it.
     """
 
     def __init__(self, folder: str | Path, command: str = "") -> None:
@@ -140,8 +147,15 @@ class RunLock:
                 "started": time.strftime("%Y-%m-%dT%H:%M:%S"),
                 "command": self.command,
             }
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, (json.dumps(record) + "\n").encode(), 0)
+            try:
+                os.ftruncate(fd, 0)
+                os.pwrite(fd, (json.dumps(record) + "\n").encode(), 0)
+            except OSError as exc:  # a full disk: not even the lock's line fits
+                self._fd = fd
+                self.release()
+                raise OutputError(
+                    f"cannot write '{self.path}': {exc.strerror or exc}; nothing was written"
+                ) from None
             self._fd = fd
             return
         raise RunBusyError(f"cannot take the lock '{self.path}': it keeps changing")
@@ -211,6 +225,41 @@ def intrinsics_digest(color_paths: Iterable[str | Path]) -> str | None:
     found = [(f, file_digest(Path(f) / "intrinsics.json")) for f in folders]
     found = [(f, d) for f, d in found if d is not None]
     return listing_digest(found) if found else None
+
+
+def files_stamp(*paths: str | Path) -> list[int] | None:
+    """``[size, mtime_ns]`` of each file, one after the other: what a result in a journal
+    records of the images it was read from (cheap: no file is read). None when any is
+    not a file (a recording's frame, named but not a file of its own)."""
+    out: list[int] = []
+    for path in paths:
+        try:
+            st = os.stat(path)
+        except (OSError, ValueError):
+            return None
+        if not stat.S_ISREG(st.st_mode):
+            return None
+        out += [st.st_size, st.st_mtime_ns]
+    return out
+
+
+def current_results(items: list[Any]) -> tuple[list[Any], int]:
+    """The results of a journal (after its header) whose images are still those they
+    were read from, and how many are not: a pair whose colour or depth file has another
+    size or time now (captured again under the same name), or a result that does not
+    record them (an older dgli's), is left out, so that it is classified again."""
+    kept, stale = [], 0
+    for item in items:
+        pair = item.get("pair") if isinstance(item, dict) else None
+        if not isinstance(pair, dict):
+            kept.append(item)  # not a result: left for the caller to skip
+            continue
+        now = files_stamp(pair.get("color", ""), pair.get("depth", ""))
+        if now is not None and item.get("files") != now:
+            stale += 1
+            continue
+        kept.append(item)
+    return kept, stale
 
 
 def run_header(kind: str, fields: dict[str, Any]) -> dict[str, Any]:
@@ -310,8 +359,8 @@ def run_header_of(
     ``pairs`` are the folder's pairs, None for a recording file."""
     root = Path(folder).resolve()
     if pairs is None:
-        stat = root.stat()  # a recording is known by its size and time, not read twice
-        source = listing_digest([(str(root), stat.st_size, stat.st_mtime_ns)])
+        st = root.stat()  # a recording is known by its size and time, not read twice
+        source = listing_digest([(str(root), st.st_size, st.st_mtime_ns)])
         listing, intrinsics = None, None
     else:
         source = str(root)

@@ -14,10 +14,17 @@ from pathlib import Path
 from typing import Any
 
 from ..core.camera import Intrinsics
-from ..core.errors import DgliError, InvalidInputError, OutputError
-from ..core.io import csv_table, guard_outputs, record_outputs, write_json, write_text
+from ..core.errors import DgliError, InvalidInputError, OutputError, UnreadableInputError
+from ..core.io import (
+    csv_table,
+    guard_outputs,
+    record_outputs,
+    remove_earlier_outputs,
+    write_json,
+    write_text,
+)
 from .frames import RGBDFrame, write_color, write_depth
-from .labelled import LabelledPair
+from .labelled import LabelledPair, listed_files
 from .recording import Recording, select_frames
 
 __all__ = ["ExtractResult", "extract_recording"]
@@ -66,7 +73,10 @@ def extract_recording(
     start, end : float, keyword-only, optional
         Seconds from the start of the recording.
     overwrite : bool, keyword-only
-        Replace files dgli did not write.
+        Replace files dgli did not write. The files an earlier run listed in ``out``'s
+        ``frames.csv`` and ``labels.csv`` (and those lists) are removed first when dgli
+        wrote them (any of them with ``overwrite``), so that a rerun that keeps fewer
+        frames leaves none of the earlier ones beside its list.
     command : str, keyword-only
         Recorded beside the files.
     on_progress : callable, keyword-only
@@ -84,27 +94,39 @@ def extract_recording(
     root = Path(out)
     listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
     guard_outputs(listing, overwrite=overwrite)  # and makes OUT: an impossible OUT fails here
+    # an earlier extract's frames and lists go first: none is left beside the new list
+    remove_earlier_outputs(root, listed_files(root), overwrite=overwrite)
     result = ExtractResult()
     written: list[Path] = []
     window = {"every": every, "start": start, "end": end}
     done = _write_frames(recording, root, window, overwrite, command, on_progress, result, written)
     if not done.rows:
+        if done.failure is not None:
+            raise done.failure
         raise InvalidInputError(_nothing_to_extract(recording, done.seen, start, end, result))
     _write_listing(root, recording, done, written)
     record_outputs(written, command)
     result.written = len(done.rows)
     result.frames_csv = root / "frames.csv"
+    if done.failure is not None:  # what was read is a listed folder, never an unlisted half
+        n = len(done.rows)
+        raise UnreadableInputError(
+            f"{done.failure}; the {n} frame{'s' if n != 1 else ''} read before it "
+            f"{'are' if n != 1 else 'is'} written to '{root}' and listed in frames.csv"
+        )
     return result
 
 
 @dataclass(frozen=True)
 class _FramesWritten:
     """The image pairs written: one row ``(colour, depth, time, label, variant)`` each,
-    the recording's intrinsics (None when no frame decoded) and the frames read."""
+    the recording's intrinsics (None when no frame decoded), the frames read and, when
+    the recording could not be read to its end (truncated, corrupt), why."""
 
     rows: list[tuple[str, str, str, str, str]]
     intrinsics: Intrinsics | None
     seen: int
+    failure: UnreadableInputError | None = None
 
 
 def _same_intrinsics(pair: LabelledPair, frame: RGBDFrame, intr: Intrinsics | None) -> Intrinsics:
@@ -130,14 +152,24 @@ def _write_frames(
     written: list[Path],
 ) -> _FramesWritten:
     """Decode the frames in ``window`` (``every``, ``start``, ``end``) one at a time and
-    write their PNGs with two threads; undecodable frames go to ``result.skipped``."""
+    write their PNGs with two threads; undecodable frames go to ``result.skipped``; a
+    recording that cannot be read further ends the frames (its error is kept)."""
     rows: list[tuple[str, str, str, str, str]] = []
     intr = None
     seen = 0
+    failure = None
     jobs: list[tuple[Future, Path]] = []
+    selected = select_frames(recording.frames, **window)
     with ThreadPoolExecutor(2) as pool:
         try:
-            for index, pair in select_frames(recording.frames, **window):
+            while True:
+                try:
+                    index, pair = next(selected)
+                except StopIteration:
+                    break
+                except UnreadableInputError as exc:
+                    failure = exc
+                    break
                 seen += 1
                 if on_progress:
                     on_progress(1)
@@ -160,7 +192,7 @@ def _write_frames(
                 _finish(jobs.pop(0), written)
         except OutputError as exc:
             raise _kept_frames(exc, jobs, written, root, command) from None
-    return _FramesWritten(rows, intr, seen)
+    return _FramesWritten(rows, intr, seen, failure)
 
 
 def _write_listing(

@@ -29,6 +29,7 @@ __all__ = [
     "find_pairs",
     "folder_intrinsics",
     "labelled_folder_files",
+    "listed_files",
     "write_labelled_folder",
 ]
 
@@ -42,6 +43,28 @@ def labelled_folder_files(
     pairs = [root / f"{n}_{kind}.png" for n in names for kind in ("color", "depth")]
     extra = [root / "frames.csv"] if frames else []
     return [*pairs, root / "intrinsics.json", root / "labels.csv", root / "truth.json", *extra]
+
+
+def listed_files(folder: str | Path) -> list[str]:
+    """The files a folder's listings name: the ``color`` and ``depth`` of each row of its
+    ``frames.csv`` and ``labels.csv`` (relative to the folder), and those listings; what
+    an earlier run there wrote (read leniently: an unreadable listing names nothing)."""
+    import csv
+
+    root = Path(folder)
+    names: list[str] = []
+    for listing in ("frames.csv", "labels.csv"):
+        path = root / listing
+        if not path.is_file():
+            continue
+        try:
+            with path.open(newline="", encoding="utf-8-sig") as fh:
+                for row in csv.DictReader(fh):
+                    names += [v.strip() for k in ("color", "depth") if (v := row.get(k))]
+        except (OSError, UnicodeDecodeError, csv.Error):
+            continue
+        names.append(listing)
+    return names
 
 
 def write_labelled_folder(

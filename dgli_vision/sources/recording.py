@@ -267,11 +267,22 @@ def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], li
 def _label_frames(
     frames: Iterable[LabelledPair], path: Path, tolerance: float
 ) -> Iterator[LabelledPair]:
+    """``frames`` with their labels; once all are read, a row that named no frame of the
+    recording (a frame past its end, a time no frame is near) is an error.
+
+    Raises
+    ------
+    InvalidInputError
+        Naming the labels file, the row's line and the frames the recording has.
+    """
     import bisect
 
     by_frame, by_time = _labels_file(path)
     times = [t for t, *_ in by_time]
+    used: set[int] = set()  # the rows by time that labelled a frame
+    n = 0
     for index, pair in enumerate(frames):
+        n = index + 1
         found = by_frame.get(index)
         if found is None and pair.time is not None and times:
             k = bisect.bisect_left(times, pair.time)
@@ -279,7 +290,55 @@ def _label_frames(
             j = min(near, key=lambda j: abs(times[j] - pair.time))
             if abs(times[j] - pair.time) <= tolerance:
                 found = by_time[j][1:]
+                used.add(j)
         yield replace(pair, label=found[0], variant=found[1], line=found[2]) if found else pair
+    _check_rows_named_frames(path, by_frame, by_time, used, n, tolerance)
+
+
+def _no_such_frames(
+    path: Path, by_frame: dict[int, tuple[str, str | None, int]], count: int
+) -> None:
+    """Refuse a row naming a frame number the recording (``count`` frames at most)
+    cannot have.
+
+    Raises
+    ------
+    InvalidInputError
+    """
+    past = sorted((line, f) for f, (_, _, line) in by_frame.items() if f < 0 or f >= count)
+    if past:
+        line, f = past[0]
+        more = f" (and {len(past) - 1} more rows)" if len(past) > 1 else ""
+        raise InvalidInputError(
+            f"labels file '{path}' line {line}: frame {f} does not exist; the recording has "
+            f"{count} frame{'s' if count != 1 else ''} (0 to {count - 1}){more}"
+        )
+
+
+def _check_rows_named_frames(
+    path: Path,
+    by_frame: dict[int, tuple[str, str | None, int]],
+    by_time: list[tuple[float, str, str | None, int]],
+    used: set[int],
+    count: int,
+    tolerance: float,
+) -> None:
+    """Every row of the labels file named a frame of the recording read (``count``
+    frames); ``used``: the rows by time that did.
+
+    Raises
+    ------
+    InvalidInputError
+    """
+    _no_such_frames(path, by_frame, count)
+    unused = [(row[3], row[0]) for j, row in enumerate(by_time) if j not in used]
+    if unused:
+        line, t = min(unused)
+        more = f" (and {len(unused) - 1} more rows)" if len(unused) > 1 else ""
+        raise InvalidInputError(
+            f"labels file '{path}' line {line}: no frame of the recording within "
+            f"{round(tolerance * 1000)} ms of time {t:g} s{more}"
+        )
 
 
 def select_frames(
@@ -356,7 +415,9 @@ def open_recording(
     if labels is None:
         return recording
     labels_path = Path(labels)
-    _labels_file(labels_path)  # a malformed file stops the run before the work
+    by_frame, _ = _labels_file(labels_path)  # a malformed file stops the run before the work
+    if recording.kind.startswith("ROS"):  # a bag's count of colour messages is exact
+        _no_such_frames(labels_path, by_frame, recording.count)
     return replace(
         recording, frames=_label_frames(recording.frames, labels_path, tolerance), labelled=True
     )

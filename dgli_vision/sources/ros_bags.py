@@ -282,7 +282,14 @@ def _read_errors() -> tuple[type[BaseException], ...]:
     from rosbags.rosbag2 import ReaderError as Reader2Error
     from rosbags.serde import SerdeError
 
+    try:  # rosbags reads ROS 2 sqlite3 bags through apsw when it is installed
+        import apsw
+
+        apsw_errors: tuple[type[BaseException], ...] = (apsw.Error,)
+    except ImportError:
+        apsw_errors = ()
     return (
+        *apsw_errors,
         AnyReaderError,
         Reader1Error,
         Reader2Error,
@@ -418,7 +425,7 @@ def _messages(
     """The messages of ``items`` (topic, type, bag time in ns, message, where its pixels
     lie or None) as :func:`read_bag_messages` gives them."""
     errors = _read_errors()
-    last_info, last_t = None, 0.0
+    last_info, first_t, last_t = None, None, 0.0
     while True:
         try:
             item = next(items, None)
@@ -426,12 +433,14 @@ def _messages(
                 return
             topic, msgtype, bag_ns, msg, span = item
         except errors as exc:
+            where = "" if first_t is None else f" after {last_t - first_t:.3f} s"
             raise UnreadableInputError(
-                f"recording '{path}' cannot be read after {last_t:.3f} s (truncated or "
-                f"corrupt): {str(exc).strip() or type(exc).__name__}"
+                f"recording '{path}' cannot be read{where} (truncated or corrupt): "
+                f"{str(exc).strip() or type(exc).__name__}"
             ) from None
         stream = wanted[topic]
         last_t = bag_ns * 1e-9
+        first_t = last_t if first_t is None else first_t
         if stream == "info":
             info = InfoMessage(*_intrinsics(msg))
             if info != last_info:  # drivers repeat it with every frame
