@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.classes import CLASS_NAMES, LIFTED_MM, PAST_BAND_DEG
+from ..core.classes import CLASS_NAMES, LANDING_PAIRS, LIFTED_MM, PAST_BAND_DEG
 from ..core.dgli import cloth_coordinates
 from ..core.errors import DetectionError
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
@@ -429,12 +429,6 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     p = replace(p, corners=aff.corners, folds=aff.folds)
     guess = p if result.best_guess is result.prediction else result.best_guess
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
-
-
-#: Pairs of classes that differ only in where a flap lands: while a flap of the frame is
-#: held up, the nearest two being such a pair is "cannot tell" (two adjacent corners
-#: folded: side by side, 04, or crossing, 05, as the second flap lies down).
-LANDING_PAIRS = (frozenset({"04", "05"}),)
 
 
 def _landing_unknown(

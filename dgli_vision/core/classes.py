@@ -10,6 +10,7 @@ __all__ = [
     "CLASS_IDS",
     "CLASS_NAMES",
     "CORNERS",
+    "LANDING_PAIRS",
     "LIFTED_MM",
     "PAST_BAND_DEG",
     "SIDES",
@@ -60,3 +61,10 @@ LIFTED_MM = 20.0
 #: past 90 degrees (or not) in full; nearer vertical, in proportion. SPEC's rule changes
 #: the class at 90 degrees, and the lean of a flap is measured to a degree or two.
 PAST_BAND_DEG = 3.0
+
+#: Pairs of classes that differ only in where a flap lands: while a flap is held up
+#: (a fold in progress), the nearest two being such a pair is "cannot tell" (two
+#: adjacent corners folded: side by side, 04, or crossing, 05, as the second flap lies
+#: down).
+LANDING_PAIRS: tuple[frozenset[str], ...] = (frozenset({"04", "05"}),)
+

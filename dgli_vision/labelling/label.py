@@ -20,7 +20,7 @@ from numpy.typing import NDArray
 from ..analysis.track import change_frames, smooth
 from ..classifier.classify import MIN_CONFIDENCE, MIN_COORDINATES
 from ..classifier.references import ReferenceSet, load_references
-from ..core.classes import CLASS_NAMES
+from ..core.classes import CLASS_NAMES, LANDING_PAIRS
 from ..core.errors import DgliError
 from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
@@ -289,6 +289,16 @@ class EpisodeFailure:
 def _note(conf: float, best: int, refs: ReferenceSet, n_known: int) -> str | None:
     if best < 0:
         return f"too little seen: {n_known} cloth coordinates known, need {MIN_COORDINATES}"
+    r = refs.references[best]
+    pair = next((p for p in LANDING_PAIRS if r.class_id in p), None)
+    moving = progress_of(r.stage)
+    # the flap held up is one of the two corners whose landing tells the pair apart
+    if pair is not None and moving is not None and moving["fold"][0] in (r.variant or "")[:2]:
+        a, b = sorted(pair)
+        return (
+            f"cannot tell: a flap held up ({r.stage}): {a} {CLASS_NAMES[a]} and "
+            f"{b} {CLASS_NAMES[b]} differ only in where it lands"
+        )
     if conf < MIN_CONFIDENCE:
         r = refs.references[best]
         return (
