@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_runs import one_error_line, run_process
 from click.testing import CliRunner
 
 from dgli_vision.cli import main
@@ -31,24 +32,6 @@ def run(*args: object):
     return result
 
 
-def one_error_line(result, code: int = 2) -> str:
-    """The one ``error:`` line of a failed command (other lines on stderr are notes)."""
-    assert result.exit_code == code, result.output
-    lines = [ln for ln in result.output.splitlines() if ln.startswith(("error:", "Error:"))]
-    assert len(lines) == 1, result.output
-    return lines[0]
-
-
-def run_process(args: list[object], **kwargs) -> subprocess.CompletedProcess:
-    """``python -m dgli_vision ARGS`` in a process of its own, from the repository."""
-    kwargs.setdefault("stderr", subprocess.PIPE)
-    return subprocess.run(
-        [sys.executable, "-m", "dgli_vision", *map(str, args)],
-        cwd=ROOT,
-        text=True,
-        timeout=120,
-        **kwargs,
-    )
 
 
 def sample_folder(root: Path, names: tuple[str, ...] = ("05_000", "09_000")) -> Path:

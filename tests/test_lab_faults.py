@@ -18,6 +18,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from cli_runs import one_error_line, run_process
 from click.testing import CliRunner
 from guards import require_extra
 
@@ -50,24 +51,6 @@ def run(args: list[str]):
     return result
 
 
-def one_error_line(result, code: int = 2) -> str:
-    """The one ``error:`` line of a failed command."""
-    assert result.exit_code == code, result.output
-    lines = [ln for ln in result.output.splitlines() if ln.startswith(("error:", "Error:"))]
-    assert len(lines) == 1, result.output
-    return lines[0]
-
-
-def run_process(args: list[str], **kwargs) -> subprocess.CompletedProcess:
-    """``python -m dgli_vision ARGS`` in a process of its own, from the repository."""
-    return subprocess.run(
-        [sys.executable, "-m", "dgli_vision", *map(str, args)],
-        cwd=ROOT,
-        stderr=subprocess.PIPE,
-        text=True,
-        timeout=120,
-        **kwargs,
-    )
 
 
 def assert_one_stderr_line(proc: subprocess.CompletedProcess, code: int = 2) -> str:

@@ -240,30 +240,22 @@ class _LabelRun:
         for name in self.names:  # what an earlier run did, in order, as it said it
             if name in done:
                 self._print_episode(done[name])
-        from concurrent.futures.process import BrokenProcessPool
-
         with stop_signals() as stop:
             try:
-                for (name, _), result in zip(todo, label_episodes(job)):
-                    if isinstance(result, EpisodeFailure):
-                        entry = {"episode": name, "path": result.path, "error": result.error}
-                    else:
-                        entry = {"episode": name, "path": result.path,
-                                 "result": result.to_dict()}
-                    with stop.holding():  # its files and its journal line, or neither
-                        if out is not None:
-                            self._write_episode(out, name, result, overwrite)
-                        if writer:
-                            writer.write(json_ready(entry))
-                        done[name] = entry
-                    self._print_episode(entry)
-            except (KeyboardInterrupt, SystemError) as exc:
-                if not stop.cut_short(exc):
-                    raise
-                stop.stopped = True
-            except BrokenProcessPool:  # a stop sent to the whole group ended the workers
-                if not stop.stopped:
-                    raise
+                with stop.ends():
+                    for (name, _), result in zip(todo, label_episodes(job)):
+                        if isinstance(result, EpisodeFailure):
+                            entry = {"episode": name, "path": result.path, "error": result.error}
+                        else:
+                            entry = {"episode": name, "path": result.path,
+                                     "result": result.to_dict()}
+                        with stop.holding():  # its files and its journal line, or neither
+                            if out is not None:
+                                self._write_episode(out, name, result, overwrite)
+                            if writer:
+                                writer.write(json_ready(entry))
+                            done[name] = entry
+                        self._print_episode(entry)
             finally:
                 if writer:
                     writer.close()

@@ -213,13 +213,7 @@ def _rendered(stream: Any, todo: list[int]) -> tuple[list, Stop]:
     """The samples of ``stream`` (one per item of ``todo``) with a progress bar, until
     all are rendered or a stop signal comes."""
     samples = []
-    with stop_signals() as stop:
-        try:
-            with progress(todo, "rendering") as bar:
-                for sample, _ in zip(stream, bar):
-                    samples.append(sample)
-        except (KeyboardInterrupt, SystemError) as exc:
-            if not stop.cut_short(exc):
-                raise
-            stop.stopped = True
+    with stop_signals() as stop, stop.ends(), progress(todo, "rendering") as bar:
+        for sample, _ in zip(stream, bar):
+            samples.append(sample)
     return samples, stop

@@ -88,6 +88,28 @@ class Stop:
 
         return context()
 
+    def ends(self):
+        """A block that a stop signal ends early: the stop's KeyboardInterrupt (or the
+        SystemError around it, :meth:`cut_short`), and the broken pool of workers a stop
+        sent to the whole process group leaves, end the block quietly; anything else is
+        raised."""
+        from concurrent.futures.process import BrokenProcessPool
+        from contextlib import contextmanager
+
+        @contextmanager
+        def context():
+            try:
+                yield
+            except (KeyboardInterrupt, SystemError) as exc:
+                if not self.cut_short(exc):
+                    raise
+                self.stopped = True
+            except BrokenProcessPool:  # a stop sent to the whole group ended the workers
+                if not self.stopped:
+                    raise
+
+        return context()
+
 
 def stop_signals():
     """A context in which Ctrl-C and SIGTERM stop the work (a KeyboardInterrupt, never
@@ -191,29 +213,19 @@ def classify_into(
     it, :func:`~dgli_vision.analysis.evaluate.pair_key` by default) and, at once, into
     ``writer`` (results.jsonl): a run stopped by Ctrl-C or SIGTERM (``stop``) keeps what
     is done. ``options`` go to ``evaluate_pairs``."""
-    from concurrent.futures.process import BrokenProcessPool
-
     from ..analysis.evaluate import evaluate_pairs, outcome_to_dict, pair_key
     from ..core.run_lock import files_stamp
 
-    try:
-        with progress_bar(count, label, quiet=run.as_json) as bar:
-            for outcome in evaluate_pairs(
-                todo, run.refs, jobs=run.jobs, on_progress=bar.update, **options
-            ):
-                with stop.holding():  # in the journal and counted, or neither
-                    if writer:  # flushed at once: an interrupted run keeps its work
-                        pair = outcome.pair  # and the images it was read from, by stamp
-                        stamp = files_stamp(pair.color, pair.depth)
-                        writer.write({**outcome_to_dict(outcome), "files": stamp})
-                    done[(key or pair_key)(outcome.pair)] = outcome
-    except (KeyboardInterrupt, SystemError) as exc:
-        if not stop.cut_short(exc):
-            raise
-        stop.stopped = True
-    except BrokenProcessPool:  # a stop sent to the whole group ended the workers
-        if not stop.stopped:
-            raise
+    with stop.ends(), progress_bar(count, label, quiet=run.as_json) as bar:
+        for outcome in evaluate_pairs(
+            todo, run.refs, jobs=run.jobs, on_progress=bar.update, **options
+        ):
+            with stop.holding():  # in the journal and counted, or neither
+                if writer:  # flushed at once: an interrupted run keeps its work
+                    pair = outcome.pair  # and the images it was read from, by stamp
+                    stamp = files_stamp(pair.color, pair.depth)
+                    writer.write({**outcome_to_dict(outcome), "files": stamp})
+                done[(key or pair_key)(outcome.pair)] = outcome
 
 
 def references_of(references_path: str | None) -> tuple[Any, Any]:
