@@ -130,7 +130,9 @@ def render_cmd(
     from ..sim.dataset import render_plan
     from ..sources.labelled import labelled_folder_files
 
-    names, cases = render_plan(per_class, sequence, frames)
+    # a path-traced set is slow: in the order of the pairs' numbers, so that one stopped
+    # part-way (Ctrl-C writes what is done) has every class
+    names, cases = render_plan(per_class, sequence, frames, by_number=engine == "cycles")
     planned = labelled_folder_files(out, names, frames=bool(sequence))
     guard_outputs(planned, overwrite=overwrite)  # before the work
 

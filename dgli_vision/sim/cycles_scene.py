@@ -610,10 +610,14 @@ def render_cycles(
         intrinsics.width, intrinsics.height, intrinsics.fx, intrinsics.fy,
         intrinsics.cx, intrinsics.cy,
     )
+    import time
+
+    cpu = time.process_time()
     linear = path_trace(
         state, pose, intrinsics, look, layout=layout, samples=samples, seed=seed,
         threads=threads,
     )
+    cpu = time.process_time() - cpu  # all of Cycles' threads
     color, drawn = colour_camera(linear, CameraModel(ideal=clean), rng)
     z_mm, cos, glossy, scene = _depth_view(state, pose, intrinsics, layout)
     depth = tof_depth(z_mm, cos, glossy, ToFModel(ideal=clean), rng)
@@ -627,5 +631,11 @@ def render_cycles(
         visible_fraction=_visible_fraction(state, pose, scene, intrinsics, layout),
         pose=pose,
         intrinsics=intrinsics,
-        info={"engine": "cycles", "samples": samples, "look": look.to_dict(), "camera": drawn},
+        info={
+            "engine": "cycles",
+            "samples": samples,
+            "cycles_cpu_s": round(cpu, 2),
+            "look": look.to_dict(),
+            "camera": drawn,
+        },
     )
