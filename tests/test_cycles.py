@@ -163,3 +163,23 @@ def test_cycles_depth_deprojects_to_the_sticker_points(small_render):
         z = np.median(depth[round(v) - 1 : round(v) + 2, round(u) - 1 : round(u) + 2]) / 1000
         got = kinv @ np.array([u, v, 1.0]) * z
         assert np.linalg.norm(got - truth) < 0.002, (got, truth)
+
+
+def test_envelopes_cover_every_class_and_keep_their_ranges():
+    from dgli_vision.core.camera import DEFAULT_INTRINSICS
+    from dgli_vision.sim.cloth.states import sample_state
+    from dgli_vision.sim.dataset import _fits, render_plan
+    from dgli_vision.sim.photoreal import ENVELOPES, envelope_of, photo_camera
+
+    for c in ("01", "05", "12"):
+        assert {envelope_of("all", c, k) for k in range(3)} == set(ENVELOPES)
+    names, _ = render_plan(2, None, 25, by_number=True)
+    assert names[:3] == ["01_000", "02_000", "03_000"] and names[12] == "01_001"
+    rng = np.random.default_rng(3)
+    state = sample_state("06", "AC", rng)
+    for env, ((lo, hi), tilt) in ENVELOPES.items():
+        pose, info = photo_camera(state, rng, env)
+        assert lo <= info["distance_m"] <= hi and info["tilt_deg"] <= tilt
+        assert _fits(state, pose, DEFAULT_INTRINSICS, 20.0)
+        axis = pose.rotation[:, 2]
+        assert np.degrees(np.arccos(-axis[2])) == pytest.approx(info["tilt_deg"], abs=1e-3)
