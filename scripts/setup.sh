@@ -33,3 +33,24 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test,recordings,dask,realsense]'
     echo "$want" > "$stamp"
 fi
+
+# photoreal: Blender as a Python module, for `dgli render --engine cycles`. Its bpy needs
+# numpy < 2 (and so OpenCV 4.11), which the main environment is not moved to: the extra
+# gets a virtual environment of its own, .venv-photoreal/ (Python 3.11 only, as bpy;
+# about 20 s from a package cache, 1.5 GB). DGLI_NO_PHOTOREAL=1 skips it.
+if [ "${DGLI_NO_PHOTOREAL:-0}" != "1" ] \
+    && "$PY" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; then
+    if [ ! -x .venv-photoreal/bin/python ]; then
+        "$PY" -m venv .venv-photoreal
+    fi
+    stamp=.venv-photoreal/.dgli-setup-stamp
+    if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+        if .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check --upgrade pip \
+            && .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check \
+                -e '.[photoreal]'; then
+            echo "$want" > "$stamp"
+        else
+            echo "setup: the photoreal extra (bpy) did not install; its tests will skip" >&2
+        fi
+    fi
+fi

@@ -66,6 +66,31 @@ from .runs import Stop, folder_lock, stop_signals
     help="Go on with an interrupted render of the same set into OUT: keep its complete "
     "pairs and render the rest (refused when the set differs).",
 )
+@click.option(
+    "--engine",
+    type=click.Choice(["raster", "cycles"]),
+    default="raster",
+    show_default=True,
+    help="raster: the tool's own renderer; cycles: path-traced by Blender's Cycles on the "
+    "CPU with a camera pipeline and a time-of-flight depth model (the photoreal extra: "
+    "pip install dgli_vision[photoreal]; tens of seconds a pair).",
+)
+@click.option(
+    "--envelope",
+    type=click.Choice(["spec", "far", "head", "all"]),
+    default="all",
+    show_default=True,
+    help="With --engine cycles, where the camera stands: spec (450-800 mm, tilt <= 15 deg), "
+    "far (0.7-1.0 m, <= 25 deg), head (a robot's head camera, 1.0-1.2 m, <= 35 deg) or "
+    "all of them in turn.",
+)
+@click.option(
+    "--samples",
+    default=32,
+    show_default=True,
+    type=click.IntRange(1, 4096),
+    help="With --engine cycles, Cycles' samples per pixel (adaptive, then denoised).",
+)
 @size_option
 @make_jobs_option
 @overwrite_option
@@ -81,6 +106,9 @@ def render_cmd(
     frames: int,
     gripper: bool,
     resume: bool,
+    engine: str,
+    envelope: str,
+    samples: int,
     size_mm: tuple[float, float] | None,
     jobs: int,
     overwrite: bool,
@@ -93,6 +121,8 @@ def render_cmd(
     130 (143); --resume renders the rest. -j spreads the pairs over processes (the same
     pairs as one; a sequence's frames render in one).
     """
+    if engine == "cycles":
+        _check_cycles(conditions, sequence, gripper)
     if gripper and "grasp" not in conditions:
         conditions = (*conditions, "grasp")
 
@@ -101,7 +131,9 @@ def render_cmd(
     from ..sim.dataset import render_plan
     from ..sources.labelled import labelled_folder_files
 
-    names, cases = render_plan(per_class, sequence, frames)
+    # a path-traced set is slow: in the order of the pairs' numbers, so that one stopped
+    # part-way (Ctrl-C writes what is done) has every class
+    names, cases = render_plan(per_class, sequence, frames, by_number=engine == "cycles")
     planned = labelled_folder_files(out, names, frames=bool(sequence))
     guard_outputs(planned, overwrite=overwrite)  # before the work
 
@@ -114,9 +146,24 @@ def render_cmd(
         "nominal": nominal,
         **({"conditions": list(conditions)} if conditions else {}),
         **napkin_provenance(layout),
+        **(
+            {"engine": engine, "envelope": envelope, "samples": samples}
+            if engine == "cycles"
+            else {}
+        ),
         "package_version": package_version(),
     }
-    options = {"nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout}
+    options: dict[str, Any] = {
+        "nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout
+    }
+    if engine == "cycles":
+        import os
+
+        threads = max(1, (os.cpu_count() or 2) // max(1, jobs))
+        options = {
+            "nominal": nominal, "clean": clean, "layout": layout, "engine": engine,
+            "envelope": envelope, "samples": samples, "threads": threads,
+        }
     with folder_lock(out):
         _render_set(
             out, names, cases, provenance, options, resume=resume, overwrite=overwrite,
@@ -201,11 +248,34 @@ def _remove_earlier_pairs(out: str, names: list[str], sequence: bool, overwrite:
     remove_earlier_outputs(out, earlier, overwrite=overwrite)
 
 
+def _check_cycles(conditions: tuple[str, ...], sequence: str | None, gripper: bool) -> None:
+    """Refuse what --engine cycles does not render, then find Blender (bpy) before the
+    work: one line and exit 2 naming the extra to install when it is missing."""
+    from ..core.errors import InvalidInputError
+
+    for given, what in ((conditions, "--conditions"), (sequence, "--sequence"),
+                        (gripper, "--gripper")):
+        if given:
+            raise InvalidInputError(
+                f"{what} is not rendered by --engine cycles (its lights, materials and "
+                "camera pipeline are its capture conditions); leave it out or use "
+                "--engine raster"
+            )
+    from ..sim.cycles_scene import check_bpy
+
+    check_bpy()
+
+
 def _render_case(task: tuple[tuple[str, int], int, dict[str, Any]]) -> Any:
     """One pair of a set: ``((class, number), seed, options)`` (a worker's task)."""
+    (class_id, k), seed, options = task
+    if options.get("engine") == "cycles":
+        from ..sim.photoreal import render_photo_sample
+
+        cycles = {key: v for key, v in options.items() if key != "engine"}
+        return render_photo_sample(class_id, k, seed, **cycles)
     from ..sim.dataset import render_sample
 
-    (class_id, k), seed, options = task
     return render_sample(class_id, k, seed, **options)
 
 

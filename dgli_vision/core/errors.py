@@ -11,6 +11,7 @@ __all__ = [
     "DetectionError",
     "DgliError",
     "InvalidInputError",
+    "MissingExtraError",
     "OutputError",
     "OverwriteError",
     "ReferenceError_",
@@ -45,6 +46,11 @@ class DetectionError(DgliError):
 
 class ReferenceError_(DgliError):
     """The reference set is missing, malformed or incompatible."""
+
+
+class MissingExtraError(DgliError):
+    """An optional dependency a command needs is not installed (exit code 2); the message
+    names the extra to install (``pip install dgli_vision[photoreal]``)."""
 
 
 class OverwriteError(DgliError):

@@ -565,12 +565,16 @@ def merge_kept_pairs(
 
 
 def render_plan(
-    per_class: int, sequence: str | None, frames: int
+    per_class: int, sequence: str | None, frames: int, *, by_number: bool = False
 ) -> tuple[list[str], list[tuple[str, int]]]:
     """The names of the pairs of a set to render and, for a set of classes (no
     ``sequence``), each pair's class and number: ``per_class`` pairs of every class, or
-    the ``frames`` frames of folding ``sequence``."""
+    the ``frames`` frames of folding ``sequence``. ``by_number``: every class's first
+    pair, then every class's second... (a slow render stopped part-way has every class)."""
     if sequence:
         return [f"{sequence}_{k:03d}" for k in range(frames)], []
-    cases = [(c, k) for c in CLASS_IDS for k in range(per_class)]
+    if by_number:
+        cases = [(c, k) for k in range(per_class) for c in CLASS_IDS]
+    else:
+        cases = [(c, k) for c in CLASS_IDS for k in range(per_class)]
     return [sample_name(c, k) for c, k in cases], cases

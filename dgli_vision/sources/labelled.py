@@ -137,6 +137,8 @@ def write_labelled_folder(
             "visible": s.result.visible.tolist(),
             "visible_fraction": np.round(s.result.visible_fraction, 3).tolist(),
             "state_params": s.state.params,
+            # a path-traced pair: its lights, materials and camera pipeline's draws
+            **({"render": s.result.info} if s.result.info.get("engine") else {}),
         }
     from ..core.io import csv_table
 
