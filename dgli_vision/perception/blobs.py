@@ -818,9 +818,14 @@ def _dot_by_difference(
     room = disc_seen - floor
     # (the disc's own smallest channels carry noise only)
     need = np.where(falls & (room > 0.05), -added / np.maximum(room, 1e-6), 0.0)
-    share = float(np.clip(need.max(), p.dot_min_share, 1.0))
+    # (nothing fell: the centre is the dot itself, sharp, or the disc's own colour)
+    share = float(np.clip(need.max(), p.dot_min_share, 1.0)) if need.max() > 0.1 else 1.0
     dot_seen = disc_seen + added / share
-    distances = np.abs(_directions(palette) - _directions(dot_seen[None, :])).max(axis=1)
+    # a plain disc's dot is the disc as seen (a tint of the light or the laminate moves
+    # it from the printed colour); another dot is a printed colour
+    targets = _directions(palette)
+    targets[disc - 1] = _directions(disc_seen[None, :])[0]
+    distances = np.abs(targets - _directions(dot_seen[None, :])).max(axis=1)
     order = np.argsort(distances)
     best, second = int(order[0]), float(distances[order[1]])
     if distances[best] <= p.dot_max_distance and second - distances[best] >= p.dot_margin:
