@@ -7,12 +7,14 @@ Folding is an isometry, so the same fit as the stickers'
 (:mod:`dgli_vision.classifier.fold_geometry`: the napkin that stays placed on the
 table by a rigid map, each flap its mirror image across its crease) finds every crease
 at once, here from hundreds of points instead of a few stickers. The cloth bent round
-its crease (neither face up nor down) is left out, and the crease is moved back by a
+its crease (neither face up nor down, and the vertices next to it) is left out, and
+the crease is moved back by a
 quarter turn's worth of the layers' gap (the flap lands short of its mirror image by
 about pi / 2 thicknesses). What is left is the mesh's resolution.
 
-A flap is matched to a fold word by the corners it carries (``"B over"``: B alone;
-``"CD strip over"`` and ``"CD half"``: C and D; ``"B diagonal"``: B). A fold whose
+A flap is matched to a fold word by the corners it carries (``"B over"``: B;
+``"CD strip over"`` and ``"CD half"``: C and D; ``"B diagonal"``: B), the flap with
+fewest other corners. A fold whose
 flap is not turned over (in progress, held up) has no sizes, and ``why`` says so.
 
 :func:`goal_distance` is the simulation benchmarks' measure of a fold: the goal's ideal
@@ -63,6 +65,8 @@ FACE_DOWN_COS = -0.9
 FACE_UP_COS = 0.9
 #: A flap of fewer vertices than this is not a fold (a crumple).
 MIN_FLAP_VERTICES = 12
+#: A corner is on a flap when a vertex of the flap lies within this (mm, on the napkin).
+CORNER_REACH_MM = 25.0
 #: The fit uses at most about this many vertices (evenly taken): a few thousand points
 #: fix a crease far below the mesh's resolution.
 MAX_FIT_POINTS = 2400
@@ -111,6 +115,13 @@ def _vertex_up_cos(pos: NDArray[np.float64], faces: NDArray[np.int64]) -> NDArra
     return np.divide(acc[:, 2], norm, out=np.zeros(len(pos)), where=norm > 0)
 
 
+def _inner(flags: NDArray[np.bool_], faces: NDArray[np.int64]) -> NDArray[np.bool_]:
+    """The vertices ``flags`` whose triangles all have every vertex flagged."""
+    mixed = ~flags[faces].all(axis=1) & flags[faces].any(axis=1)
+    touched = np.bincount(faces[mixed].ravel(), minlength=len(flags)) > 0
+    return flags & ~touched
+
+
 def _pieces(
     flags: NDArray[np.bool_], faces: NDArray[np.int64], n: int
 ) -> tuple[int, NDArray[np.intp]]:
@@ -148,6 +159,9 @@ def mesh_flaps(position: NDArray[np.float64], material: ClothMaterial) -> list[M
     down, up = cos < FACE_DOWN_COS, cos > FACE_UP_COS
     if not down.any():
         return []
+    # a vertex next to the bend is left out too: on a coarse mesh its triangles span
+    # the bend, and a vertex there was placed on their chord, off the cloth
+    down, up = _inner(down, material.faces), _inner(up, material.faces)
     k, piece = _pieces(down, material.faces, n)
     sizes = np.bincount(piece[down], minlength=k)
     keep = [j for j in range(k) if sizes[j] >= MIN_FLAP_VERTICES]
@@ -184,7 +198,11 @@ def mesh_flaps(position: NDArray[np.float64], material: ClothMaterial) -> list[M
     z = position[:, 2] * 1e3
     face_up = np.flatnonzero(up)
     below = cKDTree(position[face_up, :2])
-    corner_piece = part[material.corners]
+    # each corner's flap: the one of the flap vertex nearest it on the napkin (the
+    # corner itself may lie next to a bend, or be left out as one)
+    on_flap = np.flatnonzero(part >= 0)
+    near_d, near_i = cKDTree(material.uv[on_flap]).query(material.uv[material.corners])
+    corner_piece = np.where(near_d <= CORNER_REACH_MM, part[on_flap[near_i]], -1)
     out = []
     for j in range(len(keep)):
         mine = g == j
@@ -220,10 +238,13 @@ def mesh_fold_geometry(
 ) -> list[FoldGeometry]:
     """The geometry of each fold word from a frame's flaps (:meth:`MeshFlap.to_json`),
     ``geometry_from`` ``"mesh"``; a fold without its flap has None sizes and a why."""
-    by_corners = {f["corners"]: f for f in flaps}
     out = []
     for word in words:
-        f = by_corners.get(_flap_corners(word))
+        # the flap that carries the fold's corners with fewest others (a diagonal
+        # fold's flap reaches the two corners on its crease too)
+        want = set(_flap_corners(word))
+        fits = [f for f in flaps if want <= set(f["corners"])]
+        f = min(fits, key=lambda f: len(f["corners"])) if fits else None
         if f is None:
             g = _empty(word, "no flap carrying its corners lies turned over on the mesh "
                              "(a fold in progress, or held up)")
