@@ -69,7 +69,7 @@ MIN_FLAP_VERTICES = 12
 CORNER_REACH_MM = 25.0
 #: The fit uses at most about this many vertices (evenly taken): a few thousand points
 #: fix a crease far below the mesh's resolution.
-MAX_FIT_POINTS = 2400
+MAX_FIT_POINTS = 1000
 
 
 @dataclass(frozen=True)
