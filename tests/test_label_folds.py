@@ -119,6 +119,12 @@ def test_goal_benchmark_distance_and_ours_side_by_side(tmp_path):
         "the episode ends in 02/B"), data
     assert data["summary"]["goal"] == {"episodes": 1, "softgym_success": 0,
                                        "dgli_success": 0, "dgli_cannot_tell": 0}
+    # without the frames' geometry (faster): no sizes per frame, the goal all the same
+    res = CliRunner().invoke(main, ["label", paths[0], "--goal", "02:AB=180,BC=180",
+                                    "--no-geometry", "--json"])
+    ep = json.loads(res.stdout)["episodes"][0]
+    assert [f["folds"] for f in ep["frames"]] == [[], []]
+    assert ep["goal"]["dgli"]["success"] is True, ep["goal"]
 
 
 @pytest.mark.parametrize("text,message", [

@@ -82,6 +82,12 @@ def _cloth_size(
     "needs the 'dask' extra.",
 )
 @click.option(
+    "--no-geometry",
+    is_flag=True,
+    help="Leave each frame's fold sizes out (measured on the mesh; about as much work "
+    "again as the rest of the labelling).",
+)
+@click.option(
     "--goal",
     "goal_text",
     metavar="STATE[:SIZES]",
@@ -114,6 +120,7 @@ def label_cmd(
     dask_address: str | None,
     references_path: str | None,
     goal_text: str | None,
+    no_geometry: bool,
     resume: bool,
     overwrite: bool,
 ) -> None:
@@ -138,7 +145,7 @@ def label_cmd(
     goal = parse_goal(goal_text) if goal_text is not None else None
     if resume and not out_dir:
         raise InvalidInputError("--resume needs -o DIR, where results.jsonl is kept")
-    options = ReadOptions(fmt, up_axis, units, size_mm, rest)
+    options = ReadOptions(fmt, up_axis, units, size_mm, rest, not no_geometry)
     run = _LabelRun(tuple(inputs), options, references_path, jobs, dask_address, as_json, goal)
     if out_dir is None:
         run.go(None, None, overwrite=overwrite)
@@ -233,6 +240,7 @@ class _LabelRun:
                     "size_mm": list(o.size_mm) if o.size_mm else None,
                     "rest": listing_digest(files_of(o.rest)) if o.rest else None,
                     **({"goal": self.goal.text} if self.goal is not None else {}),
+                    **({} if o.geometry else {"geometry": False}),
                 },
             },
         )

@@ -72,8 +72,8 @@ class PartResult:
     flaps : list, optional
         Each frame's flaps found on the mesh (:meth:`~.fold_mesh.MeshFlap.to_json`).
     last : dict, optional
-        In the part that holds the episode's last frame: ``{"position", "rest", "uv"}``
-        (metres, metres, mm) for ``--goal``.
+        In the part that holds the episode's last frame: ``{"position", "rest", "uv",
+        "flaps"}`` (metres, metres, mm, its flaps) for ``--goal``.
     error : str or None
         The one-line error that stopped the episode.
     """
@@ -153,7 +153,10 @@ def label_part(
         og.append(np.column_stack([pred.folded, pred.unfolded]))
         below.append((table - frames[..., 2].min(axis=1)) * 1e3)
         front.append(front_share(coarse, material.coarse_faces))
-        flaps += [[f.to_json() for f in mesh_flaps(pos, material)] for pos in frames]
+        if options.geometry:
+            flaps += [[f.to_json() for f in mesh_flaps(pos, material)] for pos in frames]
+        else:
+            flaps += [[] for _ in frames]
     k = len(refs)
     info = {
         "n_frames": episode.n_frames,
@@ -170,8 +173,9 @@ def label_part(
 
     last = None
     if stop == episode.n_frames and stop > start:
-        last = {"position": episode.frames(stop - 1, stop)[0] * material.scale,
-                "rest": rest * material.scale, "uv": material.uv}
+        final = episode.frames(stop - 1, stop)[0] * material.scale
+        last = {"position": final, "rest": rest * material.scale, "uv": material.uv,
+                "flaps": [f.to_json() for f in mesh_flaps(final, material)]}
 
     def joined(arrays: list, empty: NDArray) -> NDArray:
         return np.concatenate(arrays) if arrays else empty
@@ -188,7 +192,7 @@ def label_part(
         omnigibson=joined(og, np.zeros((0, 2), bool)),
         below_mm=joined(below, np.zeros(0)),
         front=joined(front, np.zeros(0)),
-        flaps=flaps,
+        flaps=flaps if options.geometry else None,
         last=last,
     )
 
@@ -388,6 +392,7 @@ def assemble(
     front = np.concatenate([p.front for p in parts])
     flaps = [f for p in parts for f in (p.flaps or [[] for _ in range(p.stop - p.start)])]
     layout = layout_of_size(tuple((parts[0].info or {}).get("size_mm") or (400.0, 400.0)))
+    geometry_on = all(p.flaps is not None for p in parts)
     layer_notes, error = _layer_notes(parts[0].path, below, front)
     if error is not None:
         return EpisodeFailure(parts[0].path, error)
@@ -404,7 +409,8 @@ def assemble(
             best, conf = -1, 0.0
         key = (answer.class_id, answer.variant) if answer else states[t]
         words = sorted(folds_of(*key), key=lambda w: (" crossing " in w, w))
-        geometry = mesh_fold_geometry(words, flaps[t], layout) if not refused[t] else []
+        geometry = [] if refused[t] or not geometry_on else mesh_fold_geometry(
+            words, flaps[t], layout)
         frames.append(
             FrameLabel(
                 index=t,
@@ -427,7 +433,7 @@ def assemble(
         final = frames[-1]
         words = sorted(folds_of(*states[-1]), key=lambda w: (" crossing " in w, w))
         verdict = evaluate_goal(
-            goal, states[-1], mesh_fold_geometry(words, flaps[-1], layout),
+            goal, states[-1], mesh_fold_geometry(words, last["flaps"], layout),
             last["position"], last["rest"], last["uv"], layout,
         )
         verdict["frame"] = final.index
