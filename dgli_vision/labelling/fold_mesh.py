@@ -67,6 +67,9 @@ FACE_UP_COS = 0.9
 MIN_FLAP_VERTICES = 6
 #: A corner is on a flap when a vertex of the flap lies within this (mm, on the napkin).
 CORNER_REACH_MM = 40.0
+#: The floor of a vertex's misfit (mm, one coordinate) in the crease's uncertainty: the
+#: vertices are exact, the bend round the crease is not (a quarter turn of the gap).
+MESH_SD_MM = 0.5
 #: The fit uses at most about this many vertices (evenly taken): a few thousand points
 #: fix a crease far below the mesh's resolution.
 MAX_FIT_POINTS = 1000
@@ -208,8 +211,8 @@ def mesh_flaps(
         x += list(fit)
     x, jtj, res = _solve(m, p, g, np.asarray(x, dtype=float), len(keep))
     d2 = (res * res).sum(axis=1)
-    spacing = math.sqrt(material.size_mm[0] * material.size_mm[1] / n)  # the mesh's
-    var = max(float(d2.mean()) / 2.0, (spacing * spacing) / 12.0, 1e-4)
+    # the vertices lie exactly on the cloth: what is left is how the bend is modelled
+    var = max(float(d2.mean()) / 2.0, MESH_SD_MM**2)
     try:
         cov = var * np.linalg.inv(jtj)
     except np.linalg.LinAlgError:
