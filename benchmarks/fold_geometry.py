@@ -74,7 +74,10 @@ def measure(folder: Path, references, repeat: int) -> dict[str, Any]:
         frame = read_frame(folder / t["color"], folder / t["depth"])
         result = classify_frame(frame, references, layout=layout)
         p = result.prediction
-        if p is None or (p.class_id, p.variant) != (t["class"], t["variant"]):
+        if p is None:
+            skipped["cannot tell the state"] += 1
+            continue
+        if (p.class_id, p.variant) != (t["class"], t["variant"]):
             skipped["verdict not the true state"] += 1
             continue
         obs = result.observation
@@ -145,7 +148,7 @@ def main() -> None:
         s.update(nulls=m["nulls"], skipped=m["skipped"],
                  ms_median=round(float(np.median(t)), 3) if t else None,
                  ms_max=round(float(np.max(t)), 3) if t else None, frames=len(t))
-        report[folder.name] = s
+        report[folder.name] = {**s, "rows": m["rows"]}
         for r in m["rows"]:
             per_class[r["class"]].append(r)
         n_null = sum(m["nulls"].values())
@@ -165,8 +168,12 @@ def main() -> None:
                      f"{s['coverage_2sd']} |")
     text = "\n".join(lines)
     print(text)
+    pooled = [r for name, s in report.items() if name != "per_class" for r in s["rows"]]
+    if len(args.folders) > 1:
+        report["all"] = summary(pooled)
+        print("all:", report["all"])
     for name, s in report.items():
-        if name != "per_class":
+        if name not in ("per_class", "all"):
             print(name, "null:", s["nulls"], "skipped:", s["skipped"])
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))

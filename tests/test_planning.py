@@ -144,6 +144,50 @@ def test_python_plan_matches_the_command():
 def test_closed_loop_in_the_simulator(refs, start, goal):
     row = run_pair(start, goal, (99, 1), refs, intrinsics=SMALL)
     assert row.outcome == "right", row
+    if start != ("01", None):  # the other two are unfolds: no crease to check
+        assert row.geometry is None
+        return
+    # the fold made lands near the planned crease, and the after frame measures it
+    g = row.geometry
+    assert g["fold"] == "C over" and g["why"] is None, g
+    assert g["made"]["crease_mm"] < 20 and g["made"]["tip_mm"] < 20, g
+    assert g["seen"]["crease_mm"] < 20 and g["seen"]["tip_mm"] < 20, g
+    assert g["measure_mm"] < 5, g
+
+
+def test_check_table_reports_the_geometry_against_the_plan():
+    from dgli_vision.core.fold_measure import Crease
+    from dgli_vision.planning.check import CheckRow, check_table, fold_errors
+
+    layout = default_layout()
+    planned = Crease.through((180.0, 0.0), (0.0, 180.0))  # A over, legs 180 mm
+
+    def row(shift: float, seen_shift: float | None) -> CheckRow:
+        made = Crease.through((180.0 + shift, 0.0), (0.0, 180.0 + shift))
+        seen = None
+        if seen_shift is not None:
+            class _G:  # a measured fold's geometry: its crease, no why
+                why = None
+                crease = Crease.through((180.0 + seen_shift, 0.0), (0.0, 180.0 + seen_shift))
+            seen = _G()
+        geometry = fold_errors("A over", planned, made, seen, layout,
+                               None if seen else "not measured")
+        return CheckRow(("01", None), ("02", "A"), 1, ("01", None), ("02", "A"), ("02", "A"),
+                        "right", geometry=geometry)
+
+    # made 5, 15 and 40 mm beyond the plan (legs longer: the crease moves by s / sqrt 2)
+    rows = [row(5.0, 6.0), row(15.0, 15.0), row(40.0, None)]
+    g = check_table(rows)["geometry"]
+    assert g["fold_steps"] == 3 and g["made"]["measured"] == 3 and g["seen"]["measured"] == 2
+    # the legs s longer move the crease by s / sqrt 2, the tip by twice that
+    assert g["made"]["crease_mm"]["max"] == pytest.approx(40.0 / 2**0.5, abs=0.1)
+    assert g["made"]["tip_mm"]["median"] == pytest.approx(15 * 2**0.5, abs=0.1)
+    assert g["made"]["success"] == {"10": pytest.approx(1 / 3, abs=1e-3),
+                                    "20": pytest.approx(1 / 3, abs=1e-3),
+                                    "45": pytest.approx(2 / 3, abs=1e-3)}
+    assert g["seen"]["success"]["45"] == pytest.approx(2 / 3, abs=1e-3)
+    assert g["not_seen"] == {"not measured": 1}
+    assert g["measure_mm"]["max"] == pytest.approx(1.0 / 2**0.5, abs=0.05)
 
 
 def test_track_frames_carry_corners_and_folds(refs):

@@ -82,6 +82,22 @@ def _cloth_size(
     "needs the 'dask' extra.",
 )
 @click.option(
+    "--no-geometry",
+    is_flag=True,
+    help="Leave each frame's fold sizes out (measured on the mesh; about as much work "
+    "again as the rest of the labelling).",
+)
+@click.option(
+    "--goal",
+    "goal_text",
+    metavar="STATE[:SIZES]",
+    help="Judge each episode's last frame against this goal: the largest distance of a "
+    "vertex from the goal's ideal folded cloth (the simulation benchmarks' success: within "
+    "45 mm, 75 mm for two or more folds) beside ours (the state, each crease and tip within "
+    "20 mm). SIZES: a corner's legs (02:AB=180,BC=180), inset=MM, offset=MM or tip=U,V "
+    "[default: the class's middle sizes].",
+)
+@click.option(
     "--resume",
     is_flag=True,
     help="Go on with an interrupted run: keep the episodes already in -o DIR's "
@@ -103,6 +119,8 @@ def label_cmd(
     jobs: int,
     dask_address: str | None,
     references_path: str | None,
+    goal_text: str | None,
+    no_geometry: bool,
     resume: bool,
     overwrite: bool,
 ) -> None:
@@ -121,12 +139,14 @@ def label_cmd(
     from ..core.errors import InvalidInputError
     from ..core.io import guard_outputs
     from ..labelling.episodes import ReadOptions, parse_up_axis
+    from ..labelling.goal import parse_goal
 
     parse_up_axis(up_axis)  # a bad axis stops before any work
+    goal = parse_goal(goal_text) if goal_text is not None else None
     if resume and not out_dir:
         raise InvalidInputError("--resume needs -o DIR, where results.jsonl is kept")
-    options = ReadOptions(fmt, up_axis, units, size_mm, rest)
-    run = _LabelRun(tuple(inputs), options, references_path, jobs, dask_address, as_json)
+    options = ReadOptions(fmt, up_axis, units, size_mm, rest, not no_geometry)
+    run = _LabelRun(tuple(inputs), options, references_path, jobs, dask_address, as_json, goal)
     if out_dir is None:
         run.go(None, None, overwrite=overwrite)
         return
@@ -177,12 +197,14 @@ class _LabelRun:
         jobs: int,
         dask_address: str | None,
         as_json: bool,
+        goal: Any = None,
     ) -> None:
         from ..labelling.outputs import episode_names
 
         self.inputs, self.options = inputs, options
         self.references_path, self.jobs, self.dask = references_path, jobs, dask_address
         self.as_json = as_json
+        self.goal = goal
         self.names = episode_names(inputs)
 
     def header(self) -> dict[str, Any]:
@@ -217,6 +239,8 @@ class _LabelRun:
                     "units": o.units,
                     "size_mm": list(o.size_mm) if o.size_mm else None,
                     "rest": listing_digest(files_of(o.rest)) if o.rest else None,
+                    **({"goal": self.goal.text} if self.goal is not None else {}),
+                    **({} if o.geometry else {"geometry": False}),
                 },
             },
         )
@@ -236,7 +260,7 @@ class _LabelRun:
                 done[line["episode"]] = line
         todo = [(n, p) for n, p in zip(self.names, self.inputs) if n not in done]
         job = LabelJob(tuple(p for _, p in todo), self.options, self.references_path,
-                       self.jobs, self.dask)
+                       self.jobs, self.dask, self.goal)
         for name in self.names:  # what an earlier run did, in order, as it said it
             if name in done:
                 self._print_episode(done[name])
@@ -301,6 +325,16 @@ class _LabelRun:
             click.echo(
                 f"  frame {c['frame']}: {state_text((a['class'], a['variant']))} -> "
                 f"{state_text((b['class'], b['variant']))}"
+            )
+        g = ep.get("goal")
+        if g:
+            sg, ours = g["softgym"], g["dgli"]
+            told = {True: "success", False: "failed", None: "cannot tell"}[ours["success"]]
+            why = f" ({'; '.join(ours['reasons'])})" if ours["reasons"] else ""
+            click.echo(
+                f"  goal {g['goal']}: benchmark {'success' if sg['success'] else 'failed'} "
+                f"(largest distance {sg['max_distance_mm']:g} mm, within "
+                f"{sg['threshold_mm']:g}); dgli {told}{why}"
             )
 
     def _finish(

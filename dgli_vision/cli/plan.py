@@ -68,6 +68,33 @@ def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> 
             f"{r['outcome']}: {r['start']} -> {r['goal']} (seen {r['seen']}, expected "
             f"{r['expect']}, got {r['after']}) {r['note']}".rstrip()
         )
+    _geometry_lines(table["geometry"])
+
+
+def _geometry_lines(g: dict) -> None:
+    """The fold steps' crease and tip errors against the plan, and success rates."""
+    n = g["fold_steps"]
+    if not n:
+        return
+    tols = list(g["made"]["success"])
+
+    def mm(s: dict) -> str:
+        if s["median"] is None:
+            return "-"
+        return f"{s['median']:g} / {s['p90']:g} / {s['max']:g}"
+
+    click.echo(f"\nfold steps against the plan ({n}; errors in mm, median / p90 / max):")
+    click.echo("| crease | measured | crease error | tip error | "
+               + " | ".join(f"success at {t} mm" for t in tols) + " |")
+    click.echo("|---" * (4 + len(tols)) + "|")
+    for which, what in (("made", "made (simulator)"), ("seen", "seen (after frame)")):
+        s = g[which]
+        rates = " | ".join(f"{s['success'][t]:.1%}" for t in tols)
+        click.echo(f"| {what} | {s['measured']} | {mm(s['crease_mm'])} | {mm(s['tip_mm'])} "
+                   f"| {rates} |")
+    click.echo(f"crease seen vs made (the measurement's error): {mm(g['measure_mm'])} mm")
+    for why, count in g["not_seen"].items():
+        click.echo(f"not seen ({count}): {why}")
 
 
 @click.command("plan")

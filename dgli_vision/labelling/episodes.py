@@ -61,6 +61,9 @@ class ReadOptions:
         The cloth's real size (W, H) in mm; None: measured from the rest frame.
     rest : str or None
         A file whose (first) frame is the flat cloth at rest; None: the episode's first.
+    geometry : bool
+        Measure each frame's folds on the mesh (:mod:`.fold_mesh`); False leaves every
+        frame's ``folds`` empty (a faster run).
     """
 
     format: str | None = None
@@ -68,6 +71,7 @@ class ReadOptions:
     units: str = "m"
     size_mm: tuple[float, float] | None = None
     rest: str | None = None
+    geometry: bool = True
 
 
 @dataclass(frozen=True, eq=False)

@@ -22,8 +22,12 @@ from ..classifier.classify import MIN_CONFIDENCE, MIN_COORDINATES
 from ..classifier.references import ReferenceSet, load_references
 from ..core.classes import CLASS_NAMES, LANDING_PAIRS
 from ..core.errors import DgliError
+from ..core.fold_graph import folds_of
+from ..core.layout import layout_of_size
 from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
+from .fold_mesh import mesh_flaps, mesh_fold_geometry
+from .goal import GoalSpec, evaluate_goal
 from .material import cloth_material, front_share
 from .observe import BLOCK, observe_frames, place_stickers
 from .predicates import hull_area_diagonal, predicates
@@ -65,6 +69,11 @@ class PartResult:
         point), mm (0 or less: on or above it).
     front : ndarray, shape (stop - start,), optional
         Each frame's :func:`~.material.front_share` (-1: the cloth lies turned over).
+    flaps : list, optional
+        Each frame's flaps found on the mesh (:meth:`~.fold_mesh.MeshFlap.to_json`).
+    last : dict, optional
+        In the part that holds the episode's last frame: ``{"position", "rest", "uv",
+        "flaps"}`` (metres, metres, mm, its flaps) for ``--goal``.
     error : str or None
         The one-line error that stopped the episode.
     """
@@ -81,6 +90,8 @@ class PartResult:
     omnigibson: NDArray[np.bool_] | None = None
     below_mm: NDArray[np.float64] | None = None
     front: NDArray[np.float64] | None = None
+    flaps: list[list[dict[str, Any]]] | None = None
+    last: dict[str, Any] | None = None
 
 
 @lru_cache(maxsize=4)
@@ -129,6 +140,7 @@ def label_part(
         area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
     flat = (float(area[0]), float(diagonal[0]))
     dist, n_unknown, n_known, og, below, front = [], [], [], [], [], []
+    flaps: list[list[dict[str, Any]]] = []
     for a in range(start, stop, BLOCK):
         b = min(a + BLOCK, stop)
         frames = episode.frames(a, b) * material.scale
@@ -141,6 +153,10 @@ def label_part(
         og.append(np.column_stack([pred.folded, pred.unfolded]))
         below.append((table - frames[..., 2].min(axis=1)) * 1e3)
         front.append(front_share(coarse, material.coarse_faces))
+        if options.geometry:
+            flaps += [[f.to_json() for f in mesh_flaps(pos, material)] for pos in frames]
+        else:
+            flaps += [[] for _ in frames]
     k = len(refs)
     info = {
         "n_frames": episode.n_frames,
@@ -154,6 +170,12 @@ def label_part(
             "over): its front is taken to be the face most of it shows; give the flat cloth "
             "with --rest FILE"
         )
+
+    last = None
+    if stop == episode.n_frames and stop > start:
+        final = episode.frames(stop - 1, stop)[0] * material.scale
+        last = {"position": final, "rest": rest * material.scale, "uv": material.uv,
+                "flaps": [f.to_json() for f in mesh_flaps(final, material)]}
 
     def joined(arrays: list, empty: NDArray) -> NDArray:
         return np.concatenate(arrays) if arrays else empty
@@ -170,6 +192,8 @@ def label_part(
         omnigibson=joined(og, np.zeros((0, 2), bool)),
         below_mm=joined(below, np.zeros(0)),
         front=joined(front, np.zeros(0)),
+        flaps=flaps if options.geometry else None,
+        last=last,
     )
 
 
@@ -219,6 +243,10 @@ class FrameLabel:
         Why there is no verdict.
     omnigibson : tuple of bool or None
         OmniGibson's ``Folded`` and ``Unfolded`` on the same frame, for comparison.
+    folds : tuple of dict
+        The geometry of each fold of the frame's state (its verdict, else the smoothed
+        state), measured on the mesh: the keys of a verdict's fold (``"fold"``,
+        ``legs_mm``, ``tip_mm``, ``inset_mm``...; ``geometry_from`` ``"mesh"``).
     """
 
     index: int
@@ -231,6 +259,7 @@ class FrameLabel:
     smoothed_variant: str | None
     note: str | None = None
     omnigibson: tuple[bool, bool] | None = None
+    folds: tuple[dict[str, Any], ...] = ()
 
     def to_dict(self) -> dict[str, Any]:
         """The frame's JSON object (the names of ``dgli label --json``)."""
@@ -246,6 +275,7 @@ class FrameLabel:
             "omnigibson": None
             if self.omnigibson is None
             else {"folded": self.omnigibson[0], "unfolded": self.omnigibson[1]},
+            "folds": list(self.folds),
         }
 
 
@@ -260,12 +290,15 @@ class EpisodeLabels:
     frames: tuple[FrameLabel, ...]
     changes: tuple[tuple[int, tuple[str, str | None], tuple[str, str | None]], ...]
     info: dict[str, Any]
+    goal: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """The episode's JSON object."""
+        """The episode's JSON object (``goal``: with ``--goal``, see
+        :func:`~.goal.evaluate_goal`)."""
         return {
             "path": self.path,
             **self.info,
+            **({"goal": self.goal} if self.goal is not None else {}),
             "frames": [f.to_dict() for f in self.frames],
             "changes": [
                 {
@@ -347,8 +380,12 @@ def _layer_notes(
     return notes, error
 
 
-def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels | EpisodeFailure:
-    """Join the parts of one episode (any order), classify and smooth its frames.
+def assemble(
+    parts: list[PartResult], references: ReferenceSet, goal: GoalSpec | None = None
+) -> EpisodeLabels | EpisodeFailure:
+    """Join the parts of one episode (any order), classify and smooth its frames, and
+    measure each frame's folds on the mesh; with ``goal``, judge the last frame against
+    it (:func:`~.goal.evaluate_goal`).
 
     A frame lying below the table or turned over (back face up) gets no verdict (a note
     says which); an episode with :data:`BELOW_TABLE_SHARE` of its frames below the table
@@ -363,6 +400,9 @@ def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels
     og = np.concatenate([p.omnigibson for p in parts])
     below = np.concatenate([p.below_mm for p in parts])
     front = np.concatenate([p.front for p in parts])
+    flaps = [f for p in parts for f in (p.flaps or [[] for _ in range(p.stop - p.start)])]
+    layout = layout_of_size(tuple((parts[0].info or {}).get("size_mm") or (400.0, 400.0)))
+    geometry_on = all(p.flaps is not None for p in parts)
     layer_notes, error = _layer_notes(parts[0].path, below, front)
     if error is not None:
         return EpisodeFailure(parts[0].path, error)
@@ -377,6 +417,10 @@ def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels
         answer = ref if note is None else None
         if refused[t]:
             best, conf = -1, 0.0
+        key = (answer.class_id, answer.variant) if answer else states[t]
+        words = sorted(folds_of(*key), key=lambda w: (" crossing " in w, w))
+        geometry = [] if refused[t] or not geometry_on else mesh_fold_geometry(
+            words, flaps[t], layout)
         frames.append(
             FrameLabel(
                 index=t,
@@ -389,10 +433,22 @@ def assemble(parts: list[PartResult], references: ReferenceSet) -> EpisodeLabels
                 smoothed_variant=states[t][1],
                 note=note,
                 omnigibson=(bool(og[t, 0]), bool(og[t, 1])),
+                folds=tuple({"fold": g.word, **g.to_json()} for g in geometry),
             )
         )
     changes = tuple((t, states[t - 1], states[t]) for t in change_frames(states))
-    return EpisodeLabels(parts[0].path, tuple(frames), changes, dict(parts[0].info or {}))
+    verdict = None
+    last = next((p.last for p in parts if p.last is not None), None)
+    if goal is not None and last is not None and frames:
+        final = frames[-1]
+        words = sorted(folds_of(*states[-1]), key=lambda w: (" crossing " in w, w))
+        verdict = evaluate_goal(
+            goal, states[-1], mesh_fold_geometry(words, last["flaps"], layout),
+            last["position"], last["rest"], last["uv"], layout,
+        )
+        verdict["frame"] = final.index
+    return EpisodeLabels(parts[0].path, tuple(frames), changes, dict(parts[0].info or {}),
+                         verdict)
 
 
 def state_text(key: tuple[str, str | None]) -> str:

@@ -118,6 +118,15 @@ def summary_of_entries(entries: Sequence[dict[str, Any]]) -> dict[str, Any]:
         for f in ep["frames"]:
             s = f["smoothed"]
             states[s["class"] + (f" {s['variant']}" if s["variant"] else "")] += 1
+    goals = [ep["goal"] for ep in done if ep.get("goal")]
+    goal = {}
+    if goals:
+        goal = {"goal": {
+            "episodes": len(goals),
+            "softgym_success": sum(g["softgym"]["success"] for g in goals),
+            "dgli_success": sum(g["dgli"]["success"] is True for g in goals),
+            "dgli_cannot_tell": sum(g["dgli"]["success"] is None for g in goals),
+        }}
     return {
         "episodes": len(entries),
         "labelled": len(done),
@@ -126,4 +135,5 @@ def summary_of_entries(entries: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "changes": sum(len(ep["changes"]) for ep in done),
         "smoothed_states": dict(sorted(states.items())),
         "failed": [{"path": e["path"], "error": e["error"]} for e in entries if "error" in e],
+        **goal,
     }

@@ -16,6 +16,7 @@ from typing import Any
 
 from ..core.errors import InvalidInputError
 from .episodes import ReadOptions
+from .goal import GoalSpec
 from .label import EpisodeFailure, EpisodeLabels, assemble, cached_references, label_part
 
 __all__ = ["LabelJob", "label_episodes"]
@@ -37,6 +38,8 @@ class LabelJob:
     dask : str or None
         A Dask scheduler's address (``tcp://host:8786``), or a ``distributed.Client``'s
         address; overrides ``jobs``.
+    goal : GoalSpec or None
+        Judge each episode's last frame against this goal (``dgli label --goal``).
     """
 
     paths: tuple[str, ...]
@@ -44,6 +47,7 @@ class LabelJob:
     references_path: str | None = None
     jobs: int = 1
     dask: str | None = None
+    goal: GoalSpec | None = None
 
 
 def _tasks(job: LabelJob, workers: int) -> list[tuple[int, int, int]]:
@@ -62,7 +66,7 @@ def _in_order(
     for i, (e, _, _) in enumerate(tasks):
         by_episode.setdefault(e, []).append(i)
     for e in range(len(job.paths)):
-        yield assemble([get(results[i]) for i in by_episode[e]], refs)
+        yield assemble([get(results[i]) for i in by_episode[e]], refs, job.goal)
 
 
 def _dask_client(address: str) -> Any:

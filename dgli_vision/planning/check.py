@@ -9,6 +9,15 @@ line (the perpendicular bisector of grasp -> place, taken from the camera frame 
 table and onto the flat napkin), or the unfold of the planned flap. The cloth is
 rendered again from the same camera and classified; the step succeeds when the verdict
 is the state the plan expected.
+
+For a fold, the step's crease is also checked against the plan (``crease_mm`` of the
+step, on the flat napkin): the crease **made** (the fold the simulator carried out, as
+the planned fold line lands on the cloth) and the crease **seen** (the after frame's
+fold geometry, as ``dgli verify`` measures it) are each compared with the planned one:
+the crease's distance (the largest of either's ends on the napkin from the other) and,
+for a corner, the distance of its tip from the planned tip. A fold step succeeds at a
+tolerance when the state is the expected one and both errors are within it
+(:data:`TOLERANCES_MM`).
 """
 
 from __future__ import annotations
@@ -24,6 +33,7 @@ from ..classifier.references import ReferenceSet
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.classes import CORNERS
 from ..core.fold_graph import StateKey, state_keys
+from ..core.fold_measure import Crease, crease_distance_mm, fold_kind, fold_measures
 from ..core.layout import NapkinLayout, default_layout
 from ..sim.cloth.states import FoldStep, _steps_for, make_state
 from ..sim.dataset import random_camera
@@ -32,10 +42,23 @@ from ..sources.frames import RGBDFrame
 from .api import plan_frame
 from .plan import PlanRefused, PlanStep, shortest_path
 
-__all__ = ["OUTCOMES", "CheckRow", "check_pairs", "check_table", "goals_within", "run_pair"]
+__all__ = [
+    "OUTCOMES",
+    "TOLERANCES_MM",
+    "CheckRow",
+    "check_pairs",
+    "check_table",
+    "fold_errors",
+    "geometry_table",
+    "goals_within",
+    "run_pair",
+]
 
 #: What can happen to one (start, goal) pair.
 OUTCOMES = ("right", "cannot tell", "refused", "wrong")
+#: The tolerances (mm) at which the fold steps' success rates are given: 45 mm is the
+#: simulation benchmarks' per-point success, 20 mm ``dgli verify``'s default.
+TOLERANCES_MM = (10.0, 20.0, 45.0)
 
 
 def goals_within(start: StateKey, max_steps: int) -> list[tuple[StateKey, int]]:
@@ -58,7 +81,8 @@ def goals_within(start: StateKey, max_steps: int) -> list[tuple[StateKey, int]]:
 class CheckRow:
     """One trial: the start, the goal, what the start was read as, the step planned,
     the state that came out and the outcome (one of :data:`OUTCOMES`), with the reason
-    for a "cannot tell" or a refusal."""
+    for a "cannot tell" or a refusal; for a fold step carried out, ``geometry`` (see
+    :func:`fold_errors`)."""
 
     start: StateKey
     goal: StateKey
@@ -68,6 +92,7 @@ class CheckRow:
     after: StateKey | None
     outcome: str
     note: str = ""
+    geometry: dict[str, object] | None = None
 
 
 def _placement(rng: np.random.Generator) -> tuple[float, float, tuple[float, float]]:
@@ -116,6 +141,67 @@ def _executed_steps(
         step.under,
     )
     return [*steps, new]
+
+
+def _crease_errors(
+    word: str, planned: Crease, crease: Crease, layout: NapkinLayout
+) -> dict[str, float | None]:
+    """``{"crease_mm", "tip_mm"}`` of a crease against the planned one (the tip: a
+    corner fold's, else None)."""
+    out: dict[str, float | None] = {
+        "crease_mm": crease_distance_mm(crease, planned, layout), "tip_mm": None,
+    }
+    if fold_kind(word)[0] == "corner":
+        a = fold_measures(word, crease, layout)["tip_mm"]
+        b = fold_measures(word, planned, layout)["tip_mm"]
+        out["tip_mm"] = float(np.hypot(a[0] - b[0], a[1] - b[1]))
+    return out
+
+
+def fold_errors(
+    word: str,
+    planned: Crease,
+    made: Crease,
+    seen: object | None,
+    layout: NapkinLayout,
+    why: str | None = None,
+) -> dict[str, object]:
+    """A fold step's crease against the plan.
+
+    Parameters
+    ----------
+    word : str
+        The fold word.
+    planned : Crease
+        The step's planned crease (material mm).
+    made : Crease
+        The crease the fold was made along.
+    seen : FoldGeometry or None
+        The fold's geometry measured on the frame after it (None: not measured, see
+        ``why``; a geometry whose ``why`` is set is not measured either).
+    layout : NapkinLayout
+    why : str, optional
+        Why ``seen`` is None.
+
+    Returns
+    -------
+    dict
+        ``{"fold", "made": {"crease_mm", "tip_mm"}, "seen": {...} or None, "why",
+        "measure_mm"}``: the errors (mm) of the crease made and of the crease seen
+        against the plan, why the crease was not seen, and how far the crease seen lies
+        from the one made (the measurement's own error).
+    """
+    out: dict[str, object] = {
+        "fold": word, "made": _crease_errors(word, planned, made, layout), "seen": None,
+        "why": why, "measure_mm": None,
+    }
+    crease = getattr(seen, "crease", None)
+    if seen is not None and getattr(seen, "why", None) is None and crease is not None:
+        out["seen"] = _crease_errors(word, planned, crease, layout)
+        out["measure_mm"] = crease_distance_mm(crease, made, layout)
+    elif seen is not None:
+        out["why"] = getattr(seen, "why", None) or "not measured"
+    return out
 
 
 def _frame(r) -> RGBDFrame:
@@ -174,11 +260,25 @@ def run_pair(
                    sensor=SensorModel(), rng=rng, layout=layout)
     verdict = classify_frame(_frame(after), references, layout=layout)
     got = _verdict(verdict)
+    geometry = None
+    if step.action == "fold" and step.crease_mm is not None:
+        made = Crease.through(folds[-1].p0, folds[-1].p1)
+        p = verdict.prediction
+        mine = None if p is None else next((f for f in p.folds if f.fold == step.fold), None)
+        why = None
+        if got is None:
+            why = "the state after the fold cannot be told"
+        elif got != step.expect:
+            why = f"the state after the fold was read as {_txt(got)}"
+        elif mine is None or mine.geometry is None:
+            why = "not measured"
+        geometry = fold_errors(step.fold, Crease.through(*step.crease_mm), made,
+                               mine.geometry if why is None and mine else None, layout, why)
     if got is None:
         return CheckRow(start, goal, n, seen, step.expect, None, "cannot tell",
-                        verdict.reason or "")
+                        verdict.reason or "", geometry)
     outcome = "right" if got == step.expect and seen == start else "wrong"
-    return CheckRow(start, goal, n, seen, step.expect, got, outcome)
+    return CheckRow(start, goal, n, seen, step.expect, got, outcome, geometry=geometry)
 
 
 def check_pairs(
@@ -212,9 +312,53 @@ def check_pairs(
                 yield row
 
 
+def _spread(values: list[float]) -> dict[str, float | None]:
+    """Median, 90th percentile and largest of ``values`` (mm, one decimal)."""
+    if not values:
+        return {"median": None, "p90": None, "max": None}
+    v = np.asarray(values, dtype=float)
+    return {k: round(float(np.quantile(v, q)), 1)
+            for k, q in (("median", 0.5), ("p90", 0.9), ("max", 1.0))}
+
+
+def _within(e: dict[str, float | None] | None, tol: float) -> bool:
+    """Both errors (crease, tip) known where they apply and within ``tol``."""
+    if e is None or e["crease_mm"] is None:
+        return False
+    return e["crease_mm"] <= tol and (e["tip_mm"] is None or e["tip_mm"] <= tol)
+
+
+def geometry_table(rows: list[CheckRow]) -> dict[str, object]:
+    """The fold steps' geometry against the plan: the crease and tip errors of the
+    creases made and seen (median, p90, max, mm), the share of fold steps that succeed
+    at each of :data:`TOLERANCES_MM` (crease and tip within it; for the crease seen,
+    also the expected state read and the fold measured), the folds not measured (and
+    why) and the measurement's own error (the crease seen against the crease made)."""
+    g = [r for r in rows if r.geometry is not None]
+    n = len(g)
+    out: dict[str, object] = {"fold_steps": n}
+    for which in ("made", "seen"):
+        errs = [r.geometry[which] for r in g if r.geometry[which] is not None]
+        out[which] = {
+            "measured": len(errs),
+            "crease_mm": _spread([e["crease_mm"] for e in errs if e["crease_mm"] is not None]),
+            "tip_mm": _spread([e["tip_mm"] for e in errs if e["tip_mm"] is not None]),
+            "success": {
+                f"{tol:g}": round(sum(_within(r.geometry[which], tol) for r in g) / n, 4)
+                if n else None
+                for tol in TOLERANCES_MM
+            },
+        }
+    out["not_seen"] = dict(Counter(str(r.geometry["why"]) for r in g
+                                   if r.geometry["seen"] is None))
+    out["measure_mm"] = _spread([r.geometry["measure_mm"] for r in g
+                                 if r.geometry["measure_mm"] is not None])
+    return out
+
+
 def check_table(rows: list[CheckRow]) -> dict[str, object]:
-    """The success table: outcomes by number of steps to the goal and in all, and the
-    trials that were not right."""
+    """The success table: outcomes by number of steps to the goal and in all, the
+    trials that were not right, and the fold steps' geometry (:func:`geometry_table`)."""
     by_steps: dict[int, Counter] = {}
     for r in rows:
         by_steps.setdefault(r.steps, Counter())[r.outcome] += 1
@@ -235,6 +379,7 @@ def check_table(rows: list[CheckRow]) -> dict[str, object]:
             for r in rows
             if r.outcome != "right"
         ],
+        "geometry": geometry_table(rows),
     }
 
 
