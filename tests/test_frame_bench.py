@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 
 def test_every_frame_says_where_its_time_went() -> None:
     """``FrameResult.timings_ms``: each stage's time, in the order the stages ran, adding
@@ -81,10 +83,15 @@ def test_the_ratio_to_aruco_is_of_the_medians_and_per_frame() -> None:
     assert [f.ok for f in figures[:2]] == [False, False]
     assert "machine quiet" in figures[5].name  # median spread 1.1
     assert any(f.name.startswith("  vga: median ratio") and f.value == 2.0 for f in figures)
-    busy = AnchorBench(tuple(AnchorTime("dim", str(k), 1.0, 2.0, 1.6) for k in range(3)))
+    assert not any("processor time" in f.name for f in figures)  # not measured
+    busy = AnchorBench(
+        tuple(AnchorTime("dim", str(k), 1.0, 2.0, 1.6, 3.0 + k, 1.0) for k in range(3))
+    )
     figures = anchor_figures(busy)
     assert [f.ok for f in figures[:2]] == [True, True]
     assert "BUSY" in figures[5].name
+    assert busy.ratios(cpu=True) == (4.0, pytest.approx(4.8), 5.0)
+    assert figures[6].name.startswith("  the same in processor time") and figures[6].value == 4.0
 
 
 def test_bench_vs_aruco_on_a_tiny_set_prints_the_ratio_rows() -> None:

@@ -614,6 +614,11 @@ def anchor_figures(bench: AnchorBench) -> list[BenchResult]:
             spread, "x",
         ),
     ]
+    c_med, c_p90, _ = bench.ratios(cpu=True)
+    if np.isfinite(c_med):
+        out.append(BenchResult(
+            f"  the same in processor time (thread_time; p90 {c_p90:.2f}x): median ratio",
+            c_med, "x"))
     for condition in bench.conditions():
         c_med, c_p90, c_top = bench.ratios(condition)
         c_ours, c_anchor = bench.medians_ms(condition)
