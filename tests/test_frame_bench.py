@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import pytest
+
 
 def test_every_frame_says_where_its_time_went() -> None:
     """``FrameResult.timings_ms``: each stage's time, in the order the stages ran, adding
@@ -57,3 +59,59 @@ def test_the_decode_included_bench_reads_back_the_frames_it_times(tmp_path) -> N
     back = read_frame(tmp_path / "0000_color.png", tmp_path / "0000_depth.png", r.intrinsics)
     assert np.array_equal(back.color, frame.color)
     assert np.array_equal(back.depth_mm, frame.depth_mm)
+
+
+def test_the_ratio_to_aruco_is_of_the_medians_and_per_frame() -> None:
+    """Ours / ArUco: the median of ours over the median of the anchor's, and the
+    per-frame ratio's p90 and max, per condition; the machine is called busy when the
+    anchor's own times spread."""
+    from dgli_vision.analysis.bench import anchor_figures
+    from dgli_vision.analysis.frame_bench import AnchorBench, AnchorTime
+
+    bench = AnchorBench(
+        (
+            AnchorTime("clean", "a", 4.0, 4.0, 1.05),
+            AnchorTime("clean", "b", 6.0, 2.0, 1.1),
+            AnchorTime("vga", "c", 2.0, 1.0, 2.0),
+        )
+    )
+    med, p90, top = bench.ratios()
+    assert med == 4.0 / 2.0 and top == 3.0 and 2.0 < p90 <= 3.0
+    assert bench.ratios("clean")[0] == 5.0 / 3.0
+    assert bench.medians_ms("vga") == (2.0, 1.0)
+    figures = anchor_figures(bench)
+    assert [f.ok for f in figures[:2]] == [False, False]
+    assert "machine quiet" in figures[5].name  # median spread 1.1
+    assert any(f.name.startswith("  vga: median ratio") and f.value == 2.0 for f in figures)
+    assert not any("processor time" in f.name for f in figures)  # not measured
+    busy = AnchorBench(
+        tuple(AnchorTime("dim", str(k), 1.0, 2.0, 1.6, 3.0 + k, 1.0) for k in range(3))
+    )
+    figures = anchor_figures(busy)
+    assert [f.ok for f in figures[:2]] == [True, True]
+    assert "BUSY" in figures[5].name
+    assert busy.ratios(cpu=True) == (4.0, pytest.approx(4.8), 5.0)
+    assert figures[6].name.startswith("  the same in processor time") and figures[6].value == 4.0
+
+
+def test_bench_vs_aruco_on_a_tiny_set_prints_the_ratio_rows() -> None:
+    """``dgli bench --vs-aruco`` on two frames (clean and vga, one repeat): every row
+    of the ratios is printed, each condition's with its absolute times (no assertion
+    on the times themselves; a missed budget exits 1)."""
+    from click.testing import CliRunner
+
+    from dgli_vision.cli import main as cli
+
+    run = CliRunner().invoke(
+        cli, ["bench", "--vs-aruco", "--per-condition", "1", "--conditions", "vga",
+              "--repeats", "1"],
+    )
+    assert run.exit_code in (0, 1), run.output
+    lines = run.output.splitlines()
+    assert lines[0].startswith("ours / ArUco, 2 frames interleaved, one core")
+    assert any("per-frame ratio, 90th percentile" in x and "<= 1.5x" in x for x in lines)
+    assert any(x.startswith("  clean: median ratio") and "ArUco" in x for x in lines)
+    assert any(x.startswith("  vga: median ratio") and "ms" in x for x in lines)
+    assert (run.exit_code == 1) == ("MISSED" in run.output)
+    bad = CliRunner().invoke(cli, ["bench", "--vs-aruco", "--conditions", "nope"])
+    assert bad.exit_code == 2 and "nope" in bad.output

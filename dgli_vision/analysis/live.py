@@ -2,7 +2,8 @@
 
 Two threads. The capture thread takes frames from a source (a camera, or a recording
 played at its recorded pace or as fast as it reads) and keeps only the newest one not yet
-taken; the worker takes it, classifies it, and smooths the state online. A frame that
+taken (played as fast as classified, it decodes each one while the worker classifies the
+one before); the worker takes it, classifies it, and smooths the state online. A frame that
 arrives while the worker is busy replaces the one waiting, which is *dropped* and counted:
 a live system must not fall behind the scene it watches.
 
@@ -129,10 +130,11 @@ class LatestFrame:
 
     def put(self, item: Any, *, wait: bool = False) -> None:
         """Offer ``item``; a frame still waiting is dropped. With ``wait``, first wait
-        until the frame taken last is done (a recording played as fast as it is
-        classified: nothing dropped, and no frame waits for another)."""
+        until no frame is waiting (a recording played as fast as it is classified:
+        nothing dropped; one frame waits, read and decoded while the one before it is
+        classified)."""
         with self._cond:
-            while wait and (self._full or self._busy) and not self._closed:
+            while wait and self._full and not self._closed:
                 self._cond.wait(0.1)
             if self._full:
                 self.dropped += 1
@@ -280,6 +282,31 @@ class _Arrival:
     at: float
 
 
+@dataclass(frozen=True)
+class _Decoded:
+    """A frame decoded by the capture thread (so that decoding the next frame overlaps
+    classifying this one): ``load()`` gives the frame, or raises the error decoding it
+    raised."""
+
+    time: float | None
+    frame: Any = None
+    error: DgliError | None = None
+
+    def load(self) -> Any:
+        if self.error is not None:
+            raise self.error
+        return self.frame
+
+
+def _decoded(pair: Any) -> _Decoded:
+    """``pair`` loaded now (its error kept for the worker to report)."""
+    t = getattr(pair, "time", None)
+    try:
+        return _Decoded(t, pair.load())
+    except DgliError as exc:
+        return _Decoded(t, error=exc)
+
+
 def classify_live(
     pair: Any, references: ReferenceSet, colours: dict | None = None
 ) -> tuple[Any, Any, StateKey | None, float | None, tuple[float, ...], str | None]:
@@ -325,7 +352,11 @@ def _capture(
     stop: threading.Event,
 ) -> None:
     """The capture thread: offer every ``every``-th frame to ``slot`` as it comes (at
-    the recording's own pace with ``realtime``), until the source ends or ``stop``."""
+    the recording's own pace with ``realtime``), until the source ends or ``stop``.
+    Played as fast as it is classified, each frame is decoded here (its arrival is when
+    the source gave it), on the other core while the worker classifies the one before;
+    at the recorded pace the worker decodes the frame it takes (a frame dropped costs
+    nothing)."""
     start_wall = start_t = None
     try:
         for index, pair in enumerate(frames):
@@ -343,9 +374,12 @@ def _capture(
             if index % every:
                 counts["skipped"] += 1
                 continue
+            at = time.perf_counter()
             if counts["first"] is None:
-                counts["first"] = time.perf_counter()
-            slot.put(_Arrival(index, pair, time.perf_counter()), wait=not realtime)
+                counts["first"] = at
+            if not realtime:  # (at the recorded pace a frame dropped is never decoded)
+                pair = _decoded(pair)
+            slot.put(_Arrival(index, pair, at), wait=not realtime)
     except Exception as exc:  # the source failed part-way: the worker raises it
         counts["error"] = exc
     finally:

@@ -43,7 +43,23 @@ def _format_figure(value: float, unit: str) -> str:
     default=12,
     show_default=True,
     type=click.IntRange(1, 120),
-    help="Frames per capture condition in the frames group.",
+    help="Frames per capture condition in the frames group (and in --vs-aruco).",
+)
+@click.option(
+    "--vs-aruco",
+    is_flag=True,
+    help="Only ours against OpenCV's ArUco detector (DICT_4X4_50, default parameters), "
+    "frame by frame, interleaved, one core, on the frames of every capture condition: "
+    "median of ours over median of ArUco's (budget <= 1.0) and the per-frame ratio's "
+    "p90 (<= 1.5) and max, per condition and overall, with the absolute times. The "
+    "frames group reports the same ratios.",
+)
+@click.option(
+    "--conditions",
+    "conditions_text",
+    metavar="A,B,...",
+    help="Capture conditions of the frames group and --vs-aruco after clean "
+    "[default: every one the renderer knows].",
 )
 @click.option(
     "--samples",
@@ -60,6 +76,8 @@ def bench(
     only: str | None,
     samples: str | None,
     per_condition: int,
+    vs_aruco: bool,
+    conditions_text: str | None,
     overwrite: bool,
 ) -> None:
     """Measure the benchmark figures against their budgets (one core where a budget says so)."""
@@ -71,7 +89,17 @@ def bench(
 
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
+    conditions = _conditions(conditions_text)
+    if vs_aruco and only not in (None, "frames"):
+        raise click.UsageError("--vs-aruco is part of the frames group: not with --only "
+                               f"{only}")
     results = []
+    if vs_aruco:
+        figures, _ = b.run_aruco_benchmarks(
+            per_condition=per_condition, repeats=repeats, conditions=conditions
+        )
+        _echo(figures, markdown, overwrite)
+        return
     if only in (None, "dgli"):
         results += b.run_dgli_benchmarks(n_states=states, repeats=repeats)
     if only in (None, "pipeline", "recording", "watch"):
@@ -82,7 +110,8 @@ def bench(
         results += b.run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
     if only in (None, "frames"):
         results += b.run_frame_benchmarks(
-            per_condition=per_condition, sequence_frames=per_condition, repeats=repeats
+            per_condition=per_condition, sequence_frames=per_condition, repeats=repeats,
+            conditions=conditions,
         )[0]
     if only in (None, "recording"):
         results += b.run_recording_benchmarks(samples)
@@ -92,6 +121,27 @@ def bench(
         results += run_label_benchmarks(repeats=repeats)
     if only in (None, "watch"):
         results += b.run_watch_benchmarks(samples)
+    _echo(results, markdown, overwrite)
+
+
+def _conditions(text: str | None) -> tuple[str, ...]:
+    """The capture conditions of ``--conditions``, checked against the renderer's."""
+    from ..sim.condition_names import CONDITION_NAMES
+
+    if not text:
+        return ()
+    names = tuple(n.strip() for n in text.split(",") if n.strip() and n.strip() != "clean")
+    unknown = [n for n in names if n not in CONDITION_NAMES]
+    if unknown:
+        raise click.BadParameter(
+            f"unknown condition {unknown[0]!r} (known: {', '.join(CONDITION_NAMES)})",
+            param_hint="--conditions",
+        )
+    return names
+
+
+def _echo(results: list, markdown: str | None, overwrite: bool) -> None:
+    """Print the figures (and write them as Markdown); exit 1 when a budget is missed."""
     rows = []
     for r in results:
         value = _format_figure(r.value, r.unit)

@@ -52,6 +52,11 @@ INSTALL_HINT = "pip install 'dgli_vision[realsense]'"
 #: Colour formats read from a RealSense colour stream, and the channel order of each.
 _COLOUR_FORMATS = {"rgb8": (0, 1, 2), "bgr8": (2, 1, 0), "rgba8": (0, 1, 2), "bgra8": (2, 1, 0)}
 
+#: OpenCV's conversion of each colour format to RGB (None: a copy).
+_COLOUR_CODES = {
+    "rgb8": None, "bgr8": "COLOR_BGR2RGB", "rgba8": "COLOR_RGBA2RGB", "bgra8": "COLOR_BGRA2RGB"
+}
+
 #: A frame's wait before the playback is asked whether it has ended, seconds.
 _POLL_S = 0.05
 
@@ -170,7 +175,10 @@ def colour_intrinsics(rs: Any, profile: Any) -> tuple[Intrinsics, str | None]:
 
 
 def _colour_array(rs: Any, frame: Any) -> NDArray[np.uint8]:
-    """RGB uint8 (H, W, 3) of a colour frame, a copy owned by numpy."""
+    """RGB uint8 (H, W, 3) of a colour frame, a copy owned by numpy (one pass: a copy
+    of RGB, OpenCV's channel swap or drop for the others)."""
+    import cv2
+
     fmt = str(frame.get_profile().format()).rsplit(".", 1)[-1]
     order = _COLOUR_FORMATS.get(fmt)
     if order is None:
@@ -179,16 +187,36 @@ def _colour_array(rs: Any, frame: Any) -> NDArray[np.uint8]:
             f"{', '.join(_COLOUR_FORMATS)})"
         )
     pixels = np.asanyarray(frame.get_data())
-    return np.ascontiguousarray(pixels[:, :, list(order)])
+    code = _COLOUR_CODES[fmt]
+    if code is None:
+        return np.array(pixels, dtype=np.uint8, order="C")
+    return cv2.cvtColor(np.ascontiguousarray(pixels), getattr(cv2, code))
+
+
+#: Metres per unit -> the table from every Z16 value to mm (see :func:`_depth_mm`).
+_DEPTH_TABLES: dict[float, NDArray[np.uint16]] = {}
+
+
+def _depth_table(scale_m: float) -> NDArray[np.uint16]:
+    """Every Z16 value's depth in mm, rounded as :func:`_depth_mm` rounds (float32
+    product, to the nearest even on ties, clipped to uint16)."""
+    table = _DEPTH_TABLES.get(scale_m)
+    if table is None:
+        raw = np.arange(65536, dtype=np.float32)
+        mm = np.rint(raw * np.float32(scale_m * 1000.0))
+        table = np.clip(mm, 0, 65535).astype(np.uint16)
+        _DEPTH_TABLES[scale_m] = table
+    return table
 
 
 def _depth_mm(frame: Any, scale_m: float) -> NDArray[np.uint16]:
-    """Depth in mm, uint16, of a Z16 frame whose unit is ``scale_m`` metres."""
+    """Depth in mm, uint16, of a Z16 frame whose unit is ``scale_m`` metres (each value
+    ``rint(value * float32(scale_m * 1000))`` clipped to uint16, looked up in a table
+    made once per unit)."""
     raw = np.asanyarray(frame.get_data())
     if abs(scale_m - 0.001) < 1e-9:
         return np.array(raw, dtype=np.uint16)
-    mm = np.rint(raw.astype(np.float32) * np.float32(scale_m * 1000.0))
-    return np.clip(mm, 0, 65535).astype(np.uint16)
+    return np.take(_depth_table(scale_m), raw)
 
 
 class _Aligner:

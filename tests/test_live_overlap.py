@@ -1,0 +1,90 @@
+"""The live path's decoding (issue 40): played as fast as classified, each frame is
+decoded by the capture thread while the worker classifies the one before; a RealSense
+frame's depth in another unit is converted by a table exactly as by the formula."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+
+class _Pair:
+    """A frame whose ``load`` notes the thread that decoded it and when."""
+
+    def __init__(self, k: int, frame: object, log: list) -> None:
+        self.time, self.frame, self.log, self.k = k / 30, frame, log, k
+
+    def load(self) -> object:
+        self.log.append(("load", self.k, threading.current_thread().name, time.perf_counter()))
+        time.sleep(0.05)  # decoding takes a while
+        return self.frame
+
+
+def test_fast_decodes_the_next_frame_while_one_is_classified(monkeypatch) -> None:
+    from dgli_vision.analysis import live
+
+    log: list = []
+
+    def classify(pair, references, colours=None):
+        frame = pair.load()
+        log.append(("start", frame, threading.current_thread().name, time.perf_counter()))
+        time.sleep(0.05)
+        log.append(("end", frame, threading.current_thread().name, time.perf_counter()))
+        return frame, None, None, None, (), "test"
+
+    monkeypatch.setattr(live, "classify_live", classify)
+    monkeypatch.setattr(live, "OnlineSmoother", _Smoother)
+    summary = live.watch([_Pair(k, k, log) for k in range(4)], None, realtime=False)
+    assert summary.classified == 4 and summary.dropped == 0
+    loads = [e for e in log if e[0] == "load"]
+    assert {e[2] for e in loads} == {"dgli-capture"}  # decoded by the capture thread
+    # frame 1's decoding began before frame 0's classifying ended
+    end0 = next(e[3] for e in log if e[0] == "end" and e[1] == 0)
+    load1 = next(e[3] for e in loads if e[1] == 1)
+    assert load1 < end0
+
+
+class _Smoother:
+    def __init__(self, *a, **k) -> None:
+        pass
+
+    def update(self, distances):
+        return ("01", None)
+
+    def path(self):
+        return []
+
+
+@pytest.mark.parametrize("scale_m", [1e-4, 9.999999747378752e-05, 2.5e-4, 5e-4, 2e-3])
+def test_a_depth_unit_table_gives_the_formula_s_depths(scale_m) -> None:
+    from dgli_vision.sources.realsense import _depth_table
+
+    raw = np.arange(65536, dtype=np.uint16)
+    want = np.clip(np.rint(raw.astype(np.float32) * np.float32(scale_m * 1000.0)), 0, 65535)
+    assert np.array_equal(_depth_table(scale_m), want.astype(np.uint16))
+
+
+@pytest.mark.parametrize("fmt", ["rgb8", "bgr8", "rgba8", "bgra8"])
+def test_colour_frames_of_every_format_read_as_rgb(fmt) -> None:
+    from dgli_vision.sources.realsense import _COLOUR_FORMATS, _colour_array
+
+    rng = np.random.default_rng(1)
+    n = 4 if fmt.endswith("a8") else 3
+    pixels = rng.integers(0, 256, (5, 7, n), dtype=np.uint8)
+
+    class Frame:
+        def get_profile(self):
+            return self
+
+        def format(self):
+            return f"format.{fmt}"
+
+        def get_data(self):
+            return pixels
+
+    got = _colour_array(None, Frame())
+    assert got.flags["C_CONTIGUOUS"] and got.dtype == np.uint8
+    assert np.array_equal(got, pixels[:, :, list(_COLOUR_FORMATS[fmt])])
