@@ -17,7 +17,7 @@ from numpy.typing import NDArray
 from ..core.classes import CLASS_NAMES
 from ..core.distance import average_ranks
 from ..core.io import csv_table
-from .evaluate import EvaluationResult, coordinate_matrix
+from .evaluate import SPLIT_COLUMNS, EvaluationResult, coordinate_matrix, counts_text
 from .html_report import evaluation_html
 from .report import confusion_image, heatmap_image, markdown_table, overlay_image
 
@@ -170,8 +170,8 @@ def _tables(result: EvaluationResult) -> _Tables:
         for c, v in result.per_class.items()
     ]
     return _Tables(
-        cols=[*labels, "none"],
-        confusion_rows=[[lab, *row] for lab, row in zip(labels, result.confusion)],
+        cols=[*labels, *SPLIT_COLUMNS],
+        confusion_rows=[[lab, *row] for lab, row in zip(labels, result.confusion_split())],
         per_class_header=["class", "name", "precision", "recall", "f1", "support"],
         per_class_rows=pc_rows,
     )
@@ -271,8 +271,7 @@ def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _T
     return [
         "# dgli evaluate report",
         "",
-        f"- pairs: **{result.n}**, classified: **{result.classified}**, "
-        f"failures: **{len(result.failures)}**",
+        f"- pairs: **{result.n}**: {counts_text(result.outcome_counts)}",
         f"- answers: {result.outcomes_text()}",
         f"- class accuracy: **{result.accuracy:.2%}**; "
         f"variant accuracy: **{result.variant_accuracy_text()}**",
@@ -286,7 +285,7 @@ def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _T
         "",
         markdown_table(
             ["true \\ predicted", *tables.cols],
-            [[_name(lab), *row] for lab, row in zip(result.labels, result.confusion)],
+            [[_name(lab), *row] for lab, row in zip(result.labels, result.confusion_split())],
         ),
         "![confusion matrix](confusion.png)",
         "",

@@ -228,12 +228,10 @@ class _EvaluationRun:
         if self.as_json:
             click.echo(json.dumps(json_ready({**result.to_dict(), "skipped": skipped})))
             return
+        from ..analysis.evaluate import SPLIT_COLUMNS, counts_text
         from ..analysis.report import markdown_table
 
-        click.echo(
-            f"{result.n} pairs, {result.classified} classified, "
-            f"{len(result.failures)} failed or unclassified"
-        )
+        click.echo(f"{result.n} pairs: {counts_text(result.outcome_counts)}")
         click.echo(result.outcomes_text())
         click.echo(
             f"class accuracy {result.accuracy:.2%}, "
@@ -242,13 +240,20 @@ class _EvaluationRun:
         )
         click.echo(
             markdown_table(
-                ["true \\ predicted", *result.labels, "none"],
-                [[lab, *row] for lab, row in zip(result.labels, result.confusion)],
+                ["true \\ predicted", *result.labels, *SPLIT_COLUMNS],
+                [[lab, *row] for lab, row in zip(result.labels, result.confusion_split())],
             ),
             nl=False,
         )
-        for f in result.failures:
-            click.echo(f"failed: {f['color']}: {f['error']}")
+        for o in result.outcomes:
+            if o.error is not None:
+                click.echo(f"unreadable: {o.pair.color}: {o.error}")
+            elif o.predicted is None:
+                click.echo(f"cannot tell: {o.pair.color}: {o.reason or ''}")
+            elif not o.correct:
+                click.echo(
+                    f"wrong: {o.pair.color}: labelled {o.pair.label}, answered {o.predicted}"
+                )
 
     def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
         from pathlib import Path
