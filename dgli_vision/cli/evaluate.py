@@ -249,7 +249,8 @@ class _EvaluationRun:
             if o.error is not None:
                 click.echo(f"unreadable: {o.pair.color}: {o.error}")
             elif o.predicted is None:
-                click.echo(f"cannot tell: {o.pair.color}: {o.reason or ''}")
+                why = (o.reason or "no reason given").removeprefix("cannot tell: ")
+                click.echo(f"cannot tell: {o.pair.color}: {why}")
             elif not o.correct:
                 click.echo(
                     f"wrong: {o.pair.color}: labelled {o.pair.label}, answered {o.predicted}"
