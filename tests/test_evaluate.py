@@ -278,8 +278,15 @@ def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
     parser = Page()
     parser.feed(page)
     assert parser.open == []  # every element closed, in order
-    assert "confusion.png" in parser.images and len(parser.images) == 3
+    # the charts are Matplotlib's SVG, each linking to the same chart as PNG
+    assert parser.images == ["confusion.svg", "risk_coverage.svg",
+                             "overlays/01_000_overlay.png", "distances.svg"]
     assert all((report / src).is_file() for src in parser.images)
+    for chart in ("confusion", "risk_coverage", "distances"):
+        assert f'<a href="{chart}.png">' in page and (report / f"{chart}.png").is_file()
+        svg = (report / f"{chart}.svg").read_text()
+        assert "matplotlib" in svg.lower() and 'id="xtick_1"' in svg  # axes with ticks
+    assert ">predicted class<" in (report / "confusion.svg").read_text()
     assert "right 1, cannot tell 1, wrong 0, unreadable 0" in page
 
 
