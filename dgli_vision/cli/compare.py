@@ -154,9 +154,10 @@ def _write_compare_report(
 ) -> None:
     """The table (JSON, Markdown with the column notes, CSV), report.html and a heatmap
     of the database's distances under each representation into the folder ``out``."""
+    from ..analysis.charts import chart_files, heatmap_figure
     from ..analysis.compare import COMPARE_COLUMN_NOTES
-    from ..analysis.html_report import html_image, html_list, html_page, html_table
-    from ..analysis.report import heatmap_image, markdown_table
+    from ..analysis.html_report import html_chart, html_list, html_page, html_table
+    from ..analysis.report import markdown_table
     from ..core.io import csv_table, write_outputs
 
     notes = "\n".join(f"- **{k}**: {v}" for k, v in COMPARE_COLUMN_NOTES.items())
@@ -175,7 +176,7 @@ def _write_compare_report(
             html_list([f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()]),
             "<h2>Distances between the database's states, by class</h2>",
             *[
-                f"<h3>{name}</h3>" + html_image(f"distances_{name}.png", f"{name} distances",
+                f"<h3>{name}</h3>" + html_chart(f"distances_{name}", f"{name} distances",
                                                 _DISTANCE_CAPTIONS.get(name, ""))
                 for name in table["rows"]
             ],
@@ -198,12 +199,13 @@ def _write_compare_report(
         out / "report.html": page,
     }
     for name, mat in matrices.items():
-        files[out / f"distances_{name}.png"] = heatmap_image(
+        fig = heatmap_figure(
             mat,
             title=f"{name}: distances, states by class",
             groups=records.classes,
             value_label="distance",
         )
+        files.update({out / f: c for f, c in chart_files(f"distances_{name}", fig).items()})
     write_outputs(files, overwrite=overwrite, command=command)
     click.echo(f"report written to {out / 'report.html'}", err=True)
 
