@@ -255,7 +255,9 @@ def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
     samples = [render_sample("02", 0, 9090), render_sample("01", 0, 9090, conditions=("gripper",))]
     labels = write_labelled_folder(tmp_path / "set", samples, {"command": "test"})
     report = tmp_path / "report"
-    assert run([str(labels.parent), "-j", "1", "--report", str(report)]).exit_code == 0
+    res = run([str(labels.parent), "-j", "1", "--report", str(report)])
+    assert res.exit_code == 0
+    assert f"report written to {report / 'report.html'}" in res.stderr  # the page named
     page = (report / "report.html").read_text()
 
     class Page(HTMLParser):

@@ -288,4 +288,4 @@ class _EvaluationRun:
             command=meta["command"],
         )
         record_outputs([out / "results.jsonl"], meta["command"])
-        click.echo(f"report written to {out / 'report.md'}", err=True)
+        click.echo(f"report written to {out / 'report.html'} (and report.md)", err=True)
