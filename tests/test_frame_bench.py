@@ -57,3 +57,47 @@ def test_the_decode_included_bench_reads_back_the_frames_it_times(tmp_path) -> N
     back = read_frame(tmp_path / "0000_color.png", tmp_path / "0000_depth.png", r.intrinsics)
     assert np.array_equal(back.color, frame.color)
     assert np.array_equal(back.depth_mm, frame.depth_mm)
+
+
+def test_bench_frames_with_one_frame_per_condition_runs(monkeypatch) -> None:
+    """``dgli bench --only frames --per-condition 1 --repeats 1``: the folding sequence
+    gets its two frames (it used to end in a traceback), each row one figure."""
+    import itertools
+    import re
+
+    from click.testing import CliRunner
+
+    from dgli_vision.analysis import frame_bench
+    from dgli_vision.cli import main
+
+    real = frame_bench.bench_set
+
+    def fewer(seed, *, per_condition, sequence_frames):  # one condition, the whole sequence
+        return itertools.chain(
+            itertools.islice(real(seed, per_condition=per_condition, sequence_frames=0), 1),
+            real(seed, per_condition=0, sequence_frames=sequence_frames),
+        )
+
+    monkeypatch.setattr(frame_bench, "bench_set", fewer)
+    res = CliRunner().invoke(main, ["bench", "--only", "frames", "--per-condition", "1",
+                                    "--repeats", "1"])
+    assert res.exit_code in (0, 1), res.output  # 1: a budget missed on a busy machine
+    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+    assert "every frame (3, in memory" in res.output  # 1 clean + the sequence's 2
+    row = next(line for line in res.output.splitlines() if line.startswith("  clean:"))
+    assert re.match(r"  clean: median \(p90 [\d.]+ ms, slowest [\d.]+ ms\)\s+[\d.]+ ms", row)
+
+
+def test_a_missed_budget_comes_with_the_machines_load(monkeypatch) -> None:
+    from click.testing import CliRunner
+
+    from dgli_vision.analysis import bench
+    from dgli_vision.cli import main
+
+    missed = bench.BenchResult("every frame: median", 80.0, "ms", "<= 8 ms", False)
+    monkeypatch.setattr(bench, "run_frame_benchmarks", lambda **kw: ([missed], None))
+    res = CliRunner().invoke(main, ["bench", "--only", "frames"])
+    assert res.exit_code == 1
+    assert "MISSED" in res.stdout
+    assert "1 budget(s) missed (exit 1); load average" in res.stderr
+    assert "time them again on an idle machine" in res.stderr

@@ -100,8 +100,26 @@ def bench(
         click.echo(f"{r.name:<60} {value:>18}  {r.goal:<16} {verdict}")
     if markdown:
         _write_markdown(rows, markdown, overwrite)
-    if any(r.ok is False for r in results):
+    missed = sum(r.ok is False for r in results)
+    if missed:
+        click.echo(_busy_note(missed), err=True)
         sys.exit(1)  # a budget missed: the figures are printed (and written) all the same
+
+
+def _busy_note(missed: int) -> str:
+    """What a missed budget may mean: the machine's load beside its cores."""
+    import os
+
+    cores = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        return f"note: {missed} budget(s) missed (exit 1); time them again on an idle machine"
+    busy = " (a busy machine: the times are not this tool's own)" if load > 0.5 * cores else ""
+    return (
+        f"note: {missed} budget(s) missed (exit 1); load average {load:.1f} on {cores} "
+        f"core(s){busy}; time them again on an idle machine"
+    )
 
 
 def _write_markdown(rows: list[tuple[str, str, str, str]], markdown: str, overwrite: bool) -> None:
