@@ -73,7 +73,10 @@ def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> 
 @click.command("plan")
 @click.argument("color", type=click.Path(), required=False)
 @click.argument("depth", type=click.Path(), required=False)
-@click.option("--goal", callback=_state, help="The goal state: 08, 02/A, 05/AB/B.")
+@click.option(
+    "--goal", callback=_state,
+    help="The goal state: 08, 02/A, 05/AB/B (a class also as 8 or four-corners-centre).",
+)
 @click.option(
     "--from", "start", callback=_state, help="Plan from this state, without an image."
 )
