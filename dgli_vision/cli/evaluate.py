@@ -14,10 +14,10 @@ from .options import (
     colours_option,
     jobs_option,
     json_option,
-    overwrite_option,
     recording_options,
     references_option,
     report_option,
+    run_overwrite_option,
 )
 from .output import command_line, package_version
 from .runs import (
@@ -53,7 +53,7 @@ from .runs import (
     "results.jsonl and classify the rest (refused when the run differs: references, "
     "labels, colours, intrinsics, options).",
 )
-@overwrite_option
+@run_overwrite_option
 @handle_errors
 def evaluate(
     folder: str,
