@@ -27,6 +27,7 @@ from .robustness import robustness
 from .simulate import simulate
 from .track import track
 from .watch import watch
+from .write_recording import write_recording_cmd
 
 
 class _Group(click.Group):
@@ -60,6 +61,7 @@ for _command in (
     label_cmd,
     watch,
     plan_cmd,
+    write_recording_cmd,
 ):
     main.add_command(_command)
 
