@@ -72,25 +72,36 @@ def bench(
     if markdown:
         guard_outputs([markdown], overwrite=overwrite)
     results = []
+
+    def stage(what: str) -> None:  # a word before each long group (a minute or more)
+        click.echo(f"bench: {what} ...", err=True)
+
     if only in (None, "dgli"):
+        stage(f"dgli coordinates, {states:,} states, best of {repeats}")
         results += b.run_dgli_benchmarks(n_states=states, repeats=repeats)
     if only in (None, "pipeline", "recording", "watch"):
         samples = _samples_folder(samples)
     if only in (None, "pipeline"):
         exe = Path(sys.executable).parent / "dgli-classify"
         exe_path = str(exe) if exe.exists() else shutil.which("dgli-classify")
+        stage(f"pipeline on '{samples}', best of {repeats} (about a minute)")
         results += b.run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
     if only in (None, "frames"):
+        stage(f"frames: rendering {per_condition} a condition and timing each, best of "
+              f"{repeats} (a minute or more)")
         results += b.run_frame_benchmarks(
             per_condition=per_condition, sequence_frames=per_condition, repeats=repeats
         )[0]
     if only in (None, "recording"):
+        stage("recording")
         results += b.run_recording_benchmarks(samples)
     if only in (None, "label"):
         from ..labelling.bench import run_label_benchmarks
 
+        stage("label")
         results += run_label_benchmarks(repeats=repeats)
     if only in (None, "watch"):
+        stage("watch")
         results += b.run_watch_benchmarks(samples)
     rows = []
     for r in results:

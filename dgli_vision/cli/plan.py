@@ -16,7 +16,7 @@ from .options import (
     overwrite_option,
     references_option,
 )
-from .output import command_line
+from .output import command_line, progress_bar
 
 
 def _state(ctx: click.Context, param: click.Parameter, value: str | None):
@@ -49,9 +49,12 @@ def _plan_line(plan) -> str:
 
 
 def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> None:
-    from ..planning.check import check_pairs, check_table
+    from ..planning.check import check_count, check_pairs, check_table
 
-    rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit))
+    count = check_count(per_pair=per_pair, limit=limit)
+    with progress_bar(count, f"{count} trials", quiet=as_json) as bar:
+        rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit,
+                                on_row=lambda _row: bar.update(1)))
     table = check_table(rows)
     if as_json:
         click.echo(json.dumps(table))

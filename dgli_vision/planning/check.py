@@ -32,7 +32,10 @@ from ..sources.frames import RGBDFrame
 from .api import plan_frame
 from .plan import PlanRefused, PlanStep, shortest_path
 
-__all__ = ["OUTCOMES", "CheckRow", "check_pairs", "check_table", "goals_within", "run_pair"]
+__all__ = [
+    "OUTCOMES", "CheckRow", "check_count", "check_pairs", "check_table", "goals_within",
+    "run_pair",
+]
 
 #: What can happen to one (start, goal) pair.
 OUTCOMES = ("right", "cannot tell", "refused", "wrong")
@@ -179,6 +182,23 @@ def run_pair(
                         verdict.reason or "")
     outcome = "right" if got == step.expect and seen == start else "wrong"
     return CheckRow(start, goal, n, seen, step.expect, got, outcome)
+
+
+def check_count(
+    *,
+    per_pair: int = 1,
+    max_steps: int = 3,
+    starts: list[StateKey] | None = None,
+    limit: int | None = None,
+) -> int:
+    """How many trials :func:`check_pairs` runs with the same arguments (for a progress
+    bar)."""
+    count = kept = 0
+    for start in starts or list(state_keys()):
+        for _goal, _ in goals_within(start, max_steps):
+            count += 1
+            kept += limit is None or count % limit == 0
+    return kept * per_pair
 
 
 def check_pairs(
