@@ -164,7 +164,7 @@ def test_a_missing_picture_is_found(browser, pages, tmp_path):
     assert any("confusion.svg" in e for e in check.errors)
 
 
-@pytest.mark.parametrize("kind", ["evaluate", "track", "compare"])
+@pytest.mark.parametrize("kind", ["evaluate", "track", "robustness", "compare"])
 def test_the_charts_have_axes_and_ticks(pages, kind):
     charts = sorted(pages[kind].parent.glob("*.svg"))
     assert charts

@@ -45,7 +45,10 @@ def test_the_report_shows_each_conditions_wrong_and_cannot_tell_pairs(tmp_path, 
     assert json.loads((report / "robustness.json").read_text())["rows"] == data["rows"]
     images, text = check_page(report / "report.html")
     # per condition: 1 wrong and at most 12 "cannot tell" drawn (9 here), overlays written
-    assert len(images) == 2 * (1 + 9)
+    assert images[0] == "outcomes.svg"  # the chart of the answers by condition
+    assert len(images) == 1 + 2 * (1 + 9)
+    svg = (report / "outcomes.svg").read_text()
+    assert "sheen" in svg and "mirror" in svg and 'id="legend_1"' in svg
     assert "overlays/sheen/03_000.png" in images and "overlays/mirror/12_000.png" in images
     assert "too few stickers in 07" in text and "Wrong (1)" in text
     assert "cannot tell: cannot tell" not in text

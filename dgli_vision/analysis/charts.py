@@ -22,6 +22,7 @@ __all__ = [
     "figure_bgr",
     "figure_svg",
     "heatmap_figure",
+    "outcomes_figure",
     "risk_coverage_figure",
     "timeline_figure",
 ]
@@ -297,4 +298,34 @@ def risk_coverage_figure(points: Sequence[tuple[float, float, float]]) -> Any:
         ax.set_ylabel("share of the answers that are right")
         ax.set_title("Risk and coverage")
         ax.grid(color="#e6e6e6")
+    return fig
+
+
+def outcomes_figure(rows: Sequence[tuple[str, int, int, int]]) -> Any:
+    """Right, "cannot tell" and wrong under each condition, as stacked horizontal bars of
+    shares of its pairs.
+
+    Parameters
+    ----------
+    rows : sequence of (condition, right, cannot_tell, wrong)
+    """
+    names = [r[0] for r in rows]
+    counts = np.array([r[1:] for r in rows], dtype=float).reshape(len(rows), 3)
+    totals = counts.sum(axis=1, keepdims=True)
+    shares = np.divide(counts, totals, out=np.zeros_like(counts), where=totals > 0)
+    with _style():
+        fig = _figure(8.0, 1.6 + 0.32 * max(len(rows), 1))
+        ax = fig.subplots()
+        left = np.zeros(len(rows))
+        for k, (label, colour) in enumerate((("right", "#2e8b57"),
+                                              ("cannot tell", "#f0ad4e"),
+                                              ("wrong", "#c0392b"))):
+            ax.barh(range(len(rows)), shares[:, k], left=left, color=colour, label=label)
+            left += shares[:, k]
+        ax.set_yticks(range(len(rows)), names)
+        ax.set_ylim(len(rows) - 0.5, -0.5)
+        ax.set_xlim(0, 1)
+        ax.set_xlabel("share of the condition's pairs")
+        ax.set_title("Answers under each condition")
+        fig.legend(loc="outside lower center", ncol=3, frameon=False)
     return fig
