@@ -6,13 +6,32 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# Open3D's wheel links against libusb-1.0 (Azure Kinect support).
-if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1\.0\.so'; then
+SUDO=""
+[ "$(id -u)" -ne 0 ] && SUDO="sudo"
+apt_updated=""
+apt_install() {
+    # apt_install PACKAGE...: quietly, with one `apt-get update` per run at most
+    if [ -z "$apt_updated" ]; then
+        $SUDO apt-get update -qq
+        apt_updated=1
+    fi
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "$@" \
+        >/dev/null
+}
+
+# Open3D's wheel links against libusb-1.0 (Azure Kinect support). The cache is read whole
+# before grep: `ldconfig -p | grep -q` under pipefail fails when grep stops at the first
+# match and ldconfig dies of SIGPIPE, and apt-get would run again for nothing.
+libs=$(ldconfig -p 2>/dev/null || true)
+if ! grep -q 'libusb-1\.0\.so' <<<"$libs"; then
     echo "setup: installing libusb-1.0-0 (needed by Open3D)" >&2
-    SUDO=""
-    [ "$(id -u)" -ne 0 ] && SUDO="sudo"
-    $SUDO apt-get update -qq
-    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq libusb-1.0-0 >/dev/null
+    apt_install libusb-1.0-0
+fi
+
+# Headless Chromium: tests/test_html_pages.py opens every HTML report in it.
+if ! command -v chromium >/dev/null 2>&1; then
+    echo "setup: installing chromium (the HTML report tests open pages in it)" >&2
+    apt_install chromium || echo "setup: chromium not installed; the browser tests skip" >&2
 fi
 
 PY="${PYTHON:-python3}"
@@ -21,7 +40,7 @@ if [ ! -x .venv/bin/python ]; then
         # Debian's own python3 ships venv separately.
         rm -rf .venv
         echo "setup: installing python3-venv" >&2
-        apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-venv >/dev/null
+        apt_install python3-venv
         "$PY" -m venv .venv
     fi
 fi
@@ -30,7 +49,11 @@ stamp=.venv/.dgli-setup-stamp
 want=$(cat pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
-    .venv/bin/python -m pip install -q --disable-pip-version-check -e '.[test,recordings,dask,realsense]'
+    # setuptools warns "Editable installation" (a dozen lines) on every editable install;
+    # only that warning is silenced, errors still show
+    PYTHONWARNINGS="ignore:Editable installation" \
+        .venv/bin/python -m pip install -q --disable-pip-version-check \
+        -e '.[test,recordings,dask,realsense]'
     echo "$want" > "$stamp"
 fi
 

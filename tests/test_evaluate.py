@@ -72,9 +72,12 @@ def test_hand_computable_case(small_folder, tmp_path):
     }
     assert data["per_class"]["03"]["recall"] == 0.5
     assert data["per_class"]["05"] == {"precision": 0.0, "recall": 0.0, "f1": 0.0, "support": 0}
-    assert len(data["failures"]) == 1
-    failure = data["failures"][0]
+    # failures: the wrong answer and the pair not read; no pair answered "cannot tell"
+    wrong, failure = data["failures"]
+    assert wrong["color"].endswith("05_000_color.png")
+    assert wrong["error"] == "wrong: labelled 02, answered 05"
     assert failure["color"].endswith("bad_color.png") and "not an image" in failure["error"]
+    assert data["cannot_tell"] == []
     # The report.
     for name in (
         "report.md",
@@ -90,7 +93,12 @@ def test_hand_computable_case(small_folder, tmp_path):
     assert summary["references_sha256"] and summary["command"].startswith("dgli evaluate")
     assert summary["accuracy"] == data["accuracy"]
     md = (report / "report.md").read_text()
-    assert "| 02 corner-over | 0 | 1 | 0 | 1 | 0 |" in md
+    assert "| 02 corner-over | 0 | 1 | 0 | 1 | 0 | 0 |" in md
+    assert "| 03 corner-under | 0 | 0 | 1 | 0 | 0 | 1 |" in md  # not read, not "cannot tell"
+    assert "- pairs: **5**: 3 right, 0 cannot tell, 1 wrong, 1 unreadable" in md
+    assert "failures" not in md
+    confusion = (report / "confusion.csv").read_text().splitlines()
+    assert confusion[0].endswith(",cannot tell,not read")
     assert "bad_color.png" in md and "not an image" in md
     per_class = list(csv.DictReader((report / "per_class.csv").read_text().splitlines()))
     assert per_class[1]["class"] == "02" and per_class[1]["recall"] == "0.5"
@@ -107,8 +115,10 @@ def test_jobs_1_and_2_give_identical_results(small_folder):
 def test_plain_output_lists_failures(small_folder):
     result = run([str(small_folder), "-j", "1"])
     assert result.exit_code == 0
-    assert "5 pairs, 4 classified" in result.output
-    assert "failed: " in result.output and "bad_color.png" in result.output
+    assert "5 pairs: 3 right, 0 cannot tell, 1 wrong, 1 unreadable" in result.output
+    assert "failed" not in result.output
+    assert "unreadable: " in result.output and "bad_color.png" in result.output
+    assert "wrong: " in result.output and "labelled 02, answered 05" in result.output
 
 
 def test_class_folders_label_pairs(tmp_path):
@@ -245,7 +255,9 @@ def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
     samples = [render_sample("02", 0, 9090), render_sample("01", 0, 9090, conditions=("gripper",))]
     labels = write_labelled_folder(tmp_path / "set", samples, {"command": "test"})
     report = tmp_path / "report"
-    assert run([str(labels.parent), "-j", "1", "--report", str(report)]).exit_code == 0
+    res = run([str(labels.parent), "-j", "1", "--report", str(report)])
+    assert res.exit_code == 0
+    assert f"report written to {report / 'report.html'}" in res.stderr  # the page named
     page = (report / "report.html").read_text()
 
     class Page(HTMLParser):
@@ -268,8 +280,15 @@ def test_the_html_report_is_one_page_whose_images_all_exist(tmp_path):
     parser = Page()
     parser.feed(page)
     assert parser.open == []  # every element closed, in order
-    assert "confusion.png" in parser.images and len(parser.images) == 3
+    # the charts are Matplotlib's SVG, each linking to the same chart as PNG
+    assert parser.images == ["confusion.svg", "risk_coverage.svg",
+                             "overlays/01_000_overlay.png", "distances.svg"]
     assert all((report / src).is_file() for src in parser.images)
+    for chart in ("confusion", "risk_coverage", "distances"):
+        assert f'<a href="{chart}.png">' in page and (report / f"{chart}.png").is_file()
+        svg = (report / f"{chart}.svg").read_text()
+        assert "matplotlib" in svg.lower() and 'id="xtick_1"' in svg  # axes with ticks
+    assert ">predicted class<" in (report / "confusion.svg").read_text()
     assert "right 1, cannot tell 1, wrong 0, unreadable 0" in page
 
 

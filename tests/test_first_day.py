@@ -110,3 +110,28 @@ def test_the_readme_example_is_what_the_command_prints():
     res = CliRunner().invoke(main, ["classify", str(ROOT / color), str(ROOT / depth)])
     assert res.exit_code == 0
     assert res.output.strip() == shown[1].strip()
+
+
+def test_a_bgr_array_is_named_as_the_likely_cause():
+    """OpenCV reads BGR; classify_pair takes RGB: when the swapped array reads, say so."""
+    from dgli_vision.core.errors import DetectionError
+
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    bgr = cv2.imread(str(samples / "05_000_color.png"))
+    depth = cv2.imread(str(samples / "05_000_depth.png"), cv2.IMREAD_UNCHANGED)
+    with pytest.raises(DetectionError, match=r"is the colour array BGR.*color\[\.\.\., ::-1\]"):
+        dgli_vision.classify_pair(bgr, depth)
+    assert dgli_vision.classify_pair(bgr[..., ::-1].copy(), depth).class_id == "05"
+
+
+def test_a_pair_of_another_size_without_intrinsics_is_told_where_they_go(tmp_path):
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    for kind in ("color", "depth"):
+        img = cv2.imread(str(samples / f"05_000_{kind}.png"), cv2.IMREAD_UNCHANGED)
+        cv2.imwrite(str(tmp_path / f"s_{kind}.png"),
+                    cv2.resize(img, (640, 360), interpolation=cv2.INTER_NEAREST))
+    res = CliRunner().invoke(main, ["classify", str(tmp_path / "s_color.png"),
+                                    str(tmp_path / "s_depth.png")])
+    assert res.exit_code == 2
+    assert "put the camera's intrinsics.json beside 's_color.png' or give --intrinsics" in (
+        res.output)

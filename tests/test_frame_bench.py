@@ -115,3 +115,67 @@ def test_bench_vs_aruco_on_a_tiny_set_prints_the_ratio_rows() -> None:
     assert (run.exit_code == 1) == ("MISSED" in run.output)
     bad = CliRunner().invoke(cli, ["bench", "--vs-aruco", "--conditions", "nope"])
     assert bad.exit_code == 2 and "nope" in bad.output
+
+
+def test_bench_frames_with_one_frame_per_condition_runs(monkeypatch) -> None:
+    """``dgli bench --only frames --per-condition 1 --repeats 1``: the folding sequence
+    is asked for two frames (one ended in a traceback), each row one figure. One frame
+    is rendered; the sequence's rendering and all timing are stand-ins."""
+    import itertools
+    import re
+
+    import numpy as np
+    from click.testing import CliRunner
+
+    from dgli_vision.analysis import frame_bench
+    from dgli_vision.cli import main
+    from dgli_vision.sim import dataset
+
+    real = frame_bench.bench_set
+
+    def fewer(seed, *, per_condition, sequence_frames):  # one condition, the whole sequence
+        return itertools.chain(
+            itertools.islice(real(seed, per_condition=per_condition, sequence_frames=0), 1),
+            real(seed, per_condition=0, sequence_frames=sequence_frames),
+        )
+
+    def sequence(name, n_frames, seed, conditions):  # the real one's rule, no rendering
+        if n_frames < 2:
+            raise ValueError(f"a sequence needs at least 2 frames, got {n_frames}")
+        asked.append(n_frames)
+        return []
+
+    asked: list[int] = []
+    monkeypatch.setattr(dataset, "render_sequence", sequence)
+
+    def times(frames, refs, *, repeats):  # the frames rendered, their timing made up
+        return frame_bench.FrameBench(tuple(
+            frame_bench.FrameTime(c, name, 10.0, {"search": 4.0}) for c, name, _ in frames))
+
+    monkeypatch.setattr(frame_bench, "bench_set", fewer)
+    monkeypatch.setattr(frame_bench, "bench_frames", times)
+    monkeypatch.setattr(frame_bench, "bench_files",
+                        lambda frames, refs, tmp, repeats: np.full(len(frames), 20.0))
+    res = CliRunner().invoke(main, ["bench", "--only", "frames", "--per-condition", "1",
+                                    "--repeats", "1"])
+    assert res.exit_code in (0, 1), res.output  # 1: a budget missed on a busy machine
+    assert res.exception is None or isinstance(res.exception, SystemExit), res.exception
+    assert asked == [2]  # the sequence asked for its two frames
+    assert "every frame (1, in memory" in res.output
+    row = next(line for line in res.output.splitlines() if line.startswith("  clean:"))
+    assert re.match(r"  clean: median \(p90 [\d.]+ ms, slowest [\d.]+ ms\)\s+[\d.]+ ms", row)
+
+
+def test_a_missed_budget_comes_with_the_machines_load(monkeypatch) -> None:
+    from click.testing import CliRunner
+
+    from dgli_vision.analysis import bench
+    from dgli_vision.cli import main
+
+    missed = bench.BenchResult("every frame: median", 80.0, "ms", "<= 8 ms", False)
+    monkeypatch.setattr(bench, "run_frame_benchmarks", lambda **kw: ([missed], None))
+    res = CliRunner().invoke(main, ["bench", "--only", "frames"])
+    assert res.exit_code == 1
+    assert "MISSED" in res.stdout
+    assert "1 budget(s) missed (exit 1); load average" in res.stderr
+    assert "time them again on an idle machine" in res.stderr

@@ -132,7 +132,7 @@ def _labelled(tmp_path: Path, rows: list[str]) -> Path:
 @pytest.mark.parametrize(
     ("row", "message"),
     [
-        ("02_000_color.png,02_000_depth.png,13,", "line 3: class '13' is not one of 01-12"),
+        ("02_000_color.png,02_000_depth.png,13,", "line 3: class '13' is not a class: 01-12"),
         ("02_000_color.png,02_000_depth.png,02,AB", "line 3: variant 'AB' is not one of"),
         ("01_000_color.png,01_000_depth.png,01,", "line 3: the same pair as"),
     ],

@@ -45,7 +45,10 @@ def test_the_report_shows_each_conditions_wrong_and_cannot_tell_pairs(tmp_path, 
     assert json.loads((report / "robustness.json").read_text())["rows"] == data["rows"]
     images, text = check_page(report / "report.html")
     # per condition: 1 wrong and at most 12 "cannot tell" drawn (9 here), overlays written
-    assert len(images) == 2 * (1 + 9)
+    assert images[0] == "outcomes.svg"  # the chart of the answers by condition
+    assert len(images) == 1 + 2 * (1 + 9)
+    svg = (report / "outcomes.svg").read_text()
+    assert "sheen" in svg and "mirror" in svg and 'id="legend_1"' in svg
     assert "overlays/sheen/03_000.png" in images and "overlays/mirror/12_000.png" in images
     assert "too few stickers in 07" in text and "Wrong (1)" in text
     assert "cannot tell: cannot tell" not in text
@@ -68,23 +71,21 @@ def test_a_worker_keeps_the_overlay_and_reason_of_a_pair_it_cannot_tell():
 
 
 def test_pictures_show_class_names_whole():
-    """The longest class name fits left of the confusion and timeline pictures' cells."""
-    import cv2
-
-    from dgli_vision.analysis.report import confusion_image, timeline_image
+    """The longest class name is drawn whole, inside the confusion and timeline charts."""
+    from dgli_vision.analysis.charts import confusion_figure, figure_bgr, timeline_figure
     from dgli_vision.core.classes import CLASS_IDS, CLASS_NAMES
 
     name = "05 two-adjacent-corners-crossing"
     assert f"05 {CLASS_NAMES['05']}" == name
-    width = cv2.getTextSize(name, cv2.FONT_HERSHEY_SIMPLEX, 0.42, 1)[0][0]
-    conf = confusion_image(np.eye(12, 13, dtype=int), list(CLASS_IDS), names=CLASS_NAMES)
-    cell = max(28, min(48, 560 // 13))  # the picture's cell size for 12 classes
-    band = conf[70 + 4 * cell : 70 + 5 * cell, : conf.shape[1] // 2]  # row 05 of the counts
-    purple = cv2.applyColorMap(np.zeros((1, 1), np.uint8), cv2.COLORMAP_VIRIDIS)[0, 0]
-    first_cell = int(np.flatnonzero((band == purple).all(axis=2).any(axis=0))[0])
-    left = band[:, :first_cell].astype(int)
-    grey = (np.ptp(left, axis=2) < 12) & (left.max(axis=2) < 160)  # the label's ink
-    ink = np.flatnonzero(grey.any(axis=0))
-    assert ink[-1] >= 6 + width - 4  # the whole name, not its first 30 letters
-    line = timeline_image(CLASS_IDS, ["05"] * 3, ["05"] * 3, names=CLASS_NAMES)
-    assert line.shape[1] > 6 + width + 3 * 4
+    for fig in (
+        confusion_figure(np.eye(12, 13, dtype=int), list(CLASS_IDS), names=CLASS_NAMES),
+        timeline_figure(CLASS_IDS, ["05"] * 3, ["05"] * 3, names=CLASS_NAMES),
+    ):
+        figure_bgr(fig)  # lays the figure out
+        renderer = fig.canvas.get_renderer()
+        width = fig.bbox.width
+        labels = [t for ax in fig.axes for t in ax.get_yticklabels() if t.get_text() == name]
+        assert labels
+        for label in labels:
+            box = label.get_window_extent(renderer)
+            assert 0 <= box.x0 and box.x1 <= width  # not cut at the picture's edge

@@ -184,7 +184,7 @@ def test_track_smooths_a_folding_recording_into_the_true_timeline(half_fold, tmp
     assert sum(counts.values()) == 17 and counts["unreadable"] == 0
     assert data["coverage"] == round((counts["right"] + counts["wrong"]) / 17, 4)
     images, text = check_page(report / "report.html")
-    assert {"timeline.png", "distances.png"} <= set(images)
+    assert {"timeline.svg", "distances.svg"} <= set(images)
     told = [f for f in data["frames"] if f["raw_class"] is None]
     assert len([i for i in images if i.startswith("overlays/")]) == len(told) + counts["wrong"]
     assert f"Cannot tell ({len(told)})" in text and "11 half-fold" in text

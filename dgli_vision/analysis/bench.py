@@ -728,8 +728,9 @@ def run_frame_benchmarks(
     ]
     for condition in bench.conditions():
         c_med, c_p90, c_top = bench.summary(condition)
-        out.append(BenchResult(f"  {condition}: median / p90 / max {c_p90:.1f} / {c_top:.1f}",
-                               c_med, "ms"))
+        out.append(BenchResult(
+            f"  {condition}: median (p90 {c_p90:.1f} ms, slowest {c_top:.1f} ms)", c_med, "ms"
+        ))
     for stage, (s_med, s_p90) in bench.stage_summary().items():
         out.append(BenchResult(f"  stage {stage}: median (p90 {s_p90:.2f} ms)", s_med, "ms"))
     return out, bench

@@ -24,13 +24,16 @@ from ..sources.labelled import LabelledPair
 from .workers import init_worker, worker_references
 
 __all__ = [
+    "SPLIT_COLUMNS",
     "EvaluationResult",
     "PairOutcome",
     "accuracy_answered",
     "adopt_workers",
     "coordinate_matrix",
+    "counts_text",
     "coverage",
     "evaluate_pairs",
+    "failure_text",
     "json_ready",
     "outcome_counts",
     "outcome_fields",
@@ -372,6 +375,7 @@ class EvaluationResult:
     failures: list[dict[str, str]]
     seconds: float
     outcomes: list[PairOutcome] = field(default_factory=list, repr=False)
+    cannot_tell: list[dict[str, str]] = field(default_factory=list)
 
     def variant_accuracy_text(self) -> str:
         """Variant accuracy as a percentage, or ``n/a`` when no variant is known."""
@@ -393,6 +397,16 @@ class EvaluationResult:
         """Class accuracy over the pairs that got a class (None when none did)."""
         return accuracy_answered(self.outcome_counts)
 
+    def confusion_split(self) -> list[list[int]]:
+        """The rows of ``confusion`` with its last column (``"none"``) split in two:
+        answered "cannot tell", and not read (the columns of :data:`SPLIT_COLUMNS`)."""
+        index = {c: k for k, c in enumerate(self.labels)}
+        rows = [[*row[:-1], 0, 0] for row in self.confusion]
+        for o in self.outcomes:
+            if o.predicted is None:
+                rows[index[o.pair.label]][-2 if o.error is None else -1] += 1
+        return rows
+
     def outcomes_text(self) -> str:
         """``"right 40, cannot tell 7, wrong 1, unreadable 0; ..."`` for people."""
         return outcomes_text(self.outcome_counts)
@@ -408,9 +422,14 @@ class EvaluationResult:
             "confusion": self.confusion,
             "per_class": self.per_class,
             "failures": self.failures,
+            "cannot_tell": self.cannot_tell,
             "seconds": self.seconds,
             **outcome_fields(self.outcome_counts),
         }
+
+
+#: The last two columns of :meth:`EvaluationResult.confusion_split`, after the classes.
+SPLIT_COLUMNS = ("cannot tell", "not read")
 
 
 def outcome_counts(outcomes: Iterable[PairOutcome]) -> dict[str, int]:
@@ -450,6 +469,14 @@ def outcome_fields(counts: dict[str, int]) -> dict[str, Any]:
         "coverage": coverage(counts),
         "accuracy_answered": accuracy_answered(counts),
     }
+
+
+def counts_text(counts: dict[str, int]) -> str:
+    """``"40 right, 7 cannot tell, 1 wrong, 0 unreadable"``: the four outcomes apart."""
+    return (
+        f"{counts['right']} right, {counts['cannot_tell']} cannot tell, {counts['wrong']} "
+        f"wrong, {counts.get('unreadable', 0)} unreadable"
+    )
 
 
 def outcomes_text(counts: dict[str, int]) -> str:
@@ -565,17 +592,28 @@ def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResu
         confusion=conf.tolist(),
         per_class=per_class,
         failures=[
-            {
-                "color": o.pair.color,
-                "depth": o.pair.depth,
-                "error": o.error or f"no class: {o.reason}",
-            }
+            {"color": o.pair.color, "depth": o.pair.depth, "error": failure_text(o)}
             for o in outs
-            if o.predicted is None
+            if o.error is not None or (o.predicted is not None and not o.correct)
         ],
         seconds=round(seconds, 3),
         outcomes=outs,
+        cannot_tell=[
+            {"color": o.pair.color, "depth": o.pair.depth, "reason": o.reason or ""}
+            for o in outs
+            if o.error is None and o.predicted is None
+        ],
     )
+
+
+def failure_text(outcome: PairOutcome) -> str:
+    """Why a pair is a failure: its read error, or ``"wrong: labelled 02, answered 05"``
+    for a wrong class (an empty string for a pair that is not a failure)."""
+    if outcome.error is not None:
+        return outcome.error
+    if outcome.predicted is not None and not outcome.correct:
+        return f"wrong: labelled {outcome.pair.label}, answered {outcome.predicted}"
+    return ""
 
 
 def timed_evaluation(

@@ -17,9 +17,10 @@ from numpy.typing import NDArray
 from ..core.classes import CLASS_NAMES
 from ..core.distance import average_ranks
 from ..core.io import csv_table
-from .evaluate import EvaluationResult, coordinate_matrix
-from .html_report import evaluation_html
-from .report import confusion_image, heatmap_image, markdown_table, overlay_image
+from .charts import chart_files, confusion_figure, heatmap_figure, risk_coverage_figure
+from .evaluate import SPLIT_COLUMNS, EvaluationResult, coordinate_matrix, counts_text
+from .html_report import evaluation_html, risk_coverage
+from .report import markdown_table, overlay_image
 
 __all__ = [
     "HEATMAP_MAX",
@@ -40,7 +41,11 @@ REPORT_FILES = (
     "confusion.csv",
     "per_class.csv",
     "confusion.png",
+    "confusion.svg",
     "distances.png",
+    "distances.svg",
+    "risk_coverage.png",
+    "risk_coverage.svg",
 )
 
 #: Most samples a distance heatmap shows. All pairs of n samples cost n^2 in time and
@@ -159,7 +164,7 @@ class _Heatmap:
     """The distance heatmap of the evaluated samples (None for fewer than two) and the
     words that say which samples it shows."""
 
-    image: NDArray[np.uint8] | None
+    files: dict[str, Any] | None
     note: str
 
 
@@ -170,8 +175,8 @@ def _tables(result: EvaluationResult) -> _Tables:
         for c, v in result.per_class.items()
     ]
     return _Tables(
-        cols=[*labels, "none"],
-        confusion_rows=[[lab, *row] for lab, row in zip(labels, result.confusion)],
+        cols=[*labels, *SPLIT_COLUMNS],
+        confusion_rows=[[lab, *row] for lab, row in zip(labels, result.confusion_split())],
         per_class_header=["class", "name", "precision", "recall", "f1", "support"],
         per_class_rows=pc_rows,
     )
@@ -191,14 +196,14 @@ def _distance_heatmap(result: EvaluationResult) -> _Heatmap:
     )
     if len(shown) < 2:
         return _Heatmap(None, note)
-    image = heatmap_image(
+    fig = heatmap_figure(
         sample_distance_matrix(coordinate_matrix([outs[k] for k in shown])),
         title="Spearman distance of dGLI, samples by true class"
         + ("" if len(shown) == len(outs) else f" ({len(shown)} of {len(outs)})"),
         groups=[outs[k].pair.label for k in shown],
         value_label="1 - rho",
     )
-    return _Heatmap(image, note)
+    return _Heatmap(chart_files("distances", fig), note)
 
 
 def _misclassified(result: EvaluationResult) -> list[Any]:
@@ -271,8 +276,7 @@ def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _T
     return [
         "# dgli evaluate report",
         "",
-        f"- pairs: **{result.n}**, classified: **{result.classified}**, "
-        f"failures: **{len(result.failures)}**",
+        f"- pairs: **{result.n}**: {counts_text(result.outcome_counts)}",
         f"- answers: {result.outcomes_text()}",
         f"- class accuracy: **{result.accuracy:.2%}**; "
         f"variant accuracy: **{result.variant_accuracy_text()}**",
@@ -286,7 +290,7 @@ def _markdown_summary(result: EvaluationResult, meta: dict[str, Any], tables: _T
         "",
         markdown_table(
             ["true \\ predicted", *tables.cols],
-            [[_name(lab), *row] for lab, row in zip(result.labels, result.confusion)],
+            [[_name(lab), *row] for lab, row in zip(result.labels, result.confusion_split())],
         ),
         "![confusion matrix](confusion.png)",
         "",
@@ -363,7 +367,7 @@ def _markdown_skipped(meta: dict[str, Any]) -> list[str]:
 
 def _markdown_distances(heatmap: _Heatmap) -> list[str]:
     """The section showing the distance heatmap (none without it)."""
-    if heatmap.image is None:
+    if heatmap.files is None:
         return []
     return [
         "## Distances between evaluated samples",
@@ -402,17 +406,24 @@ def build_report(
     files: dict[str, Any] = {"summary.json": {**result.to_dict(), **meta}}
     files["confusion.csv"] = csv_table(["true \\ predicted", *tables.cols], tables.confusion_rows)
     files["per_class.csv"] = csv_table(tables.per_class_header, tables.per_class_rows)
-    files["confusion.png"] = confusion_image(
+    files.update(chart_files("confusion", confusion_figure(
         np.array(result.confusion), result.labels, names=CLASS_NAMES, title="confusion"
-    )
+    )))
+    curve = risk_coverage(result.outcomes)
+    if curve:
+        files.update(chart_files("risk_coverage", risk_coverage_figure(curve)))
     heatmap = _distance_heatmap(result)
-    if heatmap.image is not None:
-        files["distances.png"] = heatmap.image
+    if heatmap.files is not None:
+        files.update(heatmap.files)
     wrong = _misclassified(result)
     told = [o for o in result.outcomes if o.error is None and o.predicted is None]
     files.update(pair_overlays(wrong + told, read_color, classify=classify))
     md = [
         *_markdown_summary(result, meta, tables),
+        *(["## Risk and coverage", "", "Each point: the answers at or above one confidence "
+           "threshold (across: the share of the pairs read answered; up: the share of "
+           "those answers right).", "", "![risk-coverage curve](risk_coverage.png)", ""]
+          if curve else []),
         *_markdown_misclassified(wrong),
         *_markdown_failures(result),
         *_markdown_skipped(meta),
@@ -420,11 +431,12 @@ def build_report(
     ]
     files["report.md"] = "\n".join(md)
     note = None
-    if heatmap.image is not None:
+    if heatmap.files is not None:
         note = (
             f"Spearman distance (1 - rho) of the dGLI coordinates alone between "
             f"{heatmap.note}, ordered by true class; not the classifier's distance, which "
             "also weighs the stickers seen, their height and the napkin's footprint."
         )
-    files["report.html"] = evaluation_html(result, meta, overlay_name, _name, note)
+    files["report.html"] = evaluation_html(result, meta, overlay_name, _name, note,
+                                           risk_chart=bool(curve))
     return files

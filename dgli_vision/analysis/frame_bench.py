@@ -102,7 +102,8 @@ def bench_set(
     per_condition : int, keyword-only
         Frames per condition, one class after another (12: one of each class).
     sequence_frames : int, keyword-only
-        Frames of the folding sequence with a gripper (0: none).
+        Frames of the folding sequence with a gripper (0: none; a sequence has at least
+        2, so 1 gives 2).
     conditions : sequence of str, keyword-only
         The capture conditions after ``clean`` (default: every one the renderer knows).
     """
@@ -116,7 +117,8 @@ def bench_set(
             r = s.result
             yield condition, s.name, RGBDFrame(r.color, r.depth_mm, r.intrinsics, s.name, s.name)
     if sequence_frames:
-        for s in render_sequence(SEQUENCE, sequence_frames, seed, conditions=("grasp",)):
+        for s in render_sequence(SEQUENCE, max(2, sequence_frames), seed,
+                                 conditions=("grasp",)):
             r = s.result
             yield (
                 f"sequence {SEQUENCE} held",

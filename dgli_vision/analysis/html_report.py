@@ -2,7 +2,8 @@
 compare), built from a few shared pieces.
 
 Every page is one file: the style is inline, pictures are referenced by a path relative
-to the report folder (they sit in it) and curves are inline SVG; nothing is fetched.
+to the report folder (they sit in it); charts are SVG files (Matplotlib's) linking to
+the same chart as PNG; nothing is fetched.
 :func:`html_page` wraps the body; :func:`html_table`, :func:`html_list`,
 :func:`html_image`, :func:`html_gallery` and :func:`outcomes_html` build its parts.
 Text is escaped here; the pieces return HTML.
@@ -19,6 +20,7 @@ import numpy as np
 __all__ = [
     "cannot_tell_text",
     "evaluation_html",
+    "html_chart",
     "html_gallery",
     "html_image",
     "html_list",
@@ -84,6 +86,18 @@ def html_image(src: str, alt: str, caption: str = "") -> str:
     return f'<p><img class="wide" src="{escape(src)}" alt="{escape(alt)}"></p>{note}'
 
 
+def html_chart(stem: str, alt: str, caption: str = "") -> str:
+    """A chart of the report folder: ``stem.svg`` at full width (sharp at any zoom),
+    a link to ``stem.png`` (the same chart as a picture), a caption under it."""
+    note = escape(caption) + (" " if caption else "")
+    return (
+        f'<p><a href="{escape(stem)}.png"><img class="wide" src="{escape(stem)}.svg" '
+        f'alt="{escape(alt)}"></a></p><p class="note">{note}'
+        f'(<a href="{escape(stem)}.png">{escape(stem)}.png</a>: the same chart as a '
+        "picture)</p>"
+    )
+
+
 def _figure(src: str, caption: str) -> str:
     return (
         f'<figure><a href="{escape(src)}"><img src="{escape(src)}" alt="overlay"></a>'
@@ -136,34 +150,13 @@ def risk_coverage(outcomes: list[Any]) -> list[tuple[float, float, float]]:
     return out
 
 
-def _curve_svg(points: list[tuple[float, float, float]]) -> str:
-    """The risk-coverage curve as inline SVG (x: coverage, y: accuracy of answers)."""
-    w, h, pad = 420, 260, 40
-    if not points:
-        return "<p>No best guesses to draw.</p>"
-
-    def xy(cov: float, acc: float) -> str:
-        return f"{pad + cov * (w - 2 * pad):.1f},{h - pad - acc * (h - 2 * pad):.1f}"
-
-    line = " ".join(xy(c, a) for _, c, a in sorted(points, key=lambda p: p[1]))
-    return (
-        f'<svg xmlns="http://www.w3.org/2000/svg" width="{w}" height="{h}">'
-        f'<rect width="{w}" height="{h}" fill="white"/>'
-        f'<line x1="{pad}" y1="{h - pad}" x2="{w - pad}" y2="{h - pad}" stroke="black"/>'
-        f'<line x1="{pad}" y1="{pad}" x2="{pad}" y2="{h - pad}" stroke="black"/>'
-        f'<polyline points="{line}" fill="none" stroke="#1f77b4" stroke-width="2"/>'
-        f'<text x="{w / 2 - 60}" y="{h - 8}" font-size="12">share of pairs answered</text>'
-        f'<text x="4" y="{pad - 10}" font-size="12">accuracy of the answers (0-1)</text>'
-        "</svg>"
-    )
-
-
 def evaluation_html(
     result: Any,
     meta: dict[str, Any],
     overlay_of: Callable[[Any], str],
     name: Callable,
     distances_note: str | None = None,
+    risk_chart: bool = False,
 ) -> str:
     """The HTML page of an evaluation report.
 
@@ -177,7 +170,9 @@ def evaluation_html(
     name : callable
         ``name(class_id)`` -> ``"02 corner-over"``.
     distances_note : str, optional
-        What ``distances.png`` shows (None: there is none).
+        What ``distances.svg`` shows (None: there is none).
+    risk_chart : bool
+        ``risk_coverage.svg`` is drawn (False: no answer had a confidence).
     """
     outs = result.outcomes
     wrong = [o for o in outs if o.predicted is not None and not o.correct]
@@ -198,10 +193,14 @@ def evaluation_html(
             html_list(summary, raw=True),
             outcomes_html(result.outcome_counts, result.coverage, result.accuracy_answered),
             "<h2>Confusion</h2>",
-            '<img src="confusion.png" alt="confusion matrix" style="max-width:600px">',
+            html_chart("confusion", "confusion matrix",
+                       "Rows: the true class; columns: the answer; none: answered "
+                       "\"cannot tell\" or not read. Counts above, each row's shares below."),
             "<h2>Risk and coverage</h2>",
             "<p>Raising the confidence threshold answers fewer pairs, more of them right.</p>",
-            _curve_svg(risk_coverage(outs)),
+            html_chart("risk_coverage", "risk-coverage curve",
+                       "Each point: the answers at or above one confidence threshold.")
+            if risk_chart else "<p>No answer with a confidence to draw.</p>",
             html_gallery(
                 "Wrong",
                 [
@@ -220,7 +219,7 @@ def evaluation_html(
             else "<p>None.</p>",
             *(
                 ["<h2>Distances between the evaluated samples</h2>",
-                 html_image("distances.png", "distance matrix", distances_note)]
+                 html_chart("distances", "distance matrix", distances_note)]
                 if distances_note else []
             ),
         ],

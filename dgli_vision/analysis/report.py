@@ -1,7 +1,8 @@
-"""Report writers: Markdown and CSV tables, and heatmap images (arrays; io writes them).
+"""Report writers: Markdown and CSV tables, overlays, and the charts as images (arrays;
+io writes them).
 
-Heatmaps use OpenCV's viridis colour map, with a title, optional group separators and
-labels (samples ordered by class) and a colour bar with its range.
+The charts (heatmaps, confusion, timeline) are drawn by Matplotlib in
+:mod:`dgli_vision.analysis.charts`; the functions here give them as BGR arrays.
 """
 
 from __future__ import annotations
@@ -35,23 +36,17 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> s
     return "\n".join(lines) + "\n"
 
 
-def _text(img: NDArray, text: str, org: tuple[int, int], scale: float = 0.5) -> None:
-    import cv2
-
-    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), 1, cv2.LINE_AA)
-
-
 def heatmap_image(
     matrix: NDArray[np.float64],
     *,
     title: str,
     groups: Sequence[str] | None = None,
-    size_px: int = 600,
     value_label: str = "",
     ticks: Sequence[object] | None = None,
     tick_label: str = "frame",
 ) -> NDArray[np.uint8]:
-    """Render a matrix as a BGR heatmap image with title, group labels and colour bar.
+    """A matrix as a BGR heatmap image with title, axes, group labels and colour bar
+    (:func:`~dgli_vision.analysis.charts.heatmap_figure`, drawn by Matplotlib).
 
     Parameters
     ----------
@@ -61,8 +56,6 @@ def heatmap_image(
     groups : sequence of str, optional, keyword-only
         Label of every row (and column, for square matrices), consecutive runs forming
         groups: drawn as separators and centred labels (e.g. class ids).
-    size_px : int, keyword-only
-        Size of the matrix area.
     value_label : str, keyword-only
         What the colour means, shown by the colour bar.
     ticks : sequence, optional, keyword-only
@@ -74,66 +67,17 @@ def heatmap_image(
     -------
     ndarray of uint8, shape (h, w, 3)
     """
+    from .charts import figure_bgr, heatmap_figure
+
+    return figure_bgr(heatmap_figure(matrix, title=title, groups=groups,
+                                     value_label=value_label, ticks=ticks,
+                                     tick_label=tick_label))
+
+
+def _text(img: NDArray, text: str, org: tuple[int, int], scale: float = 0.5) -> None:
     import cv2
 
-    m = np.asarray(matrix, dtype=np.float64)
-    n_rows, n_cols = m.shape
-    finite = m[np.isfinite(m)]
-    lo, hi = (float(finite.min()), float(finite.max())) if finite.size else (0.0, 1.0)
-    span = hi - lo if hi > lo else 1.0
-    norm = np.clip((np.nan_to_num(m, nan=lo) - lo) / span * 255, 0, 255).astype(np.uint8)
-    cell_h = max(1, size_px // n_rows)
-    cell_w = max(1, size_px // n_cols)
-    big = cv2.resize(norm, (cell_w * n_cols, cell_h * n_rows), interpolation=cv2.INTER_NEAREST)
-    colour = cv2.applyColorMap(big, cv2.COLORMAP_VIRIDIS)
-    nan_mask = cv2.resize(
-        np.isnan(m).astype(np.uint8),
-        (cell_w * n_cols, cell_h * n_rows),
-        interpolation=cv2.INTER_NEAREST,
-    ).astype(bool)
-    colour[nan_mask] = (160, 160, 160)
-    left, top, right, bottom = 70, 50, 110, 40 if ticks is None else 75
-    h, w = colour.shape[:2]
-    img = np.full((h + top + bottom, w + left + right, 3), 255, np.uint8)
-    img[top : top + h, left : left + w] = colour
-    _text(img, title, (left, 30), 0.6)
-    if groups is not None:
-        labels = list(groups)
-        starts = [k for k in range(len(labels)) if k == 0 or labels[k] != labels[k - 1]]
-        ends = [*starts[1:], len(labels)]
-        for s, e in zip(starts, ends):
-            y0, y1 = top + s * cell_h, top + e * cell_h
-            cv2.line(img, (left, y0), (left + w - 1, y0), (255, 255, 255), 1)
-            _text(img, str(labels[s]), (8, (y0 + y1) // 2 + 5), 0.45)
-            if n_rows == n_cols:
-                x0, x1 = left + s * cell_w, left + e * cell_w
-                cv2.line(img, (x0, top), (x0, top + h - 1), (255, 255, 255), 1)
-                _text(img, str(labels[s]), ((x0 + x1) // 2 - 8, top + h + 18), 0.4)
-    if ticks is not None:
-        _ticks(img, list(ticks), (left, top + h), cell_w, tick_label)
-    # Colour bar.
-    bar = np.linspace(255, 0, h).astype(np.uint8)[:, None].repeat(18, axis=1)
-    x = left + w + 15
-    img[top : top + h, x : x + 18] = cv2.applyColorMap(bar, cv2.COLORMAP_VIRIDIS)
-    _text(img, f"{hi:.3g}", (x + 22, top + 10), 0.4)
-    _text(img, f"{lo:.3g}", (x + 22, top + h), 0.4)
-    if value_label:
-        _text(img, value_label, (x - 10, top + h + 30), 0.4)
-    return img
-
-
-def _ticks(img: NDArray, ticks: list, origin: tuple[int, int], cell_w: int, name: str) -> None:
-    """About ten tick marks with their values under a matrix whose bottom-left corner is
-    ``origin``, and the axis name."""
-    import cv2
-
-    x0, y0 = origin
-    step = max(1, int(np.ceil(len(ticks) / 10)))
-    for k in range(0, len(ticks), step):
-        x = x0 + k * cell_w + cell_w // 2
-        cv2.line(img, (x, y0 + 22), (x, y0 + 28), (20, 20, 20), 1)
-        _text(img, str(ticks[k]), (x - 6, y0 + 42), 0.4)
-    _text(img, name, (x0 + len(ticks) * cell_w // 2 - 20, y0 + 62), 0.45)
+    cv2.putText(img, text, org, cv2.FONT_HERSHEY_SIMPLEX, scale, (20, 20, 20), 1, cv2.LINE_AA)
 
 
 def _label_width(labels: Sequence[str], scale: float) -> int:
@@ -339,7 +283,8 @@ def confusion_image(
     names: dict[str, str] | None = None,
     title: str = "",
 ) -> NDArray[np.uint8]:
-    """Two confusion-matrix panels, counts and row-normalised, as one BGR image.
+    """Two confusion-matrix panels, counts and row-normalised, as one BGR image
+    (:func:`~dgli_vision.analysis.charts.confusion_figure`, drawn by Matplotlib).
 
     Parameters
     ----------
@@ -351,55 +296,9 @@ def confusion_image(
         Class id -> name, shown on the row axis.
     title : str, keyword-only
     """
-    import cv2
+    from .charts import confusion_figure, figure_bgr
 
-    conf = np.asarray(confusion, dtype=float)
-    k = len(labels)
-    cols = [*labels, "none"]
-    rows_sum = conf.sum(axis=1, keepdims=True)
-    norm = np.divide(conf, rows_sum, out=np.zeros_like(conf), where=rows_sum > 0)
-    cell = max(28, min(48, 560 // (k + 1)))
-    row_names = [f"{lab} {names.get(lab, '')}" if names else lab for lab in labels]
-    left = max(60, _label_width(row_names, 0.42) + 16)
-    top, bottom = 70, 90
-    panels = []
-    for values, sub, fmt in ((conf, "counts", "{:.0f}"), (norm, "row-normalised", "{:.2f}")):
-        vmax = values.max() if values.max() > 0 else 1.0
-        w, h = left + cell * (k + 1) + 90, top + cell * k + bottom
-        img = np.full((h, w, 3), 255, np.uint8)
-        grey = np.clip(values / vmax * 255, 0, 255).astype(np.uint8)
-        colour = cv2.applyColorMap(grey, cv2.COLORMAP_VIRIDIS)
-        for r in range(k):
-            for c in range(k + 1):
-                x0, y0 = left + c * cell, top + r * cell
-                img[y0 : y0 + cell - 1, x0 : x0 + cell - 1] = colour[r, c]
-                if values[r, c] > 0:
-                    text = fmt.format(values[r, c])
-                    ink = (0, 0, 0) if grey[r, c] > 150 else (255, 255, 255)
-                    cv2.putText(
-                        img,
-                        text,
-                        (x0 + 3, y0 + cell // 2 + 4),
-                        cv2.FONT_HERSHEY_SIMPLEX,
-                        0.36,
-                        ink,
-                        1,
-                        cv2.LINE_AA,
-                    )
-        for r, text in enumerate(row_names):
-            _text(img, text, (6, top + r * cell + cell // 2 + 4), 0.42)
-        for c, lab in enumerate(cols):
-            _text(img, lab, (left + c * cell + 4, top + k * cell + 18), 0.4)
-        _text(img, "predicted", (left + (k + 1) * cell // 2 - 30, top + k * cell + 45), 0.5)
-        _text(img, "true", (6, top - 10), 0.5)
-        _text(img, f"{title} ({sub})", (left, 30), 0.6)
-        bar = np.linspace(255, 0, k * cell).astype(np.uint8)[:, None].repeat(16, axis=1)
-        x = left + (k + 1) * cell + 15
-        img[top : top + k * cell, x : x + 16] = cv2.applyColorMap(bar, cv2.COLORMAP_VIRIDIS)
-        _text(img, fmt.format(vmax), (x + 20, top + 10), 0.4)
-        _text(img, "0", (x + 20, top + k * cell), 0.4)
-        panels.append(img)
-    return np.concatenate(panels, axis=1)
+    return figure_bgr(confusion_figure(confusion, labels, names=names, title=title))
 
 
 def timeline_image(
@@ -411,7 +310,12 @@ def timeline_image(
     names: dict[str, str] | None = None,
     title: str = "",
 ) -> NDArray[np.uint8]:
-    """A state timeline as a BGR image: frames across, states down.
+    """A state timeline as a BGR image: frames across, states down (drawn with OpenCV;
+    the reports' charts use :func:`~dgli_vision.analysis.charts.timeline_figure`).
+
+    ``dgli label`` draws each episode's timeline with this: no Matplotlib in its loop,
+    where a stop signal interrupts the work wherever it is (a Matplotlib figure's
+    weak-reference callbacks would print the interruption as an ignored exception).
 
     The true state (when given) is a pale band, each frame's own verdict a dot (a
     hollow ring where it gave none), the smoothed state a line.

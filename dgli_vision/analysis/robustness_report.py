@@ -13,9 +13,11 @@ from __future__ import annotations
 from html import escape
 from typing import Any
 
+from .charts import chart_files, outcomes_figure
 from .evaluate import outcome_fields, outcomes_text
 from .html_report import (
     cannot_tell_text,
+    html_chart,
     html_gallery,
     html_list,
     html_page,
@@ -28,7 +30,8 @@ from .robustness import ConditionScore, ShownPair, reliability_table, robustness
 __all__ = ["GALLERY_MAX", "ROBUSTNESS_REPORT_FILES", "robustness_report", "total_outcomes"]
 
 #: The files of every robustness report (besides the overlays).
-ROBUSTNESS_REPORT_FILES = ("robustness.json", "report.md", "report.html")
+ROBUSTNESS_REPORT_FILES = ("robustness.json", "report.md", "report.html", "outcomes.svg",
+                           "outcomes.png")
 
 #: Most pairs of each kind (wrong, "cannot tell") a condition's gallery shows; the rest
 #: are counted, not drawn.
@@ -74,7 +77,7 @@ def _counts_line(score: ConditionScore, kept: dict[str, list]) -> str:
 
 def _markdown(title: str, lines: list[str], scores: list[ConditionScore]) -> str:
     md = [f"# {title}", "", *[f"- {line}" for line in lines], "", "## By condition", "",
-          markdown_table(*robustness_table(scores)), "",
+          markdown_table(*robustness_table(scores)), "", "![answers](outcomes.png)", "",
           "## Reliability (best guesses over all conditions)", "",
           markdown_table(*reliability_table(scores)), ""]
     for s in scores:
@@ -94,6 +97,8 @@ def _html(title: str, lines: list[str], totals: dict, scores: list[ConditionScor
         html_list(lines),
         outcomes_html(totals["outcomes"], totals["coverage"], totals["accuracy_answered"]),
         "<h2>By condition</h2>",
+        html_chart("outcomes", "answers under each condition",
+                   "Each bar: the pairs rendered under that condition."),
         html_table(*robustness_table(scores)),
         "<h2>Reliability (best guesses over all conditions)</h2>",
         "<p>How often the best guess is right at each confidence, those below the "
@@ -144,6 +149,9 @@ def robustness_report(
             for p in pairs:
                 if p.overlay is not None:
                     files[_file(s.condition, p)] = p.overlay
+    files.update(chart_files("outcomes", outcomes_figure(
+        [(s.condition, s.right, s.abstained, s.wrong) for s in scores]
+    )))
     files["report.md"] = _markdown(title, lines, scores)
     files["report.html"] = _html(title, lines, totals, scores)
     return files

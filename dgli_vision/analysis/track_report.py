@@ -1,8 +1,9 @@
 """The report of a state timeline: what ``dgli track --report DIR`` and ``dgli sequence
 --report DIR`` write, built in memory (the CLI writes the files).
 
-The same files for both: the timeline (``timeline.json``, ``timeline.csv``, the picture
-``timeline.png``), the frames' distance heatmap (``distances.png``), ``report.md`` and
+The same files for both: the timeline (``timeline.json``, ``timeline.csv``, the chart
+``timeline.svg`` and ``.png``), the frames' distance heatmap (``distances.svg`` and
+``.png``), ``report.md`` and
 ``report.html`` (the summary, the three outcomes when the frames are labelled, the
 timeline, and a gallery of the wrong and "cannot tell" frames with their overlays and
 reasons, under ``overlays/``).
@@ -18,17 +19,18 @@ from numpy.typing import NDArray
 
 from ..core.classes import CLASS_IDS, CLASS_NAMES
 from ..core.io import csv_table
+from .charts import chart_files, heatmap_figure, timeline_figure
 from .evaluate import coordinate_matrix, outcome_counts, outcome_fields, outcomes_text
 from .evaluation_report import heatmap_sample, overlay_name, pair_overlays, sample_distance_matrix
 from .html_report import (
     cannot_tell_text,
+    html_chart,
     html_gallery,
-    html_image,
     html_list,
     html_page,
     outcomes_html,
 )
-from .report import heatmap_image, markdown_table, timeline_image
+from .report import markdown_table
 from .track import TIMELINE_COLUMNS, Timeline, timeline_rows
 
 __all__ = ["GALLERY_MAX", "TRACK_REPORT_FILES", "timeline_outcome_fields", "track_report"]
@@ -42,7 +44,9 @@ TRACK_REPORT_FILES = (
     "timeline.json",
     "timeline.csv",
     "timeline.png",
+    "timeline.svg",
     "distances.png",
+    "distances.svg",
     "report.md",
     "report.html",
 )
@@ -65,13 +69,13 @@ def timeline_outcome_fields(outcomes: Sequence[Any], labelled: bool) -> dict[str
 
 def _distances(outcomes: Sequence[Any], timeline: Timeline) -> tuple[Any, str] | None:
     """The heatmap of the frames' dGLI distances (a sample of frames evenly spread in
-    time when there are many), with frame ticks and the smoothed states' boundaries, and
-    the words that say what it shows; None without frames."""
+    time when there are many; a Matplotlib figure), with frame ticks and the smoothed
+    states' boundaries, and the words that say what it shows; None without frames."""
     shown = heatmap_sample(["frames"] * len(outcomes))  # evenly spread in time
     if len(shown) < 2:
         return None
     part = "" if len(shown) == len(outcomes) else f" ({len(shown)} of {len(outcomes)} frames)"
-    image = heatmap_image(
+    image = heatmap_figure(
         sample_distance_matrix(coordinate_matrix([outcomes[k] for k in shown])),
         title="frames: Spearman distance of the dGLI alone" + part,
         groups=[timeline.frames[k].smoothed_class for k in shown],
@@ -161,7 +165,7 @@ def _html(
                                   counts["accuracy_answered"]))
     body += [
         "<h2>Timeline</h2>",
-        html_image("timeline.png", "timeline",
+        html_chart("timeline", "timeline",
                    "Line: the smoothed state; dot: the frame's own answer; ring: no answer "
                    "(cannot tell or not read); green: the true state."),
     ]
@@ -177,7 +181,7 @@ def _html(
                 "time, or an image that cannot be read again):</p>" + html_list(rest)
             )
     if heat:
-        body += ["<h2>Distances between the frames</h2>", html_image("distances.png",
+        body += ["<h2>Distances between the frames</h2>", html_chart("distances",
                                                                      "distances", heat)]
     return html_page(title, body)
 
@@ -210,19 +214,19 @@ def track_report(
     """
     files: dict[str, Any] = {
         "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
-        "timeline.png": timeline_image(
+        **chart_files("timeline", timeline_figure(
             CLASS_IDS,
             [f.smoothed_class for f in timeline.frames],
             [f.raw_class for f in timeline.frames],
             truth=[f.label or "" for f in timeline.frames] if labelled else None,
             names=CLASS_NAMES,
             title=title,
-        ),
+        )),
     }
     data = dict(data)
     heat = _distances(outcomes, timeline)
     if heat is not None:
-        files["distances.png"] = heat[0]
+        files.update(chart_files("distances", heat[0]))
         shown = len(heatmap_sample(["frames"] * len(outcomes)))
         data["distances_png"] = {"frames_shown": shown, "frames": len(outcomes)}
     files["timeline.json"] = data

@@ -11,7 +11,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
-from ..core.errors import CalibrationError, DetectionError, InvalidInputError
+from ..core.errors import CalibrationError, DetectionError, DgliError, InvalidInputError
 from ..sources.frames import (
     RGBDFrame,
     check_intrinsics,
@@ -109,14 +109,35 @@ def classify_pair(
     refs = _reference_set(references)
     colours = _check_colours(colours)
     result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
-    if result.best_guess is None:
-        raise DetectionError(f"{frame.color_path}: {result.reason}")
     told = result.prediction is None
+    hint = _bgr_hint(color, frame, refs, colours) if told else ""
+    if result.best_guess is None:
+        raise DetectionError(f"{frame.color_path}: {result.reason}{hint}")
     return replace(
         result.best_guess,
-        reason=result.reason if told else None,
+        reason=f"{result.reason}{hint}" if told else None,
         why=result.why if told else None,
         stickers=_sticker_ids(result),
+    )
+
+
+def _bgr_hint(color: object, frame: RGBDFrame, refs: ReferenceSet, colours: object) -> str:
+    """When a colour array that gave no class gives one with its red and blue channels
+    swapped: a note that it is likely BGR (OpenCV's order); else nothing."""
+    from .pipeline import classify_frame
+
+    if not isinstance(color, np.ndarray) or color.ndim != 3 or color.shape[2] != 3:
+        return ""
+    swapped = replace(frame, color=np.ascontiguousarray(frame.color[..., ::-1]))
+    try:
+        again = classify_frame(swapped, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+    except DgliError:
+        return ""
+    if again.prediction is None:
+        return ""
+    return (
+        f"; with red and blue swapped it reads as {again.prediction.class_id}: is the colour "
+        "array BGR, as OpenCV reads images? classify_pair takes RGB (pass color[..., ::-1])"
     )
 
 
@@ -185,6 +206,8 @@ def _frame_of(
         raise CalibrationError(
             f"intrinsics ({source}) are for {intr.width}x{intr.height} images but the pair "
             f"is {mm.shape[1]}x{mm.shape[0]}"
+            + ("; give the camera's intrinsics (intrinsics=, an Intrinsics or a file)"
+               if source == "default" else "")
         )
     return RGBDFrame(rgb, mm, intr, color_path, depth_path, source)
 

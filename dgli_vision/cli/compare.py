@@ -63,11 +63,13 @@ def compare(
     table["column_notes"] = COMPARE_COLUMN_NOTES
     paper = paper_columns(names)
     table["paper"] = paper
-    columns = ["representation", *table["columns"], *paper["columns"]]
-    rows = [
-        [name, *map(_index_text, vals), *map(_paper_text, paper["rows"][name])]
-        for name, vals in table["rows"].items()
-    ]
+    columns, rows = paper_beside_ours(
+        ["representation", *table["columns"], *paper["columns"]],
+        [
+            [name, *map(_index_text, vals), *map(_paper_text, paper["rows"][name])]
+            for name, vals in table["rows"].items()
+        ],
+    )
     # JSON: null where two groups are not separated (no finite index to give)
     table["rows"] = {
         name: [v if v < _NO_SEPARATION else None for v in vals]
@@ -83,6 +85,22 @@ def compare(
 #: Above this a Davies-Bouldin index says two groups' centres coincide (the ratio's
 #: denominator is rounding noise): shown as such, not as a number.
 _NO_SEPARATION = 1e6
+
+
+#: Each of the paper's columns and our column it compares with.
+_COMPARABLE = {"paper: database": "by variant, mirrors merged", "paper: III": "III"}
+
+
+def paper_beside_ours(columns: list[str], rows: list[list]) -> tuple[list[str], list[list]]:
+    """The table as people read it: each column of the paper right after ours that
+    compares with it, those pairs first, then our other columns (the JSON keeps its
+    order)."""
+    order = [0]
+    for theirs, ours in _COMPARABLE.items():
+        if theirs in columns and ours in columns:
+            order += [columns.index(ours), columns.index(theirs)]
+    order += [k for k in range(len(columns)) if k not in order]
+    return [columns[k] for k in order], [[row[k] for k in order] for row in rows]
 
 
 def _index_text(value: float) -> str:
@@ -153,9 +171,10 @@ def _write_compare_report(
 ) -> None:
     """The table (JSON, Markdown with the column notes, CSV), report.html and a heatmap
     of the database's distances under each representation into the folder ``out``."""
+    from ..analysis.charts import chart_files, heatmap_figure
     from ..analysis.compare import COMPARE_COLUMN_NOTES
-    from ..analysis.html_report import html_image, html_list, html_page, html_table
-    from ..analysis.report import heatmap_image, markdown_table
+    from ..analysis.html_report import html_chart, html_list, html_page, html_table
+    from ..analysis.report import markdown_table
     from ..core.io import csv_table, write_outputs
 
     notes = "\n".join(f"- **{k}**: {v}" for k, v in COMPARE_COLUMN_NOTES.items())
@@ -174,7 +193,7 @@ def _write_compare_report(
             html_list([f"{k}: {v}" for k, v in COMPARE_COLUMN_NOTES.items()]),
             "<h2>Distances between the database's states, by class</h2>",
             *[
-                f"<h3>{name}</h3>" + html_image(f"distances_{name}.png", f"{name} distances",
+                f"<h3>{name}</h3>" + html_chart(f"distances_{name}", f"{name} distances",
                                                 _DISTANCE_CAPTIONS.get(name, ""))
                 for name in table["rows"]
             ],
@@ -197,12 +216,13 @@ def _write_compare_report(
         out / "report.html": page,
     }
     for name, mat in matrices.items():
-        files[out / f"distances_{name}.png"] = heatmap_image(
+        fig = heatmap_figure(
             mat,
             title=f"{name}: distances, states by class",
             groups=records.classes,
             value_label="distance",
         )
+        files.update({out / f: c for f, c in chart_files(f"distances_{name}", fig).items()})
     write_outputs(files, overwrite=overwrite, command=command)
     click.echo(f"report written to {out / 'report.html'}", err=True)
 

@@ -13,10 +13,10 @@ from .options import (
     colours_option,
     jobs_option,
     json_option,
-    overwrite_option,
     recording_options,
     references_option,
     report_option,
+    run_overwrite_option,
 )
 from .output import command_line, echo, echo_json, package_version
 from .runs import (
@@ -52,7 +52,7 @@ from .runs import (
     "results.jsonl and classify the rest (refused when the run differs: references, "
     "labels, colours, intrinsics, options).",
 )
-@overwrite_option
+@run_overwrite_option
 @handle_errors
 def evaluate(
     folder: str,
@@ -227,12 +227,10 @@ class _EvaluationRun:
         if self.as_json:
             echo_json(json_ready({**result.to_dict(), "skipped": skipped}))
             return
+        from ..analysis.evaluate import SPLIT_COLUMNS, counts_text
         from ..analysis.report import markdown_table
 
-        echo(
-            f"{result.n} pairs, {result.classified} classified, "
-            f"{len(result.failures)} failed or unclassified"
-        )
+        echo(f"{result.n} pairs: {counts_text(result.outcome_counts)}")
         echo(result.outcomes_text())
         echo(
             f"class accuracy {result.accuracy:.2%}, "
@@ -241,13 +239,21 @@ class _EvaluationRun:
         )
         echo(
             markdown_table(
-                ["true \\ predicted", *result.labels, "none"],
-                [[lab, *row] for lab, row in zip(result.labels, result.confusion)],
+                ["true \\ predicted", *result.labels, *SPLIT_COLUMNS],
+                [[lab, *row] for lab, row in zip(result.labels, result.confusion_split())],
             ),
             nl=False,
         )
-        for f in result.failures:
-            echo(f"failed: {f['color']}: {f['error']}")
+        for o in result.outcomes:
+            if o.error is not None:
+                echo(f"unreadable: {o.pair.color}: {o.error}")
+            elif o.predicted is None:
+                why = (o.reason or "no reason given").removeprefix("cannot tell: ")
+                echo(f"cannot tell: {o.pair.color}: {why}")
+            elif not o.correct:
+                echo(
+                    f"wrong: {o.pair.color}: labelled {o.pair.label}, answered {o.predicted}"
+                )
 
     def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
         from pathlib import Path
@@ -281,4 +287,4 @@ class _EvaluationRun:
             command=meta["command"],
         )
         record_outputs([out / "results.jsonl"], meta["command"])
-        click.echo(f"report written to {out / 'report.md'}", err=True)
+        click.echo(f"report written to {out / 'report.html'} (and report.md)", err=True)

@@ -28,6 +28,7 @@ from .simulate import simulate
 from .track import track
 from .verify import verify_cmd
 from .watch import watch
+from .write_recording import write_recording_cmd
 
 
 class _Group(click.Group):
@@ -62,6 +63,7 @@ for _command in (
     watch,
     plan_cmd,
     verify_cmd,
+    write_recording_cmd,
 ):
     main.add_command(_command)
 

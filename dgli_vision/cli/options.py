@@ -116,6 +116,16 @@ overwrite_option = click.option(
     help="Replace existing files that dgli did not write (never needed for its own output).",
 )
 
+#: ``--overwrite`` of the commands that keep a run's results (``results.jsonl``) in their
+#: report folder: a second run there needs ``--resume`` (go on) or this (start again).
+run_overwrite_option = click.option(
+    "--overwrite",
+    is_flag=True,
+    help="Start again: replace the results.jsonl an earlier run left in the report folder "
+    "(without it, or --resume to go on with it, a second run there is refused), and files "
+    "dgli did not write. Its own other report files are replaced without asking.",
+)
+
 
 def output_option(help_text: str) -> Callable[[F], F]:
     """``-o/--output FILE``: the file a command writes."""

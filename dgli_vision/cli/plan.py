@@ -16,7 +16,7 @@ from .options import (
     overwrite_option,
     references_option,
 )
-from .output import command_line, echo, echo_json
+from .output import command_line, echo, echo_json, progress_bar
 
 
 def _state(ctx: click.Context, param: click.Parameter, value: str | None):
@@ -49,9 +49,12 @@ def _plan_line(plan) -> str:
 
 
 def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> None:
-    from ..planning.check import check_pairs, check_table
+    from ..planning.check import check_count, check_pairs, check_table
 
-    rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit))
+    count = check_count(per_pair=per_pair, limit=limit)
+    with progress_bar(count, f"{count} trials", quiet=as_json) as bar:
+        rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit,
+                                on_row=lambda _row: bar.update(1)))
     table = check_table(rows)
     if as_json:
         echo_json(table)
@@ -100,7 +103,10 @@ def _geometry_lines(g: dict) -> None:
 @click.command("plan")
 @click.argument("color", type=click.Path(), required=False)
 @click.argument("depth", type=click.Path(), required=False)
-@click.option("--goal", callback=_state, help="The goal state: 08, 02/A, 05/AB/B.")
+@click.option(
+    "--goal", callback=_state,
+    help="The goal state: 08, 02/A, 05/AB/B (a class also as 8 or four-corners-centre).",
+)
 @click.option(
     "--from", "start", callback=_state, help="Plan from this state, without an image."
 )

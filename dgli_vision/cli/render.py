@@ -36,9 +36,16 @@ from .runs import Stop, folder_lock, stop_signals
     "conditions",
     callback=parse_conditions,
     default="",
-    help="Capture conditions, comma-separated: "
+    help="Capture conditions, comma-separated, all of them applied together to every "
+    "pair (see --per-condition for a folder per condition): "
     + ", ".join(f"{k} ({v})" for k, v in CONDITION_HELP.items())
     + ".",
+)
+@click.option(
+    "--per-condition",
+    is_flag=True,
+    help="One set per condition of --conditions instead, each in its own folder "
+    "OUT/<condition>/ under that condition alone.",
 )
 @click.option(
     "--sequence",
@@ -102,6 +109,7 @@ def render_cmd(
     clean: bool,
     nominal: bool,
     conditions: tuple[str, ...],
+    per_condition: bool,
     sequence: str | None,
     frames: int,
     gripper: bool,
@@ -117,58 +125,69 @@ def render_cmd(
     format of docs/napkin.md).
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
+    --conditions applies all its conditions together to every pair; with
+    --per-condition each condition gets a set of its own, in OUT/<condition>/.
     Ctrl-C or SIGTERM writes the pairs rendered so far with their labels.csv and exits
     130 (143); --resume renders the rest. -j spreads the pairs over processes (the same
     pairs as one; a sequence's frames render in one).
     """
     if engine == "cycles":
         _check_cycles(conditions, sequence, gripper)
-    if gripper and "grasp" not in conditions:
-        conditions = (*conditions, "grasp")
+    from pathlib import Path
 
     from ..core.io import guard_outputs
     from ..core.layout import layout_of_size
     from ..sim.dataset import render_plan
     from ..sources.labelled import labelled_folder_files
 
+    if per_condition and not conditions:
+        raise click.UsageError("--per-condition needs --conditions C,...")
+    # (folder, its conditions): one set, or one per condition
+    sets = ([(str(Path(out) / c), (c,)) for c in conditions] if per_condition
+            else [(out, conditions)])
+    if gripper:
+        sets = [(f, c if "grasp" in c else (*c, "grasp")) for f, c in sets]
     # a path-traced set is slow: in the order of the pairs' numbers, so that one stopped
     # part-way (Ctrl-C writes what is done) has every class
     names, cases = render_plan(per_class, sequence, frames, by_number=engine == "cycles")
-    planned = labelled_folder_files(out, names, frames=bool(sequence))
-    guard_outputs(planned, overwrite=overwrite)  # before the work
+    for folder, _ in sets:  # every folder before the work
+        guard_outputs(labelled_folder_files(folder, names, frames=bool(sequence)),
+                      overwrite=overwrite)
 
     layout = layout_of_size(size_mm)
-    provenance = {
-        "command": command_line(),
-        "seed": seed,
-        **({"sequence": sequence, "frames": frames} if sequence else {"per_class": per_class}),
-        "clean": clean,
-        "nominal": nominal,
-        **({"conditions": list(conditions)} if conditions else {}),
-        **napkin_provenance(layout),
-        **(
-            {"engine": engine, "envelope": envelope, "samples": samples}
-            if engine == "cycles"
-            else {}
-        ),
-        "package_version": package_version(),
-    }
-    options: dict[str, Any] = {
-        "nominal": nominal, "clean": clean, "conditions": conditions, "layout": layout
-    }
-    if engine == "cycles":
-        import os
-
-        threads = max(1, (os.cpu_count() or 2) // max(1, jobs))
-        options = {
-            "nominal": nominal, "clean": clean, "layout": layout, "engine": engine,
-            "envelope": envelope, "samples": samples, "threads": threads,
+    for folder, conds in sets:
+        provenance = {
+            "command": command_line(),
+            "seed": seed,
+            **({"sequence": sequence, "frames": frames} if sequence
+               else {"per_class": per_class}),
+            "clean": clean,
+            "nominal": nominal,
+            **({"conditions": list(conds)} if conds else {}),
+            **napkin_provenance(layout),
+            **(
+                {"engine": engine, "envelope": envelope, "samples": samples}
+                if engine == "cycles"
+                else {}
+            ),
+            "package_version": package_version(),
         }
-    with folder_lock(out):
-        _render_set(
-            out, names, cases, provenance, options, resume=resume, overwrite=overwrite,
-            jobs=jobs,
-        )
+        options: dict[str, Any] = {
+            "nominal": nominal, "clean": clean, "conditions": conds, "layout": layout
+        }
+        if engine == "cycles":
+            import os
+
+            threads = max(1, (os.cpu_count() or 2) // max(1, jobs))
+            options = {
+                "nominal": nominal, "clean": clean, "layout": layout, "engine": engine,
+                "envelope": envelope, "samples": samples, "threads": threads,
+            }
+        with folder_lock(folder):
+            _render_set(
+                folder, names, cases, provenance, options, resume=resume, overwrite=overwrite,
+                jobs=jobs,
+            )
 
 
 def _render_set(

@@ -13,10 +13,10 @@ from .options import (
     colours_option,
     jobs_option,
     json_option,
-    overwrite_option,
     recording_options,
     references_option,
     report_option,
+    run_overwrite_option,
 )
 from .output import command_line, echo, echo_json
 from .runs import (
@@ -48,7 +48,7 @@ from .runs import (
     help="Go on with an interrupted run: keep the frames already in the report folder's "
     "results.jsonl and classify the rest (refused when the run differs).",
 )
-@overwrite_option
+@run_overwrite_option
 @handle_errors
 def track(
     folder: str,

@@ -7,6 +7,7 @@ does not pull in the simulator.
 from __future__ import annotations
 
 __all__ = [
+    "CLASS_HINT",
     "CLASS_IDS",
     "CLASS_NAMES",
     "CORNERS",
@@ -15,6 +16,7 @@ __all__ = [
     "PAST_BAND_DEG",
     "SIDES",
     "VARIANTS",
+    "class_id_of",
 ]
 
 CLASS_NAMES: dict[str, str] = {
@@ -32,6 +34,30 @@ CLASS_NAMES: dict[str, str] = {
     "12": "diagonal-fold",
 }
 CLASS_IDS: tuple[str, ...] = tuple(CLASS_NAMES)
+
+#: How a class may be written, for messages.
+CLASS_HINT = "a class: 01-12 (or 1-12), a name such as corner-over, or both (02_corner-over)"
+
+_BY_NAME = {name: cid for cid, name in CLASS_NAMES.items()}
+
+
+def class_id_of(text: str) -> str | None:
+    """The class id (``"02"``) a class is written as, or None when it names none.
+
+    Accepted everywhere a class is read (labels files, ``--goal``, ``--from``): the id
+    (``02``), the id without its zero (``2``), the name (``corner-over``, any case, with
+    ``_`` or a space for ``-``), or id and name (``02_corner-over``, ``02 corner-over``,
+    as the class folders are named); they must agree.
+    """
+    t = text.strip().lower()
+    if t.isdigit():
+        cid = f"{int(t):02d}"
+        return cid if cid in CLASS_NAMES else None
+    head, sep, rest = t.replace("_", " ", 1).partition(" ")
+    if sep and head.isdigit():
+        cid = class_id_of(head)
+        return cid if cid and class_id_of(rest) == cid else None
+    return _BY_NAME.get(t.replace("_", "-").replace(" ", "-"))
 
 CORNERS = ("A", "B", "C", "D")
 SIDES = ("AB", "BC", "CD", "DA")

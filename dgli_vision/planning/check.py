@@ -46,6 +46,7 @@ __all__ = [
     "OUTCOMES",
     "TOLERANCES_MM",
     "CheckRow",
+    "check_count",
     "check_pairs",
     "check_table",
     "fold_errors",
@@ -279,6 +280,23 @@ def run_pair(
                         verdict.reason or "", geometry)
     outcome = "right" if got == step.expect and seen == start else "wrong"
     return CheckRow(start, goal, n, seen, step.expect, got, outcome, geometry=geometry)
+
+
+def check_count(
+    *,
+    per_pair: int = 1,
+    max_steps: int = 3,
+    starts: list[StateKey] | None = None,
+    limit: int | None = None,
+) -> int:
+    """How many trials :func:`check_pairs` runs with the same arguments (for a progress
+    bar)."""
+    count = kept = 0
+    for start in starts or list(state_keys()):
+        for _goal, _ in goals_within(start, max_steps):
+            count += 1
+            kept += limit is None or count % limit == 0
+    return kept * per_pair
 
 
 def check_pairs(

@@ -25,7 +25,7 @@ from ..classifier.affordances import (
     bisector_through,
     fold_line_3d,
 )
-from ..core.classes import CLASS_IDS, CORNERS, VARIANTS
+from ..core.classes import CLASS_HINT, CORNERS, VARIANTS, class_id_of
 from ..core.errors import DgliError
 from ..core.fold_graph import StateKey, fold_edges, folds_of
 from ..core.fold_lines import NominalFold, fold_for_word, reflect_uv
@@ -53,7 +53,8 @@ class PlanRefused(DgliError):
 
 
 def parse_state(text: str, *, need_variant: bool = True) -> StateKey:
-    """A state written as ``08``, ``02/A`` or ``05/AB/B``.
+    """A state written as ``08``, ``02/A`` or ``05/AB/B``; the class also as ``8`` or
+    ``four-corners-centre`` (:func:`~dgli_vision.core.classes.class_id_of`).
 
     With ``need_variant`` False a class with variants may be given alone (the variant
     is then None, meaning any).
@@ -63,9 +64,10 @@ def parse_state(text: str, *, need_variant: bool = True) -> StateKey:
     ValueError
         An unknown class or variant (the message says which ones there are).
     """
-    cls, _, variant = text.strip().partition("/")
-    if cls not in CLASS_IDS:
-        raise ValueError(f"unknown class {cls!r}; expected one of {', '.join(CLASS_IDS)}")
+    written, _, variant = text.strip().partition("/")
+    cls = class_id_of(written)
+    if cls is None:
+        raise ValueError(f"unknown class {written!r}; expected {CLASS_HINT}")
     options = VARIANTS[cls]
     if not variant:
         if options == (None,) or not need_variant:

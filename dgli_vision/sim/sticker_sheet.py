@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 from ..core.layout import NapkinLayout
 
 __all__ = [
+    "PAPERS",
     "Circle",
     "Line",
     "Sheet",
@@ -24,11 +25,19 @@ __all__ = [
     "napkin_drawing",
     "sheet_image",
     "sheet_svg",
+    "sticker_pages",
     "sticker_sheet",
 ]
 
 #: A3 portrait, mm: the 32 stickers and four templates fit at 1:1.
 PAGE_MM = (297.0, 420.0)
+#: The papers the kit prints on (portrait, mm): on A3 one page; on A4 or Letter, where
+#: the sticker rows (about 270 mm) do not fit, a page per corner.
+PAPERS: dict[str, tuple[float, float]] = {
+    "A3": PAGE_MM,
+    "A4": (210.0, 297.0),
+    "Letter": (215.9, 279.4),
+}
 #: Side of a corner's placement template, mm (the farthest sticker is 100 mm out).
 TEMPLATE_MM = 118.0
 #: Diameter of a template's cut-out mark at a sticker centre, mm.
@@ -229,12 +238,68 @@ def sticker_sheet(layout: NapkinLayout) -> Sheet:
             sheet, layout, corner, 10 + i * (TEMPLATE_MM + 4), y_templates + j * (TEMPLATE_MM + 4)
         )
     # the scale bar: 100 mm, vertical, right of the templates
-    bx, by = 10 + 2 * TEMPLATE_MM + 4 + 14, y_templates + 20
+    _scale_bar(sheet, 10 + 2 * TEMPLATE_MM + 4 + 14, y_templates + 20)
+    return sheet
+
+
+def _scale_bar(sheet: Sheet, bx: float, by: float) -> None:
+    """A vertical 100 mm bar from (bx, by), to check the print scale."""
+    add = sheet.shapes.append
     add(Line(bx, by, bx, by + 100, width=0.6))
     for t in (by, by + 100):
         add(Line(bx - 3, t, bx + 3, t, width=0.6))
     add(Text(bx + 4, by + 52, "100 mm", 3.5))
+
+
+def corner_page(layout: NapkinLayout, corner: str, paper: str) -> Sheet:
+    """One corner's page of the kit on a small paper (A4, Letter): its four stickers,
+    front and back, its placement template and a 100 mm scale bar.
+
+    Element ids as in :func:`sticker_sheet`, for this corner's stickers and template.
+    """
+    sheet = Sheet(*PAPERS[paper])
+    add = sheet.shapes.append
+    n = layout.corner_names.index(corner) + 1
+    add(Text(10, 14, f"dgli_vision sticker kit, corner {corner} (page {n} of "
+                     f"{len(layout.corner_names)}): napkin {layout.width_mm:g} x "
+                     f"{layout.height_mm:g} mm", 4.2))
+    for k, line in enumerate((
+        f"Print at 100 % (actual size, no 'fit to page') on {paper}; the bar must measure "
+        "100 mm.",
+        "Cut out the discs along the dashed lines; stick each on the front and its twin on "
+        "the back, exactly behind it.",
+        "Template: lay the thick lines on the napkin's edges at this corner, front up, and "
+        "mark each centre",
+        "through its small circle (id: mm from the vertical edge, mm from the horizontal "
+        "edge).",
+    )):
+        add(Text(10, 20 + 4 * k, line, 2.6))
+    d = layout.disc_diameter_mm
+    cell_w, cell_h, label_w = d + 2, d + 5, 16.0
+    y_start = 42.0
+    for r, face in enumerate(("front", "back")):
+        y = y_start + r * cell_h + d / 2
+        add(Text(10, y + 1.5, face, 4.0))
+        for c, sid in enumerate(_corner_stickers(layout, corner)):
+            x = 10 + label_w + c * cell_w + cell_w / 2
+            sheet.rect(x - cell_w / 2, y - d / 2 - 1, cell_w, cell_h, colour=GREY, width=0.15,
+                       dash=1.5)
+            _sticker(sheet, layout, sid, x, y, f"{face}-{sid}")
+    y_template = y_start + 2 * cell_h + 6.0
+    _template(sheet, layout, corner, 10, y_template)
+    _scale_bar(sheet, 10 + TEMPLATE_MM + 14, y_template + 10)
     return sheet
+
+
+def sticker_pages(layout: NapkinLayout, paper: str = "A3") -> list[tuple[str, Sheet]]:
+    """The kit's pages on ``paper`` (:data:`PAPERS`), each with its name: on A3 the one
+    sheet of :func:`sticker_sheet` (name ``""``), otherwise a page per corner (named by
+    the corner)."""
+    if paper not in PAPERS:
+        raise ValueError(f"unknown paper {paper!r}; expected one of {', '.join(PAPERS)}")
+    if paper == "A3":
+        return [("", sticker_sheet(layout))]
+    return [(c, corner_page(layout, c, paper)) for c in layout.corner_names]
 
 
 def napkin_drawing(layout: NapkinLayout, *, margin_mm: float = 30.0) -> Sheet:
@@ -310,8 +375,24 @@ def sheet_svg(sheet: Sheet) -> str:
     return "\n".join(out) + "\n"
 
 
+def _dashes(line: Line) -> list[tuple[tuple[float, float], tuple[float, float]]]:
+    """The drawn pieces of a line: the whole line, or its dashes (``dash`` mm on, ``dash``
+    mm off, as SVG's ``stroke-dasharray``)."""
+    a, b = np.array([line.x0, line.y0]), np.array([line.x1, line.y1])
+    length = float(np.linalg.norm(b - a))
+    if not line.dash or length == 0:
+        return [((line.x0, line.y0), (line.x1, line.y1))]
+    unit = (b - a) / length
+    pieces = []
+    for start in np.arange(0.0, length, 2 * line.dash):
+        p, q = a + unit * start, a + unit * min(start + line.dash, length)
+        pieces.append(((float(p[0]), float(p[1])), (float(q[0]), float(q[1]))))
+    return pieces
+
+
 def sheet_image(sheet: Sheet, *, px_per_mm: float = 3.0) -> NDArray[np.uint8]:
-    """The drawing rasterised (BGR uint8) for a preview: the same shapes as the SVG."""
+    """The drawing rasterised (BGR uint8) for a preview: the same shapes as the SVG, dashed
+    lines dashed."""
     import cv2
 
     w, h = round(sheet.width_mm * px_per_mm), round(sheet.height_mm * px_per_mm)
@@ -334,7 +415,8 @@ def sheet_image(sheet: Sheet, *, px_per_mm: float = 3.0) -> NDArray[np.uint8]:
                 cv2.circle(img, pt(s.x, s.y), r, bgr(s.stroke), t, cv2.LINE_AA, shift)
         elif isinstance(s, Line):
             t = max(1, round(s.width * px_per_mm))
-            cv2.line(img, pt(s.x0, s.y0), pt(s.x1, s.y1), bgr(s.colour), t, cv2.LINE_AA, shift)
+            for (xa, ya), (xb, yb) in _dashes(s):
+                cv2.line(img, pt(xa, ya), pt(xb, yb), bgr(s.colour), t, cv2.LINE_AA, shift)
         else:
             scale = s.size * px_per_mm / 22.0  # Hershey simplex capitals are ~22 px at 1.0
             thick = max(1, round(scale * 1.5))

@@ -452,9 +452,12 @@ def _check_intrinsics_size(
     intr: Intrinsics, source: str, size: tuple[int, int], color_path: Any
 ) -> None:
     if (intr.width, intr.height) != size:
+        nominal = source == "default"
         raise CalibrationError(
-            f"intrinsics '{source}' are for {intr.width}x{intr.height} images but "
-            f"'{color_path}' is {size[0]}x{size[1]}"
+            f"intrinsics '{source}'{' (the nominal camera) ' if nominal else ' '}are for "
+            f"{intr.width}x{intr.height} images but '{color_path}' is {size[0]}x{size[1]}"
+            + (f"; put the camera's intrinsics.json beside '{Path(color_path).name}' or "
+               "give --intrinsics FILE" if nominal else "")
         )
 
 

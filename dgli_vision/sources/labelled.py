@@ -11,6 +11,7 @@ from typing import Any
 
 import numpy as np
 
+from ..core.classes import class_id_of
 from ..core.errors import InvalidInputError, OutputError, UnreadableInputError
 from ..core.io import (
     check_input_file,
@@ -260,7 +261,7 @@ def _check_labels(
     """Split pairs into usable ones and problems (unknown class or variant, duplicates,
     missing files). Pairs with missing files stay usable: reading them fails and is
     reported with the batch."""
-    from ..core.classes import CLASS_NAMES, VARIANTS
+    from ..core.classes import CLASS_HINT, CLASS_NAMES, VARIANTS
 
     keep, problems = [], []
     seen: dict[tuple[str, str], str] = {}
@@ -270,7 +271,7 @@ def _check_labels(
                 LabelProblem(
                     at,
                     "unknown class",
-                    f"{at}: class {pair.label!r} is not one of 01-12",
+                    f"{at}: class {pair.label!r} is not {CLASS_HINT}",
                 )
             )
             continue
@@ -323,7 +324,7 @@ def _pairs_from_labels_csv(root: Path, labels: Path) -> tuple[list[LabelledPair]
                     LabelledPair(
                         str(color),
                         str(root / row["depth"]),
-                        label.zfill(2),
+                        class_id_of(label) or label,
                         variant,
                         k,
                         intrinsics_file=folder_intrinsics(root, color),
@@ -399,7 +400,8 @@ def find_labelled_pairs(
     pairs, problems = _check_labels(pairs, where)
     fatal = [p for p in problems if p.kind != "missing file"]
     if fatal and not lenient:
-        more = f" (and {len(fatal) - 1} more)" if len(fatal) > 1 else ""
+        n = len(fatal) - 1
+        more = f" (and {n} more bad row{'s' if n > 1 else ''})" if n else ""
         raise InvalidInputError(f"{fatal[0].message}{more}; fix the labels or use --lenient")
     if not pairs:
         raise InvalidInputError(f"folder '{root}' holds no usable labelled pairs")

@@ -229,7 +229,7 @@ def is_recording_file(path: str | Path) -> bool:
 def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], list]:
     """A recording's labels: ``frame`` (index from 0) or ``time`` (seconds from the
     start), ``label`` and optionally ``variant``."""
-    from ..core.classes import CLASS_IDS, VARIANTS
+    from ..core.classes import CLASS_IDS, VARIANTS, class_id_of
 
     by_frame: dict[int, tuple[str, str | None, int]] = {}
     by_time: list[tuple[float, str, str | None, int]] = []
@@ -243,7 +243,8 @@ def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], li
                     "(optionally variant)"
                 )
             for k, row in enumerate(reader, start=2):
-                label = (row.get("label") or "").strip().zfill(2)
+                written = (row.get("label") or "").strip()
+                label = class_id_of(written) or written
                 variant = (row.get("variant") or "").strip() or None
                 if label not in CLASS_IDS or (variant and variant not in VARIANTS.get(label, ())):
                     raise InvalidInputError(

@@ -1,0 +1,100 @@
+"""scripts/setup.sh, run in a scratch copy of the repository with stand-ins for ldconfig,
+apt-get and the virtual environment's python: it decides from what is installed, and it
+keeps setuptools' "Editable installation" warning off the screen."""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import shutil
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BASH = shutil.which("bash")
+
+# setuptools' warning, as pip passes it on from the build backend
+_EDITABLE_WARNING = '''\
+import sys, warnings
+if "install" in sys.argv and "-e" in sys.argv:
+    warnings.warn("Editable installation.\\n!!\\n  Please be careful with folders")
+    print("ERROR: a real pip error", file=sys.stderr)
+'''
+
+
+def _executable(path: Path, text: str) -> None:
+    path.write_text(text)
+    path.chmod(path.stat().st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
+
+
+def _scratch(tmp_path: Path, *, stamp_matches: bool) -> tuple[Path, dict[str, str]]:
+    repo = tmp_path / "repo"
+    (repo / "scripts").mkdir(parents=True)
+    shutil.copy(ROOT / "scripts" / "setup.sh", repo / "scripts" / "setup.sh")
+    shutil.copy(ROOT / "pyproject.toml", repo / "pyproject.toml")
+    venv_bin = repo / ".venv" / "bin"
+    venv_bin.mkdir(parents=True)
+    _executable(venv_bin / "python", f"#!{sys.executable}\n{_EDITABLE_WARNING}")
+    if stamp_matches:
+        digest = hashlib.sha256((repo / "pyproject.toml").read_bytes()).hexdigest()
+        (repo / ".venv" / ".dgli-setup-stamp").write_text(digest + "\n")
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    # an ldconfig cache far larger than a pipe's buffer, libusb on its first line: a grep
+    # that stops there leaves ldconfig writing into a closed pipe
+    lines = "\tlibusb-1.0.so.0 (libc6,x86-64) => /lib/x86_64-linux-gnu/libusb-1.0.so.0\n"
+    lines += "".join(f"\tlibfiller{i}.so (libc6,x86-64) => /lib/libfiller{i}.so\n"
+                     for i in range(20000))
+    (tmp_path / "cache.txt").write_text(lines)
+    _executable(bin_dir / "ldconfig", f"#!/bin/sh\nexec cat {tmp_path / 'cache.txt'}\n")
+    for tool in ("apt-get", "sudo"):
+        _executable(bin_dir / tool, f"#!/bin/sh\necho {tool} \"$@\" >> {tmp_path / 'apt.log'}\n")
+    _executable(bin_dir / "chromium", "#!/bin/sh\nexit 0\n")
+    for tool in ("dirname", "id", "cat", "sha256sum", "cut", "grep", "sh", "rm"):
+        (bin_dir / tool).symlink_to(shutil.which(tool))
+    # nothing else on the PATH: what this machine has installed does not count
+    env = {**os.environ, "PATH": str(bin_dir)}
+    env.pop("PYTHONWARNINGS", None)
+    return repo, env
+
+
+def test_an_installed_library_is_not_installed_again(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=True)
+    for _ in range(5):  # SIGPIPE needed grep to win a race: it used to, nearly always
+        run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                             capture_output=True, text=True, timeout=60)
+        assert run.returncode == 0, run.stderr
+        assert not (tmp_path / "apt.log").exists(), (tmp_path / "apt.log").read_text()
+        assert run.stderr == ""
+
+
+def test_a_missing_library_is_installed_quietly(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=True)
+    (tmp_path / "cache.txt").write_text("\tlibc.so.6 (libc6,x86-64) => /lib/libc.so.6\n")
+    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    log = (tmp_path / "apt.log").read_text()
+    assert "install" in log and "libusb-1.0-0" in log
+    assert log.count("update") == 1
+
+
+def test_a_missing_browser_is_installed(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=True)
+    (tmp_path / "bin" / "chromium").unlink()
+    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    log = (tmp_path / "apt.log").read_text()
+    assert "install" in log and "chromium" in log
+
+
+def test_the_editable_install_warning_is_silenced_but_errors_show(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=False)
+    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert "Editable installation" not in run.stderr
+    assert "ERROR: a real pip error" in run.stderr
