@@ -498,12 +498,7 @@ def _judge(
     coords = cloth_coordinates(obs.segments, obs.up)
     n = int(obs.visible.sum())
     napkin_mm = _napkin_depth(detections, frame.depth_mm)
-    problem = (
-        _too_small(detections, frame, napkin_mm, layout)
-        or (edge_on_problem(obs.edge_on_mm) if obs.edge_on_mm is not None else None)
-        or scale_problem(obs.ruler, layout)
-        or rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
-    )
+    problem = _image_problem(frame, detections, obs, napkin_mm, layout)
     if problem is not None:
         return FrameResult(
             detections, markers, obs, coords, None, f"cannot tell: {problem}", why=WHY_KINDS[0]
@@ -522,17 +517,7 @@ def _judge(
         return FrameResult(detections, markers, obs, coords, None, reason, why=WHY_KINDS[1])
     front = terms.total()
     near = _candidates(front, references)
-    unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
-    guess = classify_coordinates(coords, references, **evidence, distances=front, unsure=unsure)
-    placed = obs.points_m is not None and obs.heights_mm is not None
-    if guess.confidence < min_confidence and placed:
-        # stickers an object hides beside one lying at its flat place are not unknown
-        settled = settled_stickers(obs.points_m, obs.heights_mm, obs.turns, layout, obs.up)
-        if settled.any():
-            guess = classify_coordinates(
-                coords, references, **evidence, distances=front, unsure=unsure,
-                settled=settled,
-            )
+    guess = _guess(coords, references, evidence, front, obs, layout, min_confidence)
     border = border_factor(
         detections.centroids,
         frame.intrinsics,
@@ -564,6 +549,59 @@ def _judge(
             detections, markers, obs, coords, guess, None, guess, candidates=near,
             distances=front,
         )
+    reason = _low_confidence_reason(guess, obs, min_confidence, border)
+    return FrameResult(
+        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near,
+        distances=front,
+    )
+
+
+def _image_problem(
+    frame: RGBDFrame,
+    detections: StickerDetections,
+    obs: ClothObservation,
+    napkin_mm: float,
+    layout: NapkinLayout,
+) -> str | None:
+    """Why the images themselves give no verdict (stickers too small, colour and depth
+    of different instants, a wrong scale, a lens bending the napkin), or None."""
+    return (
+        _too_small(detections, frame, napkin_mm, layout)
+        or (edge_on_problem(obs.edge_on_mm) if obs.edge_on_mm is not None else None)
+        or scale_problem(obs.ruler, layout)
+        or rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
+    )
+
+
+def _guess(
+    coords: NDArray[np.float64],
+    references: ReferenceSet,
+    evidence: dict,
+    front: NDArray[np.float64],
+    obs: ClothObservation,
+    layout: NapkinLayout,
+    min_confidence: float,
+) -> Prediction:
+    """The nearest reference and its confidence; below ``min_confidence``, again with the
+    stickers an object hides beside one lying at its flat place taken as known."""
+    unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
+    guess = classify_coordinates(coords, references, **evidence, distances=front, unsure=unsure)
+    placed = obs.points_m is not None and obs.heights_mm is not None
+    if guess.confidence < min_confidence and placed:
+        settled = settled_stickers(obs.points_m, obs.heights_mm, obs.turns, layout, obs.up)
+        if settled.any():
+            guess = classify_coordinates(
+                coords, references, **evidence, distances=front, unsure=unsure,
+                settled=settled,
+            )
+    return guess
+
+
+def _low_confidence_reason(
+    guess: Prediction, obs: ClothObservation, min_confidence: float, border: float
+) -> str:
+    """``"cannot tell: confidence 0.12 < 0.25; ..."`` with what lowered it."""
+    n = int(obs.visible.sum())
     ru = guess.runner_up
     why = [f"confidence {guess.confidence:.2f} < {min_confidence:.2f}"]
     if ru is not None:
@@ -584,8 +622,4 @@ def _judge(
     if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():
         why.append(f"a flap held up at about {np.nanmedian(obs.flap_deg):.0f} degrees")
     why.append(f"{n} of {len(obs.visible)} stickers located")
-    reason = "cannot tell: " + "; ".join(why)
-    return FrameResult(
-        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near,
-        distances=front,
-    )
+    return "cannot tell: " + "; ".join(why)

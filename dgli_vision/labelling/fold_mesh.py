@@ -166,16 +166,7 @@ def mesh_flaps(
         Empty when nothing lies turned over, or too little lies face up to place the
         napkin that stays.
     """
-    if coarse:
-        position = position[material.coarse_ids]
-        uv, faces = material.uv[material.coarse_ids], material.coarse_faces
-        # the Delaunay triangles of the coarse vertices include slivers along the
-        # border, which would join two flaps: only triangles of its spacing are kept
-        edge = np.stack([np.linalg.norm(uv[faces[:, i]] - uv[faces[:, (i + 1) % 3]], axis=1)
-                         for i in range(3)]).max(axis=0)
-        faces = faces[edge <= 2.5 * material.spacing_mm]
-    else:
-        uv, faces = material.uv, material.faces
+    position, uv, faces = _mesh_of(position, material, coarse)
     n = len(position)
     cos = _vertex_up_cos(position, faces)
     down, up = cos < FACE_DOWN_COS, cos > FACE_UP_COS
@@ -220,12 +211,7 @@ def mesh_flaps(
     z = position[:, 2] * 1e3
     face_up = np.flatnonzero(up)
     below = cKDTree(position[face_up, :2])
-    # each corner's flap: the one of the flap vertex nearest it on the napkin (the
-    # corner itself may lie next to a bend, or be left out as one)
-    on_flap = np.flatnonzero(part >= 0)
-    w, h = material.size_mm
-    near_d, near_i = cKDTree(uv[on_flap]).query([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
-    corner_piece = np.where(near_d <= CORNER_REACH_MM, part[on_flap[near_i]], -1)
+    corner_piece = _corner_pieces(uv, part, material)
     out = []
     for j in range(len(keep)):
         mine = g == j
@@ -248,6 +234,33 @@ def mesh_flaps(
             round(float(np.sqrt(d2[mine].mean())), 3),
         ))
     return out
+
+
+def _mesh_of(
+    position: NDArray[np.float64], material: ClothMaterial, coarse: bool
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.intp]]:
+    """The vertices (positions, material uv) and triangles a frame's flaps are fitted
+    on: every vertex, or the material's coarse mesh."""
+    if not coarse:
+        return position, material.uv, material.faces
+    position = position[material.coarse_ids]
+    uv, faces = material.uv[material.coarse_ids], material.coarse_faces
+    # the Delaunay triangles of the coarse vertices include slivers along the border,
+    # which would join two flaps: only triangles of its spacing are kept
+    edge = np.stack([np.linalg.norm(uv[faces[:, i]] - uv[faces[:, (i + 1) % 3]], axis=1)
+                     for i in range(3)]).max(axis=0)
+    return position, uv, faces[edge <= 2.5 * material.spacing_mm]
+
+
+def _corner_pieces(
+    uv: NDArray[np.float64], part: NDArray[np.intp], material: ClothMaterial
+) -> NDArray[np.intp]:
+    """Each corner's flap (4,), -1 for none: the one of the flap vertex nearest it on
+    the napkin (the corner itself may lie next to a bend, or be left out as one)."""
+    on_flap = np.flatnonzero(part >= 0)
+    w, h = material.size_mm
+    near_d, near_i = cKDTree(uv[on_flap]).query([[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]])
+    return np.where(near_d <= CORNER_REACH_MM, part[on_flap[near_i]], -1)
 
 
 def _flap_corners(word: str) -> str:
