@@ -28,6 +28,7 @@ import re
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.camera import Intrinsics
 from ..core.layout import NapkinLayout
 from ..perception.detect import StickerDetections
 from ..perception.footprint import Footprint
@@ -44,11 +45,14 @@ __all__ = [
     "MIRROR_MARGIN",
     "RIGIDITY_TOLERANCE",
     "SCALE_TOLERANCE",
+    "UNITS_TOLERANCE",
+    "depth_range_hint",
     "depth_scale_hint",
     "footprint_penalty",
     "footprint_problem",
     "mirror_problem",
     "rigidity_problem",
+    "scale_causes",
     "scale_problem",
 ]
 
@@ -79,8 +83,13 @@ FOOTPRINT_EXCESS = 0.1
 FOOTPRINT_SCALE = 0.1
 
 
-def scale_problem(ruler: NapkinRuler | None, layout: NapkinLayout) -> str | None:
-    """The reason the napkin's measured size rules out a verdict, or None.
+def scale_problem(
+    ruler: NapkinRuler | None, layout: NapkinLayout, intrinsics: Intrinsics | None = None,
+    *, nominal: bool = False,
+) -> str | None:
+    """The reason the napkin's measured size rules out a verdict, or None, with what
+    would explain it: depth units (a power of ten), the focal length (the value that
+    would give the printed size) or another napkin size.
 
     Parameters
     ----------
@@ -88,41 +97,146 @@ def scale_problem(ruler: NapkinRuler | None, layout: NapkinLayout) -> str | None
         The napkin's measured scale (None: too few stickers to tell, no objection).
     layout : NapkinLayout
         The napkin's true size.
+    intrinsics : Intrinsics, optional
+        The frame's intrinsics (their focal length is named in the hint).
+    nominal : bool, keyword-only
+        Whether those are the nominal camera's, not given for this one.
     """
     if ruler is None or abs(ruler.scale - 1.0) <= SCALE_TOLERANCE:
         return None
     w, h = layout.width_mm, layout.height_mm
     if w == h:
         measured, expected = f"{ruler.scale * w:.0f} mm", f"{w:.0f}"
+        size = f"{ruler.scale * w:.0f}"
     else:
         measured = f"{ruler.scale * w:.0f} x {ruler.scale * h:.0f} mm"
         expected = f"{w:.0f} x {h:.0f}"
+        size = f"{ruler.scale * w:.0f}x{ruler.scale * h:.0f}"
+    causes = scale_causes(ruler.scale, intrinsics, nominal=nominal)
     return (
         f"the napkin measures {measured}, expected {expected} (its stickers are "
-        f"{ruler.scale:.2f} times as far apart as printed: depth units? intrinsics? "
-        "another napkin size?)"
+        f"{ruler.scale:.2f} times as far apart as printed): {causes}; or another napkin "
+        f"size (--size {size})?"
     )
 
 
-def depth_scale_hint(detections: StickerDetections, depth_mm: NDArray[np.uint16]) -> str:
-    """What the depth image may have wrong when too few stickers were located: blobs of
-    the stickers' colours whose size disagrees with their depth by one common factor
-    (depth in other units), or a depth image stuck at its largest value. ``""`` when
-    neither is seen.
+#: How near (relative) a scale must be to a power of ten to be read as depth units.
+UNITS_TOLERANCE = 0.15
+
+_UNITS = {10.0: "0.1 mm", 100.0: "0.01 mm", 1000.0: "micrometres", 0.1: "cm", 0.01: "dm",
+          0.001: "m"}
+
+
+def scale_causes(
+    scale: float, intrinsics: Intrinsics | None = None, *, nominal: bool = False
+) -> str:
+    """What makes 3D distances ``scale`` times their true size, most likely first:
+    depth in other units (near a power of ten: "depth in cm?"), else a focal length that
+    is not this camera's (the one that would fit: "about 605 px, not 910"), then the
+    depth.
+
+    Parameters
+    ----------
+    scale : float
+        Measured over true size (the depth read over the true depth, or the true focal
+        length over the one given).
+    intrinsics : Intrinsics, optional
+        The intrinsics used (their focal length is named).
+    nominal : bool, keyword-only
+        Whether the intrinsics are the nominal camera's rather than given.
+    """
+    tens = 10.0 ** round(float(np.log10(scale)))
+    if tens != 1.0 and abs(scale / tens - 1.0) <= UNITS_TOLERANCE:
+        unit = _UNITS.get(tens, "other units")
+        fix = f"x{1 / tens:g}" if tens < 1 else f"/{tens:g}"
+        return (
+            f"the depth reads about {tens:g} times the true distance (depth in {unit} "
+            f"instead of mm? {fix} gives mm; depth units? a depth scale setting?)"
+        )
+    depth = (
+        f"the depth reads {scale:.2g} times the true distance (depth units? a depth "
+        "scale setting?)"
+    )
+    if intrinsics is None:
+        return f"{depth}, or intrinsics that are not this camera's"
+    fits = f"the focal length would be about {scale * intrinsics.fx:.0f} px"
+    focal = (
+        f"{fits}, not the nominal camera's {intrinsics.fx:.0f} (give this camera's "
+        "intrinsics: an intrinsics.json beside the images, or --intrinsics)"
+        if nominal
+        else f"{fits}, not {intrinsics.fx:.0f} as the intrinsics give (another camera's, "
+        "or another resolution's?)"
+    )
+    return f"{focal}, or {depth}"
+
+
+def depth_range_hint(depth_mm: NDArray[np.uint16]) -> str:
+    """What the depth image's own readings say of its units, or ``""``: a camera that
+    sees the napkin's stickers is more than 150 mm away, so readings (mm) all below 1000
+    with a median below 150 are most likely cm, dm or m, and whole metres keep no detail.
+
+    Parameters
+    ----------
+    depth_mm : ndarray of uint16, shape (H, W)
+    """
+    read = depth_mm[::4, ::4]
+    read = read[read > 0]
+    if read.size == 0:
+        return "the depth image has no readings (all 0)"
+    median = float(np.median(read))
+    lo, hi = int(read.min()), int(read.max())
+    if median >= 150 or hi >= 1000:
+        return ""
+    if hi <= 3:
+        return (
+            f"the depth image reads only {lo}-{hi}: depth in metres stored as whole "
+            "numbers? (that keeps no detail: write it in mm, metres x 1000 as 16-bit)"
+        )
+    factor = next((f for f in (10, 100, 1000) if 250 <= median * f <= 5000), 10)
+    unit = {10: "cm", 100: "dm", 1000: "m"}[factor]
+    return (
+        f"the depth image reads {lo}-{hi} (median {median:.0f}), a camera "
+        f"{median:.0f} mm from the napkin: depth in {unit}? (x{factor} gives "
+        f"{median * factor:.0f} mm; depth must be in mm)"
+    )
+
+
+def depth_scale_hint(
+    detections: StickerDetections,
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics | None = None,
+    *,
+    nominal: bool = False,
+) -> str:
+    """What the depth image (or the intrinsics) may have wrong when too few stickers were
+    located: readings no camera that sees the napkin gives (:func:`depth_range_hint`), a
+    depth image stuck at its largest value, or blobs of the stickers' colours whose size
+    disagrees with their depth by one common factor (depth in other units, or a focal
+    length that is not this camera's: :func:`scale_causes`). ``""`` when none is seen.
 
     Parameters
     ----------
     detections : StickerDetections
         The detector's result, with its rejected blobs.
     depth_mm : ndarray of uint16, shape (H, W)
+    intrinsics : Intrinsics, optional
+        The frame's intrinsics (their focal length is named).
+    nominal : bool, keyword-only
+        Whether the intrinsics are the nominal camera's rather than given.
     """
+    ranged = depth_range_hint(depth_mm)
+    if ranged:
+        return ranged
     hints = []
     n_valid = np.count_nonzero(depth_mm > 0)
     if n_valid:
         # the share of the valid readings stuck at the largest value (counted, not copied)
         stuck = float(np.count_nonzero(depth_mm == np.iinfo(np.uint16).max) / n_valid)
         if stuck > 0.5:
-            hints.append(f"the depth image reads 65535 at {100 * stuck:.0f}% of its pixels")
+            hints.append(
+                f"the depth image reads 65535 at {100 * stuck:.0f}% of its pixels (depth "
+                "units? a depth scale setting?)"
+            )
     ratios = [
         float(m.group(1))
         for r in detections.rejected
@@ -132,13 +246,14 @@ def depth_scale_hint(detections: StickerDetections, depth_mm: NDArray[np.uint16]
     if len(ratios) >= 4:
         factor = float(np.median(ratios))
         size = f"{factor:.0f} times" if factor >= 1 else f"1/{1 / max(factor, 1e-6):.0f} of"
+        # a blob's side over a sticker's there: the depth read over the true one, or the
+        # true focal length over the one given
+        causes = scale_causes(float(np.sqrt(max(factor, 1e-12))), intrinsics, nominal=nominal)
         hints.append(
             f"{len(ratios)} blobs of the stickers' colours are {size} the area of a sticker "
-            "at the depth read there"
+            f"at the depth read there: {causes}"
         )
-    if not hints:
-        return ""
-    return "; ".join(hints) + " (depth units? a depth scale setting?)"
+    return "; ".join(hints)
 
 
 def rigidity_problem(ruler: NapkinRuler | None, *, lens_known: bool) -> str | None:

@@ -462,7 +462,7 @@ def _too_small(
         across = float(np.median(2 * np.sqrt(detections.areas[found] / (np.pi * fore))))
         depth_mm = layout.disc_diameter_mm * frame.intrinsics.fx / max(across, 1e-6)
         return sticker_size_problem(depth_mm, frame.intrinsics, layout.disc_diameter_mm)
-    if depth_scale_hint(detections, frame.depth_mm):
+    if depth_scale_hint(detections, frame.depth_mm, frame.intrinsics):
         return None
     return sticker_size_problem(napkin_mm, frame.intrinsics, layout.disc_diameter_mm)
 
@@ -511,7 +511,10 @@ def _judge(
         unknown = _unknown_summary(obs)
         if unknown:
             reason += f" ({unknown})"
-        depth_hint = depth_scale_hint(detections, frame.depth_mm)
+        depth_hint = depth_scale_hint(
+            detections, frame.depth_mm, frame.intrinsics,
+            nominal=frame.intrinsics_source == "default",
+        )
         if depth_hint:
             reason += f"; {depth_hint}"
         return FrameResult(detections, markers, obs, coords, None, reason, why=WHY_KINDS[1])
@@ -568,7 +571,9 @@ def _image_problem(
     return (
         _too_small(detections, frame, napkin_mm, layout)
         or (edge_on_problem(obs.edge_on_mm) if obs.edge_on_mm is not None else None)
-        or scale_problem(obs.ruler, layout)
+        or scale_problem(
+            obs.ruler, layout, frame.intrinsics, nominal=frame.intrinsics_source == "default"
+        )
         or rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
     )
 
