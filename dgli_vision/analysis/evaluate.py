@@ -479,16 +479,17 @@ def counts_text(counts: dict[str, int]) -> str:
     )
 
 
-def outcomes_text(counts: dict[str, int]) -> str:
+def outcomes_text(counts: dict[str, int], unit: str = "pairs") -> str:
     """``"right 40, cannot tell 7, wrong 1, unreadable 0; answered 98% of the pairs
-    read, 97.92% of the answers right"`` for people."""
+    read, 97.92% of the answers right"`` for people (``unit``: what was read, "pairs"
+    or a recording's "frames")."""
     cov, acc = coverage(counts), accuracy_answered(counts)
     cov_text = "n/a" if cov is None else f"{cov:.0%}"
     acc_text = "n/a" if acc is None else f"{acc:.2%}"
     return (
         f"right {counts['right']}, cannot tell {counts['cannot_tell']}, wrong "
         f"{counts['wrong']}, unreadable {counts.get('unreadable', 0)}; answered {cov_text} "
-        f"of the pairs read, {acc_text} of the answers right"
+        f"of the {unit} read, {acc_text} of the answers right"
     )
 
 

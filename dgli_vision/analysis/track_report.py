@@ -111,7 +111,7 @@ def _summary_lines(data: dict[str, Any], timeline: Timeline, labelled: bool) -> 
         f"gaps (not read or too little evidence): {sum(f.gap for f in frames)}",
     ]
     if labelled and "outcomes" in data:
-        lines.append("each frame's own answer: " + outcomes_text(data["outcomes"]))
+        lines.append("each frame's own answer: " + outcomes_text(data["outcomes"], "frames"))
     sc = timeline.score
     if sc is not None:
         lines.append(

@@ -8,6 +8,7 @@ from typing import Any
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import (
     colours_option,
@@ -185,16 +186,16 @@ class _EvaluationRun:
             self._report(result, skipped, overwrite)
         if stop.stopped:
             click.echo(
-                f"interrupted: {len(outcomes)} of {len(self.pairs)} pairs done"
+                f"interrupted: {len(outcomes)} of {counted(len(self.pairs), 'pair')} done"
                 + ("; go on with the same command and --resume" if self.report_dir else ""),
                 err=True,
             )
             sys.exit(stop.exit_code)
         if result.n and not result.classified:
             if all(o.error for o in outcomes):
-                click.echo(f"error: none of the {result.n} pairs could be read", err=True)
+                click.echo(f"error: {_none_of(result.n)} could be read", err=True)
                 sys.exit(2)
-            click.echo(f"error: none of the {result.n} pairs could be classified", err=True)
+            click.echo(f"error: {_none_of(result.n)} could be classified", err=True)
             sys.exit(1)
 
     def _classify(self, done: dict, writer: Any, stop: Stop) -> None:
@@ -230,7 +231,7 @@ class _EvaluationRun:
         from ..analysis.evaluate import SPLIT_COLUMNS, counts_text
         from ..analysis.report import markdown_table
 
-        echo(f"{result.n} pairs: {counts_text(result.outcome_counts)}")
+        echo(f"{counted(result.n, 'pair')}: {counts_text(result.outcome_counts)}")
         echo(result.outcomes_text())
         echo(
             f"class accuracy {result.accuracy:.2%}, "
@@ -288,3 +289,8 @@ class _EvaluationRun:
         )
         record_outputs([out / "results.jsonl"], meta["command"])
         click.echo(f"report written to {out / 'report.html'} (and report.md)", err=True)
+
+
+def _none_of(n: int) -> str:
+    """``"none of the 3 pairs"``, or ``"not even the one pair"`` for one."""
+    return "not even the one pair" if n == 1 else f"none of the {n} pairs"

@@ -6,6 +6,7 @@ from typing import Any
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import finite_seconds, overwrite_option, recording_options
 from .output import command_line, echo, progress_bar
@@ -71,4 +72,4 @@ def extract(
     recording_notes(recording)
     for line in result.skipped:
         click.echo(f"skipped: {line}", err=True)
-    echo(f"wrote {result.written} frames to {out} (frames: {result.frames_csv})")
+    echo(f"wrote {counted(result.written, 'frame')} to {out} (frames: {result.frames_csv})")

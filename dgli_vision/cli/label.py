@@ -9,6 +9,7 @@ from typing import Any
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import json_option, overwrite_option, references_option
 from .output import command_line
@@ -287,7 +288,7 @@ class _LabelRun:
         self._finish(entries, out, overwrite, complete=not stop.stopped)
         if stop.stopped:
             click.echo(
-                f"interrupted: {len(entries)} of {len(self.names)} episodes done"
+                f"interrupted: {len(entries)} of {counted(len(self.names), 'episode')} done"
                 + ("; go on with the same command and --resume" if out else ""),
                 err=True,
             )
@@ -317,7 +318,8 @@ class _LabelRun:
         answered = sum(f["class"] is not None for f in frames)
         first = frames[0]["smoothed"] if frames else {"class": "01", "variant": None}
         click.echo(
-            f"{ep['path']}: {len(frames)} frames ({answered} with a class); starts as "
+            f"{ep['path']}: {counted(len(frames), 'frame')} ({answered} with a class); "
+            "starts as "
             f"{state_text((first['class'], first['variant']))}"
         )
         for c in ep["changes"]:
@@ -360,8 +362,9 @@ class _LabelRun:
         else:
             failed = len(summary["failed"])
             click.echo(
-                f"{summary['labelled']} of {summary['episodes']} episodes labelled, "
-                f"{summary['frames']} frames, {summary['changes']} state changes"
+                f"{summary['labelled']} of {counted(summary['episodes'], 'episode')} labelled, "
+                f"{counted(summary['frames'], 'frame')}, "
+                f"{counted(summary['changes'], 'state change')}"
                 + (f"; {failed} failed (above)" if failed else "")
                 + (f"; written to {out}" if out else "")
             )

@@ -8,6 +8,7 @@ import sys
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import (
     image_output,
@@ -37,9 +38,8 @@ def _plan_line(plan) -> str:
     if not plan.steps:
         return f"already in {name(plan.goal)}"
     words = [f"{s.action} {s.fold} -> {name(s.expect)}" for s in plan.steps]
-    text = f"{name(plan.start)} to {name(plan.goal)} in {len(plan.steps)} steps: " + "; ".join(
-        words
-    )
+    steps = counted(len(plan.steps), "step")
+    text = f"{name(plan.start)} to {name(plan.goal)} in {steps}: " + "; ".join(words)
     first = plan.steps[0]
     if first.grasp_point is not None:
         g = ", ".join(f"{v:.3f}" for v in first.grasp_point)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import output_option, overwrite_option, size_option
 from .output import command_line, echo, napkin_provenance, package_version
@@ -51,4 +52,7 @@ def references_build(
     }
     refs = build_references(records, provenance=provenance)
     write_references(output, refs, overwrite=overwrite)
-    echo(f"wrote {len(refs)} references from {len(records)} states to {output}")
+    echo(
+        f"wrote {counted(len(refs), 'reference')} from {counted(len(records), 'state')} "
+        f"to {output}"
+    )

@@ -8,6 +8,7 @@ from typing import Any
 
 import click
 
+from ..core.words import counted
 from ..sim.condition_names import CONDITION_HELP
 from .errors import handle_errors
 from .options import (
@@ -216,7 +217,7 @@ def _render_set(
     kept = kept_pairs(out, provenance, names) if resume else {}
     todo = [k for k, n in enumerate(names) if n not in kept]
     if kept:
-        click.echo(f"resuming: {len(kept)} of {len(names)} pairs kept", err=True)
+        click.echo(f"resuming: {len(kept)} of {counted(len(names), 'pair')} kept", err=True)
     if sequence:
         stream = render_sequence(
             sequence,
@@ -242,12 +243,12 @@ def _render_set(
     done = len(samples) + len(kept)
     if stop.stopped:
         click.echo(
-            f"interrupted: {done} of {len(names)} pairs written to {out}"
+            f"interrupted: {done} of {counted(len(names), 'pair')} written to {out}"
             + (f" (labels: {labels}); go on with the same command and --resume" if done else ""),
             err=True,
         )
         sys.exit(stop.exit_code)
-    echo(f"wrote {done} pairs to {out} (labels: {labels})")
+    echo(f"wrote {counted(done, 'pair')} to {out} (labels: {labels})")
 
 
 def _remove_earlier_pairs(out: str, names: list[str], sequence: bool, overwrite: bool) -> None:

@@ -176,9 +176,10 @@ def open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: boo
         repair_journal(path)
         kept, stale = current_results(earlier[1:])
         if stale:
-            pairs = "1 pair has" if stale == 1 else f"{stale} pairs have"
+            unit = "frame" if header.get("kind") == "track" else "pair"
+            which = f"1 {unit} has" if stale == 1 else f"{stale} {unit}s have"
             click.echo(
-                f"note: {pairs} changed since the interrupted run (image size or time): "
+                f"note: {which} changed since the interrupted run (image size or time): "
                 "classified again",
                 err=True,
             )

@@ -6,6 +6,7 @@ from typing import Any
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import make_jobs_option, overwrite_option, per_class_option, size_option
 from .output import command_line, echo, napkin_provenance, package_version, progress
@@ -93,7 +94,7 @@ def simulate(
         "package_version": package_version(),
     }
     index = write_database(out, states, provenance, overwrite=overwrite)
-    echo(f"wrote {len(states)} states to {index}")
+    echo(f"wrote {counted(len(states), 'state')} to {index}")
 
 
 def _simulate_part(task: tuple[int, int, str | None, dict[str, Any]]) -> list:

@@ -8,6 +8,7 @@ from typing import Any
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import (
     colours_option,
@@ -164,7 +165,7 @@ class _TrackRun:
             self._report(data, timeline, outcomes, labelled, overwrite)
         if stop.stopped:
             click.echo(
-                f"interrupted: {len(outcomes)} of {self.recording.count} frames done"
+                f"interrupted: {len(outcomes)} of {counted(self.recording.count, 'frame')} done"
                 + ("; go on with the same command and --resume" if self.report_dir else ""),
                 err=True,
             )
@@ -214,7 +215,7 @@ class _TrackRun:
 
         first = next((f for f in timeline.frames if not f.gap), None)
         echo(
-            f"{n} frames; "
+            f"{counted(n, 'frame')}; "
             + (
                 f"starts as {state((first.smoothed_class, first.smoothed_variant))}"
                 if first
@@ -229,7 +230,7 @@ class _TrackRun:
         if "outcomes" in data:
             from ..analysis.evaluate import outcomes_text
 
-            echo("frames' own answers: " + outcomes_text(data["outcomes"]))
+            echo("frames' own answers: " + outcomes_text(data["outcomes"], "frames"))
         sc = timeline.score
         if sc is not None:
             echo(

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .output import progress_bar
 
@@ -43,4 +44,4 @@ def write_recording_cmd(folder: str, out: str, fmt: str | None, fps: float) -> N
     with progress_bar(count, "writing") as bar:
         path, n = write_recording(folder, out, fmt=fmt, fps=fps,
                                   on_frame=lambda: bar.update(1))
-    click.echo(f"wrote {n} frames to {path}", err=True)
+    click.echo(f"wrote {counted(n, 'frame')} to {path}", err=True)

@@ -307,6 +307,8 @@ def check_resume(journal: str | Path, first: Any, header: dict[str, Any]) -> Non
                 before, after = was[key].get(sub), now[key].get(sub)
             else:
                 name = FIELD_NAMES.get(key, key)
+                if key == "pairs" and header["kind"] == "track":  # a recording's frames
+                    name = "list of frames"
                 before, after = was.get(key), now.get(key)
             raise ResumeMismatchError(
                 f"cannot resume '{journal}': {name} changed since its run "

@@ -268,6 +268,7 @@ def _nothing_to_extract(
         return f"recording '{recording.source}' holds no frame{window_text}: nothing written"
     first = f" (the first: {result.skipped[0]})" if result.skipped else ""
     return (
-        f"none of the {seen} frames of recording '{recording.source}' could be written"
+        f"{'not even the one frame' if seen == 1 else f'none of the {seen} frames'} of "
+        f"recording '{recording.source}' could be written"
         f"{first}: nothing written"
     )
