@@ -107,7 +107,8 @@ def command_line() -> str:
         ):
             flag = max(param.opts, key=len)
             if isinstance(value, (tuple, list)):  # a parsed list (--conditions a,b)
-                value = ",".join(map(str, value))
+                sep = getattr(param, "list_separator", ",")  # a state: 05/AB/B
+                value = sep.join(str(v) for v in value if v is not None)
             words.append(flag if value is True else f"{flag} {shlex.quote(str(value))}")
     return " ".join(words)
 

@@ -184,7 +184,13 @@ def plan_cmd(
                 guard_outputs([overlay], overwrite=overwrite)
             frame = read_frame(color, depth, intrinsics)
             result = classify_frame(frame, refs, layout=layout)
-            plan = plan_frame(result, frame, goal, layout)
+            try:
+                plan = plan_frame(result, frame, goal, layout)
+            except PlanRefused as exc:  # the overlay still shows the frame, and why
+                if overlay:
+                    write_outputs({Path(overlay): _overlay(frame, result, None, str(exc))},
+                                  overwrite=overwrite, command=command_line())
+                raise
             if overlay:
                 write_outputs({Path(overlay): _overlay(frame, result, plan)},
                               overwrite=overwrite, command=command_line())
@@ -226,14 +232,26 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
     report(check, False)
 
 
-def _overlay(frame, result, plan):
-    from ..planning.overlay import draw_step
+def _overlay(frame, result, plan, refused: str | None = None):
+    """The classification's overlay with the plan's next step and its legend drawn on it,
+    or, with no plan, why (``refused``)."""
+    from ..planning.overlay import draw_no_plan, draw_step
     from .classify import overlay_of
 
     img = overlay_of(frame, result)
+    if plan is None:
+        return draw_no_plan(img, (refused or "").removeprefix("no plan: "))
     if plan.steps:
         s = plan.steps[0]
         what = s.corner or s.side
         e = f"{s.expect[0]}/{s.expect[1]}" if s.expect[1] else s.expect[0]
-        img = draw_step(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}")
+        of = f" (step 1 of {len(plan.steps)})" if len(plan.steps) > 1 else ""
+        img = draw_step(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}{of}")
+    else:
+        img = draw_no_plan(img, "already in the goal state")
     return img
+
+
+for _param in plan_cmd.params:  # a state is recorded as it is written: 05/AB/B
+    if _param.name in ("goal", "start"):
+        _param.list_separator = "/"  # type: ignore[attr-defined]

@@ -1,5 +1,7 @@
 """Pictures of affordances and plans: graspable corners, grasp and place points, fold
-lines, drawn on an overlay image (BGR)."""
+lines, drawn on an overlay image (BGR). Every marker and label is kept inside the image
+(a point at its edge is drawn just inside it), and a plan's step comes with a legend
+that also gives the grasp point in 3D and the lift height."""
 
 from __future__ import annotations
 
@@ -8,15 +10,19 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["draw_corners", "draw_folds", "draw_step", "fold_caption"]
+__all__ = ["draw_corners", "draw_folds", "draw_no_plan", "draw_step", "fold_caption"]
 
 #: BGR colours: a graspable corner (green ring), a corner not graspable (grey cross),
-#: the grasp (magenta), the place (cyan) and the fold line (white dashes).
+#: the grasp (orange, apart from the stickers' segments' magenta), the place (cyan) and
+#: the fold line (white dashes on a dark rim, seen on a white napkin too).
 GRASPABLE = (60, 200, 60)
 NOT_GRASPABLE = (150, 150, 150)
-GRASP = (200, 0, 200)
+GRASP = (0, 120, 255)
 PLACE = (230, 200, 0)
 FOLD = (255, 255, 255)
+RIM = (0, 0, 0)
+#: The stickers' segments (drawn by :func:`~dgli_vision.analysis.report.overlay_image`).
+SEGMENT = (255, 0, 255)
 
 
 def _scale(img: NDArray) -> float:
@@ -25,6 +31,38 @@ def _scale(img: NDArray) -> float:
 
 def _px(p: Any) -> tuple[int, int]:
     return int(round(float(p[0]))), int(round(float(p[1])))
+
+
+def _inside(img: NDArray, p: tuple[int, int], margin: int) -> tuple[int, int]:
+    """``p`` moved just inside the image, ``margin`` pixels from each edge."""
+    h, w = img.shape[:2]
+    return (min(max(p[0], margin), w - 1 - margin), min(max(p[1], margin), h - 1 - margin))
+
+
+def _text_inside(
+    img: NDArray, text: str, org: tuple[int, int], scale: float, weight: int
+) -> tuple[int, int]:
+    """Where to write ``text`` near ``org`` (its baseline's left end) so that it lies
+    wholly inside the image."""
+    import cv2
+
+    (tw, th), base = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, weight + 2)
+    h, w = img.shape[:2]
+    x = min(max(org[0], 2), max(2, w - tw - 3))
+    y = min(max(org[1], th + 3), h - base - 3)
+    return x, y
+
+
+def _rimmed_text(
+    img: NDArray, text: str, org: tuple[int, int], scale: float, colour: tuple, weight: int
+) -> None:
+    """``text`` in ``colour`` on a dark rim, kept inside the image."""
+    import cv2
+
+    x, y = _text_inside(img, text, org, scale, weight)
+    for dx, dy in ((-1, -1), (1, 1), (-1, 1), (1, -1), (0, 0)):
+        cv2.putText(img, text, (x + dx, y + dy), cv2.FONT_HERSHEY_SIMPLEX, scale,
+                    colour if dx == dy == 0 else RIM, weight, cv2.LINE_AA)
 
 
 def draw_corners(img: NDArray[np.uint8], affordances: Any) -> NDArray[np.uint8]:
@@ -39,15 +77,14 @@ def draw_corners(img: NDArray[np.uint8], affordances: Any) -> NDArray[np.uint8]:
     for c in affordances.corners:
         if c.pixel is None:
             continue
-        u, v = _px(c.pixel)
         if c.graspable:
+            u, v = _inside(img, _px(c.pixel), int(18 * s))
             cv2.circle(img, (u, v), int(14 * s), GRASPABLE, max(2, int(3 * s)), cv2.LINE_AA)
-            cv2.putText(
-                img, c.corner, (u + int(16 * s), v - int(10 * s)), cv2.FONT_HERSHEY_SIMPLEX,
-                0.7 * s, GRASPABLE, max(2, int(2 * s)), cv2.LINE_AA,
-            )
+            _rimmed_text(img, c.corner, (u + int(16 * s), v - int(10 * s)), 0.7 * s,
+                         GRASPABLE, max(2, int(2 * s)))
         else:
             r = int(8 * s)
+            u, v = _inside(img, _px(c.pixel), r + 2)
             cv2.line(img, (u - r, v - r), (u + r, v + r), NOT_GRASPABLE, 2, cv2.LINE_AA)
             cv2.line(img, (u - r, v + r), (u + r, v - r), NOT_GRASPABLE, 2, cv2.LINE_AA)
     return img
@@ -95,29 +132,141 @@ def draw_folds(img: NDArray[np.uint8], affordances: Any, intrinsics: Any) -> NDA
     return img
 
 
+def _dashes(img: NDArray, a: NDArray, b: NDArray, width: int, n: int = 24) -> None:
+    """A dashed line from ``a`` to ``b``: dark dashes a little wider, then white ones
+    on them (seen on the white napkin as on the table)."""
+    import cv2
+
+    for colour, w in ((RIM, width + 4), (FOLD, width)):
+        for k in range(0, n, 2):
+            p = a + (b - a) * k / n
+            q = a + (b - a) * (k + 1) / n
+            cv2.line(img, _px(p), _px(q), colour, w, cv2.LINE_AA)
+
+
+def _step_lines(step: Any, caption: str) -> list[str]:
+    """The legend's text of a step: what it is, then the grasp point in 3D, the lift
+    height and the place point (metres, camera frame)."""
+
+    def xyz(p: Any) -> str:
+        return "(" + ", ".join(f"{v:.3f}" for v in p) + ") m"
+
+    lines = [caption] if caption else []
+    if step.grasp_point is not None:
+        lift = f", lift {step.lift_height:.3f} m" if step.lift_height is not None else ""
+        lines.append(f"grasp {xyz(step.grasp_point)}{lift}")
+    if step.place_point is not None:
+        lines.append(f"place {xyz(step.place_point)}")
+    return lines
+
+
+#: The legend's symbols, in order: name and how it is drawn.
+_KEYS = (
+    ("grasp", "disc"),
+    ("place", "ring"),
+    ("fold line", "dashes"),
+    ("graspable corner", "corner"),
+    ("sticker segment", "segment"),
+)
+
+
+def _legend(img: NDArray, lines: list[str], keys: tuple, avoid: list[tuple[int, int]]) -> None:
+    """A dark box with ``lines`` of text over the symbols of ``keys``, in the lower
+    corner of the image (left or right) with fewer of the points ``avoid`` under it."""
+    import cv2
+
+    s = _scale(img)
+    font, scale, weight = cv2.FONT_HERSHEY_SIMPLEX, 0.55 * s, max(1, int(s))
+    line_h, pad, sym = int(22 * s), int(8 * s), int(30 * s)
+    key_w = [sym + cv2.getTextSize(k, font, scale, weight)[0][0] + int(14 * s) for k, _ in keys]
+    text_w = max((cv2.getTextSize(t, font, scale, weight)[0][0] for t in lines), default=0)
+    h, w = img.shape[:2]
+    box_w = min(w - 4, max(text_w, sum(key_w)) + 2 * pad)
+    rows = len(lines) + (1 if keys else 0)
+    box_h = rows * line_h + 2 * pad
+    y0 = h - box_h - 2
+
+    def under(x0: int) -> int:
+        return sum(x0 <= u <= x0 + box_w and y0 <= v for u, v in avoid)
+
+    x0 = min((2, w - box_w - 2), key=under)
+    dark = img[y0 : y0 + box_h, x0 : x0 + box_w]
+    dark[:] = (dark * 0.35).astype(np.uint8)
+    y = y0 + pad + int(16 * s)
+    for t in lines:
+        cv2.putText(img, t, (x0 + pad, y), font, scale, (255, 255, 255), weight, cv2.LINE_AA)
+        y += line_h
+    x, mid = x0 + pad, y - int(5 * s)
+    for (name, how), kw in zip(keys, key_w, strict=True):
+        c = (x + sym // 2, mid)
+        if how == "disc":
+            cv2.circle(img, c, int(7 * s), GRASP, -1, cv2.LINE_AA)
+        elif how == "ring":
+            cv2.circle(img, c, int(8 * s), PLACE, max(2, int(2 * s)), cv2.LINE_AA)
+        elif how == "dashes":
+            _dashes(img, np.array([x + 2.0, mid]), np.array([x + sym - 2.0, mid]),
+                    max(2, int(2 * s)), n=5)
+        elif how == "corner":
+            cv2.circle(img, c, int(8 * s), GRASPABLE, max(2, int(2 * s)), cv2.LINE_AA)
+        else:
+            cv2.arrowedLine(img, (x + 2, mid), (x + sym - 2, mid), SEGMENT, max(1, int(2 * s)),
+                            cv2.LINE_AA, tipLength=0.3)
+        cv2.putText(img, name, (x + sym + int(4 * s), y), font, scale, (255, 255, 255), weight,
+                    cv2.LINE_AA)
+        x += kw
+
+
 def draw_step(
     img: NDArray[np.uint8], step: Any, intrinsics: Any, caption: str = ""
 ) -> NDArray[np.uint8]:
-    """Draw a plan's step: the fold line (dashed), the grasp (magenta disc), the place
-    (cyan ring) and an arrow from one to the other, with a caption."""
+    """Draw a plan's step: the fold line (white dashes on a dark rim), the grasp (an
+    orange disc), the place (a cyan ring) and an arrow from one to the other, each kept
+    inside the image, and a legend with ``caption``, the grasp point in 3D, the lift
+    height and the place point."""
     import cv2
 
     s = _scale(img)
     a, b = (intrinsics.project(np.asarray(p, dtype=float)[None])[0] for p in step.fold_line)
-    n = 24
-    for k in range(0, n, 2):
-        p = a + (b - a) * k / n
-        q = a + (b - a) * (k + 1) / n
-        cv2.line(img, _px(p), _px(q), FOLD, max(2, int(3 * s)), cv2.LINE_AA)
-    g = intrinsics.project(np.asarray(step.grasp_point, dtype=float)[None])[0]
-    pl = intrinsics.project(np.asarray(step.place_point, dtype=float)[None])[0]
-    cv2.arrowedLine(img, _px(g), _px(pl), GRASP, max(2, int(2 * s)), cv2.LINE_AA, tipLength=0.05)
-    cv2.circle(img, _px(g), int(10 * s), GRASP, -1, cv2.LINE_AA)
-    cv2.circle(img, _px(pl), int(12 * s), PLACE, max(2, int(3 * s)), cv2.LINE_AA)
-    if caption:
-        y = img.shape[0] - int(16 * s)
-        cv2.putText(img, caption, (12, y), cv2.FONT_HERSHEY_SIMPLEX, 0.7 * s, (0, 0, 0),
-                    int(5 * s), cv2.LINE_AA)
-        cv2.putText(img, caption, (12, y), cv2.FONT_HERSHEY_SIMPLEX, 0.7 * s,
-                    (255, 255, 255), max(1, int(2 * s)), cv2.LINE_AA)
+    _dashes(img, a, b, max(2, int(3 * s)))
+    r_grasp, r_place = int(10 * s), int(12 * s)
+    g = _inside(img, _px(intrinsics.project(np.asarray(step.grasp_point, float)[None])[0]),
+                r_grasp + 3)
+    pl = _inside(img, _px(intrinsics.project(np.asarray(step.place_point, float)[None])[0]),
+                 r_place + 4)
+    d = np.subtract(pl, g, dtype=float)
+    length = float(np.hypot(*d))
+    if length > r_grasp + r_place + 8:  # the arrow ends at the place's ring, its tip seen
+        tip = _px(np.asarray(g) + d * (1 - (r_place + 5) / length))
+        for colour, width in ((RIM, max(2, int(2 * s)) + 3), (GRASP, max(2, int(2 * s)))):
+            cv2.arrowedLine(img, g, tip, colour, width, cv2.LINE_AA,
+                            tipLength=min(0.5, 18 * s / length))
+    cv2.circle(img, g, r_grasp + 2, RIM, -1, cv2.LINE_AA)
+    cv2.circle(img, g, r_grasp, GRASP, -1, cv2.LINE_AA)
+    cv2.circle(img, pl, r_place, RIM, max(2, int(3 * s)) + 3, cv2.LINE_AA)
+    cv2.circle(img, pl, r_place, PLACE, max(2, int(3 * s)), cv2.LINE_AA)
+    _rimmed_text(img, "grasp", (g[0] + r_grasp + 4, g[1] + r_grasp + int(14 * s)), 0.55 * s,
+                 GRASP, max(1, int(s)))
+    _rimmed_text(img, "place", (pl[0] + r_place + 4, pl[1] + r_place + int(14 * s)),
+                 0.55 * s, PLACE, max(1, int(s)))
+    _legend(img, _step_lines(step, caption), _KEYS, [g, pl, _px(a), _px(b)])
+    return img
+
+
+def draw_no_plan(img: NDArray[np.uint8], reason: str) -> NDArray[np.uint8]:
+    """Write why there is no plan at the foot of an overlay (wrapped to its width; a
+    state that cannot be told points at the verdict's reason above)."""
+    import cv2
+
+    s = _scale(img)
+    lines: list[str] = []
+    if reason.startswith("the state cannot be told"):
+        reason = "the state cannot be told (why: the verdict above)"
+    for word in f"no plan: {reason}".split(" "):  # cut at spaces to the image's width
+        trial = f"{lines[-1]} {word}" if lines else word
+        wide = cv2.getTextSize(trial, cv2.FONT_HERSHEY_SIMPLEX, 0.55 * s, max(1, int(s)))[0][0]
+        if lines and wide <= img.shape[1] - int(30 * s):
+            lines[-1] = trial
+        else:
+            lines.append(word)
+    _legend(img, lines, (), [])
     return img
