@@ -33,7 +33,7 @@ from dgli_vision.labelling.export import (
     write_npz,
 )
 from dgli_vision.labelling.label import EpisodeLabels
-from dgli_vision.labelling.outputs import timeline_picture
+from dgli_vision.labelling.outputs import timeline_files
 from dgli_vision.labelling.run import LabelJob, label_episodes
 from dgli_vision.sim.cloth.mesh import flat_mesh
 from dgli_vision.sim.cloth.sequences import sequence_progress, sequence_state, sequence_steps
@@ -141,10 +141,12 @@ def sequences(seed: int, n_frames: int, out: Path, picture: str | None) -> None:
             total += len(truth)
             print(f"| {name} | {fmt[0]} | {sc.raw_accuracy:.1%} | {sc.smoothed_accuracy:.1%} "
                   f"| {list(sc.true_changes)} | {list(sc.found_changes)} |")
-            if picture and name == "II" and fmt[3] == "faces":
+            if picture and name == "II" and fmt[3] == "faces":  # the PNG (and its SVG)
                 import cv2
 
-                cv2.imwrite(picture, timeline_picture(ep, "dgli label: sequence II, remeshed"))
+                charts = timeline_files(ep, "x", "dgli label: sequence II, remeshed")
+                cv2.imwrite(picture, charts["x_timeline.png"])
+                Path(picture).with_suffix(".svg").write_text(charts["x_timeline.svg"])
     print(f"| all | | {right / total:.1%} | | | |")
 
 

@@ -1,5 +1,5 @@
-"""Every HTML page the tool writes (evaluate, track, robustness, compare), opened in headless
-Chromium: it loads with no missing picture, no failed load and no console error, its
+"""Every HTML page the tool writes (evaluate, track, robustness, compare, label), opened
+in headless Chromium: it loads with no missing picture, no failed load and no console error, its
 summary is on the first screen (1200 x 900), and its charts are Matplotlib's with axes.
 
 Skips where no browser is installed (scripts/setup.sh installs Debian's ``chromium``),
@@ -134,10 +134,23 @@ def pages(tmp_path_factory) -> dict[str, Path]:
     # compare: its report writer on made-up distances (simulating a database takes 5 s)
     out["compare"] = root / "compare"
     _compare_page(out["compare"])
+    # label: an episode of four frames (flat, a corner folded, two corners folded)
+    from dgli_vision.core.layout import default_layout
+    from dgli_vision.sim.cloth.mesh import flat_mesh
+    from dgli_vision.sim.cloth.states import sample_state
+
+    rng = np.random.default_rng(5)
+    meshes = [flat_mesh(default_layout()), sample_state("02", "A", rng).mesh,
+              sample_state("02", "A", rng).mesh, sample_state("04", "AB", rng).mesh]
+    episode = root / "episode.npz"
+    np.savez(episode, positions=np.stack([m.xyz for m in meshes]) * 1000,
+             grid=np.array(meshes[0].shape))
+    out["label"] = root / "label"
+    _run(["label", str(episode), "--units", "mm", "--no-geometry", "-o", str(out["label"])])
     return {kind: folder / "report.html" for kind, folder in out.items()}
 
 
-@pytest.mark.parametrize("kind", ["evaluate", "track", "robustness", "compare"])
+@pytest.mark.parametrize("kind", ["evaluate", "track", "robustness", "compare", "label"])
 def test_the_page_loads_whole_with_its_summary_on_the_first_screen(browser, pages, kind):
     check = browser.check(file_url(pages[kind]), _PROBE)
     assert check.errors == []  # no failed load, no console error
@@ -164,7 +177,7 @@ def test_a_missing_picture_is_found(browser, pages, tmp_path):
     assert any("confusion.svg" in e for e in check.errors)
 
 
-@pytest.mark.parametrize("kind", ["evaluate", "track", "robustness", "compare"])
+@pytest.mark.parametrize("kind", ["evaluate", "track", "robustness", "compare", "label"])
 def test_the_charts_have_axes_and_ticks(pages, kind):
     charts = sorted(pages[kind].parent.glob("*.svg"))
     assert charts

@@ -35,7 +35,8 @@ def _cloth_size(
     "--out",
     "out_dir",
     type=click.Path(file_okay=False),
-    help="Write NAME.jsonl, NAME.csv and NAME_timeline.png per episode and summary.json here.",
+    help="Write NAME.jsonl, NAME.csv and NAME_timeline.svg and .png per episode, and "
+         "summary.json and report.html (the timelines on one page) here.",
 )
 @json_option("Print {\"episodes\": [...], \"summary\": {...}} as one JSON object.")
 @click.option(
@@ -350,8 +351,12 @@ class _LabelRun:
         if not complete:
             summary["interrupted"] = {"done": len(entries), "of": len(self.names)}
         if out is not None:
+            from ..labelling.outputs import label_html
+
+            page = label_html(entries, summary, f"dgli label: {out}")
             write_outputs(
-                {out / "summary.json": {"command": command_line(), **summary}},
+                {out / "summary.json": {"command": command_line(), **summary},
+                 out / "report.html": page},
                 overwrite=overwrite,
                 command=command_line(),
             )
