@@ -155,9 +155,10 @@ def label_cmd(
     from .runs import folder_lock, open_journal
 
     out = Path(out_dir)
-    planned = [out / "summary.json"]  # results.jsonl: open_journal's to check
+    planned = [out / "summary.json", out / "report.html"]  # results.jsonl: open_journal's
     for n in run.names:
-        planned += [out / f"{n}.jsonl", out / f"{n}.csv", out / f"{n}_timeline.png"]
+        planned += [out / f"{n}{ext}" for ext in (".jsonl", ".csv", "_timeline.png",
+                                                  "_timeline.svg")]
     with folder_lock(out):  # before anything is checked or written there
         guard_outputs(planned, overwrite=overwrite or resume)
         journal = open_journal(out / "results.jsonl", run.header(), resume, overwrite)
