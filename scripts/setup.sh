@@ -49,8 +49,8 @@ stamp=.venv/.dgli-setup-stamp
 want=$(cat pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
-    # setuptools warns "Editable installation" (a dozen lines) on every editable install;
-    # only that warning is silenced, errors still show
+    # setuptools warns "Editable installation" (a dozen lines) on every editable install
+    # (here and in .venv-photoreal/ below); only that warning is silenced, errors show
     PYTHONWARNINGS="ignore:Editable installation" \
         .venv/bin/python -m pip install -q --disable-pip-version-check \
         -e '.[test,recordings,dask,realsense]'
@@ -69,7 +69,8 @@ if [ "${DGLI_NO_PHOTOREAL:-0}" != "1" ] \
     stamp=.venv-photoreal/.dgli-setup-stamp
     if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
         if .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check --upgrade pip \
-            && .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check \
+            && PYTHONWARNINGS="ignore:Editable installation" \
+                .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check \
                 -e '.[photoreal]'; then
             echo "$want" > "$stamp"
         else

@@ -98,3 +98,27 @@ def test_the_editable_install_warning_is_silenced_but_errors_show(tmp_path):
     assert run.returncode == 0, run.stderr
     assert "Editable installation" not in run.stderr
     assert "ERROR: a real pip error" in run.stderr
+
+
+def test_the_photoreal_environment_is_installed_without_the_warning_too(tmp_path):
+    """The first set-up also makes .venv-photoreal/: its editable install printed the
+    dozen lines of "Editable installation" the main one no longer did."""
+    repo, env = _scratch(tmp_path, stamp_matches=True)
+    stub = tmp_path / "venv_python"
+    _executable(stub, f"#!{sys.executable}\n{_EDITABLE_WARNING}")
+    # a python3 of version 3.11 whose venv is the stub above
+    _executable(tmp_path / "bin" / "python3", f"""#!/bin/sh
+[ "$1" = "-c" ] && exit 0
+if [ "$1" = "-m" ] && [ "$2" = "venv" ]; then
+    mkdir -p "$3/bin" && cp {stub} "$3/bin/python"; exit 0
+fi
+exit 1
+""")
+    for tool in ("mkdir", "cp"):
+        (tmp_path / "bin" / tool).symlink_to(shutil.which(tool))
+    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert (repo / ".venv-photoreal" / "bin" / "python").is_file()
+    assert "Editable installation" not in run.stderr
+    assert "ERROR: a real pip error" in run.stderr  # the stub's error still shows
