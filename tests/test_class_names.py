@@ -65,3 +65,17 @@ def test_a_second_bad_row_is_called_a_bad_row(tmp_path):
     assert res.exit_code == 2
     assert "class '13' is not a class: 01-12 (or 1-12)" in res.output
     assert "(and 1 more bad row)" in res.output
+
+
+def test_verify_takes_the_expected_state_by_name():
+    res = CliRunner().invoke(main, [
+        "verify", str(SAMPLES / "02_000_color.png"), str(SAMPLES / "02_000_depth.png"),
+        "--expect", "corner-over/C", "--intrinsics", str(SAMPLES / "intrinsics.json"),
+    ])
+    assert res.exit_code == 0 and res.output.startswith("success: 02/C reached"), res.output
+
+
+def test_conditions_are_read_whatever_their_case():
+    from dgli_vision.cli.options import parse_conditions
+
+    assert parse_conditions(None, None, "Gloss, JPEG,clean") == ("gloss", "jpeg", "clean")

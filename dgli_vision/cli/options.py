@@ -176,7 +176,7 @@ def recording_options(fn: F) -> F:
 
 
 def parse_conditions(ctx: click.Context, param: click.Parameter, value: str) -> tuple[str, ...]:
-    names = tuple(n.strip() for n in value.split(",") if n.strip())
+    names = tuple(n.strip().lower() for n in value.split(",") if n.strip())  # as Choice
     unknown = [n for n in names if n not in CONDITION_HELP and n != "clean"]
     if unknown:
         raise click.BadParameter(
