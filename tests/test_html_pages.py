@@ -186,3 +186,8 @@ def test_the_charts_have_axes_and_ticks(pages, kind):
         assert "Matplotlib" in text and 'id="axes_1"' in text and 'id="xtick_1"' in text
         assert svg.with_suffix(".png").is_file()  # the same chart as a picture, linked
         assert f'href="{svg.with_suffix(".png").name}"' in pages[kind].read_text()
+
+
+def test_a_count_of_one_is_in_the_singular(pages):
+    assert "over 1 condition (seed" in pages["robustness"].read_text()
+    assert "1 of 1 episode labelled, 4 frames" in pages["label"].read_text()

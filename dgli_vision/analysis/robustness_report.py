@@ -13,6 +13,7 @@ from __future__ import annotations
 from html import escape
 from typing import Any
 
+from ..core.words import counted
 from .charts import chart_files, outcomes_figure
 from .evaluate import outcome_fields, outcomes_text
 from .html_report import (
@@ -136,7 +137,7 @@ def robustness_report(
     title = "dgli robustness report"
     lines = [
         f"pairs: {sum(s.n for s in scores if not s.subset)} over "
-        f"{sum(not s.subset for s in scores)} conditions (seed {data.get('seed')}, "
+        f"{counted(sum(not s.subset for s in scores), 'condition')} (seed {data.get('seed')}, "
         f"{data.get('per_class')} per class)",
         "answers: " + outcomes_text(totals["outcomes"]),
         f"command: {command}",

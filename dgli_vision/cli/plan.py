@@ -52,14 +52,14 @@ def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> 
     from ..planning.check import check_count, check_pairs, check_table
 
     count = check_count(per_pair=per_pair, limit=limit)
-    with progress_bar(count, f"{count} trials", quiet=as_json) as bar:
+    with progress_bar(count, counted(count, "trial"), quiet=as_json) as bar:
         rows = list(check_pairs(refs, per_pair=per_pair, seed=seed, limit=limit,
                                 on_row=lambda _row: bar.update(1)))
     table = check_table(rows)
     if as_json:
         echo_json(table)
         return
-    echo(f"{table['pairs']} trials, success {table['success']:.3f}")
+    echo(f"{counted(table['pairs'], 'trial')}, success {table['success']:.3f}")
     echo("| steps to goal | right | cannot tell | refused | wrong |")
     echo("|---|---|---|---|---|")
     for n, c in table["by_steps"].items():

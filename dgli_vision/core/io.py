@@ -26,6 +26,7 @@ from .errors import (
     OverwriteError,
     UnreadableInputError,
 )
+from .words import counted
 
 __all__ = [
     "JsonLinesWriter",
@@ -446,8 +447,8 @@ def write_files(
         record_outputs(written, command)
     except OutputError as exc:
         raise OutputError(
-            f"{exc}; the {len(written)} files are written and kept, but a later run needs "
-            "--overwrite to replace them"
+            f"{exc}; the {counted(len(written), 'file')} are written and kept, but a later "
+            "run needs --overwrite to replace them"
         ) from None
     return written
 
