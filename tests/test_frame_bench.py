@@ -177,5 +177,5 @@ def test_a_missed_budget_comes_with_the_machines_load(monkeypatch) -> None:
     res = CliRunner().invoke(main, ["bench", "--only", "frames"])
     assert res.exit_code == 1
     assert "MISSED" in res.stdout
-    assert "1 budget(s) missed (exit 1); load average" in res.stderr
+    assert "1 budget missed (exit 1); load average" in res.stderr
     assert "time them again on an idle machine" in res.stderr

@@ -6,6 +6,7 @@ import sys
 
 import click
 
+from ..core.words import counted
 from .errors import handle_errors
 from .options import overwrite_option
 from .output import command_line, echo
@@ -115,8 +116,8 @@ def bench(
         stage(f"pipeline on '{samples}', best of {repeats} (about a minute)")
         results += b.run_pipeline_benchmarks(samples, repeats=repeats, classify_exe=exe_path)
     if only in (None, "frames"):
-        stage(f"frames: rendering {per_condition} a condition and timing each, best of "
-              f"{repeats} (a minute or more)")
+        stage(f"frames: rendering {counted(per_condition, 'frame')} a condition and timing "
+              f"each, best of {repeats} (a minute or more)")
         results += b.run_frame_benchmarks(
             per_condition=per_condition, sequence_frames=per_condition, repeats=repeats,
             conditions=conditions,
@@ -175,11 +176,12 @@ def _busy_note(missed: int) -> str:
     try:
         load = os.getloadavg()[0]
     except OSError:
-        return f"note: {missed} budget(s) missed (exit 1); time them again on an idle machine"
+        return (f"note: {counted(missed, 'budget')} missed (exit 1); time them again on an "
+                "idle machine")
     busy = " (a busy machine: the times are not this tool's own)" if load > 0.5 * cores else ""
     return (
-        f"note: {missed} budget(s) missed (exit 1); load average {load:.1f} on {cores} "
-        f"core(s){busy}; time them again on an idle machine"
+        f"note: {counted(missed, 'budget')} missed (exit 1); load average {load:.1f} on "
+        f"{counted(cores, 'core')}{busy}; time them again on an idle machine"
     )
 
 
