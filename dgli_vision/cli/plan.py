@@ -234,22 +234,28 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
 
 def _overlay(frame, result, plan, refused: str | None = None):
     """The classification's overlay with the plan's next step and its legend drawn on it,
-    or, with no plan, why (``refused``)."""
-    from ..planning.overlay import draw_no_plan, draw_step
+    or, with no plan, why (``refused``). The step's marks go under the stickers and the
+    verdict (drawn on the colour image first), its legend over everything."""
+    from dataclasses import replace
+
+    import cv2
+
+    from ..planning.overlay import draw_no_plan, draw_step, draw_step_legend
     from .classify import overlay_of
 
-    img = overlay_of(frame, result)
     if plan is None:
-        return draw_no_plan(img, (refused or "").removeprefix("no plan: "))
-    if plan.steps:
-        s = plan.steps[0]
-        what = s.corner or s.side
-        e = f"{s.expect[0]}/{s.expect[1]}" if s.expect[1] else s.expect[0]
-        of = f" (step 1 of {len(plan.steps)})" if len(plan.steps) > 1 else ""
-        img = draw_step(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}{of}")
-    else:
-        img = draw_no_plan(img, "already in the goal state")
-    return img
+        return draw_no_plan(overlay_of(frame, result),
+                            (refused or "").removeprefix("no plan: "))
+    if not plan.steps:
+        return draw_no_plan(overlay_of(frame, result), "already in the goal state")
+    s = plan.steps[0]
+    what = s.corner or s.side
+    e = f"{s.expect[0]}/{s.expect[1]}" if s.expect[1] else s.expect[0]
+    of = f" (step 1 of {len(plan.steps)})" if len(plan.steps) > 1 else ""
+    marked = draw_step(cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR), s, frame.intrinsics,
+                       legend=False)
+    img = overlay_of(replace(frame, color=cv2.cvtColor(marked, cv2.COLOR_BGR2RGB)), result)
+    return draw_step_legend(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}{of}")
 
 
 for _param in plan_cmd.params:  # a state is recorded as it is written: 05/AB/B

@@ -10,7 +10,14 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["draw_corners", "draw_folds", "draw_no_plan", "draw_step", "fold_caption"]
+__all__ = [
+    "draw_corners",
+    "draw_folds",
+    "draw_no_plan",
+    "draw_step",
+    "draw_step_legend",
+    "fold_caption",
+]
 
 #: BGR colours: a graspable corner (green ring), a corner not graspable (grey cross),
 #: the grasp (orange, apart from the stickers' segments' magenta), the place (cyan) and
@@ -217,12 +224,14 @@ def _legend(img: NDArray, lines: list[str], keys: tuple, avoid: list[tuple[int, 
 
 
 def draw_step(
-    img: NDArray[np.uint8], step: Any, intrinsics: Any, caption: str = ""
+    img: NDArray[np.uint8], step: Any, intrinsics: Any, caption: str = "", *,
+    legend: bool = True,
 ) -> NDArray[np.uint8]:
     """Draw a plan's step: the fold line (white dashes on a dark rim), the grasp (an
     orange disc), the place (a cyan ring) and an arrow from one to the other, each kept
-    inside the image, and a legend with ``caption``, the grasp point in 3D, the lift
-    height and the place point."""
+    inside the image, and (``legend``) a legend with ``caption``, the grasp point in 3D,
+    the lift height and the place point (:func:`draw_step_legend`: drawn last, over
+    whatever else is drawn after the marks)."""
     import cv2
 
     s = _scale(img)
@@ -248,7 +257,20 @@ def draw_step(
                  GRASP, max(1, int(s)))
     _rimmed_text(img, "place", (pl[0] + r_place + 4, pl[1] + r_place + int(14 * s)),
                  0.55 * s, PLACE, max(1, int(s)))
-    _legend(img, _step_lines(step, caption), _KEYS, [g, pl, _px(a), _px(b)])
+    if legend:
+        draw_step_legend(img, step, intrinsics, caption)
+    return img
+
+
+def draw_step_legend(
+    img: NDArray[np.uint8], step: Any, intrinsics: Any, caption: str = ""
+) -> NDArray[np.uint8]:
+    """The legend of :func:`draw_step`'s marks, in the lower corner with fewer of them
+    under it: ``caption``, the grasp point in 3D with the lift height, the place point,
+    and what each mark is."""
+    marks = [step.grasp_point, step.place_point, *step.fold_line]
+    avoid = [_px(intrinsics.project(np.asarray(p, dtype=float)[None])[0]) for p in marks]
+    _legend(img, _step_lines(step, caption), _KEYS, avoid)
     return img
 
 
