@@ -18,7 +18,7 @@ from dgli_vision.classifier.references import (
 from dgli_vision.core.errors import (
     DetectionError,
     InvalidInputError,
-    ReferenceError_,
+    ReferenceSetError,
     UnreadableInputError,
 )
 from dgli_vision.sim.database import records_from_states, simulate_states
@@ -167,17 +167,17 @@ def test_height_tells_a_half_fold_from_a_strip_held_up_at_the_same_angle(shipped
         ("{", InvalidInputError, r"reference set '.*bad\.json' is not valid JSON \(line 1, "),
         (
             '{"format": "other"}',
-            ReferenceError_,
+            ReferenceSetError,
             r"'.*bad\.json' is not a dgli reference set \(no \"format\": \"dgli-references\"\)",
         ),
         (
             '{"format": "dgli-references", "version": 9}',
-            ReferenceError_,
+            ReferenceSetError,
             r"'.*bad\.json' has reference format version 9; expected 1$",
         ),
         (
             '{"format": "dgli-references", "version": 1, "references": [{"class": "02"}]}',
-            ReferenceError_,
+            ReferenceSetError,
             r"'.*bad\.json': reference 0 is malformed \('coordinates'\)$",
         ),
     ],

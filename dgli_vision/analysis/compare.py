@@ -12,6 +12,7 @@ from numpy.typing import NDArray
 from ..classifier.classify import reference_distances
 from ..classifier.references import ReferenceSet
 from ..core.distance import davies_bouldin, pairwise_spearman
+from ..core.errors import InvalidValueError
 from ..sim.database import StateRecords
 from .baselines import corner_distances, pairwise_curve_distances, segment_distances
 
@@ -301,7 +302,7 @@ def sequence_outcomes(
 
     dist = analysis.reference_distances
     if dist is None:
-        raise ValueError("the analysis keeps no distances to the references")
+        raise InvalidValueError("the analysis keeps no distances to the references")
     outs = []
     for k in range(len(records)):
         best = int(np.argmin(dist[k]))

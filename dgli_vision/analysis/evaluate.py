@@ -19,7 +19,7 @@ from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
 from ..core.classes import VARIANTS
-from ..core.errors import DgliError
+from ..core.errors import DgliError, InvalidValueError
 from ..sources.labelled import LabelledPair
 from .workers import init_worker, worker_references
 
@@ -187,7 +187,7 @@ def evaluate_pairs(
         One per pair, in the order of ``pairs``.
     """
     if jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
+        raise InvalidValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1:
         for pair in pairs:
             yield _classify_pair(pair, references, colours, distances)

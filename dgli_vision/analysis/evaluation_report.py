@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 
 from ..core.classes import CLASS_NAMES
 from ..core.distance import average_ranks
+from ..core.errors import InvalidValueError
 from ..core.io import csv_table
 from .charts import chart_files, confusion_figure, heatmap_figure, risk_coverage_figure
 from .evaluate import SPLIT_COLUMNS, EvaluationResult, coordinate_matrix, counts_text
@@ -72,7 +73,7 @@ def heatmap_sample(groups: Sequence[str], limit: int = HEATMAP_MAX) -> list[int]
         All indices when there are at most ``limit`` items.
     """
     if limit < 1:
-        raise ValueError(f"limit must be at least 1, got {limit}")
+        raise InvalidValueError(f"limit must be at least 1, got {limit}")
     n = len(groups)
     if n <= limit:
         return list(range(n))

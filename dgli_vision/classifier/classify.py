@@ -21,7 +21,7 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.classes import LIFTED_MM
 from ..core.dgli import pair_indices
 from ..core.distance import spearman_to_ranked
-from ..core.errors import DetectionError
+from ..core.errors import DetectionError, InvalidValueError
 from .references import ReferenceSet
 
 __all__ = [
@@ -334,12 +334,12 @@ def reference_terms(
     x = np.asarray(coords, dtype=np.float64)
     ref = references.matrix()
     if x.shape != (ref.shape[1],):
-        raise ValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
+        raise InvalidValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
     known = ~np.isnan(x)
     if visible is not None:
         vis = np.asarray(visible, dtype=bool)
         if vis.shape != (2 * _n_segments(len(x)),):
-            raise ValueError(
+            raise InvalidValueError(
                 f"visible must have shape ({2 * _n_segments(len(x))},), got {vis.shape}"
             )
         seen_segment = vis.reshape(-1, 2).all(axis=1)

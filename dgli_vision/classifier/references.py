@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ..core.classes import CLASS_NAMES, VARIANTS
 from ..core.distance import centred_unit_ranks, pairwise_spearman
-from ..core.errors import ReferenceError_, UnreadableInputError
+from ..core.errors import ReferenceSetError, UnreadableInputError
 from ..core.io import guard_outputs, read_json, record_outputs, write_json
 from ..core.layout import layout_of_size, sticker_spreads_mm
 from ..perception.tips import stage_tip_clear
@@ -388,7 +388,7 @@ def _optional_array(
 
     Raises
     ------
-    ReferenceError_
+    ReferenceSetError
         When the field is there but not numbers of that shape.
     """
     value = item.get(key)
@@ -399,7 +399,7 @@ def _optional_array(
     except (TypeError, ValueError):
         out = np.zeros(0)
     if out.shape != shape:
-        raise ReferenceError_(f"'{source}': reference {k} needs {shape[0]} {what}")
+        raise ReferenceSetError(f"'{source}': reference {k} needs {shape[0]} {what}")
     return out
 
 
@@ -408,15 +408,15 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
 
     Raises
     ------
-    ReferenceError_
+    ReferenceSetError
         Naming ``source`` and what is wrong.
     """
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ReferenceError_(
+        raise ReferenceSetError(
             f'\'{source}\' is not a dgli reference set (no "format": "{FORMAT}")'
         )
     if data.get("version") != FORMAT_VERSION:
-        raise ReferenceError_(
+        raise ReferenceSetError(
             f"'{source}' has reference format version {data.get('version')!r}; "
             f"expected {FORMAT_VERSION}"
         )
@@ -427,20 +427,20 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             coords = np.asarray(item["coordinates"], dtype=np.float64)
             rate = np.asarray(item["visible_rate"], dtype=np.float64)
         except (KeyError, TypeError, ValueError) as exc:
-            raise ReferenceError_(f"'{source}': reference {k} is malformed ({exc})") from None
+            raise ReferenceSetError(f"'{source}': reference {k} is malformed ({exc})") from None
         if class_id not in CLASS_NAMES:
-            raise ReferenceError_(f"'{source}': reference {k} has unknown class {class_id!r}")
+            raise ReferenceSetError(f"'{source}': reference {k} has unknown class {class_id!r}")
         variant = item.get("variant")
         if variant not in VARIANTS[class_id]:
             allowed = ", ".join(v or "null" for v in VARIANTS[class_id])
-            raise ReferenceError_(
+            raise ReferenceSetError(
                 f"'{source}': reference {k} of class {class_id} has variant {variant!r}, "
                 f"which is not one of class {class_id}'s ({allowed})"
             )
         if coords.shape != (28,) or not np.isfinite(coords).all():
-            raise ReferenceError_(f"'{source}': reference {k} needs 28 finite coordinates")
+            raise ReferenceSetError(f"'{source}': reference {k} needs 28 finite coordinates")
         if rate.shape != (16,):
-            raise ReferenceError_(f"'{source}': reference {k} needs 16 visibility rates")
+            raise ReferenceSetError(f"'{source}': reference {k} needs 16 visibility rates")
         lifted = _optional_array(item, "lifted_rate", (16,), 0.0, source, k, "lifted rates")
         past = _optional_array(
             item, "past_rate", (16,), 0.0, source, k, "past-vertical rates"
@@ -461,15 +461,15 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             "sticker-pair distance ranges [shortest, longest]",
         )
         if not ((back >= 0) & (back <= 1) | np.isnan(back)).all():
-            raise ReferenceError_(f"'{source}': reference {k} has back-face rates outside 0-1")
+            raise ReferenceSetError(f"'{source}': reference {k} has back-face rates outside 0-1")
         for name, rates in (("visible", rate), ("lifted", lifted), ("past-vertical", past)):
             if not ((rates >= 0) & (rates <= 1)).all():  # NaN fails too
-                raise ReferenceError_(
+                raise ReferenceSetError(
                     f"'{source}': reference {k} has {name} rates outside 0-1 (or not numbers)"
                 )
         n_samples = item.get("n_samples", 1)
         if not isinstance(n_samples, int) or isinstance(n_samples, bool) or n_samples < 1:
-            raise ReferenceError_(
+            raise ReferenceSetError(
                 f"'{source}': reference {k} has n_samples {n_samples!r}; expected a positive "
                 "integer"
             )
@@ -492,7 +492,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             )
         )
     if len({r.class_id for r in refs}) < 2:
-        raise ReferenceError_(f"'{source}' holds fewer than two classes")
+        raise ReferenceSetError(f"'{source}' holds fewer than two classes")
     return ReferenceSet(tuple(refs), dict(data.get("provenance") or {}))
 
 
@@ -516,7 +516,7 @@ def load_references(path: str | Path | None = None) -> ReferenceSet:
 
     Raises
     ------
-    UnreadableInputError, ReferenceError_
+    UnreadableInputError, ReferenceSetError
         Missing, unreadable or malformed file.
     """
     if path is None:

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import InvalidValueError
+
 __all__ = [
     "DEFAULT_INTRINSICS",
     "DISTORTION_LENGTHS",
@@ -238,7 +240,7 @@ def look_at_table(
     still meets ``target``.
     """
     if height_m <= 0:
-        raise ValueError(f"height_m must be positive, got {height_m}")
+        raise InvalidValueError(f"height_m must be positive, got {height_m}")
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     x_axis = np.array([c, s, 0.0])
     forward = np.array([0.0, 0.0, -1.0])

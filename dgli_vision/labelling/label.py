@@ -124,11 +124,14 @@ def label_part(
         episode = read_episode(path, options)
         rest = read_rest(options)
         material = cloth_material(episode, rest, options.size_mm)
-        placement = place_stickers(material, refs.napkin_mm)
     except DgliError as exc:
         return PartResult(str(path), part, error=str(exc))
+    try:
+        placement = place_stickers(material, refs.napkin_mm)
     except ValueError as exc:  # the layout refuses a cloth too small for the stickers
         return PartResult(str(path), part, error=f"'{path}': {exc}; are --units right?")
+    except DgliError as exc:
+        return PartResult(str(path), part, error=str(exc))
     start, stop = _blocks(episode.n_frames, part, n_parts)
     rest = episode.frames(0, 1)[0] if rest is None else rest
     table = float(rest[:, 2].min()) * material.scale

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..core.classes import class_id_of
-from ..core.errors import InvalidInputError, OutputError, UnreadableInputError
+from ..core.errors import InvalidInputError, InvalidValueError, OutputError, UnreadableInputError
 from ..core.io import (
     check_input_file,
     failed_part_way,
@@ -97,7 +97,7 @@ def write_labelled_folder(
     """
     root = Path(out)
     if not samples:
-        raise ValueError("no samples to write")
+        raise InvalidValueError("no samples to write")
     cameras: list = []
     for s in samples:
         if s.result.intrinsics not in cameras:
@@ -111,7 +111,7 @@ def write_labelled_folder(
     planned += [root / _camera_folder(k) / "intrinsics.json" for k in range(1, len(cameras))]
     guard_outputs(planned, overwrite=overwrite)
     if times is not None and len(times) != len(samples):
-        raise ValueError(f"{len(times)} times for {len(samples)} samples")
+        raise InvalidValueError(f"{len(times)} times for {len(samples)} samples")
     rows = []
     truth = {}
     written: list[Path] = []

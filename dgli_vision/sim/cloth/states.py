@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 
 from ...core.classes import CLASS_IDS, CLASS_NAMES, CORNERS, VARIANTS
 from ...core.dgli import cloth_coordinates
+from ...core.errors import InvalidValueError
 from ...core.fold_graph import unfold
 from ...core.layout import NapkinLayout, default_layout
 from .fold import fold
@@ -274,7 +275,9 @@ def _draw_class_folds(draw: _FoldDraw, class_id: str, variant: str | None) -> No
     elif class_id == "12":
         draw.diagonal(variant)
     else:
-        raise ValueError(f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}")
+        raise InvalidValueError(
+            f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}"
+        )
 
 
 def _steps_for(
@@ -434,7 +437,7 @@ def _made_last(
     """The steps with fold ``last_fold`` (a word of ``params["folds"]``, reordered in place)
     made last."""
     if last_fold not in params["folds"]:
-        raise ValueError(f"{what} has no fold {last_fold!r}")
+        raise InvalidValueError(f"{what} has no fold {last_fold!r}")
     k = params["folds"].index(last_fold)
     params["folds"] = params["folds"][:k] + params["folds"][k + 1 :] + [last_fold]
     return steps[:k] + steps[k + 1 :] + [steps[k]]
@@ -450,9 +453,9 @@ def _fold_in_progress(
     """The fold angles (radians) with the last fold turned ``last_fold_deg``, and the
     class and variant of that state by the 90-degree rule; notes the stage in ``params``."""
     if not steps:
-        raise ValueError(f"class {class_id} has no fold to leave in progress")
+        raise InvalidValueError(f"class {class_id} has no fold to leave in progress")
     if not 0 < last_fold_deg < 180:
-        raise ValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
+        raise InvalidValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
     angles = [np.pi] * (len(steps) - 1) + [float(np.radians(last_fold_deg))]
     moving = params["folds"][-1]
     params["stage"] = f"{'settling' if last_fold_deg > 90 else 'rising'} {moving}"
@@ -508,13 +511,15 @@ def sample_state(
     ClothState
     """
     if class_id not in CLASS_NAMES:
-        raise ValueError(f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}")
+        raise InvalidValueError(
+            f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}"
+        )
     rng = normalize_rng(rng)
     options = VARIANTS[class_id]
     if variant is None:
         variant = options[int(rng.integers(len(options)))]
     elif variant not in options:
-        raise ValueError(f"class {class_id} has variants {options}, got {variant!r}")
+        raise InvalidValueError(f"class {class_id} has variants {options}, got {variant!r}")
     layout = layout or default_layout()
     steps, params = _steps_for(class_id, variant, layout, rng)
     if last_fold is not None:

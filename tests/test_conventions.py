@@ -1,0 +1,51 @@
+"""The house's conventions (docs/architecture.md): one error hierarchy, one JSON method,
+results that mirror their JSON, tables instead of if-chains."""
+
+from __future__ import annotations
+
+import warnings
+
+import pytest
+
+from dgli_vision.core import errors
+
+
+def test_every_error_class_lives_in_core_errors() -> None:
+    import dgli_vision.core.run_lock as run_lock
+
+    for name in ("RunBusyError", "ResumeMismatchError", "ReferenceSetError", "InvalidValueError"):
+        assert issubclass(getattr(errors, name), errors.DgliError)
+        assert name in errors.__all__
+    assert "RunBusyError" not in run_lock.__all__
+    assert run_lock.RunBusyError is errors.RunBusyError  # used there, defined here
+
+
+def test_the_old_reference_error_name_still_catches_with_a_warning() -> None:
+    with pytest.warns(DeprecationWarning, match="ReferenceSetError"):
+        old = errors.ReferenceError_
+    assert old is errors.ReferenceSetError
+    assert errors.ReferenceSetError.exit_code == 2
+
+
+@pytest.mark.parametrize(
+    "call",
+    [
+        lambda: __import__("dgli_vision.planning.plan", fromlist=["x"]).parse_state("99"),
+        lambda: __import__("dgli_vision.planning.verify", fromlist=["x"]).parse_legs("AC=1"),
+        lambda: __import__("dgli_vision.sim.cloth.sequences", fromlist=["x"]).sequence_progress(
+            "nope", 1
+        ),
+        lambda: __import__("dgli_vision.core.layout", fromlist=["x"]).parse_size("big"),
+        lambda: __import__("dgli_vision.core.fold_graph", fromlist=["x"]).folds_of("99", None),
+        lambda: __import__("dgli_vision.core.parallel", fromlist=["x"]).ordered_map(
+            abs, [1], jobs=0
+        ).__next__(),
+    ],
+)
+def test_a_bad_value_from_a_user_is_a_dgli_error_and_still_a_value_error(call) -> None:
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(errors.InvalidValueError) as info:
+            call()
+    assert isinstance(info.value, ValueError)
+    assert info.value.exit_code == 2
