@@ -404,7 +404,7 @@ def build_report(
         Report file name (relative to the report folder) -> its content.
     """
     tables = _tables(result)
-    files: dict[str, Any] = {"summary.json": {**result.to_dict(), **meta}}
+    files: dict[str, Any] = {"summary.json": {**result.to_json(), **meta}}
     files["confusion.csv"] = csv_table(["true \\ predicted", *tables.cols], tables.confusion_rows)
     files["per_class.csv"] = csv_table(tables.per_class_header, tables.per_class_rows)
     files.update(chart_files("confusion", confusion_figure(

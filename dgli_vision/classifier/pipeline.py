@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -234,6 +235,13 @@ class FrameResult:
     candidates: tuple[tuple[str, str | None, float], ...] = ()
     affordances: Affordances | None = None
     distances: NDArray[np.float64] | None = None
+
+    def to_json(self, color: str, depth: str) -> dict[str, Any]:
+        """The JSON object of ``dgli classify --json``, naming the pair as ``color`` and
+        ``depth`` (docs/json.md)."""
+        from .result_json import frame_result_json
+
+        return frame_result_json(self, color, depth)
 
 
 #: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is

@@ -35,7 +35,6 @@ __all__ = [
     "load_references",
     "read_references",
     "references_from_dict",
-    "references_to_dict",
     "write_references",
 ]
 
@@ -248,6 +247,62 @@ class ReferenceSet:
         """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""
         return self._stacked("back_rate")
 
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of the set (what ``references/default.json`` holds;
+        :func:`references_from_dict` reads it back)."""
+        return {
+            "format": FORMAT,
+            "version": FORMAT_VERSION,
+            "coordinates": "dGLI of segment pairs 0-1, 0-2, ..., 6-7 (SPEC section 2), 1/m",
+            "provenance": self.provenance,
+            "references": [
+                {
+                    "class": r.class_id,
+                    "name": r.name,
+                    "variant": r.variant,
+                    "source": r.source,
+                    "n_samples": r.n_samples,
+                    **({"stage": r.stage} if r.stage else {}),
+                    "coordinates": [round(float(v), 10) for v in r.coordinates],
+                    "visible_rate": [round(float(v), 4) for v in r.visible_rate],
+                    **(
+                        {"lifted_rate": [round(float(v), 4) for v in r.lifted_rate]}
+                        if r.lifted_rate.any()
+                        else {}
+                    ),
+                    **(
+                        {"past_rate": [round(float(v), 4) for v in r.past_rate]}
+                        if r.past_rate.any()
+                        else {}
+                    ),
+                    **(
+                        {"height_range_mm": [[round(float(v), 1) for v in lh]
+                                             for lh in r.height_range_mm]}
+                        if np.isfinite(r.height_range_mm).all()
+                        else {}
+                    ),
+                    **(
+                        {"footprint_range": [round(float(v), 4) for v in r.footprint_range]}
+                        if np.isfinite(r.footprint_range).all()
+                        else {}
+                    ),
+                    **(
+                        {"back_rate": [round(float(v), 4) if np.isfinite(v) else None
+                                       for v in r.back_rate]}
+                        if np.isfinite(r.back_rate).any()
+                        else {}
+                    ),
+                    **(
+                        {"spread_range_mm": [[round(float(v)) for v in lh]
+                                             for lh in r.spread_range_mm]}
+                        if np.isfinite(r.spread_range_mm).all()
+                        else {}
+                    ),
+                }
+                for r in self.references
+            ],
+        }
+
 
 def build_references(
     records: StateRecords, *, provenance: dict[str, Any] | None = None
@@ -316,62 +371,6 @@ def _back_rate(turns: NDArray[np.float64]) -> NDArray[np.float64]:
     back = (turns < 0).sum(axis=0)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(told > 0, back / np.maximum(told, 1), np.nan)
-
-
-def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
-    """The JSON-ready form of a reference set."""
-    return {
-        "format": FORMAT,
-        "version": FORMAT_VERSION,
-        "coordinates": "dGLI of segment pairs 0-1, 0-2, ..., 6-7 (SPEC section 2), 1/m",
-        "provenance": refs.provenance,
-        "references": [
-            {
-                "class": r.class_id,
-                "name": r.name,
-                "variant": r.variant,
-                "source": r.source,
-                "n_samples": r.n_samples,
-                **({"stage": r.stage} if r.stage else {}),
-                "coordinates": [round(float(v), 10) for v in r.coordinates],
-                "visible_rate": [round(float(v), 4) for v in r.visible_rate],
-                **(
-                    {"lifted_rate": [round(float(v), 4) for v in r.lifted_rate]}
-                    if r.lifted_rate.any()
-                    else {}
-                ),
-                **(
-                    {"past_rate": [round(float(v), 4) for v in r.past_rate]}
-                    if r.past_rate.any()
-                    else {}
-                ),
-                **(
-                    {"height_range_mm": [[round(float(v), 1) for v in lh]
-                                         for lh in r.height_range_mm]}
-                    if np.isfinite(r.height_range_mm).all()
-                    else {}
-                ),
-                **(
-                    {"footprint_range": [round(float(v), 4) for v in r.footprint_range]}
-                    if np.isfinite(r.footprint_range).all()
-                    else {}
-                ),
-                **(
-                    {"back_rate": [round(float(v), 4) if np.isfinite(v) else None
-                                   for v in r.back_rate]}
-                    if np.isfinite(r.back_rate).any()
-                    else {}
-                ),
-                **(
-                    {"spread_range_mm": [[round(float(v)) for v in lh]
-                                         for lh in r.spread_range_mm]}
-                    if np.isfinite(r.spread_range_mm).all()
-                    else {}
-                ),
-            }
-            for r in refs.references
-        ],
-    }
 
 
 def _optional_array(
@@ -557,5 +556,5 @@ def write_references(path: str | Path, refs: ReferenceSet, *, overwrite: bool = 
     """Write a reference set as JSON (replacing a file only if dgli wrote it, or with
     ``overwrite``)."""
     guard_outputs([path], overwrite=overwrite)
-    write_json(path, references_to_dict(refs))
+    write_json(path, refs.to_json())
     record_outputs([path], str(refs.provenance.get("command", "")))

@@ -19,71 +19,6 @@ from .options import (
 from .output import command_line, echo, echo_json
 
 
-def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
-    """The JSON object of `--json` for one classified pair (see the README)."""
-    import numpy as np
-
-    found = result.observation.visible
-    p = result.prediction
-    out: dict[str, Any] = {"color": color, "depth": depth}
-    if p is None:
-        guess = result.best_guess
-        out.update(
-            {
-                "class": None,
-                "name": None,
-                "variant": None,
-                "distance": None,
-                "runner_up": None,
-                "confidence": None if guess is None else guess.confidence,
-                "reason": result.reason,
-            }
-        )
-    else:
-        ru = p.runner_up
-        out.update(
-            {
-                "class": p.class_id,
-                "name": p.name,
-                "variant": p.variant,
-                "distance": round(p.distance, 6),
-                "confidence": p.confidence,
-                "runner_up": None
-                if ru is None
-                else {
-                    "class": ru.class_id,
-                    "name": ru.name,
-                    "variant": ru.variant,
-                    "distance": round(ru.distance, 6),
-                },
-            }
-        )
-    unknown = result.observation.unknown
-    evidence = result.observation.evidence
-    out["stickers"] = {
-        "found": int(found.sum()),
-        "missing": np.flatnonzero(~found).tolist(),
-        "unknown": {str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)}
-        if evidence is not None
-        else {},
-    }
-    out["candidates"] = [
-        {"class": c, "variant": v, "distance": d} for c, v, d in result.candidates
-    ]
-    if p is None:
-        out["why"] = {
-            "kind": result.why,
-            "classes": [c for c, _, _ in result.candidates[:2]],
-            "stickers": out["stickers"],
-        }
-    if getattr(result, "affordances", None) is not None:
-        out.update(result.affordances.to_json())
-    out["coordinates"] = [
-        None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
-    ]
-    return out
-
-
 def overlay_of(frame: Any, result: Any) -> Any:
     """The overlay picture of a classified frame: the stickers found, where the missing
     ones would be (hidden or unknown, and why), the objects over the napkin, the
@@ -168,7 +103,7 @@ def classify_cmd(
             command=command_line(),
         )
     if as_json:
-        echo_json(result_to_json(result, color, depth))
+        echo_json(result.to_json(color, depth))
     else:
         echo(verdict_line(result))
     if result.prediction is None:  # said once, on stdout: an answer, not an error

@@ -279,8 +279,7 @@ def _write_sequence_report(
 ) -> None:
     """The report ``dgli track --report`` writes, of the sequence's frames."""
     from ..analysis.compare import sequence_outcomes
-    from ..analysis.evaluate import json_ready
-    from ..analysis.track import timeline_to_dict, track_outcomes
+    from ..analysis.track import track_outcomes
     from ..analysis.track_report import timeline_outcome_fields
     from .track import write_timeline_report
 
@@ -289,7 +288,7 @@ def _write_sequence_report(
     data = {
         "sequence": summary,
         "n_frames": len(outcomes),
-        **json_ready(timeline_to_dict(timeline)),
+        **timeline.to_json(),
         **timeline_outcome_fields(outcomes, True),
     }
     write_timeline_report(

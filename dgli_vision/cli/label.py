@@ -248,7 +248,7 @@ class _LabelRun:
     def go(self, out: Path | None, journal: Any, *, overwrite: bool) -> None:
         """Label the episodes not in ``journal`` (its writer and the objects already in
         it), write and print each as it comes, then the summary; exit as it says."""
-        from ..analysis.evaluate import json_ready
+        from ..core.json_ready import json_ready
         from ..labelling.label import EpisodeFailure
         from ..labelling.run import LabelJob, label_episodes
         from .runs import stop_signals
@@ -272,7 +272,7 @@ class _LabelRun:
                             entry = {"episode": name, "path": result.path, "error": result.error}
                         else:
                             entry = {"episode": name, "path": result.path,
-                                     "result": result.to_dict()}
+                                     "result": result.to_json()}
                         with stop.holding():  # its files and its journal line, or neither
                             if out is not None:
                                 self._write_episode(out, name, result, overwrite)
@@ -340,8 +340,8 @@ class _LabelRun:
     def _finish(
         self, entries: list[dict[str, Any]], out: Path | None, overwrite: bool, complete: bool
     ) -> None:
-        from ..analysis.evaluate import json_ready
         from ..core.io import record_outputs, write_outputs
+        from ..core.json_ready import json_ready
         from ..labelling.outputs import summary_of_entries
 
         summary = summary_of_entries(entries)

@@ -216,7 +216,7 @@ class CameraPose:
         """World coordinates (n, 3) of camera-frame points (n, 3)."""
         return np.asarray(points, dtype=np.float64) @ self.rotation.T + self.position
 
-    def to_dict(self) -> dict[str, list]:
+    def to_json(self) -> dict[str, list]:
         """JSON-ready form (world-from-camera rotation, rows; position in metres)."""
         return {
             "rotation": self.rotation.round(9).tolist(),

@@ -23,6 +23,7 @@ from ..classifier.references import ReferenceSet, load_references
 from ..core.classes import CLASS_NAMES, LANDING_PAIRS
 from ..core.errors import DgliError
 from ..core.fold_graph import folds_of
+from ..core.json_ready import json_ready
 from ..core.layout import layout_of_size
 from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
@@ -264,9 +265,9 @@ class FrameLabel:
     omnigibson: tuple[bool, bool] | None = None
     folds: tuple[dict[str, Any], ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         """The frame's JSON object (the names of ``dgli label --json``)."""
-        return {
+        return json_ready({
             "index": self.index,
             "class": self.class_id,
             "variant": self.variant,
@@ -279,7 +280,7 @@ class FrameLabel:
             if self.omnigibson is None
             else {"folded": self.omnigibson[0], "unfolded": self.omnigibson[1]},
             "folds": list(self.folds),
-        }
+        })
 
 
 @dataclass(frozen=True)
@@ -295,14 +296,14 @@ class EpisodeLabels:
     info: dict[str, Any]
     goal: dict[str, Any] | None = None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         """The episode's JSON object (``goal``: with ``--goal``, see
         :func:`~.goal.evaluate_goal`)."""
-        return {
+        return json_ready({
             "path": self.path,
             **self.info,
             **({"goal": self.goal} if self.goal is not None else {}),
-            "frames": [f.to_dict() for f in self.frames],
+            "frames": [f.to_json() for f in self.frames],
             "changes": [
                 {
                     "frame": t,
@@ -311,7 +312,7 @@ class EpisodeLabels:
                 }
                 for t, a, b in self.changes
             ],
-        }
+        })
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,6 @@ from typing import Any
 
 import numpy as np
 
-from ..analysis.evaluate import json_ready
 from ..core.classes import CLASS_IDS, CLASS_NAMES
 from ..core.io import csv_table
 from .label import EpisodeFailure, EpisodeLabels
@@ -88,7 +87,7 @@ def timeline_picture(ep: EpisodeLabels, title: str) -> np.ndarray:
 
 def episode_files(out: Path, name: str, ep: EpisodeLabels) -> dict[Path, Any]:
     """``NAME.jsonl`` (one frame a line), ``NAME.csv`` and ``NAME_timeline.png``."""
-    lines = "".join(json.dumps(json_ready(f.to_dict())) + "\n" for f in ep.frames)
+    lines = "".join(json.dumps(f.to_json()) + "\n" for f in ep.frames)
     return {
         out / f"{name}.jsonl": lines,
         out / f"{name}.csv": _csv(ep),
@@ -102,7 +101,7 @@ def summary_of(results: Sequence[EpisodeLabels | EpisodeFailure]) -> dict[str, A
     entries = [
         {"path": r.path, "error": r.error}
         if isinstance(r, EpisodeFailure)
-        else {"path": r.path, "result": r.to_dict()}
+        else {"path": r.path, "result": r.to_json()}
         for r in results
     ]
     return summary_of_entries(entries)

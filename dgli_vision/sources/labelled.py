@@ -133,7 +133,7 @@ def write_labelled_folder(
             "class": s.state.class_id,
             "name": s.state.name,
             "variant": s.state.variant,
-            "camera": {**s.camera, **s.result.pose.to_dict()},
+            "camera": {**s.camera, **s.result.pose.to_json()},
             "sticker_points_cam_m": np.round(s.result.sticker_points_cam, 6).tolist(),
             "visible": s.result.visible.tolist(),
             "visible_fraction": np.round(s.result.visible_fraction, 3).tolist(),
