@@ -3,6 +3,7 @@ results that mirror their JSON, tables instead of if-chains."""
 
 from __future__ import annotations
 
+import json
 import warnings
 
 import pytest
@@ -49,3 +50,27 @@ def test_a_bad_value_from_a_user_is_a_dgli_error_and_still_a_value_error(call) -
             call()
     assert isinstance(info.value, ValueError)
     assert info.value.exit_code == 2
+
+
+def test_a_predictions_corners_are_keyed_by_name_as_in_the_json() -> None:
+    """Issue 41 item 8: ``p.corners["A"]`` works, and holds what the JSON holds."""
+    import pickle
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    import dgli_vision
+    from dgli_vision.cli import main
+
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    color, depth = samples / "05_000_color.png", samples / "05_000_depth.png"
+    p = dgli_vision.classify_pair(color, depth)
+    res = CliRunner().invoke(main, ["classify", str(color), str(depth), "--json"])
+    shown = json.loads(res.stdout)
+    assert list(p.corners) == list(shown["corners"]) == ["A", "B", "C", "D"]
+    for name, c in p.corners.items():
+        assert c.to_json() == shown["corners"][name]
+    assert p.corners["A"].state == shown["corners"]["A"]["state"]
+    assert pickle.loads(pickle.dumps(p)).corners == p.corners  # results cross processes
+    with pytest.raises(KeyError):
+        p.corners["E"]

@@ -43,8 +43,8 @@ def test_corners_on_renders_match_the_simulators_truth(refs):
         result = classify_frame(_frame(s.result), refs)
         assert result.prediction is not None
         corners = result.prediction.corners
-        assert [c.corner for c in corners] == ["A", "B", "C", "D"]
-        for c, (state, free, world) in zip(corners, corner_truth(s.state, layout)):
+        assert list(corners) == ["A", "B", "C", "D"]
+        for c, (state, free, world) in zip(corners.values(), corner_truth(s.state, layout)):
             states.append(c.state == state)
             grasp.append(c.graspable == free)
             if free and c.graspable:

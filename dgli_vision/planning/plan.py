@@ -313,7 +313,7 @@ def _grasp_of(
     the corners seen, else where the rigid maps put them."""
     pts = []
     for name in f.moved_corners:
-        c = affordances.corner(name) if affordances is not None and first else None
+        c = affordances.corners[name] if affordances is not None and first else None
         if c is not None and c.point is not None:
             pts.append(np.asarray(c.point))
             continue
