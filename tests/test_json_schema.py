@@ -189,6 +189,27 @@ def test_plan_check(monkeypatch) -> None:
     assert set(data["geometry"]) == set(table["geometry"][2])
 
 
+def test_compare(monkeypatch, tmp_path) -> None:
+    """The table of a (faked) database: its JSON, and table.json of --report, the same."""
+    from dgli_vision.analysis import compare
+    from dgli_vision.analysis.compare import REPRESENTATIONS, CompareTable, paper_columns
+    from dgli_vision.sim import database_files
+
+    names = tuple(REPRESENTATIONS)
+    rows = {n: [0.5, 1e9 if n == "corners" else 0.25] for n in names}  # 1e9: no separation
+    table = CompareTable(("database", "III"), rows, paper_columns(names))
+    m = np.array([[0.0, 1.0], [1.0, 0.0]])
+    monkeypatch.setattr(database_files, "read_database", lambda db: (None, None))
+    monkeypatch.setattr(compare, "compare_count", lambda records: 1)
+    monkeypatch.setattr(compare, "compare_database", lambda records, **kw: (
+        table, {n: m for n in names}, ["01", "02"]))
+    (doc,) = tables("dgli compare --json")
+    data = round_trip(run("compare", tmp_path, "--json", "--report", tmp_path / "r"))
+    check(data, doc)
+    assert data["rows"]["corners"] == [0.5, None]
+    assert json.loads((tmp_path / "r" / "table.json").read_text()) == data
+
+
 def test_sequence() -> None:
     (table,) = tables("dgli sequence --json")
     check(round_trip(run("sequence", "III", "--json")), table)

@@ -21,7 +21,8 @@ from ..core.io import csv_table
 from .charts import chart_files, confusion_figure, heatmap_figure, risk_coverage_figure
 from .evaluate import SPLIT_COLUMNS, EvaluationResult, coordinate_matrix, counts_text
 from .html_report import evaluation_html, risk_coverage
-from .report import markdown_table, overlay_image
+from .overlay import overlay_image
+from .report import markdown_table
 
 __all__ = [
     "HEATMAP_MAX",
@@ -258,7 +259,7 @@ def _colour_and_evidence(pair: Any, read_color: Any, classify: Any) -> tuple[Any
     """A pair's colour image and, with ``classify``, its overlay evidence (None where
     it cannot be had)."""
     from ..core.errors import DgliError
-    from .report import overlay_evidence
+    from .overlay import overlay_evidence
 
     if classify is not None and hasattr(pair, "load"):
         try:

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 import click
 
@@ -17,40 +16,6 @@ from .options import (
     references_option,
 )
 from .output import command_line, echo, echo_json
-
-
-def overlay_of(frame: Any, result: Any) -> Any:
-    """The overlay picture of a classified frame: the stickers found, where the missing
-    ones would be (hidden or unknown, and why), the objects over the napkin, the
-    verdict."""
-    from ..analysis.report import overlay_evidence, overlay_image
-    from ..planning.overlay import draw_corners, draw_folds
-
-    obs = result.observation
-    evidence = overlay_evidence(result)
-    detail = f"{int(obs.visible.sum())}/16 stickers found"
-    image = overlay_image(
-        frame.color, result.detections.centroids, verdict_line(result), detail=detail,
-        evidence=evidence,
-    )
-    return draw_folds(draw_corners(image, result.affordances), result.affordances,
-                      frame.intrinsics)
-
-
-def verdict_line(result: Any) -> str:
-    """One readable line for a classified pair."""
-    p = result.prediction
-    if p is None:
-        return f"no class: {result.reason}"
-    text = f"{p.class_id} {p.name}"
-    if p.variant:
-        text += f" ({p.variant})"
-    text += f", distance {p.distance:.3f}, confidence {p.confidence:.2f}"
-    if p.runner_up:
-        ru = p.runner_up
-        text += f"; runner-up {ru.class_id} {ru.name}" + (f" ({ru.variant})" if ru.variant else "")
-        text += f" {ru.distance:.3f}"
-    return text
 
 
 @click.command("classify")
@@ -85,6 +50,7 @@ def classify_cmd(
     """
     from pathlib import Path
 
+    from ..analysis.overlay import frame_overlay, verdict_line
     from ..classifier.pipeline import classify_frame
     from ..classifier.references import load_references
     from ..core.io import guard_outputs, write_outputs
@@ -99,7 +65,7 @@ def classify_cmd(
     result = classify_frame(frame, refs, colours=colours)
     if overlay:
         write_outputs(
-            {Path(overlay): overlay_of(frame, result)}, overwrite=overwrite,
+            {Path(overlay): frame_overlay(frame, result)}, overwrite=overwrite,
             command=command_line(),
         )
     if as_json:

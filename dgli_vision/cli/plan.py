@@ -227,10 +227,10 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
 
 
 def _overlay(frame, result, plan):
+    from ..analysis.overlay import frame_overlay
     from ..planning.overlay import draw_step
-    from .classify import overlay_of
 
-    img = overlay_of(frame, result)
+    img = frame_overlay(frame, result)
     if plan.steps:
         s = plan.steps[0]
         what = s.corner or s.side

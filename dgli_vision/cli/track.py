@@ -142,6 +142,7 @@ class _TrackRun:
         the objects already in it), smooth, print, report, exit as the outcome says."""
         from ..analysis.evaluate import outcomes_of, pair_key
         from ..analysis.track import track_outcomes
+        from ..analysis.track_report import timeline_json
 
         writer, earlier = journal if journal else (None, [])
         done = outcomes_of(earlier, None)
@@ -160,13 +161,10 @@ class _TrackRun:
         timeline = track_outcomes(
             outcomes, self.refs, times=[o.pair.time for o in outcomes], labelled=labelled
         )
-        data = {
-            "folder": self.folder,
-            "recording": {"kind": self.recording.kind, "notes": list(self.recording.notes)},
-            "n_frames": len(outcomes),
-            **timeline.to_json(),
-            **_outcome_fields(outcomes, labelled),
-        }
+        read = {"kind": self.recording.kind, "notes": list(self.recording.notes)}
+        data = timeline_json(
+            {"folder": self.folder, "recording": read}, timeline, outcomes, labelled
+        )
         if stop.stopped:
             data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
         self._print(data, timeline, len(outcomes))
@@ -307,10 +305,3 @@ def write_timeline_report(
     if journal:
         record_outputs([out / "results.jsonl"], command)
     click.echo(f"report written to {out / 'report.html'}", err=True)
-
-
-def _outcome_fields(outcomes: list[PairOutcome], labelled: bool) -> dict[str, Any]:
-    """The three outcomes of the frames' own answers, when labelled."""
-    from ..analysis.track_report import timeline_outcome_fields
-
-    return timeline_outcome_fields(outcomes, labelled)

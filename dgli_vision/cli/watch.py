@@ -215,10 +215,11 @@ class _Printer:
         """One classified frame (called by the worker)."""
         self.answered = self.answered or update.state is not None
         if self.overlays is not None and result is not None:
+            from ..analysis.overlay import frame_overlay
             from ..core.io import write_png
-            from .classify import overlay_of
 
-            write_png(self.overlays / f"frame_{update.frame:06d}.png", overlay_of(frame, result))
+            name = self.overlays / f"frame_{update.frame:06d}.png"
+            write_png(name, frame_overlay(frame, result))
         if self.jsonl:
             echo_json(update.to_json())
         elif update.change is not None:
