@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from pathlib import Path
 
 import pytest
 
@@ -74,3 +75,30 @@ def test_a_predictions_corners_are_keyed_by_name_as_in_the_json() -> None:
     assert pickle.loads(pickle.dumps(p)).corners == p.corners  # results cross processes
     with pytest.raises(KeyError):
         p.corners["E"]
+
+
+def test_a_recording_format_is_one_row_of_the_reader_table(monkeypatch, tmp_path) -> None:
+    """docs/architecture.md's recipe: a new format is a row of RECORDING_READERS."""
+    from dgli_vision.sources import recording
+    from dgli_vision.sources.recording import RecordingReader, open_recording
+
+    text = tmp_path / "notes.txt"
+    text.write_text("not frames")
+    with pytest.raises(errors.UnreadableInputError, match="expected a folder of PNG pairs, "
+                       r"a ROS 1 .bag, a ROS 2 bag \(.db3, .mcap or its folder\) or a "
+                       "RealSense .db3/.bag"):
+        open_recording(text)
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+
+    def read_list(path, options):  # a text file naming a folder of pairs
+        return recording.read_recording(path.read_text().strip())
+
+    row = RecordingReader("pair list", "a .pairs file", lambda p: p.suffix == ".pairs",
+                          read_list)
+    monkeypatch.setattr(recording, "RECORDING_READERS", (row, *recording.RECORDING_READERS))
+    listed = tmp_path / "sample.pairs"
+    listed.write_text(str(samples))
+    rec = open_recording(listed)
+    assert rec.count == len(list(samples.glob("*_color.png")))
+    with pytest.raises(errors.UnreadableInputError, match=r"or a \.pairs file$"):
+        open_recording(text)
