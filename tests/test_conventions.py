@@ -102,3 +102,28 @@ def test_a_recording_format_is_one_row_of_the_reader_table(monkeypatch, tmp_path
     assert rec.count == len(list(samples.glob("*_color.png")))
     with pytest.raises(errors.UnreadableInputError, match=r"or a \.pairs file$"):
         open_recording(text)
+
+
+def test_a_capture_condition_is_a_name_a_drawer_and_a_row_of_effects(monkeypatch) -> None:
+    """docs/architecture.md's recipe: a condition's image effect is a row of
+    CONDITION_EFFECTS, which the renderer walks (here a made-up one, 'negative')."""
+    import numpy as np
+
+    from dgli_vision.core.camera import Intrinsics
+    from dgli_vision.sim import conditions, render
+    from dgli_vision.sim.dataset import render_sample
+
+    def negative(stage):
+        color, depth = stage.value
+        return 255 - color, depth
+
+    row = render.ConditionEffect("negative", "camera", lambda c: "negative" in c.names, negative)
+    monkeypatch.setattr(render, "CONDITION_EFFECTS", (*render.CONDITION_EFFECTS, row))
+    monkeypatch.setitem(conditions._DRAWERS, "negative", lambda c, rng: c)
+    monkeypatch.setattr(conditions, "CONDITION_NAMES", (*conditions.CONDITION_NAMES, "negative"))
+    small = Intrinsics(160, 90, 75.6, 75.6, 79.5, 44.5)
+    plain = render_sample("02", 0, 3, intrinsics=small, conditions=("cast",)).result
+    neg = render_sample("02", 0, 3, intrinsics=small, conditions=("cast", "negative")).result
+    assert "negative" in neg.info["conditions"]
+    assert np.array_equal(neg.color, 255 - plain.color)
+    assert np.array_equal(neg.depth_mm, plain.depth_mm)
