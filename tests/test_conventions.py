@@ -127,3 +127,18 @@ def test_a_capture_condition_is_a_name_a_drawer_and_a_row_of_effects(monkeypatch
     assert "negative" in neg.info["conditions"]
     assert np.array_equal(neg.color, 255 - plain.color)
     assert np.array_equal(neg.depth_mm, plain.depth_mm)
+
+
+def test_label_takes_the_shared_options(tmp_path) -> None:
+    """cli/label.py's --size, -j and --format are cli/options.py's and the library's."""
+    from click.testing import CliRunner
+
+    from dgli_vision.cli import main
+    from dgli_vision.cli.label import label_cmd
+    from dgli_vision.labelling.episodes import FORMATS
+
+    res = CliRunner().invoke(main, ["label", str(tmp_path / "x.npz"), "--size", "5000"])
+    assert res.exit_code == 2 and "out of range" in res.stderr and "Traceback" not in res.output
+    params = {p.name: p for p in label_cmd.params}
+    assert tuple(params["fmt"].type.choices) == FORMATS
+    assert params["jobs"].help == "Worker processes (the same results as one)."

@@ -9,22 +9,16 @@ from typing import Any
 
 import click
 
+from ..labelling.formats import FORMATS, UNITS
 from .errors import handle_errors
-from .options import json_option, overwrite_option, references_option
+from .options import (
+    json_option,
+    make_jobs_option,
+    overwrite_option,
+    parse_size,
+    references_option,
+)
 from .output import command_line
-
-
-def _cloth_size(
-    ctx: click.Context, param: click.Parameter, value: str | None
-) -> tuple[float, float] | None:
-    from ..core.layout import parse_size
-
-    if value is None:
-        return None
-    try:
-        return parse_size(value)
-    except ValueError as exc:
-        raise click.BadParameter(str(exc)) from None
 
 
 @click.command("label")
@@ -40,7 +34,7 @@ def _cloth_size(
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(["npz", "mat", "meshes"]),
+    type=click.Choice(FORMATS),
     help="Input format [default: by extension: .npz, .mat, a folder of .obj/.ply meshes].",
 )
 @click.option(
@@ -51,7 +45,7 @@ def _cloth_size(
 )
 @click.option(
     "--units",
-    type=click.Choice(["m", "cm", "mm"]),
+    type=click.Choice(list(UNITS)),
     default="m",
     show_default=True,
     help="Length unit of the positions.",
@@ -59,7 +53,7 @@ def _cloth_size(
 @click.option(
     "--size",
     "size_mm",
-    callback=_cloth_size,
+    callback=parse_size,
     metavar="W[xH]",
     help="The cloth's real size in mm (positions are scaled to it) [default: measured on "
     "the rest frame in --units].",
@@ -70,10 +64,7 @@ def _cloth_size(
     help="A file (or mesh folder) whose first frame is the flat cloth at rest "
     "[default: each episode's first frame].",
 )
-@click.option(
-    "-j", "--jobs", type=click.IntRange(1), default=1, show_default=True,
-    help="Local worker processes.",
-)
+@make_jobs_option
 @click.option(
     "--dask",
     "dask_address",

@@ -34,6 +34,7 @@ __all__ = [
     "corner_fold_line",
     "diagonal_fold_line",
     "disc_samples",
+    "draw_fold_steps",
     "make_state",
     "normalize_rng",
     "sample_state",
@@ -280,10 +281,19 @@ def _draw_class_folds(draw: _FoldDraw, class_id: str, variant: str | None) -> No
         )
 
 
-def _steps_for(
+def draw_fold_steps(
     class_id: str, variant: str | None, layout: NapkinLayout, rng: np.random.Generator
 ) -> tuple[list[FoldStep], dict[str, Any]]:
-    """The folds of one state of a class and variant, with the drawn parameters."""
+    """The folds of one state of a class and variant, drawn from ``rng``, with the drawn
+    parameters (``params["folds"]``: the fold words, in the order of the steps); what
+    :func:`sample_state` makes a state of, and what the planner's closed-loop check folds
+    again step by step.
+
+    Returns
+    -------
+    list of FoldStep
+    dict
+    """
     draw = _FoldDraw(layout, rng)
     _draw_class_folds(draw, class_id, variant)
     steps, words, params = draw.steps, draw.words, draw.params
@@ -521,7 +531,7 @@ def sample_state(
     elif variant not in options:
         raise InvalidValueError(f"class {class_id} has variants {options}, got {variant!r}")
     layout = layout or default_layout()
-    steps, params = _steps_for(class_id, variant, layout, rng)
+    steps, params = draw_fold_steps(class_id, variant, layout, rng)
     if last_fold is not None:
         steps = _made_last(steps, params, last_fold, f"{class_id}/{variant}")
     angles = None
