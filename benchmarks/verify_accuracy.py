@@ -48,7 +48,7 @@ from dgli_vision.planning.api import plan_frame
 from dgli_vision.planning.check import _executed_steps, _frame, _placement
 from dgli_vision.planning.plan import PlanRefused
 from dgli_vision.planning.verify import verify_fold
-from dgli_vision.sim.cloth.states import FoldStep, _steps_for, make_state
+from dgli_vision.sim.cloth.states import FoldStep, draw_fold_steps, make_state
 from dgli_vision.sim.dataset import random_camera
 from dgli_vision.sim.render import Lighting, SensorModel, render
 
@@ -110,7 +110,7 @@ def trial(k: int, seed: int, refs, intrinsics: Intrinsics, tol: float) -> dict[s
     rng = np.random.default_rng([seed, k, 59])
     start, goal = _task(k, rng)
     mode = MODES[(k // 3) % len(MODES)]  # every task made every way, in turn
-    steps, params = _steps_for(start[0], start[1], layout, rng)
+    steps, params = draw_fold_steps(start[0], start[1], layout, rng)
     words = list(params["folds"])
     wrinkle, yaw, offset = _placement(rng)
     wseed = int(rng.integers(2**31))

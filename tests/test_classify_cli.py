@@ -259,7 +259,7 @@ def test_an_abstention_is_said_once_and_names_its_candidates(tmp_path):
 def test_the_overlay_of_a_cannot_tell_shows_the_object_and_the_missing_stickers(tmp_path):
     """The overlay outlines the object over the napkin (red), circles where the unknown
     stickers would be (orange) and wraps the whole reason inside the image."""
-    from dgli_vision.analysis.report import _wrapped
+    from dgli_vision.analysis.overlay import _wrapped
     from dgli_vision.sim.dataset import render_sample
     from dgli_vision.sources.labelled import write_labelled_folder
 

@@ -3,7 +3,7 @@ compares with it (the merged grouping for its database, III for its III), those 
 
 from __future__ import annotations
 
-from dgli_vision.cli.compare import paper_beside_ours
+from dgli_vision.analysis.compare_report import paper_beside_ours
 
 
 def test_the_papers_columns_stand_beside_the_comparable_ones():

@@ -190,7 +190,7 @@ def test_the_workers_stay_up_between_batches_with_the_same_references():
     alone = list(evaluate.evaluate_pairs(pairs, refs, jobs=1, distances=True))
 
     def as_json(outcomes):  # NaN (unknown coordinates) compares equal as JSON text
-        return [json.dumps(evaluate.outcome_to_dict(o)) + str(o.distances) for o in outcomes]
+        return [json.dumps(o.to_json()) + str(o.distances) for o in outcomes]
 
     assert as_json(first) == as_json(alone) and as_json(again) == as_json(alone[::-1])
     other = load_references()  # another set: the workers must not keep the old one

@@ -13,7 +13,6 @@ import os
 import shutil
 from pathlib import Path
 
-import click
 import cv2
 import numpy as np
 import pytest
@@ -62,24 +61,20 @@ def _fake_outcome(args):
 
 
 def _compare_page(out: Path) -> None:
-    from types import SimpleNamespace
+    from dgli_vision.analysis.compare import REPRESENTATIONS, CompareTable, paper_columns
+    from dgli_vision.analysis.compare_report import compare_report
+    from dgli_vision.core.io import write_outputs
 
-    from dgli_vision.analysis.compare import REPRESENTATIONS
-    from dgli_vision.cli import compare
-
-    names = list(REPRESENTATIONS)
-    columns = ["representation", "database", "I"]
-    table = {"columns": columns[1:], "rows": {n: [1.5, 0.5] for n in names}}
-    rows = [[n, "1.5", "0.5"] for n in names]
+    names = tuple(REPRESENTATIONS)
+    table = CompareTable(("database", "I"), {n: [1.5, 0.5] for n in names}, paper_columns(names))
     classes = ["01", "01", "02", "02", "03", "03"]
     rng = np.random.default_rng(7)
     matrices = {}
     for n in names:
         m = rng.random((6, 6))
         matrices[n] = (m + m.T) * (1 - np.eye(6))
-    with click.Context(compare.compare, info_name="compare"):  # the command line's
-        compare._write_compare_report(out, table, columns, rows,
-                                      SimpleNamespace(classes=classes), matrices, False)
+    files = compare_report(table, matrices, classes, command="dgli compare db --report r")
+    write_outputs({out / k: v for k, v in files.items()}, overwrite=False, command="dgli compare")
 
 
 @pytest.fixture(scope="module")

@@ -30,7 +30,7 @@ from dgli_vision.core.errors import (
     CalibrationError,
     InvalidInputError,
     OutputError,
-    ReferenceError_,
+    ReferenceSetError,
     UnreadableInputError,
 )
 from dgli_vision.sources.frames import read_color, read_frame
@@ -386,7 +386,7 @@ def test_references_whose_class_carries_another_class_variant_are_refused(tmp_pa
     bad.write_text(json.dumps(refs))
     line = one_error_line(run(["classify", COLOR, DEPTH, "--references", bad]))
     assert "of class 01 has variant 'AB'" in line
-    with pytest.raises(ReferenceError_):
+    with pytest.raises(ReferenceSetError):
         dgli_vision.classify_pair(COLOR, DEPTH, references=bad)
 
 

@@ -160,17 +160,17 @@ def test_dask_cluster_and_local_processes_give_the_results_of_one_process(finish
     episodes, _, _ = finished
     paths = (episodes[0][0], episodes[5][0])  # both y up, in cm
     options = ReadOptions(up_axis="y", units="cm")
-    one = [r.to_dict() for r in label_episodes(LabelJob(paths, options, jobs=1))]
+    one = [r.to_json() for r in label_episodes(LabelJob(paths, options, jobs=1))]
     with distributed.LocalCluster(
         n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
     ) as cluster:
         job = LabelJob(paths, options, dask=cluster.scheduler_address)
-        far = [r.to_dict() for r in label_episodes(job)]
+        far = [r.to_json() for r in label_episodes(job)]
     assert far == one
     assert isinstance(one[0], dict) and one[0]["frames"]
     # two local processes: each episode split in two parts, put together in order
     (split,) = label_episodes(LabelJob(paths[1:], options, jobs=2))
-    assert split.to_dict() == one[1]
+    assert split.to_json() == one[1]
 
 
 def _write_bad(tmp_path: Path) -> dict[str, str]:

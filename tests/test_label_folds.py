@@ -19,7 +19,7 @@ from dgli_vision.labelling.goal import parse_goal
 from dgli_vision.labelling.label import EpisodeLabels
 from dgli_vision.labelling.run import LabelJob, label_episodes
 from dgli_vision.sim.cloth.mesh import flat_mesh
-from dgli_vision.sim.cloth.states import _steps_for, make_state, sample_state
+from dgli_vision.sim.cloth.states import draw_fold_steps, make_state, sample_state
 
 SEED = 41
 
@@ -78,7 +78,7 @@ def test_fold_geometry_from_meshes_within_2_mm_of_the_truth(tmp_path, remeshed):
 def _corner_state(legs: tuple[float, float], yaw: float, offset: tuple[float, float]):
     """02/B folded with the given legs (BC, AB), wrinkled and placed as given."""
     layout = default_layout()
-    steps, params = _steps_for("02", "B", layout, np.random.default_rng(SEED))
+    steps, params = draw_fold_steps("02", "B", layout, np.random.default_rng(SEED))
     from dgli_vision.sim.cloth.states import corner_fold_line
 
     steps = [corner_fold_line(layout, "B", *legs)]

@@ -43,8 +43,8 @@ def test_corners_on_renders_match_the_simulators_truth(refs):
         result = classify_frame(_frame(s.result), refs)
         assert result.prediction is not None
         corners = result.prediction.corners
-        assert [c.corner for c in corners] == ["A", "B", "C", "D"]
-        for c, (state, free, world) in zip(corners, corner_truth(s.state, layout)):
+        assert list(corners) == ["A", "B", "C", "D"]
+        for c, (state, free, world) in zip(corners.values(), corner_truth(s.state, layout)):
             states.append(c.state == state)
             grasp.append(c.graspable == free)
             if free and c.graspable:
@@ -194,9 +194,8 @@ def test_track_frames_carry_corners_and_folds(refs):
     from dgli_vision.analysis.evaluate import (
         _classify_pair,
         outcome_from_dict,
-        outcome_to_dict,
     )
-    from dgli_vision.analysis.track import timeline_to_dict, track_outcomes
+    from dgli_vision.analysis.track import track_outcomes
     from dgli_vision.sources.labelled import LabelledPair
 
     pairs = [
@@ -205,8 +204,8 @@ def test_track_frames_carry_corners_and_folds(refs):
     ]
     outcomes = [_classify_pair(p, refs, distances=True) for p in pairs]
     # a resumed run reads them back from results.jsonl
-    outcomes = [outcome_from_dict(json.loads(json.dumps(outcome_to_dict(o)))) for o in outcomes]
-    frames = timeline_to_dict(track_outcomes(outcomes, refs))["frames"]
+    outcomes = [outcome_from_dict(json.loads(json.dumps(o.to_json()))) for o in outcomes]
+    frames = track_outcomes(outcomes, refs).to_json()["frames"]
     assert frames[0]["corners"]["A"]["state"] == "flat" and frames[0]["folds"] == []
     assert frames[1]["corners"]["C"]["state"] == "on a flap over"
     assert [f["fold"] for f in frames[1]["folds"]] == ["C over"]

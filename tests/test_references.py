@@ -12,13 +12,12 @@ from dgli_vision.classifier.references import (
     build_references,
     load_references,
     read_references,
-    references_to_dict,
     write_references,
 )
 from dgli_vision.core.errors import (
     DetectionError,
     InvalidInputError,
-    ReferenceError_,
+    ReferenceSetError,
     UnreadableInputError,
 )
 from dgli_vision.sim.database import records_from_states, simulate_states
@@ -122,7 +121,7 @@ def test_references_round_trip(tmp_path, shipped):
 def test_a_set_written_before_heights_were_kept_still_classifies(tmp_path, fresh, shipped):
     """Sets without height ranges or past-vertical rates load; those terms then say
     nothing, and finished states are classified as before."""
-    data = references_to_dict(shipped)
+    data = shipped.to_json()
     for item in data["references"]:
         item.pop("height_range_mm", None)
         item.pop("past_rate", None)
@@ -167,17 +166,17 @@ def test_height_tells_a_half_fold_from_a_strip_held_up_at_the_same_angle(shipped
         ("{", InvalidInputError, r"reference set '.*bad\.json' is not valid JSON \(line 1, "),
         (
             '{"format": "other"}',
-            ReferenceError_,
+            ReferenceSetError,
             r"'.*bad\.json' is not a dgli reference set \(no \"format\": \"dgli-references\"\)",
         ),
         (
             '{"format": "dgli-references", "version": 9}',
-            ReferenceError_,
+            ReferenceSetError,
             r"'.*bad\.json' has reference format version 9; expected 1$",
         ),
         (
             '{"format": "dgli-references", "version": 1, "references": [{"class": "02"}]}',
-            ReferenceError_,
+            ReferenceSetError,
             r"'.*bad\.json': reference 0 is malformed \('coordinates'\)$",
         ),
     ],
@@ -201,9 +200,8 @@ def test_missing_reference_file(tmp_path):
 
 
 def test_reference_json_records_provenance(shipped):
-    from dgli_vision.classifier.references import references_to_dict
 
-    data = json.loads(json.dumps(references_to_dict(shipped)))
+    data = json.loads(json.dumps(shipped.to_json()))
     assert data["provenance"]["command"].startswith("dgli references build")
     assert all(len(r["visible_rate"]) == 16 for r in data["references"])
 

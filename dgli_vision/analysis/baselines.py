@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 from scipy.spatial.distance import directed_hausdorff
 
 from ..core.dgli import pair_indices
+from ..core.errors import InvalidValueError
 
 __all__ = [
     "align",
@@ -139,7 +140,7 @@ def pairwise_curve_distances(curves: NDArray[np.float64], metric: str) -> NDArra
     ndarray, shape (n, n)
     """
     if metric not in ("frechet", "hausdorff"):
-        raise ValueError(f"metric must be 'frechet' or 'hausdorff', got {metric!r}")
+        raise InvalidValueError(f"metric must be 'frechet' or 'hausdorff', got {metric!r}")
     n = len(curves)
     centred = curves - curves.mean(axis=1, keepdims=True)
     out = np.zeros((n, n))

@@ -12,15 +12,21 @@ from numpy.typing import NDArray
 from ..classifier.classify import reference_distances
 from ..classifier.references import ReferenceSet
 from ..core.distance import davies_bouldin, pairwise_spearman
+from ..core.errors import InvalidValueError
+from ..core.json_ready import json_ready
 from ..sim.database import StateRecords
 from .baselines import corner_distances, pairwise_curve_distances, segment_distances
 
 __all__ = [
     "COMPARE_COLUMN_NOTES",
+    "NO_SEPARATION",
     "PAPER_TABLE1",
     "REPRESENTATIONS",
+    "CompareTable",
     "SequenceAnalysis",
     "analyse_sequence",
+    "compare_count",
+    "compare_database",
     "dataset_matrices",
     "davies_bouldin_table",
     "distance_matrices",
@@ -200,6 +206,66 @@ def davies_bouldin_table(
     return {"columns": list(datasets), "rows": rows}
 
 
+#: Above this a Davies-Bouldin index says two groups' centres coincide (the ratio's
+#: denominator is rounding noise): shown as such, not as a number.
+NO_SEPARATION = 1e6
+
+
+@dataclass(frozen=True)
+class CompareTable:
+    """``dgli compare``'s result: the Davies-Bouldin index of each representation
+    (``rows``: name -> index per column, lower is better) on each data set
+    (``columns``), and the paper's values beside them (:func:`paper_columns`)."""
+
+    columns: tuple[str, ...]
+    rows: dict[str, list[float]]
+    paper: dict[str, object]
+
+    def to_json(self) -> dict[str, object]:
+        """The JSON of ``dgli compare --json`` (and ``table.json``): an index above
+        :data:`NO_SEPARATION` (two groups' centres coincide) is null."""
+        return json_ready({
+            "columns": list(self.columns),
+            "rows": {
+                name: [v if v < NO_SEPARATION else None for v in vals]
+                for name, vals in self.rows.items()
+            },
+            "column_notes": COMPARE_COLUMN_NOTES,
+            "paper": self.paper,
+        })
+
+
+def compare_count(records: StateRecords) -> int:
+    """The distance matrices :func:`compare_database` computes (a progress bar's total)."""
+    return matrix_count(compare_datasets(folded_by_class(records)), tuple(REPRESENTATIONS))
+
+
+def compare_database(
+    records: StateRecords,
+    *,
+    jobs: int = 1,
+    on_progress: Callable[[int], None] | None = None,
+) -> tuple[CompareTable, dict[str, NDArray[np.float64]], list[str]]:
+    """``dgli compare``: the Davies-Bouldin table of every representation on the
+    database (its folds laid flat, the paper's states) and the three sequences.
+
+    Returns
+    -------
+    CompareTable
+    dict of str to ndarray
+        The database's distance matrix under each representation (for the heatmaps).
+    list of str
+        The class of each state of those matrices, in their order.
+    """
+    records = folded_by_class(records)
+    datasets = compare_datasets(records)
+    names = tuple(REPRESENTATIONS)
+    matrices = dataset_matrices(datasets, names, jobs=jobs, on_progress=on_progress)
+    table = davies_bouldin_table(datasets, names, matrices=matrices)
+    table = CompareTable(tuple(table["columns"]), table["rows"], paper_columns(names))
+    return table, matrices["database"], list(records.classes)
+
+
 @dataclass(frozen=True)
 class SequenceAnalysis:
     """Frame-by-frame analysis of a folding sequence.
@@ -237,6 +303,23 @@ class SequenceAnalysis:
     def smoothed_accuracy(self) -> float:
         """Fraction of frames whose smoothed class is the true one."""
         return float(np.mean([t == p for t, p in zip(self.truth, self.smoothed)]))
+
+    def to_json(self, name: str) -> dict[str, object]:
+        """The JSON of ``dgli sequence NAME --json`` (docs/json.md)."""
+        from ..sim.cloth.sequences import SEQUENCES
+
+        return json_ready({
+            "sequence": name,
+            "description": SEQUENCES[name][0],
+            "frames": len(self.truth),
+            "truth": list(self.truth),
+            "predicted": list(self.predicted),
+            "smoothed": list(self.smoothed),
+            "true_changes": list(self.true_changes),
+            "detected_changes": list(self.detected_changes),
+            "frame_accuracy": round(self.frame_accuracy, 4),
+            "smoothed_accuracy": round(self.smoothed_accuracy, 4),
+        })
 
 
 def analyse_sequence(records: StateRecords, references: ReferenceSet) -> SequenceAnalysis:
@@ -301,7 +384,7 @@ def sequence_outcomes(
 
     dist = analysis.reference_distances
     if dist is None:
-        raise ValueError("the analysis keeps no distances to the references")
+        raise InvalidValueError("the analysis keeps no distances to the references")
     outs = []
     for k in range(len(records)):
         best = int(np.argmin(dist[k]))

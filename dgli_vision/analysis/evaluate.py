@@ -19,7 +19,8 @@ from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
 from ..core.classes import VARIANTS
-from ..core.errors import DgliError
+from ..core.errors import DgliError, InvalidValueError
+from ..core.json_ready import json_ready
 from ..sources.labelled import LabelledPair
 from .workers import init_worker, worker_references
 
@@ -34,11 +35,9 @@ __all__ = [
     "coverage",
     "evaluate_pairs",
     "failure_text",
-    "json_ready",
     "outcome_counts",
     "outcome_fields",
     "outcome_from_dict",
-    "outcome_to_dict",
     "outcomes_text",
     "summarise",
     "timed_evaluation",
@@ -71,6 +70,13 @@ class PairOutcome:
     def correct(self) -> bool:
         """Class predicted right."""
         return self.predicted == self.pair.label
+
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of the outcome (one line of ``results.jsonl``); a coordinate
+        that was not measured (NaN) is null. :func:`outcome_from_dict` reads it back."""
+        from dataclasses import asdict
+
+        return json_ready(asdict(self))
 
     @property
     def variant_correct(self) -> bool:
@@ -187,7 +193,7 @@ def evaluate_pairs(
         One per pair, in the order of ``pairs``.
     """
     if jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
+        raise InvalidValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1:
         for pair in pairs:
             yield _classify_pair(pair, references, colours, distances)
@@ -411,9 +417,9 @@ class EvaluationResult:
         """``"right 40, cannot tell 7, wrong 1, unreadable 0; ..."`` for people."""
         return outcomes_text(self.outcome_counts)
 
-    def to_dict(self) -> dict[str, Any]:
-        """The JSON object (outcomes left out)."""
-        return {
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of ``dgli evaluate --json`` (outcomes left out)."""
+        return json_ready({
             "n": self.n,
             "classified": self.classified,
             "accuracy": self.accuracy,
@@ -425,7 +431,7 @@ class EvaluationResult:
             "cannot_tell": self.cannot_tell,
             "seconds": self.seconds,
             **outcome_fields(self.outcome_counts),
-        }
+        })
 
 
 #: The last two columns of :meth:`EvaluationResult.confusion_split`, after the classes.
@@ -496,33 +502,12 @@ def outcomes_text(counts: dict[str, int], unit: str = "pairs") -> str:
 NO_CLASS = "none"
 
 
-def json_ready(value: Any) -> Any:
-    """``value`` with every NaN or infinite float replaced by None (JSON's null), through
-    dicts, lists and tuples: ``json.dumps`` would write them as bare ``NaN``, which JSON
-    readers other than Python's refuse."""
-    if isinstance(value, float):
-        return value if np.isfinite(value) else None
-    if isinstance(value, dict):
-        return {k: json_ready(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [json_ready(v) for v in value]
-    return value
-
-
-def outcome_to_dict(outcome: PairOutcome) -> dict[str, Any]:
-    """JSON-ready form of an outcome (one line of ``results.jsonl``); a coordinate that
-    was not measured (NaN) is null."""
-    from dataclasses import asdict
-
-    return json_ready(asdict(outcome))
-
-
 def _float(v: Any) -> float:
     return float("nan") if v is None else float(v)
 
 
 def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
-    """The outcome of :func:`outcome_to_dict`.
+    """The outcome of :meth:`PairOutcome.to_json`.
 
     Raises
     ------

@@ -16,11 +16,13 @@ from numpy.typing import NDArray
 
 from ..core.classes import CLASS_NAMES
 from ..core.distance import average_ranks
+from ..core.errors import InvalidValueError
 from ..core.io import csv_table
 from .charts import chart_files, confusion_figure, heatmap_figure, risk_coverage_figure
 from .evaluate import SPLIT_COLUMNS, EvaluationResult, coordinate_matrix, counts_text
 from .html_report import evaluation_html, risk_coverage
-from .report import markdown_table, overlay_image
+from .overlay import overlay_image
+from .report import markdown_table
 
 __all__ = [
     "HEATMAP_MAX",
@@ -72,7 +74,7 @@ def heatmap_sample(groups: Sequence[str], limit: int = HEATMAP_MAX) -> list[int]
         All indices when there are at most ``limit`` items.
     """
     if limit < 1:
-        raise ValueError(f"limit must be at least 1, got {limit}")
+        raise InvalidValueError(f"limit must be at least 1, got {limit}")
     n = len(groups)
     if n <= limit:
         return list(range(n))
@@ -257,7 +259,7 @@ def _colour_and_evidence(pair: Any, read_color: Any, classify: Any) -> tuple[Any
     """A pair's colour image and, with ``classify``, its overlay evidence (None where
     it cannot be had)."""
     from ..core.errors import DgliError
-    from .report import overlay_evidence
+    from .overlay import overlay_evidence
 
     if classify is not None and hasattr(pair, "load"):
         try:
@@ -403,7 +405,7 @@ def build_report(
         Report file name (relative to the report folder) -> its content.
     """
     tables = _tables(result)
-    files: dict[str, Any] = {"summary.json": {**result.to_dict(), **meta}}
+    files: dict[str, Any] = {"summary.json": {**result.to_json(), **meta}}
     files["confusion.csv"] = csv_table(["true \\ predicted", *tables.cols], tables.confusion_rows)
     files["per_class.csv"] = csv_table(tables.per_class_header, tables.per_class_rows)
     files.update(chart_files("confusion", confusion_figure(

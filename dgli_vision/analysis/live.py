@@ -29,6 +29,7 @@ from numpy.typing import NDArray
 from ..classifier.references import ReferenceSet
 from ..core.errors import DgliError
 from ..core.fold_graph import StateKey, folds_of, state_keys
+from ..core.json_ready import json_ready
 from .track import (
     EMISSION_SCALE,
     FOLD_PRIOR,
@@ -207,13 +208,13 @@ class LiveUpdate:
     latency_ms: float
     note: str | None = None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         """The JSON line of the frame (docs/live.md)."""
 
         def state(key: StateKey | None) -> dict[str, Any] | None:
             return None if key is None else {"class": key[0], "variant": key[1]}
 
-        return {
+        return json_ready({
             "frame": self.frame,
             "time": None if self.time is None else round(self.time, 6),
             "state": state(self.state),
@@ -225,7 +226,7 @@ class LiveUpdate:
             "dropped": self.dropped,
             "latency_ms": round(self.latency_ms, 2),
             "note": self.note,
-        }
+        })
 
 
 @dataclass(frozen=True)
@@ -270,6 +271,20 @@ class LiveSummary:
     frames: list[int] = field(default_factory=list)
     stopped: bool = False
     behind_s: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        """The summary's JSON object (the last line of ``dgli watch --jsonl``,
+        ``{"summary": ...}``: docs/json.md)."""
+        from dataclasses import asdict
+
+        data = asdict(self)
+        data["changes"] = [
+            {"frame": f, "from": {"class": a[0], "variant": a[1]},
+             "to": {"class": b[0], "variant": b[1]}}
+            for f, a, b in self.changes
+        ]
+        data["path"] = [{"class": c, "variant": v} for c, v in self.path]
+        return json_ready(data)
 
 
 @dataclass(frozen=True)

@@ -186,7 +186,7 @@ def _shown_extra(frame: object, result: object, truth: str) -> dict[str, object]
     import cv2
 
     from .html_report import cannot_tell_text
-    from .report import overlay_evidence, overlay_image
+    from .overlay import overlay_evidence, overlay_image
 
     p = result.prediction  # type: ignore[attr-defined]
     true_cls = truth.split("/", 1)[0]

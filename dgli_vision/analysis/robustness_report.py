@@ -26,9 +26,21 @@ from .html_report import (
     outcomes_html,
 )
 from .report import markdown_table
-from .robustness import ConditionScore, ShownPair, reliability_table, robustness_table
+from .robustness import (
+    ConditionScore,
+    ShownPair,
+    reliability_rows,
+    reliability_table,
+    robustness_table,
+)
 
-__all__ = ["GALLERY_MAX", "ROBUSTNESS_REPORT_FILES", "robustness_report", "total_outcomes"]
+__all__ = [
+    "GALLERY_MAX",
+    "ROBUSTNESS_REPORT_FILES",
+    "robustness_json",
+    "robustness_report",
+    "total_outcomes",
+]
 
 #: The files of every robustness report (besides the overlays).
 ROBUSTNESS_REPORT_FILES = ("robustness.json", "report.md", "report.html", "outcomes.svg",
@@ -156,3 +168,17 @@ def robustness_report(
     files["report.md"] = _markdown(title, lines, scores)
     files["report.html"] = _html(title, lines, totals, scores)
     return files
+
+
+def robustness_json(seed: int, per_class: int, scores: list[ConditionScore]) -> dict[str, Any]:
+    """The JSON of ``dgli robustness --json`` (and ``robustness.json``; docs/json.md):
+    the outcomes over all conditions, a row per condition, the wrong answers and the
+    reliability table."""
+    return {
+        "seed": seed,
+        "per_class": per_class,
+        **total_outcomes(scores),
+        "rows": [s.to_json() for s in scores],
+        "wrong": {s.condition: list(s.wrong_cases) for s in scores},
+        "reliability": reliability_rows(scores),
+    }

@@ -20,6 +20,7 @@ from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
 from ..core.fold_graph import StateKey, folds_of, neighbours, state_keys
+from ..core.json_ready import json_ready
 
 __all__ = [
     "CHANGE_TOLERANCE",
@@ -36,7 +37,6 @@ __all__ = [
     "smooth",
     "state_costs",
     "timeline_rows",
-    "timeline_to_dict",
     "track_outcomes",
     "transition_log_matrix",
     "viterbi",
@@ -323,6 +323,29 @@ class Timeline:
     changes: tuple[tuple[int, StateKey, StateKey], ...]
     score: TimelineScore | None = None
 
+    def to_json(self) -> dict[str, object]:
+        """The JSON object of the timeline: frames, changes, gaps and the score (the keys of
+        ``dgli track --json`` that a timeline gives, docs/json.md)."""
+        from dataclasses import asdict
+
+        out: dict[str, object] = {
+            "frames": [asdict(f) for f in self.frames],
+            "changes": [
+                {
+                    "frame": t,
+                    "from": {"class": a[0], "variant": a[1]},
+                    "to": {"class": b[0], "variant": b[1]},
+                }
+                for t, a, b in self.changes
+            ],
+            "gaps": [
+                {"frame": f.index, "color": f.color, "why": f.note} for f in self.frames if f.gap
+            ],
+        }
+        if self.score is not None:
+            out["score"] = asdict(self.score)
+        return json_ready(out)
+
 
 def track_outcomes(
     outcomes: Sequence,
@@ -444,26 +467,3 @@ def timeline_rows(timeline: Timeline) -> list[tuple[object, ...]]:
         )
         for f in timeline.frames
     ]
-
-
-def timeline_to_dict(timeline: Timeline) -> dict[str, object]:
-    """The JSON-ready form of a timeline: frames, changes, gaps and the score."""
-    from dataclasses import asdict
-
-    out: dict[str, object] = {
-        "frames": [asdict(f) for f in timeline.frames],
-        "changes": [
-            {
-                "frame": t,
-                "from": {"class": a[0], "variant": a[1]},
-                "to": {"class": b[0], "variant": b[1]},
-            }
-            for t, a, b in timeline.changes
-        ],
-        "gaps": [
-            {"frame": f.index, "color": f.color, "why": f.note} for f in timeline.frames if f.gap
-        ],
-    }
-    if timeline.score is not None:
-        out["score"] = asdict(timeline.score)
-    return out

@@ -33,7 +33,13 @@ from .html_report import (
 from .report import markdown_table
 from .track import TIMELINE_COLUMNS, Timeline, timeline_rows
 
-__all__ = ["GALLERY_MAX", "TRACK_REPORT_FILES", "timeline_outcome_fields", "track_report"]
+__all__ = [
+    "GALLERY_MAX",
+    "TRACK_REPORT_FILES",
+    "timeline_json",
+    "timeline_outcome_fields",
+    "track_report",
+]
 
 #: Most frames of each kind (wrong, "cannot tell") drawn as overlays, evenly spread in
 #: time: a long recording's report stays a bounded size (the others are listed).
@@ -65,6 +71,21 @@ def timeline_outcome_fields(outcomes: Sequence[Any], labelled: bool) -> dict[str
     answers when they are labelled (:func:`~dgli_vision.analysis.evaluate.outcome_fields`);
     nothing without labels."""
     return outcome_fields(outcome_counts(outcomes)) if labelled else {}
+
+
+def timeline_json(
+    head: dict[str, Any], timeline: Timeline, outcomes: Sequence[Any], labelled: bool
+) -> dict[str, Any]:
+    """The JSON of ``dgli track --json`` (and ``timeline.json``; docs/json.md): ``head``
+    (what was read: ``folder`` and ``recording``, or ``sequence``), ``n_frames``, the
+    timeline's frames, changes, gaps and score, and the frames' own outcomes when
+    ``labelled``."""
+    return {
+        **head,
+        "n_frames": len(outcomes),
+        **timeline.to_json(),
+        **timeline_outcome_fields(outcomes, labelled),
+    }
 
 
 def _distances(outcomes: Sequence[Any], timeline: Timeline) -> tuple[Any, str] | None:

@@ -19,6 +19,7 @@ folded over, with no flap lying over it.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
@@ -37,6 +38,7 @@ __all__ = [
     "CORNER_STATES",
     "Affordances",
     "CornerAffordance",
+    "CornerMap",
     "NapkinMaps",
     "RigidMap",
     "SeenFold",
@@ -361,21 +363,56 @@ class SeenFold:
         return out
 
 
+class CornerMap(Mapping[str, "CornerAffordance"]):
+    """Corners by name, read-only, in their order (A-D), as the JSON keys them:
+    ``corners["A"]``, ``list(corners)`` the names, ``corners.values()`` the corners.
+    Hashable and picklable, as the frozen results that hold it."""
+
+    __slots__ = ("_corners",)
+
+    def __init__(self, corners: Iterable[CornerAffordance] = ()) -> None:
+        object.__setattr__(self, "_corners", tuple(corners))
+
+    def __getitem__(self, name: str) -> CornerAffordance:
+        for c in self._corners:
+            if c.corner == name:
+                return c
+        raise KeyError(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return (c.corner for c in self._corners)
+
+    def __len__(self) -> int:
+        return len(self._corners)
+
+    def __hash__(self) -> int:
+        return hash(self._corners)
+
+    def __setattr__(self, name: str, value: object) -> None:
+        raise AttributeError("CornerMap is read-only")
+
+    def __reduce__(self) -> tuple[type[CornerMap], tuple[tuple[CornerAffordance, ...]]]:
+        return CornerMap, (self._corners,)
+
+    def __repr__(self) -> str:
+        return f"CornerMap({dict(self)!r})"
+
+
 @dataclass(frozen=True)
 class Affordances:
-    """The corners A-D and the folds seen in one frame."""
+    """The corners A-D and the folds seen in one frame.
 
-    corners: tuple[CornerAffordance, ...]
+    ``corners`` is keyed by the corner's name, in the order A-D, as in the JSON:
+    ``affordances.corners["A"].point`` (a :class:`CornerMap`).
+    """
+
+    corners: CornerMap
     folds: tuple[SeenFold, ...]
-
-    def corner(self, name: str) -> CornerAffordance:
-        """The corner called ``name``."""
-        return self.corners[CORNERS.index(name)]
 
     def to_json(self) -> dict[str, Any]:
         """``{"corners": {"A": {...}, ...}, "folds": [...]}``."""
         return {
-            "corners": {c.corner: c.to_json() for c in self.corners},
+            "corners": {name: c.to_json() for name, c in self.corners.items()},
             "folds": [f.to_json() for f in self.folds],
         }
 
@@ -581,7 +618,7 @@ def affordances_of(
             replace(_seen_fold(maps, j, corners), geometry=sizes[j])
             for j in range(len(maps.folds))
         )
-    return Affordances(tuple(corners), folds)
+    return Affordances(CornerMap(corners), folds)
 
 
 def fold_line_3d(

@@ -23,7 +23,7 @@ from ..sources.frames import (
 from .classify import MIN_CONFIDENCE, Prediction, StickerIds
 from .references import ReferenceSet, load_references
 
-__all__ = ["classify_pair", "frame_from"]
+__all__ = ["classify_pair", "frame_from", "reference_set_of"]
 
 
 @lru_cache(maxsize=4)
@@ -106,7 +106,7 @@ def classify_pair(
     from .pipeline import classify_frame
 
     frame = frame_from(color, depth, intrinsics)
-    refs = _reference_set(references)
+    refs = reference_set_of(references)
     colours = _check_colours(colours)
     result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
     told = result.prediction is None
@@ -212,7 +212,16 @@ def _frame_of(
     return RGBDFrame(rgb, mm, intr, color_path, depth_path, source)
 
 
-def _reference_set(references: object) -> ReferenceSet:
+def reference_set_of(references: object) -> ReferenceSet:
+    """The reference set ``references`` names: a :class:`ReferenceSet` itself, a file
+    path (loaded once and kept), or None for the shipped set (what :func:`classify_pair`
+    and :func:`dgli_vision.plan` take).
+
+    Raises
+    ------
+    InvalidInputError
+        Neither a reference set nor a path.
+    """
     if isinstance(references, ReferenceSet):
         return references
     if references is not None and not isinstance(references, (str, Path)):

@@ -13,7 +13,8 @@ the dGLI is near-singular and its sign follows millimetre-level noise.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -21,8 +22,12 @@ from numpy.typing import ArrayLike, NDArray
 from ..core.classes import LIFTED_MM
 from ..core.dgli import pair_indices
 from ..core.distance import spearman_to_ranked
-from ..core.errors import DetectionError
+from ..core.errors import DetectionError, InvalidValueError
+from .affordances import CornerMap
 from .references import ReferenceSet
+
+if TYPE_CHECKING:
+    from .affordances import SeenFold
 
 __all__ = [
     "FULL_COORDINATES",
@@ -165,8 +170,9 @@ class Prediction:
         The kind of that reason (``FrameResult.why``).
     stickers : StickerIds or None
         The stickers found, hidden and unknown (``classify_pair`` fills it).
-    corners : tuple of CornerAffordance
-        Corners A-D: point, pixel, state, graspable
+    corners : CornerMap
+        Corners ``"A"``-``"D"`` by name, as in the JSON (``p.corners["A"].point``):
+        point, pixel, state, graspable
         (:class:`~dgli_vision.classifier.affordances.CornerAffordance`); empty when not
         computed.
     folds : tuple of SeenFold
@@ -183,8 +189,8 @@ class Prediction:
     reason: str | None = None
     why: str | None = None
     stickers: StickerIds | None = None
-    corners: tuple = ()
-    folds: tuple = ()
+    corners: CornerMap = field(default_factory=CornerMap)
+    folds: tuple[SeenFold, ...] = ()
 
 
 def confidence_of(
@@ -334,12 +340,12 @@ def reference_terms(
     x = np.asarray(coords, dtype=np.float64)
     ref = references.matrix()
     if x.shape != (ref.shape[1],):
-        raise ValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
+        raise InvalidValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
     known = ~np.isnan(x)
     if visible is not None:
         vis = np.asarray(visible, dtype=bool)
         if vis.shape != (2 * _n_segments(len(x)),):
-            raise ValueError(
+            raise InvalidValueError(
                 f"visible must have shape ({2 * _n_segments(len(x))},), got {vis.shape}"
             )
         seen_segment = vis.reshape(-1, 2).all(axis=1)

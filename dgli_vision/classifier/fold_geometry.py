@@ -35,7 +35,16 @@ from ..core.fold_lines import NominalFold
 from ..core.fold_measure import Crease, fold_kind, fold_measures
 from ..core.layout import NapkinLayout
 
-__all__ = ["FoldGeometry", "fit_folds", "geometry_from_crease"]
+__all__ = [
+    "FoldGeometry",
+    "empty_geometry",
+    "fit_folds",
+    "geometry_from_crease",
+    "mirror_crease_fit",
+    "rigid_fit_2d",
+    "rotation_2d",
+    "solve_flaps",
+]
 
 #: How well a sticker lying on the napkin is placed in the table plane (mm, one
 #: coordinate): the floor of the fit's noise, pooled with the residuals.
@@ -119,7 +128,9 @@ def _round(v: Any, nd: int = 1) -> Any:
     return round(f, nd) if math.isfinite(f) else None
 
 
-def _empty(word: str, why: str) -> FoldGeometry:
+def empty_geometry(word: str, why: str) -> FoldGeometry:
+    """The geometry of fold ``word`` that could not be measured: its kind's keys, each
+    None, and ``why`` (what :mod:`~dgli_vision.labelling.fold_mesh` also gives)."""
     kind, _ = fold_kind(word)
     if kind == "corner":
         keys = ("legs_mm", "tip_mm")
@@ -204,7 +215,7 @@ def _plane_basis(up: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.array([e, f])
 
 
-def _mirror_fit(m: NDArray, q: NDArray) -> tuple[float, float] | None:
+def mirror_crease_fit(m: NDArray, q: NDArray) -> tuple[float, float] | None:
     """The crease (normal angle, offset) whose mirror takes material points ``m`` (k, 2)
     nearest to ``q``: the perpendicular bisector for one point, else the best
     reflection's axis (closed form) and the mean of the bisectors' offsets."""
@@ -225,7 +236,7 @@ def _mirror_fit(m: NDArray, q: NDArray) -> tuple[float, float] | None:
     return alpha, float(np.mean((m + q) @ n) * 0.5)
 
 
-def _rigid2(m: NDArray, p: NDArray) -> tuple[float, NDArray]:
+def rigid_fit_2d(m: NDArray, p: NDArray) -> tuple[float, NDArray]:
     """The rotation angle and translation of the proper rigid map nearest to taking
     ``m`` (k, 2) onto ``p`` (k >= 2)."""
     mc, pc = m - m.mean(axis=0), p - p.mean(axis=0)
@@ -236,12 +247,13 @@ def _rigid2(m: NDArray, p: NDArray) -> tuple[float, NDArray]:
     return th, p.mean(axis=0) - r @ m.mean(axis=0)
 
 
-def _rot(th: float) -> tuple[NDArray, NDArray]:
+def rotation_2d(th: float) -> tuple[NDArray, NDArray]:
+    """The 2D rotation by ``th`` (radians) and its derivative in ``th``, (2, 2) each."""
     c, s = math.cos(th), math.sin(th)
     return np.array([[c, -s], [s, c]]), np.array([[-s, -c], [c, -s]])
 
 
-def _solve(
+def solve_flaps(
     m: NDArray, p: NDArray, g: NDArray, x: NDArray, k: int
 ) -> tuple[NDArray, NDArray, NDArray]:
     """Gauss-Newton on x = (theta, tau_u, tau_v, alpha_1, c_1, ...): material points
@@ -259,7 +271,7 @@ def _solve(
     has_flaps = len(flap_rows) > 0
     c_mask = np.where(on_flap, 1.0, 0.0)
     for _ in range(5):
-        rot, drot = _rot(x[0])
+        rot, drot = rotation_2d(x[0])
         alpha, c = x[3::2], x[4::2]
         n = np.stack([np.cos(alpha[gi]), np.sin(alpha[gi])], axis=1) * c_mask[:, None]
         s = (m * n).sum(axis=1) - c[gi] * c_mask
@@ -356,7 +368,8 @@ def fit_folds(
         use = lying & (np.isin(part, active) | (part == -1))
         results = _fit(p2, part, use, active, folds, layout)
     return tuple(
-        results.get(j) or _empty(f.word, why.get(j, "the stickers seen do not fix the crease"))
+        results.get(j)
+        or empty_geometry(f.word, why.get(j, "the stickers seen do not fix the crease"))
         for j, f in enumerate(folds)
     )
 
@@ -381,7 +394,7 @@ def _fit(
         g = lut[part[ids]]
         m, p = uv[ids], p2[ids]
         x = _initial(m, p, g, [folds[j] for j in active])
-        x, jtj, res = _solve(m, p, g, x, len(active))
+        x, jtj, res = solve_flaps(m, p, g, x, len(active))
         d = np.hypot(res[:, 0], res[:, 1])
         worst = int(np.argmax(d))
         if d[worst] <= OUTLIER_MM or attempt == 2:
@@ -410,7 +423,7 @@ def _fit(
         crease = Crease.from_normal(a, c)
         rms = float(np.sqrt(np.mean(d[mine] ** 2)))
         if not np.all(np.isfinite(block)) or _edge_sd(crease, block, layout) > MAX_SD_MM:
-            out[fold_index] = _empty(word, "the stickers seen do not fix the crease")
+            out[fold_index] = empty_geometry(word, "the stickers seen do not fix the crease")
             continue
         out[fold_index] = geometry_from_crease(
             word, crease, layout, block, stickers=int(np.count_nonzero(mine)), rms_mm=rms
@@ -444,10 +457,10 @@ def _nominal_normal(f: NominalFold) -> tuple[float, float]:
 def _initial(m: NDArray, p: NDArray, g: NDArray, folds: list[NominalFold]) -> NDArray:
     """The first guess of (theta, tau, alpha_j, c_j): the napkin that stays from its
     own stickers (two or more), else from the flap with most stickers mirrored back
-    across its nominal crease; each crease by :func:`_mirror_fit` on that."""
+    across its nominal crease; each crease by :func:`mirror_crease_fit` on that."""
     stay = g < 0
     if np.count_nonzero(stay) >= 2:
-        th, tau = _rigid2(m[stay], p[stay])
+        th, tau = rigid_fit_2d(m[stay], p[stay])
     else:
         j = int(np.argmax(np.bincount(g[~stay], minlength=len(folds))))
         mine = g == j
@@ -456,13 +469,13 @@ def _initial(m: NDArray, p: NDArray, g: NDArray, folds: list[NominalFold]) -> ND
         mm = m[mine] - 2.0 * (m[mine] @ n - c)[:, None] * n
         mm, pp = np.concatenate([mm, m[stay]]), np.concatenate([p[mine], p[stay]])
         if len(mm) >= 2:
-            th, tau = _rigid2(mm, pp)
+            th, tau = rigid_fit_2d(mm, pp)
         else:
             th, tau = 0.0, pp[0] - mm[0]
-    rot, _ = _rot(th)
+    rot, _ = rotation_2d(th)
     q = (p - tau) @ rot  # back onto the flat napkin
     x = [th, float(tau[0]), float(tau[1])]
-    # every flap's best mirror at once (as _mirror_fit, by sums over each flap)
+    # every flap's best mirror at once (as mirror_crease_fit, by sums over each flap)
     k = len(folds)
     on = ~stay
     gf, mf, qf = g[on], m[on], q[on]

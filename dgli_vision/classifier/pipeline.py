@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,6 +16,7 @@ from numpy.typing import NDArray
 from ..core.classes import CLASS_NAMES, LANDING_PAIRS, LIFTED_MM, PAST_BAND_DEG
 from ..core.dgli import cloth_coordinates
 from ..core.errors import DetectionError
+from ..core.json_ready import json_ready
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
 from ..perception.agreement import edge_on_heights, edge_on_problem
 from ..perception.detect import (
@@ -234,6 +236,69 @@ class FrameResult:
     candidates: tuple[tuple[str, str | None, float], ...] = ()
     affordances: Affordances | None = None
     distances: NDArray[np.float64] | None = None
+
+    def to_json(self, color: str, depth: str) -> dict[str, Any]:
+        """The JSON object of ``dgli classify --json``, naming the pair as ``color`` and
+        ``depth`` (docs/json.md)."""
+        found = self.observation.visible
+        p = self.prediction
+        out: dict[str, Any] = {"color": color, "depth": depth}
+        if p is None:
+            guess = self.best_guess
+            out.update(
+                {
+                    "class": None,
+                    "name": None,
+                    "variant": None,
+                    "distance": None,
+                    "runner_up": None,
+                    "confidence": None if guess is None else guess.confidence,
+                    "reason": self.reason,
+                }
+            )
+        else:
+            ru = p.runner_up
+            out.update(
+                {
+                    "class": p.class_id,
+                    "name": p.name,
+                    "variant": p.variant,
+                    "distance": round(p.distance, 6),
+                    "confidence": p.confidence,
+                    "runner_up": None
+                    if ru is None
+                    else {
+                        "class": ru.class_id,
+                        "name": ru.name,
+                        "variant": ru.variant,
+                        "distance": round(ru.distance, 6),
+                    },
+                }
+            )
+        unknown = self.observation.unknown
+        evidence = self.observation.evidence
+        out["stickers"] = {
+            "found": int(found.sum()),
+            "missing": np.flatnonzero(~found).tolist(),
+            "unknown": {str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)}
+            if evidence is not None
+            else {},
+        }
+        out["candidates"] = [
+            {"class": c, "variant": v, "distance": d} for c, v, d in self.candidates
+        ]
+        if p is None:
+            out["why"] = {
+                "kind": self.why,
+                "classes": [c for c, _, _ in self.candidates[:2]],
+                "stickers": out["stickers"],
+            }
+        if self.affordances is not None:
+            out.update(self.affordances.to_json())
+        out["coordinates"] = [
+            None if not np.isfinite(v) else round(float(v), 8) for v in self.coordinates
+        ]
+        return json_ready(out)
 
 
 #: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is

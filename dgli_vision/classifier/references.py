@@ -18,7 +18,7 @@ from numpy.typing import NDArray
 
 from ..core.classes import CLASS_NAMES, VARIANTS
 from ..core.distance import centred_unit_ranks, pairwise_spearman
-from ..core.errors import ReferenceError_, UnreadableInputError
+from ..core.errors import ReferenceSetError, UnreadableInputError
 from ..core.io import guard_outputs, read_json, record_outputs, write_json
 from ..core.layout import layout_of_size, sticker_spreads_mm
 from ..perception.tips import stage_tip_clear
@@ -35,7 +35,6 @@ __all__ = [
     "load_references",
     "read_references",
     "references_from_dict",
-    "references_to_dict",
     "write_references",
 ]
 
@@ -248,6 +247,62 @@ class ReferenceSet:
         """Rates of each corner showing its back face, shape (k, 4) (NaN: not known)."""
         return self._stacked("back_rate")
 
+    def to_json(self) -> dict[str, Any]:
+        """The JSON object of the set (what ``references/default.json`` holds;
+        :func:`references_from_dict` reads it back)."""
+        return {
+            "format": FORMAT,
+            "version": FORMAT_VERSION,
+            "coordinates": "dGLI of segment pairs 0-1, 0-2, ..., 6-7 (SPEC section 2), 1/m",
+            "provenance": self.provenance,
+            "references": [
+                {
+                    "class": r.class_id,
+                    "name": r.name,
+                    "variant": r.variant,
+                    "source": r.source,
+                    "n_samples": r.n_samples,
+                    **({"stage": r.stage} if r.stage else {}),
+                    "coordinates": [round(float(v), 10) for v in r.coordinates],
+                    "visible_rate": [round(float(v), 4) for v in r.visible_rate],
+                    **(
+                        {"lifted_rate": [round(float(v), 4) for v in r.lifted_rate]}
+                        if r.lifted_rate.any()
+                        else {}
+                    ),
+                    **(
+                        {"past_rate": [round(float(v), 4) for v in r.past_rate]}
+                        if r.past_rate.any()
+                        else {}
+                    ),
+                    **(
+                        {"height_range_mm": [[round(float(v), 1) for v in lh]
+                                             for lh in r.height_range_mm]}
+                        if np.isfinite(r.height_range_mm).all()
+                        else {}
+                    ),
+                    **(
+                        {"footprint_range": [round(float(v), 4) for v in r.footprint_range]}
+                        if np.isfinite(r.footprint_range).all()
+                        else {}
+                    ),
+                    **(
+                        {"back_rate": [round(float(v), 4) if np.isfinite(v) else None
+                                       for v in r.back_rate]}
+                        if np.isfinite(r.back_rate).any()
+                        else {}
+                    ),
+                    **(
+                        {"spread_range_mm": [[round(float(v)) for v in lh]
+                                             for lh in r.spread_range_mm]}
+                        if np.isfinite(r.spread_range_mm).all()
+                        else {}
+                    ),
+                }
+                for r in self.references
+            ],
+        }
+
 
 def build_references(
     records: StateRecords, *, provenance: dict[str, Any] | None = None
@@ -318,62 +373,6 @@ def _back_rate(turns: NDArray[np.float64]) -> NDArray[np.float64]:
         return np.where(told > 0, back / np.maximum(told, 1), np.nan)
 
 
-def references_to_dict(refs: ReferenceSet) -> dict[str, Any]:
-    """The JSON-ready form of a reference set."""
-    return {
-        "format": FORMAT,
-        "version": FORMAT_VERSION,
-        "coordinates": "dGLI of segment pairs 0-1, 0-2, ..., 6-7 (SPEC section 2), 1/m",
-        "provenance": refs.provenance,
-        "references": [
-            {
-                "class": r.class_id,
-                "name": r.name,
-                "variant": r.variant,
-                "source": r.source,
-                "n_samples": r.n_samples,
-                **({"stage": r.stage} if r.stage else {}),
-                "coordinates": [round(float(v), 10) for v in r.coordinates],
-                "visible_rate": [round(float(v), 4) for v in r.visible_rate],
-                **(
-                    {"lifted_rate": [round(float(v), 4) for v in r.lifted_rate]}
-                    if r.lifted_rate.any()
-                    else {}
-                ),
-                **(
-                    {"past_rate": [round(float(v), 4) for v in r.past_rate]}
-                    if r.past_rate.any()
-                    else {}
-                ),
-                **(
-                    {"height_range_mm": [[round(float(v), 1) for v in lh]
-                                         for lh in r.height_range_mm]}
-                    if np.isfinite(r.height_range_mm).all()
-                    else {}
-                ),
-                **(
-                    {"footprint_range": [round(float(v), 4) for v in r.footprint_range]}
-                    if np.isfinite(r.footprint_range).all()
-                    else {}
-                ),
-                **(
-                    {"back_rate": [round(float(v), 4) if np.isfinite(v) else None
-                                   for v in r.back_rate]}
-                    if np.isfinite(r.back_rate).any()
-                    else {}
-                ),
-                **(
-                    {"spread_range_mm": [[round(float(v)) for v in lh]
-                                         for lh in r.spread_range_mm]}
-                    if np.isfinite(r.spread_range_mm).all()
-                    else {}
-                ),
-            }
-            for r in refs.references
-        ],
-    }
-
-
 def _optional_array(
     item: dict[str, Any],
     key: str,
@@ -388,7 +387,7 @@ def _optional_array(
 
     Raises
     ------
-    ReferenceError_
+    ReferenceSetError
         When the field is there but not numbers of that shape.
     """
     value = item.get(key)
@@ -399,7 +398,7 @@ def _optional_array(
     except (TypeError, ValueError):
         out = np.zeros(0)
     if out.shape != shape:
-        raise ReferenceError_(f"'{source}': reference {k} needs {shape[0]} {what}")
+        raise ReferenceSetError(f"'{source}': reference {k} needs {shape[0]} {what}")
     return out
 
 
@@ -408,15 +407,15 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
 
     Raises
     ------
-    ReferenceError_
+    ReferenceSetError
         Naming ``source`` and what is wrong.
     """
     if not isinstance(data, dict) or data.get("format") != FORMAT:
-        raise ReferenceError_(
+        raise ReferenceSetError(
             f'\'{source}\' is not a dgli reference set (no "format": "{FORMAT}")'
         )
     if data.get("version") != FORMAT_VERSION:
-        raise ReferenceError_(
+        raise ReferenceSetError(
             f"'{source}' has reference format version {data.get('version')!r}; "
             f"expected {FORMAT_VERSION}"
         )
@@ -427,20 +426,20 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             coords = np.asarray(item["coordinates"], dtype=np.float64)
             rate = np.asarray(item["visible_rate"], dtype=np.float64)
         except (KeyError, TypeError, ValueError) as exc:
-            raise ReferenceError_(f"'{source}': reference {k} is malformed ({exc})") from None
+            raise ReferenceSetError(f"'{source}': reference {k} is malformed ({exc})") from None
         if class_id not in CLASS_NAMES:
-            raise ReferenceError_(f"'{source}': reference {k} has unknown class {class_id!r}")
+            raise ReferenceSetError(f"'{source}': reference {k} has unknown class {class_id!r}")
         variant = item.get("variant")
         if variant not in VARIANTS[class_id]:
             allowed = ", ".join(v or "null" for v in VARIANTS[class_id])
-            raise ReferenceError_(
+            raise ReferenceSetError(
                 f"'{source}': reference {k} of class {class_id} has variant {variant!r}, "
                 f"which is not one of class {class_id}'s ({allowed})"
             )
         if coords.shape != (28,) or not np.isfinite(coords).all():
-            raise ReferenceError_(f"'{source}': reference {k} needs 28 finite coordinates")
+            raise ReferenceSetError(f"'{source}': reference {k} needs 28 finite coordinates")
         if rate.shape != (16,):
-            raise ReferenceError_(f"'{source}': reference {k} needs 16 visibility rates")
+            raise ReferenceSetError(f"'{source}': reference {k} needs 16 visibility rates")
         lifted = _optional_array(item, "lifted_rate", (16,), 0.0, source, k, "lifted rates")
         past = _optional_array(
             item, "past_rate", (16,), 0.0, source, k, "past-vertical rates"
@@ -461,15 +460,15 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             "sticker-pair distance ranges [shortest, longest]",
         )
         if not ((back >= 0) & (back <= 1) | np.isnan(back)).all():
-            raise ReferenceError_(f"'{source}': reference {k} has back-face rates outside 0-1")
+            raise ReferenceSetError(f"'{source}': reference {k} has back-face rates outside 0-1")
         for name, rates in (("visible", rate), ("lifted", lifted), ("past-vertical", past)):
             if not ((rates >= 0) & (rates <= 1)).all():  # NaN fails too
-                raise ReferenceError_(
+                raise ReferenceSetError(
                     f"'{source}': reference {k} has {name} rates outside 0-1 (or not numbers)"
                 )
         n_samples = item.get("n_samples", 1)
         if not isinstance(n_samples, int) or isinstance(n_samples, bool) or n_samples < 1:
-            raise ReferenceError_(
+            raise ReferenceSetError(
                 f"'{source}': reference {k} has n_samples {n_samples!r}; expected a positive "
                 "integer"
             )
@@ -492,7 +491,7 @@ def references_from_dict(data: Any, *, source: str = "references") -> ReferenceS
             )
         )
     if len({r.class_id for r in refs}) < 2:
-        raise ReferenceError_(f"'{source}' holds fewer than two classes")
+        raise ReferenceSetError(f"'{source}' holds fewer than two classes")
     return ReferenceSet(tuple(refs), dict(data.get("provenance") or {}))
 
 
@@ -516,7 +515,7 @@ def load_references(path: str | Path | None = None) -> ReferenceSet:
 
     Raises
     ------
-    UnreadableInputError, ReferenceError_
+    UnreadableInputError, ReferenceSetError
         Missing, unreadable or malformed file.
     """
     if path is None:
@@ -557,5 +556,5 @@ def write_references(path: str | Path, refs: ReferenceSet, *, overwrite: bool = 
     """Write a reference set as JSON (replacing a file only if dgli wrote it, or with
     ``overwrite``)."""
     guard_outputs([path], overwrite=overwrite)
-    write_json(path, references_to_dict(refs))
+    write_json(path, refs.to_json())
     record_outputs([path], str(refs.provenance.get("command", "")))

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import sys
-from typing import Any
 
 import click
 
@@ -17,105 +16,6 @@ from .options import (
     references_option,
 )
 from .output import command_line, echo, echo_json
-
-
-def result_to_json(result: Any, color: str, depth: str) -> dict[str, Any]:
-    """The JSON object of `--json` for one classified pair (see the README)."""
-    import numpy as np
-
-    found = result.observation.visible
-    p = result.prediction
-    out: dict[str, Any] = {"color": color, "depth": depth}
-    if p is None:
-        guess = result.best_guess
-        out.update(
-            {
-                "class": None,
-                "name": None,
-                "variant": None,
-                "distance": None,
-                "runner_up": None,
-                "confidence": None if guess is None else guess.confidence,
-                "reason": result.reason,
-            }
-        )
-    else:
-        ru = p.runner_up
-        out.update(
-            {
-                "class": p.class_id,
-                "name": p.name,
-                "variant": p.variant,
-                "distance": round(p.distance, 6),
-                "confidence": p.confidence,
-                "runner_up": None
-                if ru is None
-                else {
-                    "class": ru.class_id,
-                    "name": ru.name,
-                    "variant": ru.variant,
-                    "distance": round(ru.distance, 6),
-                },
-            }
-        )
-    unknown = result.observation.unknown
-    evidence = result.observation.evidence
-    out["stickers"] = {
-        "found": int(found.sum()),
-        "missing": np.flatnonzero(~found).tolist(),
-        "unknown": {str(i): evidence.reasons[i] for i in np.flatnonzero(unknown)}
-        if evidence is not None
-        else {},
-    }
-    out["candidates"] = [
-        {"class": c, "variant": v, "distance": d} for c, v, d in result.candidates
-    ]
-    if p is None:
-        out["why"] = {
-            "kind": result.why,
-            "classes": [c for c, _, _ in result.candidates[:2]],
-            "stickers": out["stickers"],
-        }
-    if getattr(result, "affordances", None) is not None:
-        out.update(result.affordances.to_json())
-    out["coordinates"] = [
-        None if not np.isfinite(v) else round(float(v), 8) for v in result.coordinates
-    ]
-    return out
-
-
-def overlay_of(frame: Any, result: Any) -> Any:
-    """The overlay picture of a classified frame: the stickers found, where the missing
-    ones would be (hidden or unknown, and why), the objects over the napkin, the
-    verdict."""
-    from ..analysis.report import overlay_evidence, overlay_image
-    from ..planning.overlay import draw_corners, draw_folds
-
-    obs = result.observation
-    evidence = overlay_evidence(result)
-    detail = f"{int(obs.visible.sum())}/16 stickers found"
-    image = overlay_image(
-        frame.color, result.detections.centroids, verdict_line(result), detail=detail,
-        evidence=evidence,
-    )
-    return draw_folds(draw_corners(image, result.affordances), result.affordances,
-                      frame.intrinsics)
-
-
-def verdict_line(result: Any) -> str:
-    """One readable line for a classified pair."""
-    p = result.prediction
-    if p is None:
-        return f"no class: {result.reason}"
-    text = f"{p.class_id} {p.name}"
-    if p.variant:
-        text += f" ({p.variant})"
-    text += f", distance {p.distance:.3f}, confidence {p.confidence:.2f}"
-    if p.runner_up:
-        ru = p.runner_up
-        text += f"; runner-up {ru.class_id} {ru.name}" + (f" ({ru.variant})" if ru.variant else "")
-        text += f" {ru.distance:.3f}"
-    return text
 
 
 @click.command("classify")
@@ -150,6 +50,7 @@ def classify_cmd(
     """
     from pathlib import Path
 
+    from ..analysis.overlay import frame_overlay, verdict_line
     from ..classifier.pipeline import classify_frame
     from ..classifier.references import load_references
     from ..core.io import guard_outputs, write_outputs
@@ -164,11 +65,11 @@ def classify_cmd(
     result = classify_frame(frame, refs, colours=colours)
     if overlay:
         write_outputs(
-            {Path(overlay): overlay_of(frame, result)}, overwrite=overwrite,
+            {Path(overlay): frame_overlay(frame, result)}, overwrite=overwrite,
             command=command_line(),
         )
     if as_json:
-        echo_json(result_to_json(result, color, depth))
+        echo_json(result.to_json(color, depth))
     else:
         echo(verdict_line(result))
     if result.prediction is None:  # said once, on stdout: an answer, not an error

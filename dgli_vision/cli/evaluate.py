@@ -223,10 +223,8 @@ class _EvaluationRun:
             classify_into(todo(), count, "classifying", self, writer, done, stop, colours=colours)
 
     def _print(self, result: Any, skipped: list[str]) -> None:
-        from ..analysis.evaluate import json_ready
-
         if self.as_json:
-            echo_json(json_ready({**result.to_dict(), "skipped": skipped}))
+            echo_json({**result.to_json(), "skipped": skipped})
             return
         from ..analysis.evaluate import SPLIT_COLUMNS, counts_text
         from ..analysis.report import markdown_table
@@ -259,9 +257,9 @@ class _EvaluationRun:
     def _report(self, result: Any, skipped: list[str], overwrite: bool) -> None:
         from pathlib import Path
 
-        from ..analysis.evaluate import json_ready
         from ..analysis.evaluation_report import build_report
         from ..core.io import file_sha256, record_outputs, write_outputs
+        from ..core.json_ready import json_ready
         from ..sources.frames import read_color
 
         meta = {

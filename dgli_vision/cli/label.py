@@ -10,22 +10,16 @@ from typing import Any
 import click
 
 from ..core.words import counted
+from ..labelling.formats import FORMATS, UNITS
 from .errors import handle_errors
-from .options import json_option, overwrite_option, references_option
+from .options import (
+    json_option,
+    make_jobs_option,
+    overwrite_option,
+    parse_size,
+    references_option,
+)
 from .output import command_line
-
-
-def _cloth_size(
-    ctx: click.Context, param: click.Parameter, value: str | None
-) -> tuple[float, float] | None:
-    from ..core.layout import parse_size
-
-    if value is None:
-        return None
-    try:
-        return parse_size(value)
-    except ValueError as exc:
-        raise click.BadParameter(str(exc)) from None
 
 
 @click.command("label")
@@ -42,7 +36,7 @@ def _cloth_size(
 @click.option(
     "--format",
     "fmt",
-    type=click.Choice(["npz", "mat", "meshes"]),
+    type=click.Choice(FORMATS),
     help="Input format [default: by extension: .npz, .mat, a folder of .obj/.ply meshes].",
 )
 @click.option(
@@ -53,7 +47,7 @@ def _cloth_size(
 )
 @click.option(
     "--units",
-    type=click.Choice(["m", "cm", "mm"]),
+    type=click.Choice(list(UNITS)),
     default="m",
     show_default=True,
     help="Length unit of the positions.",
@@ -61,7 +55,7 @@ def _cloth_size(
 @click.option(
     "--size",
     "size_mm",
-    callback=_cloth_size,
+    callback=parse_size,
     metavar="W[xH]",
     help="The cloth's real size in mm (positions are scaled to it) [default: measured on "
     "the rest frame in --units].",
@@ -72,10 +66,7 @@ def _cloth_size(
     help="A file (or mesh folder) whose first frame is the flat cloth at rest "
     "[default: each episode's first frame].",
 )
-@click.option(
-    "-j", "--jobs", type=click.IntRange(1), default=1, show_default=True,
-    help="Local worker processes.",
-)
+@make_jobs_option
 @click.option(
     "--dask",
     "dask_address",
@@ -251,7 +242,7 @@ class _LabelRun:
     def go(self, out: Path | None, journal: Any, *, overwrite: bool) -> None:
         """Label the episodes not in ``journal`` (its writer and the objects already in
         it), write and print each as it comes, then the summary; exit as it says."""
-        from ..analysis.evaluate import json_ready
+        from ..core.json_ready import json_ready
         from ..labelling.label import EpisodeFailure
         from ..labelling.run import LabelJob, label_episodes
         from .runs import stop_signals
@@ -275,7 +266,7 @@ class _LabelRun:
                             entry = {"episode": name, "path": result.path, "error": result.error}
                         else:
                             entry = {"episode": name, "path": result.path,
-                                     "result": result.to_dict()}
+                                     "result": result.to_json()}
                         with stop.holding():  # its files and its journal line, or neither
                             if out is not None:
                                 self._write_episode(out, name, result, overwrite)
@@ -344,8 +335,8 @@ class _LabelRun:
     def _finish(
         self, entries: list[dict[str, Any]], out: Path | None, overwrite: bool, complete: bool
     ) -> None:
-        from ..analysis.evaluate import json_ready
         from ..core.io import record_outputs, write_outputs
+        from ..core.json_ready import json_ready
         from ..labelling.outputs import summary_of_entries
 
         summary = summary_of_entries(entries)

@@ -45,9 +45,11 @@ references_option = click.option(
 MAX_NAPKIN_MM = 1000.0
 
 
-def _parse_size(
+def parse_size(
     ctx: click.Context, param: click.Parameter, value: str | None
 ) -> tuple[float, float] | None:
+    """The callback of a ``--size W[xH]`` option: the sides in mm, each within
+    :func:`~dgli_vision.core.layout.smallest_side_mm` and :data:`MAX_NAPKIN_MM`."""
     from ..core.layout import parse_size
 
     if value is None:
@@ -63,7 +65,7 @@ def _parse_size(
 size_option = click.option(
     "--size",
     "size_mm",
-    callback=_parse_size,
+    callback=parse_size,
     default=None,
     metavar="W[xH]",
     help="Napkin size in mm, e.g. 300 or 500x700 [default: 400]. The stickers keep their "

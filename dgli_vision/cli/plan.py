@@ -240,21 +240,21 @@ def _overlay(frame, result, plan, refused: str | None = None):
 
     import cv2
 
+    from ..analysis.overlay import frame_overlay
     from ..planning.overlay import draw_no_plan, draw_step, draw_step_legend
-    from .classify import overlay_of
 
     if plan is None:
-        return draw_no_plan(overlay_of(frame, result),
+        return draw_no_plan(frame_overlay(frame, result),
                             (refused or "").removeprefix("no plan: "))
     if not plan.steps:
-        return draw_no_plan(overlay_of(frame, result), "already in the goal state")
+        return draw_no_plan(frame_overlay(frame, result), "already in the goal state")
     s = plan.steps[0]
     what = s.corner or s.side
     e = f"{s.expect[0]}/{s.expect[1]}" if s.expect[1] else s.expect[0]
     of = f" (step 1 of {len(plan.steps)})" if len(plan.steps) > 1 else ""
     marked = draw_step(cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR), s, frame.intrinsics,
                        legend=False)
-    img = overlay_of(replace(frame, color=cv2.cvtColor(marked, cv2.COLOR_BGR2RGB)), result)
+    img = frame_overlay(replace(frame, color=cv2.cvtColor(marked, cv2.COLOR_BGR2RGB)), result)
     return draw_step_legend(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}{of}")
 
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -17,6 +18,10 @@ from .options import (
     report_option,
 )
 from .output import command_line, echo, echo_json, progress_bar
+
+if TYPE_CHECKING:
+    from ..analysis.robustness import ConditionScore
+    from ..classifier.references import ReferenceSet
 
 
 @click.command()
@@ -61,11 +66,10 @@ def robustness(
     became "cannot tell" included) were right, over all conditions.
     """
     import os
-    from pathlib import Path
 
     from ..analysis.report import markdown_table
     from ..analysis.robustness import reliability_table, robustness_table
-    from ..analysis.robustness_report import ROBUSTNESS_REPORT_FILES
+    from ..analysis.robustness_report import ROBUSTNESS_REPORT_FILES, robustness_json
     from ..classifier.references import load_references
     from ..core.io import guard_outputs, write_outputs
     from ..sim.condition_names import CONDITION_NAMES
@@ -87,7 +91,7 @@ def robustness(
     reliability = "Reliability (best guesses over all conditions):\n\n" + markdown_table(
         *reliability_table(scores)
     )
-    data = _robustness_json(seed, per_class, scores)
+    data = robustness_json(seed, per_class, scores)
     if as_json:
         echo_json(data)
     else:
@@ -103,7 +107,9 @@ def robustness(
         _write_report(Path(report_dir), scores, data, overwrite)
 
 
-def _write_report(out: Any, scores: list, data: dict[str, Any], overwrite: bool) -> None:
+def _write_report(
+    out: Path, scores: list[ConditionScore], data: dict[str, Any], overwrite: bool
+) -> None:
     """report.md, report.html, robustness.json and the overlays into ``out``."""
     from ..analysis.robustness_report import robustness_report
     from ..core.io import write_outputs
@@ -116,7 +122,7 @@ def _write_report(out: Any, scores: list, data: dict[str, Any], overwrite: bool)
 
 def _scores(
     names: tuple[str, ...],
-    refs: Any,
+    refs: ReferenceSet,
     per_class: int,
     seed: int,
     jobs: int,
@@ -148,21 +154,6 @@ def _scores(
                         err=True,
                     )
     return scores
-
-
-def _robustness_json(seed: int, per_class: int, scores: list) -> dict[str, Any]:
-    """The JSON object of ``dgli robustness --json``."""
-    from ..analysis.robustness import reliability_rows
-    from ..analysis.robustness_report import total_outcomes
-
-    return {
-        "seed": seed,
-        "per_class": per_class,
-        **total_outcomes(scores),
-        "rows": [s.to_json() for s in scores],
-        "wrong": {s.condition: list(s.wrong_cases) for s in scores},
-        "reliability": reliability_rows(scores),
-    }
 
 
 def _print_robustness(table: str, reliability: str, scores: list) -> None:

@@ -3,15 +3,37 @@ recordings, the lock of an output folder, results.jsonl journals, stop signals."
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable, Iterable
+from pathlib import Path
+from types import FrameType
+from typing import TYPE_CHECKING, Any, Protocol
 
 import click
 
 from ..core.errors import DgliError
 from .output import command_line, progress_bar
 
+if TYPE_CHECKING:
+    from ..classifier.references import ReferenceSet
+    from ..core.io import JsonLinesWriter
+    from ..sources.labelled import LabelledPair
+    from ..sources.recording import Recording
 
-def open_recording_with(path: str, opts: dict[str, Any]) -> Any:
+#: A run's journal: the writer of its results.jsonl and the objects already in it.
+Journal = tuple["JsonLinesWriter", list[dict[str, Any]]]
+
+
+class JournalledRun(Protocol):
+    """What :func:`run_journalled` and :func:`classify_into` need of a command's run."""
+
+    refs: ReferenceSet
+    jobs: int
+    as_json: bool
+
+    def go(self, journal: Journal | None, *, overwrite: bool) -> None: ...
+
+
+def open_recording_with(path: str, opts: dict[str, Any]) -> Recording:
     """The recording at ``path`` with the options of :func:`recording_options`."""
     from ..sources.recording import open_recording
 
@@ -25,7 +47,7 @@ def open_recording_with(path: str, opts: dict[str, Any]) -> Any:
     )
 
 
-def recording_notes(recording: Any, quiet: bool = False) -> None:
+def recording_notes(recording: Recording, quiet: bool = False) -> None:
     """A recording's notes on stderr (topics read, distortion, frames without a partner)."""
     if not quiet and recording.kind != "folder":
         for note in recording.notes:
@@ -52,7 +74,7 @@ class Stop:
     def exit_code(self) -> int:
         return STOP_EXIT_CODES.get(self.signum, 128 + self.signum)
 
-    def on_signal(self, signum: int, frame: Any) -> None:
+    def on_signal(self, signum: int, frame: FrameType | None) -> None:
         """Signal handler: note the stop, and interrupt the work unless it is held."""
         self.signum, self.stopped = signum, True
         if self._holding:
@@ -134,7 +156,7 @@ def stop_signals():
     return context()
 
 
-def folder_lock(folder: Any):
+def folder_lock(folder: Path):
     """The lock of an output folder (:class:`~dgli_vision.core.run_lock.RunLock`), held for
     the ``with`` block; a stale lock left by a killed run is taken over with a note."""
     from contextlib import contextmanager
@@ -159,7 +181,7 @@ def folder_lock(folder: Any):
     return context()
 
 
-def open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: bool):
+def open_journal(path: Path, header: dict[str, Any], resume: bool, overwrite: bool) -> Journal:
     """The writer of a run's results.jsonl and the objects already in it: with
     ``resume``, those of the same run (refused, naming the difference, when its header
     differs from ``header``); otherwise a new file starting with ``header`` (refused when
@@ -199,14 +221,14 @@ def open_journal(path: Any, header: dict[str, Any], resume: bool, overwrite: boo
 
 
 def classify_into(
-    todo: Any,
+    todo: Iterable[LabelledPair],
     count: int,
     label: str,
-    run: Any,
-    writer: Any,
+    run: JournalledRun,
+    writer: JsonLinesWriter | None,
     done: dict,
-    stop: Any,
-    key: Any = None,
+    stop: Stop,
+    key: Callable[[LabelledPair], tuple[str, str]] | None = None,
     **options: Any,
 ) -> None:
     """Classify the pairs of ``todo`` (``count`` of them) on ``run.jobs`` workers with
@@ -214,7 +236,7 @@ def classify_into(
     it, :func:`~dgli_vision.analysis.evaluate.pair_key` by default) and, at once, into
     ``writer`` (results.jsonl): a run stopped by Ctrl-C or SIGTERM (``stop``) keeps what
     is done. ``options`` go to ``evaluate_pairs``."""
-    from ..analysis.evaluate import evaluate_pairs, outcome_to_dict, pair_key
+    from ..analysis.evaluate import evaluate_pairs, pair_key
     from ..core.run_lock import files_stamp
 
     with stop.ends(), progress_bar(count, label, quiet=run.as_json) as bar:
@@ -225,14 +247,12 @@ def classify_into(
                 if writer:  # flushed at once: an interrupted run keeps its work
                     pair = outcome.pair  # and the images it was read from, by stamp
                     stamp = files_stamp(pair.color, pair.depth)
-                    writer.write({**outcome_to_dict(outcome), "files": stamp})
+                    writer.write({**outcome.to_json(), "files": stamp})
                 done[(key or pair_key)(outcome.pair)] = outcome
 
 
-def references_of(references_path: str | None) -> tuple[Any, Any]:
+def references_of(references_path: str | None) -> tuple[ReferenceSet, Path]:
     """The reference set of ``--references`` (None: the default one) and its path."""
-    from pathlib import Path
-
     from ..classifier.references import default_references_path, load_references
 
     refs_path = Path(references_path) if references_path else default_references_path()
@@ -248,7 +268,7 @@ def require_report_for_resume(resume: bool, report_dir: str | None) -> None:
 
 
 def run_journalled(
-    run: Any,
+    run: JournalledRun,
     report_dir: str | None,
     files: tuple[str, ...],
     header: dict[str, Any],
@@ -263,8 +283,6 @@ def run_journalled(
     if not report_dir:
         run.go(None, overwrite=overwrite)
         return
-    from pathlib import Path
-
     from ..core.io import guard_outputs
     from ..core.run_lock import run_header_of
 

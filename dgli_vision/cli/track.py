@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import sys
 from collections.abc import Iterator
-from typing import Any
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import click
 
@@ -21,6 +22,7 @@ from .options import (
 )
 from .output import command_line, echo, echo_json
 from .runs import (
+    Journal,
     Stop,
     classify_into,
     open_recording_with,
@@ -30,6 +32,14 @@ from .runs import (
     run_journalled,
     stop_signals,
 )
+
+if TYPE_CHECKING:
+    from ..analysis.evaluate import PairOutcome
+    from ..analysis.track import Timeline
+    from ..classifier.references import ReferenceSet
+    from ..core.io import JsonLinesWriter
+    from ..sources.labelled import LabelledPair
+    from ..sources.recording import Recording
 
 
 @click.command()
@@ -114,9 +124,9 @@ class _TrackRun:
         self,
         folder: str,
         report_dir: str | None,
-        recording: Any,
-        refs: Any,
-        colours: dict | None,
+        recording: Recording,
+        refs: ReferenceSet,
+        colours: dict[str, tuple[int, int, int]] | None,
         jobs: int | None,
         as_json: bool,
     ) -> None:
@@ -128,15 +138,16 @@ class _TrackRun:
         self.as_json = as_json
         self._keys: dict[tuple[str, str], tuple[str, str]] = {}
 
-    def go(self, journal: tuple[Any, list] | None, *, overwrite: bool) -> None:
+    def go(self, journal: Journal | None, *, overwrite: bool) -> None:
         """Classify the frames not done yet (``journal``: the results.jsonl writer and
         the objects already in it), smooth, print, report, exit as the outcome says."""
         from ..analysis.evaluate import outcomes_of, pair_key
         from ..analysis.track import track_outcomes
+        from ..analysis.track_report import timeline_json
 
         writer, earlier = journal if journal else (None, [])
         done = outcomes_of(earlier, None)
-        seen: list[Any] = []  # the frames in order, as far as they were read
+        seen: list[LabelledPair] = []  # the frames in order, as far as they were read
         with stop_signals() as stop:
             try:
                 self._classify(done, writer, seen, stop)
@@ -151,13 +162,10 @@ class _TrackRun:
         timeline = track_outcomes(
             outcomes, self.refs, times=[o.pair.time for o in outcomes], labelled=labelled
         )
-        data = {
-            "folder": self.folder,
-            "recording": {"kind": self.recording.kind, "notes": list(self.recording.notes)},
-            "n_frames": len(outcomes),
-            **_timeline_json(timeline),
-            **_outcome_fields(outcomes, labelled),
-        }
+        read = {"kind": self.recording.kind, "notes": list(self.recording.notes)}
+        data = timeline_json(
+            {"folder": self.folder, "recording": read}, timeline, outcomes, labelled
+        )
         if stop.stopped:
             data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
         self._print(data, timeline, len(outcomes))
@@ -173,17 +181,23 @@ class _TrackRun:
         if all(f.gap for f in timeline.frames):
             sys.exit(1)
 
-    def _classify(self, done: dict, writer: Any, seen: list, stop: Stop) -> None:
+    def _classify(
+        self,
+        done: dict[tuple[str, str], PairOutcome],
+        writer: JsonLinesWriter | None,
+        seen: list[LabelledPair],
+        stop: Stop,
+    ) -> None:
         """Classify the frames not in ``done`` into it (and ``writer``), each frame read
         into ``seen``, until all are or a stop signal comes (:func:`stop_signals`)."""
         from ..analysis.evaluate import pair_key
 
         keys = self._keys  # each frame's key (real paths) worked out once
 
-        def key(pair: Any) -> tuple[str, str]:
+        def key(pair: LabelledPair) -> tuple[str, str]:
             return keys.get((pair.color, pair.depth)) or pair_key(pair)
 
-        def todo() -> Iterator[Any]:  # a bag's frames are read as they are classified
+        def todo() -> Iterator[LabelledPair]:  # a bag's frames are read as they are classified
             for pair in self.recording.frames:
                 seen.append(pair.light())
                 keys[(pair.color, pair.depth)] = k = pair_key(pair)
@@ -203,7 +217,7 @@ class _TrackRun:
             key=key,
         )
 
-    def _print(self, data: dict[str, Any], timeline: Any, n: int) -> None:
+    def _print(self, data: dict[str, Any], timeline: Timeline, n: int) -> None:
         from ..core.classes import CLASS_NAMES
 
         if self.as_json:
@@ -243,8 +257,8 @@ class _TrackRun:
     def _report(
         self,
         data: dict[str, Any],
-        timeline: Any,
-        outcomes: list,
+        timeline: Timeline,
+        outcomes: list[PairOutcome],
         labelled: bool,
         overwrite: bool,
     ) -> None:
@@ -261,9 +275,9 @@ class _TrackRun:
 
 
 def write_timeline_report(
-    report_dir: Any,
-    timeline: Any,
-    outcomes: list,
+    report_dir: str | Path,
+    timeline: Timeline,
+    outcomes: list[PairOutcome],
     data: dict[str, Any],
     *,
     title: str,
@@ -274,8 +288,6 @@ def write_timeline_report(
     """The report of a timeline (:func:`~dgli_vision.analysis.track_report.track_report`)
     written into ``report_dir``, with the provenance of the command (and of the run's
     results.jsonl when ``journal``); ``dgli sequence --report`` writes the same."""
-    from pathlib import Path
-
     from ..analysis.track_report import track_report
     from ..core.io import record_outputs, write_outputs
     from ..sources.frames import read_color
@@ -294,18 +306,3 @@ def write_timeline_report(
     if journal:
         record_outputs([out / "results.jsonl"], command)
     click.echo(f"report written to {out / 'report.html'}", err=True)
-
-
-def _outcome_fields(outcomes: list, labelled: bool) -> dict[str, Any]:
-    """The three outcomes of the frames' own answers, when labelled."""
-    from ..analysis.track_report import timeline_outcome_fields
-
-    return timeline_outcome_fields(outcomes, labelled)
-
-
-def _timeline_json(timeline: Any) -> dict[str, Any]:
-    """A timeline's JSON object with NaN written as null."""
-    from ..analysis.evaluate import json_ready
-    from ..analysis.track import timeline_to_dict
-
-    return json_ready(timeline_to_dict(timeline))

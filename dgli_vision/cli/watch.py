@@ -5,14 +5,24 @@ from __future__ import annotations
 
 import shutil
 import sys
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from types import FrameType
+from typing import TYPE_CHECKING
 
 import click
 
 from .errors import handle_errors
 from .options import colours_option, overwrite_option, references_option
 from .output import echo, echo_json
+
+if TYPE_CHECKING:
+    from ..analysis.live import LiveSummary, LiveUpdate
+    from ..classifier.pipeline import FrameResult
+    from ..classifier.references import ReferenceSet
+    from ..core.fold_graph import StateKey
+    from ..sources.frames import RGBDFrame
+    from ..sources.recording import RecordedPair
 
 
 @click.command()
@@ -104,7 +114,9 @@ def watch(
         sys.exit(1)  # the source ended and no frame could be classified at all
 
 
-def _source(serial: str | None, bag: str | None, mode: str) -> tuple[Any, list[str]]:
+def _source(
+    serial: str | None, bag: str | None, mode: str
+) -> tuple[Iterable[RecordedPair], list[str]]:
     """The frames to watch and the notes on them."""
     from ..core.errors import InvalidInputError
     from ..sources.realsense import camera_pairs
@@ -143,14 +155,14 @@ def _overlay_folder(folder: str | None, overwrite: bool) -> Path | None:
 
 
 def _run(
-    frames: Any,
-    refs: Any,
-    colours: Any,
+    frames: Iterable[RecordedPair],
+    refs: ReferenceSet,
+    colours: dict[str, tuple[int, int, int]] | None,
     every: int,
     realtime: bool,
-    out: Any,
+    out: _Printer,
     keep_path: bool,
-) -> Any:
+) -> LiveSummary:
     """The live loop with Ctrl-C and SIGTERM turned into a clean stop."""
     import signal
     import threading
@@ -159,7 +171,7 @@ def _run(
 
     stop = threading.Event()
 
-    def on_signal(signum: int, frame: Any) -> None:
+    def on_signal(signum: int, frame: FrameType | None) -> None:
         stop.set()
 
     before = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
@@ -179,7 +191,7 @@ def _run(
             signal.signal(s, handler)
 
 
-def _state_text(key: Any) -> str:
+def _state_text(key: StateKey | None) -> str:
     from ..core.classes import CLASS_NAMES
 
     if key is None:
@@ -197,16 +209,19 @@ class _Printer:
         self.status_shown = False
         self.width = max(40, shutil.get_terminal_size().columns - 1)
 
-    def update(self, update: Any, frame: Any, result: Any) -> None:
+    def update(
+        self, update: LiveUpdate, frame: RGBDFrame | None, result: FrameResult | None
+    ) -> None:
         """One classified frame (called by the worker)."""
         self.answered = self.answered or update.state is not None
         if self.overlays is not None and result is not None:
+            from ..analysis.overlay import frame_overlay
             from ..core.io import write_png
-            from .classify import overlay_of
 
-            write_png(self.overlays / f"frame_{update.frame:06d}.png", overlay_of(frame, result))
+            name = self.overlays / f"frame_{update.frame:06d}.png"
+            write_png(name, frame_overlay(frame, result))
         if self.jsonl:
-            echo_json(update.to_dict())
+            echo_json(update.to_json())
         elif update.change is not None:
             self._clear()
             t = "" if update.time is None else f" ({update.time:.2f} s)"
@@ -229,20 +244,11 @@ class _Printer:
             click.echo("\r" + " " * self.width + "\r", nl=False, err=True)
             self.status_shown = False
 
-    def done(self, summary: Any) -> None:
+    def done(self, summary: LiveSummary) -> None:
         """The summary: a last JSON line with --jsonl, and one line on stderr."""
-        from dataclasses import asdict
-
         self._clear()
-        data = asdict(summary)
-        data["changes"] = [
-            {"frame": f, "from": {"class": a[0], "variant": a[1]},
-             "to": {"class": b[0], "variant": b[1]}}
-            for f, a, b in summary.changes
-        ]
-        data["path"] = [{"class": c, "variant": v} for c, v in summary.path]
         if self.jsonl:
-            echo_json({"summary": data})
+            echo_json({"summary": summary.to_json()})
         rate = summary.classified / summary.seconds if summary.seconds else 0.0
         last = summary.path[-1] if summary.path else None
         click.echo(

@@ -24,6 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .errors import InvalidValueError
+
 __all__ = [
     "DEFAULT_INTRINSICS",
     "DISTORTION_LENGTHS",
@@ -214,7 +216,7 @@ class CameraPose:
         """World coordinates (n, 3) of camera-frame points (n, 3)."""
         return np.asarray(points, dtype=np.float64) @ self.rotation.T + self.position
 
-    def to_dict(self) -> dict[str, list]:
+    def to_json(self) -> dict[str, list]:
         """JSON-ready form (world-from-camera rotation, rows; position in metres)."""
         return {
             "rotation": self.rotation.round(9).tolist(),
@@ -238,7 +240,7 @@ def look_at_table(
     still meets ``target``.
     """
     if height_m <= 0:
-        raise ValueError(f"height_m must be positive, got {height_m}")
+        raise InvalidValueError(f"height_m must be positive, got {height_m}")
     c, s = np.cos(yaw_rad), np.sin(yaw_rad)
     x_axis = np.array([c, s, 0.0])
     forward = np.array([0.0, 0.0, -1.0])

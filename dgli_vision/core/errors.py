@@ -11,10 +11,13 @@ __all__ = [
     "DetectionError",
     "DgliError",
     "InvalidInputError",
+    "InvalidValueError",
     "MissingExtraError",
     "OutputError",
     "OverwriteError",
-    "ReferenceError_",
+    "ReferenceSetError",
+    "ResumeMismatchError",
+    "RunBusyError",
     "UnreadableInputError",
 ]
 
@@ -34,6 +37,18 @@ class InvalidInputError(DgliError):
     """A file was read but its content is not what is expected."""
 
 
+class InvalidValueError(InvalidInputError, ValueError):
+    """An argument's value is not one the library accepts: a class or state name, an
+    option's text (``AB=180,DA=175``), a count below its minimum, an image of the wrong
+    shape or type, a request the renderer cannot meet.
+
+    It is also a :class:`ValueError`, so code that validates its own input and catches
+    ``ValueError`` (as scikit-image's callers do) keeps working. Pure contract checks of
+    the numerics (``core/dgli.py``, ``core/distance.py``, ``sim/cloth``'s geometry) raise
+    a bare ``ValueError``: they are a programmer's mistake, not a user's.
+    """
+
+
 class CalibrationError(InvalidInputError):
     """Camera intrinsics are malformed or inconsistent with the images."""
 
@@ -44,8 +59,8 @@ class DetectionError(DgliError):
     exit_code = 1
 
 
-class ReferenceError_(DgliError):
-    """The reference set is missing, malformed or incompatible."""
+class ReferenceSetError(DgliError):
+    """The reference set is missing, malformed or incompatible (exit code 2)."""
 
 
 class MissingExtraError(DgliError):
@@ -61,3 +76,24 @@ class OutputError(DgliError):
     """A file (or standard output) cannot be written: a full disk, no permission, a name
     too long, a folder that cannot be made, an image format without a writer. The
     message names the file, the reason, and what was written before it and is kept."""
+
+
+class RunBusyError(DgliError):
+    """Another run is writing into the same folder (exit code 2)."""
+
+
+class ResumeMismatchError(DgliError):
+    """``--resume`` was asked of a journal written by a different run (exit code 2)."""
+
+
+def __getattr__(name: str) -> type[DgliError]:
+    # ``ReferenceError_`` was this class's name up to 0.1.0; code that catches it by the
+    # old name keeps working, with a DeprecationWarning.
+    if name == "ReferenceError_":
+        import warnings
+
+        warnings.warn(
+            "ReferenceError_ is renamed ReferenceSetError", DeprecationWarning, stacklevel=2
+        )
+        return ReferenceSetError
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

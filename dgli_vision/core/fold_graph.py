@@ -12,6 +12,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 from .classes import CLASS_IDS, CORNERS, VARIANTS
+from .errors import InvalidValueError
 
 __all__ = [
     "StateKey",
@@ -40,7 +41,7 @@ def folds_of(class_id: str, variant: str | None) -> frozenset[str]:
     frozenset of str
     """
     if variant not in VARIANTS.get(class_id, ()):
-        raise ValueError(f"unknown state {class_id}/{variant}")
+        raise InvalidValueError(f"unknown state {class_id}/{variant}")
     if class_id == "01":
         return frozenset()
     if class_id == "02":
@@ -97,16 +98,16 @@ def unfold(key: StateKey, fold: str) -> StateKey:
 
     Raises
     ------
-    ValueError
+    InvalidValueError
         When ``fold`` is not one of the state's folds, or taking it away leaves no state
         (the first flap of two crossing ones cannot be unfolded from under the second).
     """
     folds = folds_of(*key)
     if fold not in folds:
-        raise ValueError(f"{key[0]}/{key[1]} has no fold {fold!r}")
+        raise InvalidValueError(f"{key[0]}/{key[1]} has no fold {fold!r}")
     before = _by_folds().get(folds - {fold})
     if before is None:
-        raise ValueError(f"unfolding {fold!r} from {key[0]}/{key[1]} leaves no state")
+        raise InvalidValueError(f"unfolding {fold!r} from {key[0]}/{key[1]} leaves no state")
     return before
 
 

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .dgli import cloth_coordinates
+from .errors import InvalidValueError
 
 __all__ = [
     "CORNER_STICKERS",
@@ -159,7 +160,7 @@ def layout_from_dict(
     far = float(data["segment_far_mm"])
     inset = float(data["segment_inset_mm"])
     if min(w, h) < 2 * far + 2 * inset:
-        raise ValueError(
+        raise InvalidValueError(
             f"a {w:g} x {h:g} mm napkin is too small: its stickers sit {far:g} mm from the "
             f"corners and {inset:g} mm in, so each side needs at least {2 * far + 2 * inset:g} mm"
         )
@@ -169,7 +170,7 @@ def layout_from_dict(
     segments, edges, corners, disc, dot = [], [], [], [], []
     for k, seg in enumerate(sorted(data["segments"], key=lambda s: s["index"])):
         if seg["index"] != k:
-            raise ValueError(f"segment indices must be 0..7 in order, got {seg['index']}")
+            raise InvalidValueError(f"segment indices must be 0..7 in order, got {seg['index']}")
         x, y, corner = seg["edge"][0], seg["edge"][1], seg["corner"]
         e = (pos[y] - pos[x]) / np.linalg.norm(pos[y] - pos[x])
         inward = np.array([-e[1], e[0]])  # interior is on the left of a ccw walk
@@ -180,7 +181,7 @@ def layout_from_dict(
             ends = (pos[y] - far * e, pos[y] - near * e)
             roles = ("arriving_far", "arriving_near")
         else:
-            raise ValueError(f"segment {k}: corner {corner} is not on edge {seg['edge']}")
+            raise InvalidValueError(f"segment {k}: corner {corner} is not on edge {seg['edge']}")
         segments.append([ends[0] + inset * inward, ends[1] + inset * inward])
         edges.append(seg["edge"])
         corners.append(corner)
@@ -253,21 +254,21 @@ def parse_size(text: str, *, largest_mm: float | None = None) -> tuple[float, fl
 
     Raises
     ------
-    ValueError
+    InvalidValueError
         Not one or two positive numbers, too small for the stickers, or out of range.
     """
     bad = f"napkin size {text!r} is not W or WxH in mm (e.g. 400 or 500x700)"
     try:
         values = [float(s) for s in text.lower().replace("mm", "").split("x")]
     except ValueError:
-        raise ValueError(bad) from None
+        raise InvalidValueError(bad) from None
     if len(values) not in (1, 2) or not all(np.isfinite(v) and v > 0 for v in values):
-        raise ValueError(bad)
+        raise InvalidValueError(bad)
     w, h = values[0], values[-1]
     if largest_mm is not None:
         lo = smallest_side_mm()
         if not all(lo <= v <= largest_mm for v in (w, h)):
-            raise ValueError(
+            raise InvalidValueError(
                 f"napkin size {text!r} ({w:g} x {h:g} mm) is out of range: each side must "
                 f"be {lo:g} to {largest_mm:g} mm (at least {lo:g} mm for the stickers to "
                 f"fit, at most {largest_mm:g} mm: the stickers and the simulated cloth are "

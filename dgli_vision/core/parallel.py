@@ -12,6 +12,8 @@ from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any, TypeVar
 
+from .errors import InvalidValueError
+
 __all__ = ["FileSpan", "SharedSlots", "SlotRef", "die_with_parent", "ordered_map"]
 
 T = TypeVar("T")
@@ -112,7 +114,7 @@ def ordered_map(func: Callable[[Any], T], items: Iterable[Any], *, jobs: int = 1
         running finish.
     """
     if jobs < 1:
-        raise ValueError(f"jobs must be at least 1, got {jobs}")
+        raise InvalidValueError(f"jobs must be at least 1, got {jobs}")
     if jobs == 1:
         for item in items:
             yield func(item)

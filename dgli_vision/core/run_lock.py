@@ -28,13 +28,11 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
-from .errors import DgliError, OutputError
+from .errors import OutputError, ResumeMismatchError, RunBusyError
 
 __all__ = [
     "LOCK_NAME",
     "RESULTS_FORMAT",
-    "ResumeMismatchError",
-    "RunBusyError",
     "RunLock",
     "check_resume",
     "current_results",
@@ -62,14 +60,6 @@ FIELD_NAMES = {
     "intrinsics": "camera intrinsics",
     "options": "options",
 }
-
-
-class RunBusyError(DgliError):
-    """Another run is writing into the same folder (exit code 2)."""
-
-
-class ResumeMismatchError(DgliError):
-    """``--resume`` was asked of a journal written by a different run (exit code 2)."""
 
 
 def _pid_alive(pid: int) -> bool:

@@ -17,6 +17,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.errors import InvalidInputError, UnreadableInputError
+from .formats import FORMATS, UNITS
 
 __all__ = [
     "FORMATS",
@@ -30,10 +31,6 @@ __all__ = [
     "up_rotation",
 ]
 
-#: Input formats ``dgli label`` reads, by name.
-FORMATS = ("npz", "mat", "meshes")
-#: Length units and their size in metres.
-UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 #: Mesh file types a mesh folder may hold (one file per frame, in name order).
 MESH_SUFFIXES = (".obj", ".ply")
 #: An NPZ member that would inflate beyond this many bytes is refused (before reading).

@@ -36,12 +36,12 @@ from scipy.spatial import cKDTree
 
 from ..classifier.fold_geometry import (
     FoldGeometry,
-    _empty,
-    _mirror_fit,
-    _rigid2,
-    _rot,
-    _solve,
+    empty_geometry,
     geometry_from_crease,
+    mirror_crease_fit,
+    rigid_fit_2d,
+    rotation_2d,
+    solve_flaps,
 )
 from ..core.classes import CORNERS
 from ..core.fold_measure import Crease, fold_kind
@@ -191,16 +191,16 @@ def mesh_flaps(
     g = part[ids]
     if np.count_nonzero(g < 0) < 3 or any(np.count_nonzero(g == j) < 2 for j in range(len(keep))):
         return []
-    th, tau = _rigid2(m[g < 0], p[g < 0])
-    rot, _ = _rot(th)
+    th, tau = rigid_fit_2d(m[g < 0], p[g < 0])
+    rot, _ = rotation_2d(th)
     q = (p - tau) @ rot  # back onto the flat napkin
     x = [th, float(tau[0]), float(tau[1])]
     for j in range(len(keep)):
-        fit = _mirror_fit(m[g == j], q[g == j])
+        fit = mirror_crease_fit(m[g == j], q[g == j])
         if fit is None:
             return []
         x += list(fit)
-    x, jtj, res = _solve(m, p, g, np.asarray(x, dtype=float), len(keep))
+    x, jtj, res = solve_flaps(m, p, g, np.asarray(x, dtype=float), len(keep))
     d2 = (res * res).sum(axis=1)
     # the vertices lie exactly on the cloth: what is left is how the bend is modelled
     var = max(float(d2.mean()) / 2.0, MESH_SD_MM**2)
@@ -282,7 +282,7 @@ def mesh_fold_geometry(
         fits = [f for f in flaps if want <= set(f["corners"])]
         f = min(fits, key=lambda f: len(f["corners"])) if fits else None
         if f is None:
-            g = _empty(word, "no flap carrying its corners lies turned over on the mesh "
+            g = empty_geometry(word, "no flap carrying its corners lies turned over on the mesh "
                              "(a fold in progress, or held up)")
             out.append(FoldGeometry(g.word, g.kind, g.values, g.sd, why=g.why, source="mesh"))
             continue
@@ -335,8 +335,8 @@ def goal_distance(
         s_flap = (np.asarray(flap) - np.array([px, py])) @ nrm
         on = s * s_flap > 0
         ideal[on] = crease.reflect(ideal[on])
-    th, tau = _rigid2(np.asarray(uv, dtype=float), rest[:, :2] * 1e3)
-    rot, _ = _rot(th)
+    th, tau = rigid_fit_2d(np.asarray(uv, dtype=float), rest[:, :2] * 1e3)
+    rot, _ = rotation_2d(th)
     ideal_xy = ideal @ rot.T + tau
     table = float(np.median(rest[:, 2])) * 1e3
     ideal_3d = np.column_stack([ideal_xy, np.full(len(ideal_xy), table)])

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.classes import VARIANTS
-from ..core.errors import InvalidInputError
+from ..core.errors import InvalidInputError, InvalidValueError
 from ..core.fold_graph import StateKey
 from ..core.fold_lines import nominal_folds
 from ..core.fold_measure import Crease, crease_distance_mm, fold_kind, fold_measures
@@ -89,7 +89,7 @@ def parse_goal(text: str) -> GoalSpec:
             else:
                 spec[f"{key}_mm"] = float(value)
             if not all(math.isfinite(float(x)) for x in value.split(",")):
-                raise ValueError(f"{value!r} is not a number of mm")
+                raise InvalidValueError(f"{value!r} is not a number of mm")
         else:
             spec["legs"] = parse_legs(sizes)
     except ValueError as exc:

@@ -23,6 +23,7 @@ from ..classifier.references import ReferenceSet, load_references
 from ..core.classes import CLASS_NAMES, LANDING_PAIRS
 from ..core.errors import DgliError
 from ..core.fold_graph import folds_of
+from ..core.json_ready import json_ready
 from ..core.layout import layout_of_size
 from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
@@ -124,11 +125,14 @@ def label_part(
         episode = read_episode(path, options)
         rest = read_rest(options)
         material = cloth_material(episode, rest, options.size_mm)
-        placement = place_stickers(material, refs.napkin_mm)
     except DgliError as exc:
         return PartResult(str(path), part, error=str(exc))
+    try:
+        placement = place_stickers(material, refs.napkin_mm)
     except ValueError as exc:  # the layout refuses a cloth too small for the stickers
         return PartResult(str(path), part, error=f"'{path}': {exc}; are --units right?")
+    except DgliError as exc:
+        return PartResult(str(path), part, error=str(exc))
     start, stop = _blocks(episode.n_frames, part, n_parts)
     rest = episode.frames(0, 1)[0] if rest is None else rest
     table = float(rest[:, 2].min()) * material.scale
@@ -261,9 +265,9 @@ class FrameLabel:
     omnigibson: tuple[bool, bool] | None = None
     folds: tuple[dict[str, Any], ...] = ()
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         """The frame's JSON object (the names of ``dgli label --json``)."""
-        return {
+        return json_ready({
             "index": self.index,
             "class": self.class_id,
             "variant": self.variant,
@@ -276,7 +280,7 @@ class FrameLabel:
             if self.omnigibson is None
             else {"folded": self.omnigibson[0], "unfolded": self.omnigibson[1]},
             "folds": list(self.folds),
-        }
+        })
 
 
 @dataclass(frozen=True)
@@ -292,14 +296,14 @@ class EpisodeLabels:
     info: dict[str, Any]
     goal: dict[str, Any] | None = None
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         """The episode's JSON object (``goal``: with ``--goal``, see
         :func:`~.goal.evaluate_goal`)."""
-        return {
+        return json_ready({
             "path": self.path,
             **self.info,
             **({"goal": self.goal} if self.goal is not None else {}),
-            "frames": [f.to_dict() for f in self.frames],
+            "frames": [f.to_json() for f in self.frames],
             "changes": [
                 {
                     "frame": t,
@@ -308,7 +312,7 @@ class EpisodeLabels:
                 }
                 for t, a, b in self.changes
             ],
-        }
+        })
 
 
 @dataclass(frozen=True)

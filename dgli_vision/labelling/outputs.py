@@ -9,7 +9,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from ..analysis.evaluate import json_ready
 from ..core.classes import CLASS_IDS, CLASS_NAMES
 from ..core.io import csv_table
 from .label import EpisodeFailure, EpisodeLabels
@@ -108,7 +107,7 @@ def timeline_files(ep: EpisodeLabels, name: str, title: str) -> dict[str, Any]:
 def episode_files(out: Path, name: str, ep: EpisodeLabels) -> dict[Path, Any]:
     """``NAME.jsonl`` (one frame a line), ``NAME.csv`` and ``NAME_timeline.svg`` and
     ``.png``."""
-    lines = "".join(json.dumps(json_ready(f.to_dict())) + "\n" for f in ep.frames)
+    lines = "".join(json.dumps(f.to_json()) + "\n" for f in ep.frames)
     charts = timeline_files(ep, name, f"dgli label: {ep.path}")
     return {
         out / f"{name}.jsonl": lines,
@@ -181,7 +180,7 @@ def summary_of(results: Sequence[EpisodeLabels | EpisodeFailure]) -> dict[str, A
     entries = [
         {"path": r.path, "error": r.error}
         if isinstance(r, EpisodeFailure)
-        else {"path": r.path, "result": r.to_dict()}
+        else {"path": r.path, "result": r.to_json()}
         for r in results
     ]
     return summary_of_entries(entries)

@@ -40,6 +40,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut, srgb_to_linear
+from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, StickerDetections
@@ -175,9 +176,11 @@ def _reported(ids: Identities, report: NDArray[np.bool_]) -> StickerDetections:
 
 def _check_images(color: NDArray, depth_mm: NDArray) -> None:
     if color.ndim != 3 or color.shape[2] != 3 or color.dtype != np.uint8:
-        raise ValueError(f"color must be (H, W, 3) uint8, got {color.shape} {color.dtype}")
+        raise InvalidValueError(f"color must be (H, W, 3) uint8, got {color.shape} {color.dtype}")
     if depth_mm.shape != color.shape[:2]:
-        raise ValueError(f"depth_mm must have shape {color.shape[:2]}, got {depth_mm.shape}")
+        raise InvalidValueError(
+            f"depth_mm must have shape {color.shape[:2]}, got {depth_mm.shape}"
+        )
 
 
 def search_image(

@@ -76,7 +76,7 @@ def plan(
     PlanRefused
         No plan (the message says why); other ``DgliError`` for unreadable input.
     """
-    from ..classifier.api import _reference_set, frame_from
+    from ..classifier.api import frame_from, reference_set_of
 
     target = _key(goal, need_variant=False)
     if start is not None:
@@ -85,7 +85,7 @@ def plan(
     if color is None or depth is None:
         raise PlanRefused("give a colour and a depth image, or a start state")
     frame = frame_from(color, depth, intrinsics)
-    refs = _reference_set(references)
+    refs = reference_set_of(references)
     layout = layout_of_size(refs.napkin_mm)
     result = classify_frame(frame, refs, layout=layout)
     return plan_frame(result, frame, target, layout)

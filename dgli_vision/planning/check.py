@@ -35,7 +35,7 @@ from ..core.classes import CORNERS
 from ..core.fold_graph import StateKey, state_keys
 from ..core.fold_measure import Crease, crease_distance_mm, fold_kind, fold_measures
 from ..core.layout import NapkinLayout, default_layout
-from ..sim.cloth.states import FoldStep, _steps_for, make_state
+from ..sim.cloth.states import FoldStep, draw_fold_steps, make_state
 from ..sim.dataset import random_camera
 from ..sim.render import Lighting, SensorModel, render
 from ..sources.frames import RGBDFrame
@@ -226,7 +226,7 @@ def run_pair(
     """One trial of the closed loop (see the module's description)."""
     layout = layout or default_layout()
     rng = np.random.default_rng(list(seed))
-    steps, params = _steps_for(start[0], start[1], layout, rng)
+    steps, params = draw_fold_steps(start[0], start[1], layout, rng)
     words = list(params["folds"])
     wrinkle, yaw, offset = _placement(rng)
     wrinkle_seed = int(rng.integers(2**31))

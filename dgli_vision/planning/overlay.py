@@ -81,7 +81,7 @@ def draw_corners(img: NDArray[np.uint8], affordances: Any) -> NDArray[np.uint8]:
     if affordances is None:
         return img
     s = _scale(img)
-    for c in affordances.corners:
+    for c in affordances.corners.values():
         if c.pixel is None:
             continue
         if c.graspable:

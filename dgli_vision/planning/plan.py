@@ -26,7 +26,7 @@ from ..classifier.affordances import (
     fold_line_3d,
 )
 from ..core.classes import CLASS_HINT, CORNERS, VARIANTS, class_id_of
-from ..core.errors import DgliError
+from ..core.errors import DgliError, InvalidValueError
 from ..core.fold_graph import StateKey, fold_edges, folds_of
 from ..core.fold_lines import NominalFold, fold_for_word, reflect_uv
 from ..core.layout import NapkinLayout
@@ -61,23 +61,23 @@ def parse_state(text: str, *, need_variant: bool = True) -> StateKey:
 
     Raises
     ------
-    ValueError
+    InvalidValueError
         An unknown class or variant (the message says which ones there are).
     """
     written, _, variant = text.strip().partition("/")
     cls = class_id_of(written)
     if cls is None:
-        raise ValueError(f"unknown class {written!r}; expected {CLASS_HINT}")
+        raise InvalidValueError(f"unknown class {written!r}; expected {CLASS_HINT}")
     options = VARIANTS[cls]
     if not variant:
         if options == (None,) or not need_variant:
             return cls, None
-        raise ValueError(
+        raise InvalidValueError(
             f"class {cls} needs a variant: one of {', '.join(f'{cls}/{v}' for v in options)}"
         )
     if variant not in options:
         shown = ", ".join(str(v) for v in options)
-        raise ValueError(f"class {cls} has no variant {variant!r}; it has {shown}")
+        raise InvalidValueError(f"class {cls} has no variant {variant!r}; it has {shown}")
     return cls, variant
 
 
@@ -313,7 +313,7 @@ def _grasp_of(
     the corners seen, else where the rigid maps put them."""
     pts = []
     for name in f.moved_corners:
-        c = affordances.corner(name) if affordances is not None and first else None
+        c = affordances.corners[name] if affordances is not None and first else None
         if c is not None and c.point is not None:
             pts.append(np.asarray(c.point))
             continue

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..core.classes import CORNERS
+from ..core.errors import InvalidValueError
 from ..core.fold_graph import StateKey, folds_of
 from ..core.fold_measure import (
     Crease,
@@ -142,7 +143,7 @@ def parse_legs(text: str) -> dict[str, float]:
 
     Raises
     ------
-    ValueError
+    InvalidValueError
         With what is wrong.
     """
     legs: dict[str, float] = {}
@@ -150,22 +151,22 @@ def parse_legs(text: str) -> dict[str, float]:
         key, sep, value = part.strip().partition("=")
         key = key.strip().upper()
         if not sep or len(key) != 2 or any(c not in CORNERS for c in key) or key[0] == key[1]:
-            raise ValueError(f"expected EDGE=MM pairs such as AB=180,DA=175, got {part!r}")
+            raise InvalidValueError(f"expected EDGE=MM pairs such as AB=180,DA=175, got {part!r}")
         name = edge_name(key[0], key[1])
         if name not in ("AB", "BC", "CD", "DA"):
-            raise ValueError(f"{key!r} is a diagonal, not an edge")
+            raise InvalidValueError(f"{key!r} is a diagonal, not an edge")
         try:
             legs[name] = float(value)
         except ValueError:
-            raise ValueError(f"leg {key}: {value!r} is not a number of mm") from None
+            raise InvalidValueError(f"leg {key}: {value!r} is not a number of mm") from None
         if not 0 < legs[name] < 1000 or not math.isfinite(legs[name]):
-            raise ValueError(f"leg {key}: {value} mm is out of range")
+            raise InvalidValueError(f"leg {key}: {value} mm is out of range")
     if len(legs) != 2:
-        raise ValueError("give both legs of the corner, e.g. AB=180,DA=175")
+        raise InvalidValueError("give both legs of the corner, e.g. AB=180,DA=175")
     first, second = legs
     common = set(first) & set(second)
     if len(common) != 1:
-        raise ValueError(f"legs {' and '.join(legs)} do not meet at one corner")
+        raise InvalidValueError(f"legs {' and '.join(legs)} do not meet at one corner")
     return legs
 
 

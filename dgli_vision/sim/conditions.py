@@ -24,6 +24,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from ..core.errors import InvalidValueError
 from .condition_effects import (
     apply_lens_distortion,
     area_light_lobe,
@@ -155,7 +156,7 @@ def _draw_one(name: str, c: Conditions, rng: np.random.Generator) -> Conditions:
     """``c`` with the parameters of condition ``name`` drawn from ``rng``."""
     drawer = _DRAWERS.get(name)
     if drawer is None:
-        raise ValueError(
+        raise InvalidValueError(
             f"unknown condition {name!r}; expected one of {', '.join(CONDITION_NAMES)}"
         )
     return drawer(c, rng)

@@ -147,7 +147,7 @@ class PhotoLook:
     camera_body: bool = True
     bar_lamp: bool = False
 
-    def to_dict(self) -> dict[str, Any]:
+    def to_json(self) -> dict[str, Any]:
         """JSON-ready form (for ``truth.json``)."""
         return {
             "lights": [
@@ -635,7 +635,7 @@ def render_cycles(
             "engine": "cycles",
             "samples": samples,
             "cycles_cpu_s": round(cpu, 2),
-            "look": look.to_dict(),
+            "look": look.to_json(),
             "camera": drawn,
         },
     )

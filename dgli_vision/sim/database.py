@@ -13,6 +13,7 @@ from numpy.typing import NDArray
 
 from ..core.classes import LIFTED_MM
 from ..core.dgli import cloth_coordinates
+from ..core.errors import InvalidValueError
 from ..core.fold_graph import fold_edges
 from ..core.handedness import back_face_up, corner_turns
 from ..core.layout import default_layout, sticker_spreads_mm
@@ -63,7 +64,7 @@ def simulate_states(
         ``(state id, state)`` in class order.
     """
     if per_class < 1:
-        raise ValueError(f"per_class must be at least 1, got {per_class}")
+        raise InvalidValueError(f"per_class must be at least 1, got {per_class}")
     out = []
     for class_id in classes:
         options = VARIANTS[class_id]
@@ -92,7 +93,7 @@ def simulate_folds_in_progress(
         ``(id, state)``, ids ``"m<edge>_<bin>_<k>"``.
     """
     if per_group < 1:
-        raise ValueError(f"per_group must be at least 1, got {per_group}")
+        raise InvalidValueError(f"per_group must be at least 1, got {per_group}")
     out = []
     for e, (_, (class_id, variant), fold) in enumerate(fold_edges()):
         if "under" in fold:

@@ -11,6 +11,7 @@ import numpy as np
 
 from ..core.camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
 from ..core.classes import CORNERS
+from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout, default_layout
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
@@ -117,7 +118,7 @@ def random_camera(
         )
         if _fits(state, pose, intrinsics, 20.0):
             return pose, info
-    raise ValueError("no camera pose in range sees the whole napkin")
+    raise InvalidValueError("no camera pose in range sees the whole napkin")
 
 
 @dataclass(frozen=True, eq=False)
@@ -328,7 +329,9 @@ def render_sequence(
         the frame is in the sequence.
     """
     if name not in SEQUENCES:
-        raise ValueError(f"unknown sequence {name!r}; expected one of {', '.join(SEQUENCES)}")
+        raise InvalidValueError(
+            f"unknown sequence {name!r}; expected one of {', '.join(SEQUENCES)}"
+        )
     index = list(SEQUENCES).index(name)
     layout = layout or default_layout()
     rng = np.random.default_rng([seed, 1000 + index])
@@ -434,7 +437,7 @@ def _sequence_camera(
         )
         if _fits_all(probes, pose, intr, 10.0):
             return pose, camera
-    raise ValueError(f"no camera pose in range sees the whole of sequence {states.name}")
+    raise InvalidValueError(f"no camera pose in range sees the whole of sequence {states.name}")
 
 
 # --- going on with an interrupted render -------------------------------------------------

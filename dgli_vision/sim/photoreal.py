@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from ..core.camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_table
+from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout, default_layout
 from .cloth.states import VARIANTS, ClothState, sample_state
 from .dataset import NOMINAL_HEIGHT_M, RenderedSample, _fits, sample_name
@@ -38,7 +39,9 @@ def envelope_of(envelope: str, class_id: str, k: int) -> str:
     if envelope == "all":
         return list(ENVELOPES)[(int(class_id) + k) % len(ENVELOPES)]
     if envelope not in ENVELOPES:
-        raise ValueError(f"unknown envelope {envelope!r}; expected one of {ENVELOPE_CHOICES}")
+        raise InvalidValueError(
+            f"unknown envelope {envelope!r}; expected one of {ENVELOPE_CHOICES}"
+        )
     return envelope
 
 
@@ -91,7 +94,7 @@ def photo_camera(
                 "tilt_direction_deg": round(tdir, 3),
                 "yaw_deg": round(yaw, 3),
             }
-    raise ValueError(f"no camera pose of envelope {envelope!r} sees the whole napkin")
+    raise InvalidValueError(f"no camera pose of envelope {envelope!r} sees the whole napkin")
 
 
 def cycles_seed(seed: int, class_id: str, k: int) -> int:

@@ -12,7 +12,9 @@ dropouts at depth edges and at random.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,7 +39,16 @@ from .photo_effects import auto_exposed, kelvin_rgb, mosaic_demosaic, photo_ligh
 from .render_scene import Lighting, RaycastScene, sample_texture, sticker_texture
 from .render_sheen import SHEEN_EXPOSURE_PEAK, SheenLobes, sheen_lobes
 
-__all__ = ["Lighting", "RenderResult", "SensorModel", "render", "sticker_texture"]
+__all__ = [
+    "CONDITION_EFFECTS",
+    "EFFECT_STAGES",
+    "ConditionEffect",
+    "Lighting",
+    "RenderResult",
+    "SensorModel",
+    "render",
+    "sticker_texture",
+]
 
 
 @dataclass(frozen=True)
@@ -161,6 +172,91 @@ class _Surface:
     tex: NDArray[np.float32]
 
 
+@dataclass(frozen=True, eq=False)
+class _Stage:
+    """What a condition's effect receives: the conditions, the view and the surface (None
+    where the stage has none), ``value`` (what the stage makes, and the effect returns
+    changed), and what some effects also need."""
+
+    cond: Conditions
+    view: _ViewHits | None
+    surface: _Surface | None
+    value: Any
+    state: ClothState | None = None
+    layout: NapkinLayout | None = None
+    rng: np.random.Generator | None = None
+    intrinsics: Intrinsics | None = None
+    gain: NDArray | None = None
+    scene: RaycastScene | None = None
+    pose: CameraPose | None = None
+    lighting: Lighting | None = None
+    kept: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ConditionEffect:
+    """How one capture condition changes the render, at one stage of it.
+
+    Attributes
+    ----------
+    condition : str
+        The condition (:data:`~dgli_vision.sim.condition_names.CONDITION_NAMES`).
+    stage : str
+        Where in the render it acts (:data:`EFFECT_STAGES`): ``"surface"`` (the albedo
+        of every pixel, ``value`` is the (n, 3) albedo), ``"shade"`` (the shading (n,)
+        before it multiplies the albedo; not under ``photo``), ``"light"`` (linear light
+        (n, 3) before the exposure), ``"exposed"`` (after it), ``"depth"`` (the depth in
+        mm, float (H, W), before its units) or ``"camera"`` (the 8-bit colour and the
+        uint16 depth as the camera delivers them).
+    applies : callable
+        ``applies(conditions) -> bool``.
+    apply : callable
+        ``apply(stage) -> value``: the stage's value changed (:class:`_Stage`).
+    needs_table_xy : bool
+        Needs the world (x, y) of every hit (``view.hit_xy``).
+    """
+
+    condition: str
+    stage: str
+    applies: Callable[[Conditions], bool]
+    apply: Callable[[_Stage], Any]
+    needs_table_xy: bool = False
+
+
+#: The stages of a render at which conditions act, in order.
+EFFECT_STAGES = ("surface", "shade", "light", "exposed", "depth", "camera")
+
+
+def _wood(stage: _Stage) -> NDArray:
+    view, albedo = stage.view, stage.value
+    albedo[view.on_table] = wood_albedo(view.hit_xy[view.on_table], stage.cond.seed)
+    return albedo
+
+
+def _shadow(stage: _Stage) -> NDArray:
+    centre = stage.state.mesh.xyz.mean(axis=0)
+    return stage.value * shadow_factor(stage.view.hit_xy, stage.cond, centre)
+
+
+def _realistic_depth(stage: _Stage) -> NDArray:
+    return realistic_depth(stage.value, stage.cond, stage.rng)
+
+
+def _lens(stage: _Stage) -> tuple[NDArray, NDArray]:
+    color, depth_mm = stage.value
+    return apply_lens_distortion(color, depth_mm, stage.intrinsics, stage.cond.distortion)
+
+
+def _mirror(stage: _Stage) -> tuple[NDArray, NDArray]:
+    color, depth_mm = stage.value  # the camera flips its image left to right, both alike
+    return color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
+
+
+def _jpeg(stage: _Stage) -> tuple[NDArray, NDArray]:
+    color, depth_mm = stage.value
+    return jpeg_roundtrip(color, stage.cond.jpeg_quality), depth_mm
+
+
 def _pixel_rays(pose: CameraPose, intrinsics: Intrinsics) -> tuple[NDArray, NDArray]:
     """Origins and world directions (H * W, 3) of one ray per pixel (camera-z 1)."""
     dirs_cam = intrinsics.ray_directions().reshape(-1, 3)
@@ -196,7 +292,7 @@ def _cast_view(
     t_hit = hits["t_hit"].astype(np.float64)  # = z-depth, metres
     gid = hits["geometry_ids"]
     hit_xy = None
-    if cond.wood_table or cond.shadow:
+    if any(e.needs_table_xy for e in _effects(cond)):
         hit_xy = pose.position[:2] + dirs[:, :2] * np.where(np.isfinite(t_hit), t_hit, 0)[:, None]
     return _ViewHits(hits, dirs, t_hit, gid == scene.cloth_id, gid == scene.table_id, hit_xy)
 
@@ -213,10 +309,7 @@ def _surface(
     gid = view.rays["geometry_ids"]
     on_table, on_cloth = view.on_table, view.on_cloth
     albedo = np.zeros((n, 3))
-    if view.hit_xy is not None and cond.wood_table:
-        albedo[on_table] = wood_albedo(view.hit_xy[on_table], cond.seed)
-    else:
-        albedo[on_table] = lighting.table_rgb
+    albedo[on_table] = lighting.table_rgb  # a condition may lay another table (below)
     no_depth = np.zeros(n, bool)
     for oid, obj in scene.objects.items():
         mine = gid == oid
@@ -225,7 +318,10 @@ def _surface(
     cloth_uv = scene.material_uv(view.rays, on_cloth)
     tex = sample_texture(sticker_texture(layout), cloth_uv)
     albedo[on_cloth] = tex[:, :3] + tex[:, 3:] * np.asarray(lighting.napkin_rgb)
-    return _Surface(albedo, no_depth, cloth_uv, tex)
+    surface = _Surface(albedo, no_depth, cloth_uv, tex)
+    for effect in _effects(cond, "surface"):
+        effect.apply(_Stage(cond, view, surface, albedo))
+    return surface
 
 
 def _lit(
@@ -238,8 +334,8 @@ def _lit(
     normals = view.rays["primitive_normals"].astype(np.float64)
     lambert = np.abs(normals @ light)
     shade = lighting.ambient + (1 - lighting.ambient) * lambert
-    if view.hit_xy is not None and cond.shadow:
-        shade = shade * shadow_factor(view.hit_xy, cond, state.mesh.xyz.mean(axis=0))
+    for effect in _effects(cond, "shade"):
+        shade = effect.apply(_Stage(cond, view, surface, shade, state=state))
     return surface.albedo * shade[:, None]
 
 
@@ -286,21 +382,16 @@ def _photo_colour(
     return np.clip(np.rint(linear_to_srgb(image) * 255.0), 0, 255).astype(np.uint8)
 
 
-def _add_highlight(
-    linear: NDArray,
-    view: _ViewHits,
-    surface: _Surface,
-    cond: Conditions,
-    layout: NapkinLayout,
-    state: ClothState,
-) -> None:
+def _add_highlight(stage: _Stage) -> NDArray:
     """Glossy vinyl: add a mirror highlight on a sticker, not on the cloth (in place)."""
-    spot = highlight_spot(cond, layout.sticker_uv, state.visible)
+    linear, view, surface = stage.value, stage.view, stage.surface
+    spot = highlight_spot(stage.cond, stage.layout.sticker_uv, stage.state.visible)
     if spot is None:
-        return
+        return linear
     centre, sigma, peak, _ = spot
     lobe = np.exp(-((surface.cloth_uv - centre) ** 2).sum(axis=1) / (2 * sigma**2))
     linear[view.on_cloth] += (peak * lobe * (1 - surface.tex[:, 3]))[:, None]
+    return linear
 
 
 def _exposed(
@@ -319,10 +410,18 @@ def _exposed(
     return linear, gain
 
 
-def _add_sheen(linear: NDArray, on_cloth: NDArray, sheen: SheenLobes, gain: NDArray) -> NDArray:
+def _add_sheen(stage: _Stage) -> NDArray:
     """Semi-gloss vinyl and fabric under a large light, then the camera's auto-exposure:
-    the brightest pixel stays below white."""
-    linear[on_cloth] += sheen.light(gain)
+    the brightest pixel stays below white. The lobes are kept for the render's info."""
+    sheen = sheen_lobes(
+        stage.cond, stage.state, stage.scene, stage.pose, stage.lighting, stage.layout,
+        stage.view.rays, stage.view.dirs, stage.surface.tex,
+    )
+    stage.kept["sheen"] = sheen
+    linear = stage.value
+    if sheen is None:
+        return linear
+    linear[stage.view.on_cloth] += sheen.light(stage.gain)
     return linear * min(1.0, SHEEN_EXPOSURE_PEAK / max(float(linear.max()), 1e-9))
 
 
@@ -375,8 +474,8 @@ def _depth_image(
         )
         valid &= ~drop
     depth = np.where(valid, depth, 0.0)
-    if cond.realistic_depth:
-        depth = realistic_depth(depth, cond, rng)
+    for effect in _effects(cond, "depth"):
+        depth = effect.apply(_Stage(cond, view, None, depth, rng=rng))
     return np.clip(np.rint(depth * cond.depth_scale), 0, 65535).astype(np.uint16)
 
 
@@ -386,14 +485,12 @@ def _camera_output(
     intrinsics: Intrinsics,
     cond: Conditions,
 ) -> tuple[NDArray[np.uint8], NDArray[np.uint16]]:
-    """The images as the camera delivers them: through its lens, mirrored, JPEG-coded."""
-    if any(cond.distortion):
-        color, depth_mm = apply_lens_distortion(color, depth_mm, intrinsics, cond.distortion)
-    if cond.mirror:  # the camera flips its image left to right, colour and depth alike
-        color, depth_mm = color[:, ::-1].copy(), depth_mm[:, ::-1].copy()
-    if cond.jpeg_quality is not None:
-        color = jpeg_roundtrip(color, cond.jpeg_quality)
-    return color, depth_mm
+    """The images as the camera delivers them: through its lens, mirrored, JPEG-coded
+    (the effects at ``"camera"``, in the order of :data:`CONDITION_EFFECTS`)."""
+    images = (color, depth_mm)
+    for effect in _effects(cond, "camera"):
+        images = effect.apply(_Stage(cond, None, None, images, intrinsics=intrinsics))
+    return images
 
 
 def _visible_fraction(
@@ -433,6 +530,30 @@ def _sticker_points_cam(
             points_cam[:, 0]
         )
     return points_cam
+
+
+#: What each capture condition does to the image, walked by :func:`render` stage by
+#: stage (in this order within a stage). A condition that only draws other parameters
+#: (``cast``, ``dim``, ``vga``, ``far``...) or adds objects to the scene
+#: (:mod:`~dgli_vision.sim.condition_scene`) needs no row.
+CONDITION_EFFECTS: tuple[ConditionEffect, ...] = (
+    ConditionEffect("wood", "surface", lambda c: c.wood_table, _wood, needs_table_xy=True),
+    ConditionEffect("shadow", "shade", lambda c: bool(c.shadow), _shadow, needs_table_xy=True),
+    ConditionEffect("gloss", "light", lambda c: c.highlight, _add_highlight),
+    ConditionEffect("sheen", "exposed", lambda c: c.sheen is not None, _add_sheen),
+    ConditionEffect("depth", "depth", lambda c: c.realistic_depth, _realistic_depth),
+    ConditionEffect("distortion", "camera", lambda c: any(c.distortion), _lens),
+    ConditionEffect("mirror", "camera", lambda c: c.mirror, _mirror),
+    ConditionEffect("jpeg", "camera", lambda c: c.jpeg_quality is not None, _jpeg),
+)
+
+
+def _effects(cond: Conditions, stage: str | None = None) -> list[ConditionEffect]:
+    """The effects of :data:`CONDITION_EFFECTS` that apply to ``cond`` (at ``stage``)."""
+    return [
+        e for e in CONDITION_EFFECTS
+        if (stage is None or e.stage == stage) and e.applies(cond)
+    ]
 
 
 def render(
@@ -490,11 +611,18 @@ def render(
         linear = _photo_lit(view, surface, cond, pose, state)
     else:
         linear = _lit(view, surface, cond, lighting, state)
-    sheen = sheen_lobes(cond, state, scene, pose, lighting, layout, view.rays, dirs, surface.tex)
-    _add_highlight(linear, view, surface, cond, layout, state)
+    kept: dict = {}
+    for effect in _effects(cond, "light"):
+        linear = effect.apply(
+            _Stage(cond, view, surface, linear, state=state, layout=layout, kept=kept)
+        )
     linear, gain = _exposed(linear, cond, sensor, rng)
-    if sheen is not None:
-        linear = _add_sheen(linear, view.on_cloth, sheen, gain)
+    for effect in _effects(cond, "exposed"):
+        linear = effect.apply(
+            _Stage(cond, view, surface, linear, state=state, layout=layout, kept=kept,
+                   gain=gain, scene=scene, pose=pose, lighting=lighting)
+        )
+    sheen = kept.get("sheen")
     if cond.photo is not None:
         color = _photo_colour(linear, shape, cond, sensor, rng)
     else:

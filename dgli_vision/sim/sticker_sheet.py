@@ -14,6 +14,7 @@ from itertools import pairwise
 import numpy as np
 from numpy.typing import NDArray
 
+from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout
 
 __all__ = [
@@ -296,7 +297,7 @@ def sticker_pages(layout: NapkinLayout, paper: str = "A3") -> list[tuple[str, Sh
     sheet of :func:`sticker_sheet` (name ``""``), otherwise a page per corner (named by
     the corner)."""
     if paper not in PAPERS:
-        raise ValueError(f"unknown paper {paper!r}; expected one of {', '.join(PAPERS)}")
+        raise InvalidValueError(f"unknown paper {paper!r}; expected one of {', '.join(PAPERS)}")
     if paper == "A3":
         return [("", sticker_sheet(layout))]
     return [(c, corner_page(layout, c, paper)) for c in layout.corner_names]

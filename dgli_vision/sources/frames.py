@@ -11,7 +11,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
-from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
+from ..core.errors import (
+    CalibrationError,
+    InvalidInputError,
+    InvalidValueError,
+    UnreadableInputError,
+)
 from ..core.io import check_input_file, read_json, write_png
 from .png_decode import PNG_SIGNATURE, PngFile, inflate_rows, stored_png, unfilter, walk_png
 
@@ -503,5 +508,5 @@ def write_color(path: str | Path, rgb: NDArray[np.uint8]) -> None:
 def write_depth(path: str | Path, depth_mm: NDArray[np.uint16]) -> None:
     """Write a uint16 depth image in mm as a 16-bit PNG."""
     if depth_mm.dtype != np.uint16:
-        raise ValueError(f"depth must be uint16, got {depth_mm.dtype}")
+        raise InvalidValueError(f"depth must be uint16, got {depth_mm.dtype}")
     write_png(path, depth_mm)

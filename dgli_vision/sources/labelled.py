@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..core.classes import class_id_of
-from ..core.errors import InvalidInputError, OutputError, UnreadableInputError
+from ..core.errors import InvalidInputError, InvalidValueError, OutputError, UnreadableInputError
 from ..core.io import (
     check_input_file,
     failed_part_way,
@@ -97,7 +97,7 @@ def write_labelled_folder(
     """
     root = Path(out)
     if not samples:
-        raise ValueError("no samples to write")
+        raise InvalidValueError("no samples to write")
     cameras: list = []
     for s in samples:
         if s.result.intrinsics not in cameras:
@@ -111,7 +111,7 @@ def write_labelled_folder(
     planned += [root / _camera_folder(k) / "intrinsics.json" for k in range(1, len(cameras))]
     guard_outputs(planned, overwrite=overwrite)
     if times is not None and len(times) != len(samples):
-        raise ValueError(f"{len(times)} times for {len(samples)} samples")
+        raise InvalidValueError(f"{len(times)} times for {len(samples)} samples")
     rows = []
     truth = {}
     written: list[Path] = []
@@ -133,7 +133,7 @@ def write_labelled_folder(
             "class": s.state.class_id,
             "name": s.state.name,
             "variant": s.state.variant,
-            "camera": {**s.camera, **s.result.pose.to_dict()},
+            "camera": {**s.camera, **s.result.pose.to_json()},
             "sticker_points_cam_m": np.round(s.result.sticker_points_cam, 6).tolist(),
             "visible": s.result.visible.tolist(),
             "visible_fraction": np.round(s.result.visible_fraction, 3).tolist(),

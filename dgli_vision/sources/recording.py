@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import csv
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from contextlib import ExitStack
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -26,9 +26,12 @@ from .realsense import LivePair
 from .ros_images import ImagePayload, decode_color, decode_depth
 
 __all__ = [
+    "RECORDING_READERS",
     "LivePair",
+    "ReadingOptions",
     "RecordedPair",
     "Recording",
+    "RecordingReader",
     "is_recording_file",
     "open_recording",
     "read_recording",
@@ -393,26 +396,22 @@ def open_recording(
         One line naming the recording and what is wrong (no image topic, an ambiguous
         topic, a truncated file, the ``recordings`` extra missing...).
     """
-    from .realsense import is_realsense_recording
-
     p = Path(path)
     if not p.exists():
         raise UnreadableInputError(f"recording '{p}' does not exist")
-    if is_realsense_recording(p):
-        recording = _realsense_recording(p, tolerance, live)
-    elif is_recording_file(p):
-        recording = _bag_recording(p, color_topic, depth_topic, info_topic, tolerance)
-    elif p.is_file():
+    reader = next((r for r in RECORDING_READERS if r.claims(p)), None)
+    if reader is None:
+        shown = [r.what for r in reversed(RECORDING_READERS)]
         raise UnreadableInputError(
-            f"'{p}' is not a recording: expected a folder of PNG pairs, a ROS 1 .bag, a ROS 2 "
-            f"bag (.db3, .mcap or its folder) or a RealSense .db3/.bag"
+            f"'{p}' is not a recording: expected {', '.join(shown[:-1])} or {shown[-1]}"
         )
-    else:
-        if labels is not None:
-            raise InvalidInputError(
-                f"--labels is for recorded episodes; folder '{p}' is labelled by its labels.csv"
-            )
-        return read_recording(p)
+    if labels is not None and not reader.takes_labels:
+        raise InvalidInputError(
+            f"--labels is for recorded episodes; {reader.name} '{p}' is labelled by its "
+            "labels.csv"
+        )
+    options = ReadingOptions(color_topic, depth_topic, info_topic, tolerance, live)
+    recording = reader.read(p, options)
     if labels is None:
         return recording
     labels_path = Path(labels)
@@ -565,3 +564,78 @@ def _check_first(pair: RecordedPair) -> None:
     except InvalidInputError:
         return
     pair.load()
+
+
+@dataclass(frozen=True)
+class ReadingOptions:
+    """How to read a recording (the options of :func:`open_recording`)."""
+
+    color_topic: str | None = None
+    depth_topic: str | None = None
+    info_topic: str | None = None
+    tolerance: float = 0.020
+    live: bool = False
+
+
+@dataclass(frozen=True)
+class RecordingReader:
+    """One recording format in :data:`RECORDING_READERS`.
+
+    Attributes
+    ----------
+    name : str
+        What the format is called in messages (``"folder"``, ``"ROS bag"``).
+    what : str
+        What a user gives, for the message naming the formats that are read.
+    claims : callable
+        ``claims(path) -> bool``: whether ``path`` (which exists) is of this format;
+        asked in the table's order, so a more particular format comes first.
+    read : callable
+        ``read(path, options) -> Recording``: its frames (each a :class:`RecordedPair`
+        with the frame's intrinsics and time, read as they are iterated) and notes.
+    takes_labels : bool
+        Whether ``--labels`` may label it (a folder has its own ``labels.csv``).
+    """
+
+    name: str
+    what: str
+    claims: Callable[[Path], bool]
+    read: Callable[[Path, ReadingOptions], Recording]
+    takes_labels: bool = True
+
+
+def _is_realsense(p: Path) -> bool:
+    from .realsense import is_realsense_recording
+
+    return is_realsense_recording(p)
+
+
+def _is_folder(p: Path) -> bool:
+    return p.is_dir()
+
+
+def _read_folder(p: Path, options: ReadingOptions) -> Recording:
+    return read_recording(p)
+
+
+def _read_realsense(p: Path, options: ReadingOptions) -> Recording:
+    return _realsense_recording(p, options.tolerance, options.live)
+
+
+def _read_bag(p: Path, options: ReadingOptions) -> Recording:
+    return _bag_recording(
+        p, options.color_topic, options.depth_topic, options.info_topic, options.tolerance
+    )
+
+
+#: The recording formats :func:`open_recording` reads, asked in this order whether a
+#: path is theirs: a RealSense recording is also a ROS bag, and a ROS 2 bag can be a
+#: folder. A new format is a row here (before the folder).
+RECORDING_READERS: tuple[RecordingReader, ...] = (
+    RecordingReader("RealSense recording", "a RealSense .db3/.bag", _is_realsense,
+                    _read_realsense),
+    RecordingReader("ROS bag", "a ROS 1 .bag, a ROS 2 bag (.db3, .mcap or its folder)",
+                    is_recording_file, _read_bag),
+    RecordingReader("folder", "a folder of PNG pairs", _is_folder, _read_folder,
+                    takes_labels=False),
+)

@@ -13,6 +13,7 @@ from typing import Any
 
 import numpy as np
 
+from ...core.errors import InvalidValueError
 from ...core.layout import NapkinLayout, default_layout
 from .states import ClothState, FoldStep, corner_fold_line, make_state, side_fold_line
 
@@ -46,7 +47,9 @@ _SIZES: dict[str, tuple[float, tuple[float, float]]] = {
 
 def _check(name: str) -> None:
     if name not in SEQUENCES:
-        raise ValueError(f"unknown sequence {name!r}; expected one of {', '.join(SEQUENCES)}")
+        raise InvalidValueError(
+            f"unknown sequence {name!r}; expected one of {', '.join(SEQUENCES)}"
+        )
 
 
 def sequence_steps(
@@ -94,7 +97,7 @@ def sequence_progress(name: str, n_frames: int) -> list[float]:
     """``n_frames`` progress values spread evenly from flat to the last fold laid flat."""
     _check(name)
     if n_frames < 2:
-        raise ValueError(f"a sequence needs at least 2 frames, got {n_frames}")
+        raise InvalidValueError(f"a sequence needs at least 2 frames, got {n_frames}")
     n_folds = len(SEQUENCES[name][1])
     return [n_folds * i / (n_frames - 1) for i in range(n_frames)]
 
@@ -131,7 +134,7 @@ def sequence_state(
     layout = layout or default_layout()
     steps = steps if steps is not None else sequence_steps(name, layout)
     if not 0 <= progress <= len(steps):
-        raise ValueError(f"progress must be in [0, {len(steps)}], got {progress}")
+        raise InvalidValueError(f"progress must be in [0, {len(steps)}], got {progress}")
     k = min(int(np.floor(progress)), len(steps) - 1)
     angles = [np.pi] * k + [np.pi * (progress - k)]
     if progress - k == 0 and k == 0:
@@ -177,7 +180,7 @@ def folding_sequence(
         its true class; ``params["angles_deg"]`` gives the fold angles.
     """
     if frames_per_fold < 1:
-        raise ValueError(f"frames_per_fold must be at least 1, got {frames_per_fold}")
+        raise InvalidValueError(f"frames_per_fold must be at least 1, got {frames_per_fold}")
     _check(name)
     layout = layout or default_layout()
     steps = sequence_steps(name, layout)

@@ -18,6 +18,7 @@ from scipy.spatial import cKDTree
 
 from ...core.classes import CLASS_IDS, CLASS_NAMES, CORNERS, VARIANTS
 from ...core.dgli import cloth_coordinates
+from ...core.errors import InvalidValueError
 from ...core.fold_graph import unfold
 from ...core.layout import NapkinLayout, default_layout
 from .fold import fold
@@ -33,6 +34,7 @@ __all__ = [
     "corner_fold_line",
     "diagonal_fold_line",
     "disc_samples",
+    "draw_fold_steps",
     "make_state",
     "normalize_rng",
     "sample_state",
@@ -274,13 +276,24 @@ def _draw_class_folds(draw: _FoldDraw, class_id: str, variant: str | None) -> No
     elif class_id == "12":
         draw.diagonal(variant)
     else:
-        raise ValueError(f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}")
+        raise InvalidValueError(
+            f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}"
+        )
 
 
-def _steps_for(
+def draw_fold_steps(
     class_id: str, variant: str | None, layout: NapkinLayout, rng: np.random.Generator
 ) -> tuple[list[FoldStep], dict[str, Any]]:
-    """The folds of one state of a class and variant, with the drawn parameters."""
+    """The folds of one state of a class and variant, drawn from ``rng``, with the drawn
+    parameters (``params["folds"]``: the fold words, in the order of the steps); what
+    :func:`sample_state` makes a state of, and what the planner's closed-loop check folds
+    again step by step.
+
+    Returns
+    -------
+    list of FoldStep
+    dict
+    """
     draw = _FoldDraw(layout, rng)
     _draw_class_folds(draw, class_id, variant)
     steps, words, params = draw.steps, draw.words, draw.params
@@ -434,7 +447,7 @@ def _made_last(
     """The steps with fold ``last_fold`` (a word of ``params["folds"]``, reordered in place)
     made last."""
     if last_fold not in params["folds"]:
-        raise ValueError(f"{what} has no fold {last_fold!r}")
+        raise InvalidValueError(f"{what} has no fold {last_fold!r}")
     k = params["folds"].index(last_fold)
     params["folds"] = params["folds"][:k] + params["folds"][k + 1 :] + [last_fold]
     return steps[:k] + steps[k + 1 :] + [steps[k]]
@@ -450,9 +463,9 @@ def _fold_in_progress(
     """The fold angles (radians) with the last fold turned ``last_fold_deg``, and the
     class and variant of that state by the 90-degree rule; notes the stage in ``params``."""
     if not steps:
-        raise ValueError(f"class {class_id} has no fold to leave in progress")
+        raise InvalidValueError(f"class {class_id} has no fold to leave in progress")
     if not 0 < last_fold_deg < 180:
-        raise ValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
+        raise InvalidValueError(f"last_fold_deg must be in (0, 180), got {last_fold_deg}")
     angles = [np.pi] * (len(steps) - 1) + [float(np.radians(last_fold_deg))]
     moving = params["folds"][-1]
     params["stage"] = f"{'settling' if last_fold_deg > 90 else 'rising'} {moving}"
@@ -508,15 +521,17 @@ def sample_state(
     ClothState
     """
     if class_id not in CLASS_NAMES:
-        raise ValueError(f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}")
+        raise InvalidValueError(
+            f"unknown class id {class_id!r}; expected one of {', '.join(CLASS_IDS)}"
+        )
     rng = normalize_rng(rng)
     options = VARIANTS[class_id]
     if variant is None:
         variant = options[int(rng.integers(len(options)))]
     elif variant not in options:
-        raise ValueError(f"class {class_id} has variants {options}, got {variant!r}")
+        raise InvalidValueError(f"class {class_id} has variants {options}, got {variant!r}")
     layout = layout or default_layout()
-    steps, params = _steps_for(class_id, variant, layout, rng)
+    steps, params = draw_fold_steps(class_id, variant, layout, rng)
     if last_fold is not None:
         steps = _made_last(steps, params, last_fold, f"{class_id}/{variant}")
     angles = None
