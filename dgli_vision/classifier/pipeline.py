@@ -42,7 +42,9 @@ from .classify import (
     reference_terms,
 )
 from .consistency import (
+    Doubt,
     depth_scale_hint,
+    doubt_factor,
     footprint_problem,
     mirror_problem,
     rigidity_problem,
@@ -431,21 +433,40 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
-def _landing_unknown(
-    obs: ClothObservation, near: tuple[tuple[str, str | None, float], ...]
-) -> str | None:
-    """Why the nearest two classes cannot be told apart yet, or None: a flap is held up
-    and they differ only in where it will land (:data:`LANDING_PAIRS`)."""
-    if obs.flap_deg is None or not np.isfinite(obs.flap_deg).any() or len(near) < 2:
-        return None
-    (a, va, da), (b, vb, db) = near[0], near[1]
-    if frozenset({a, b}) not in LANDING_PAIRS:
-        return None
+#: The landing check's measure (:func:`_landing`): how much farther the landing partner
+#: of the nearest class lies than that class, as a share of how much farther the nearest
+#: class of a third kind lies. Below 1 the partner is the runner-up ("cannot tell"); from
+#: :data:`LANDING_CLEAR` up it is far enough behind to leave the confidence alone.
+LANDING_CLEAR = 1.5
+
+
+def _landing(
+    obs: ClothObservation, distances: NDArray[np.float64], references: ReferenceSet
+) -> Doubt:
+    """Whether the nearest two classes cannot be told apart yet: a flap is held up and
+    they differ only in where it will land (:data:`LANDING_PAIRS`). The factor on the
+    confidence is continuous in how far behind the landing partner lies (see
+    :data:`LANDING_CLEAR`); the reason is given where the partner is the runner-up."""
+    if obs.flap_deg is None or not np.isfinite(obs.flap_deg).any():
+        return Doubt()
+    near = _candidates(distances, references, k=4)
+    if len(near) < 3:
+        return Doubt()
+    a, va, da = near[0]
+    partner = [c for c in near[1:] if frozenset({a, c[0]}) in LANDING_PAIRS]
+    if not partner:
+        return Doubt()
+    b, vb, db = partner[0]
+    third = next(c[2] for c in near[1:] if c[0] != b)
+    ratio = (db - da) / max(third - da, 1e-9)
+    factor = doubt_factor(ratio, 1.0, LANDING_CLEAR, 0.0)
+    if ratio >= 1.0:
+        return Doubt(factor)
     lean = float(np.nanmedian(obs.flap_deg))
-    return (
+    return Doubt(factor, (
         f"a flap held up at about {lean:.0f} degrees: {a} {CLASS_NAMES[a]} ({va}, {da:.3f}) "
         f"and {b} {CLASS_NAMES[b]} ({vb}, {db:.3f}) differ only in where it lands"
-    )
+    ))
 
 
 def _too_small(
@@ -527,29 +548,38 @@ def _judge(
         guess = replace(guess, confidence=round(guess.confidence * border, 4))
     clock.lap("classify")
     area = layout.width_mm * layout.height_mm
-    doubt = mirror_problem(
+    mirror = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front, terms=terms
-    ) or footprint_problem(obs.footprint, references, front, area)
+    )
+    foot = footprint_problem(obs.footprint, references, front, area)
+    landing = _landing(obs, front, references)
     clock.lap("checks")
+    # each check lowers the confidence continuously; where one rules the verdict out the
+    # nearest reference stays for reports, with the confidence left to it
+    factor = mirror.factor * foot.factor * landing.factor
+    unchecked = guess.confidence
+    if factor < 1.0:
+        guess = replace(guess, confidence=round(guess.confidence * factor, 4))
+    doubt = mirror.reason or foot.reason
     if doubt is not None:
-        # the nearest reference stays for reports, with no confidence in it
-        doubted = replace(guess, confidence=0.0)
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted,
+            detections, markers, obs, coords, None, f"cannot tell: {doubt}", guess,
             why=WHY_KINDS[2], candidates=near, distances=front,
         )
-    landing = _landing_unknown(obs, near)
-    if landing is not None and guess.confidence >= min_confidence:
+    if landing.reason is not None and unchecked >= min_confidence:
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {landing}",
-            replace(guess, confidence=0.0), why=WHY_KINDS[3], candidates=near, distances=front,
+            detections, markers, obs, coords, None, f"cannot tell: {landing.reason}",
+            guess, why=WHY_KINDS[3], candidates=near, distances=front,
         )
     if guess.confidence >= min_confidence:
         return FrameResult(
             detections, markers, obs, coords, guess, None, guess, candidates=near,
             distances=front,
         )
-    reason = _low_confidence_reason(guess, obs, min_confidence, border)
+    checks = (("the mirrored reading nearly as close", mirror.factor),
+              ("the footprint larger than the state allows", foot.factor),
+              ("a flap held up, where it lands not yet seen", landing.factor))
+    reason = _low_confidence_reason(guess, obs, min_confidence, border, checks)
     return FrameResult(
         detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near,
         distances=front,
@@ -598,7 +628,11 @@ def _guess(
 
 
 def _low_confidence_reason(
-    guess: Prediction, obs: ClothObservation, min_confidence: float, border: float
+    guess: Prediction,
+    obs: ClothObservation,
+    min_confidence: float,
+    border: float,
+    checks: tuple[tuple[str, float], ...] = (),
 ) -> str:
     """``"cannot tell: confidence 0.12 < 0.25; ..."`` with what lowered it."""
     n = int(obs.visible.sum())
@@ -611,6 +645,7 @@ def _low_confidence_reason(
         )
     if obs.evidence is not None and obs.evidence.occluded:
         why.append("the napkin is partly covered by an object above it")
+    why.extend(f"{what} (confidence x{f:.2f})" for what, f in checks if f < 1.0)
     if border < 1.0:
         why.append(
             "stickers near the image border, lens distortion unknown (confidence "

@@ -28,11 +28,12 @@ from ..classifier.classify import (
     SPREAD_SCALE_MM,
     SPREAD_SLACK_MM,
     SPREAD_WEIGHT,
+    TIE_SCALE,
     VISIBILITY_WEIGHT,
 )
 from ..classifier.references import ReferenceSet
 from ..core.dgli import pair_indices
-from ..core.distance import pairwise_spearman
+from ..core.distance import soft_centred_unit_ranks
 
 __all__ = ["FrameEvidence", "Verdicts", "frame_distances", "verdicts"]
 
@@ -128,7 +129,8 @@ def frame_distances(ev: FrameEvidence, references: ReferenceSet) -> NDArray[np.f
     rows = np.flatnonzero(ok)
     for g, mask in enumerate(masks):
         sel = rows[group.ravel() == g]
-        out[sel] = pairwise_spearman(ev.coords[sel][:, mask], ref[:, mask])
+        x = soft_centred_unit_ranks(ev.coords[sel][:, mask], TIE_SCALE)
+        out[sel] = np.clip(1.0 - x @ references.ranked(mask).T, 0.0, 2.0)
     use = ~ev.unknown
     vis = ev.visible.astype(float)
     gap = _mean_over(use, np.abs(vis[:, None, :] - references.visible_rates()[None]))
