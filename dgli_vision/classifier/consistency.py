@@ -44,6 +44,8 @@ __all__ = [
     "FOOTPRINT_SLACK",
     "GOOD_FIT",
     "MIRROR_MARGIN",
+    "MIRROR_TWINS",
+    "MIRROR_TWIN_CONFIDENCE",
     "RIGIDITY_TOLERANCE",
     "SCALE_TOLERANCE",
     "Doubt",
@@ -85,6 +87,21 @@ FOOTPRINT_SCALE = 0.1
 #: one reading's best reference and rules out the other's: twice :data:`CLEAR_MARGIN`,
 #: so a footprint that clearly speaks for a reading decides a doubt the stickers leave.
 FOOTPRINT_SHIFT = 0.2
+
+#: The states that a napkin lying back face up, seen by a camera that mirrors its image,
+#: shows exactly: two mirrors cancel in the corners' order, and a fold over turned over
+#: lies under. A corner folded over (02) so shows what a corner folded under (03) does,
+#: a strip over (09) what a strip under (10) does, and the other way round; two corners
+#: of one edge folded over and crossing (05) turned over read as a strip under too. The
+#: stickers are the same on both faces, so nothing in one frame tells these apart.
+MIRROR_TWINS: dict[str, tuple[str, ...]] = {
+    "02": ("03",), "03": ("02",), "09": ("10",), "10": ("09", "05"),
+}
+#: The highest confidence a state of :data:`MIRROR_TWINS` is given: answered, but never
+#: confidently (0.5 and more), since a napkin back face up under a mirroring camera in
+#: its twin state looks the same.
+MIRROR_TWIN_CONFIDENCE = 0.45
+
 
 @dataclass(frozen=True)
 class Doubt:

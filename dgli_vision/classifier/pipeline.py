@@ -42,6 +42,8 @@ from .classify import (
     reference_terms,
 )
 from .consistency import (
+    MIRROR_TWIN_CONFIDENCE,
+    MIRROR_TWINS,
     Doubt,
     depth_scale_hint,
     doubt_factor,
@@ -560,6 +562,8 @@ def _judge(
     unchecked = guess.confidence
     if factor < 1.0:
         guess = replace(guess, confidence=round(guess.confidence * factor, 4))
+    if guess.class_id in MIRROR_TWINS and guess.confidence > MIRROR_TWIN_CONFIDENCE:
+        guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
     doubt = mirror.reason or foot.reason
     if doubt is not None:
         return FrameResult(
