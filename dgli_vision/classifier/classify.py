@@ -153,10 +153,12 @@ class Prediction:
 
     Attributes
     ----------
-    class_id, name : str
-        ``"02"``, ``"corner-over"``.
+    class_id, name : str or None
+        ``"02"``, ``"corner-over"``. None for a "cannot tell" that
+        :func:`~dgli_vision.classifier.api.classify_pair` returns (``reason`` says why,
+        ``candidates`` keeps the nearest states), as ``"class": null`` in ``--json``.
     variant : str or None
-        SPEC's variant string.
+        SPEC's variant string (None with ``class_id`` None).
     distance : float
         Distance to the winning reference (Spearman + visibility term).
     runner_up : RunnerUp or None
@@ -178,10 +180,14 @@ class Prediction:
         computed.
     folds : tuple of SeenFold
         The folds of the verdict as lines on the table.
+    candidates : tuple of (str, str or None, float)
+        The nearest state of each of the three nearest classes, as (class, variant,
+        distance), nearest first (``classify_pair`` fills it; ``"candidates"`` in
+        ``--json``).
     """
 
-    class_id: str
-    name: str
+    class_id: str | None
+    name: str | None
     variant: str | None
     distance: float
     runner_up: RunnerUp | None
@@ -192,6 +198,7 @@ class Prediction:
     stickers: StickerIds | None = None
     corners: tuple = ()
     folds: tuple = ()
+    candidates: tuple[tuple[str, str | None, float], ...] = ()
 
 
 def confidence_of(

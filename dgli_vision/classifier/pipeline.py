@@ -243,8 +243,12 @@ class FrameResult:
 #: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is
 #: wrong (depth scale, lens), too few stickers to rank the states, the layout reads
 #: mirrored or the cloth covers more table than the state allows, or the nearest states
-#: are too close to call for the evidence seen.
-WHY_KINDS = ("geometry", "too few stickers", "mirror or footprint", "too close to call")
+#: are too close to call for the evidence seen; a colour array whose red and blue
+#: channels are swapped (only :func:`~dgli_vision.classifier.api.classify_pair` tells).
+WHY_KINDS = (
+    "geometry", "too few stickers", "mirror or footprint", "too close to call",
+    "colour channels",
+)
 
 
 def _candidates(
