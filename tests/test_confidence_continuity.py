@@ -57,7 +57,7 @@ def test_the_mirror_check_lowers_the_confidence_along_a_ramp():
     _, _, obs = observe(_frame("02"), LAYOUT)
     coords = cloth_coordinates(obs.segments, obs.up)
     evidence = obs.classifier_evidence()
-    terms = reference_terms(coords, REFS, **evidence)
+    terms = reference_terms(coords, REFS, evidence)
     factors, told = [], []
     for t in np.linspace(-0.4, 0.6, 2001):
         moved = replace(terms, dgli=np.clip(terms.dgli + t, 0.0, 2.0))

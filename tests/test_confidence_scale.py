@@ -11,7 +11,7 @@ from functools import partial
 import numpy as np
 import pytest
 
-from dgli_vision.classifier.classify import classify_coordinates, confidence_of
+from dgli_vision.classifier.classify import Evidence, classify_coordinates, confidence_of
 from dgli_vision.classifier.references import load_references
 from dgli_vision.core.camera import Intrinsics
 
@@ -78,7 +78,7 @@ def test_a_fixed_observation_gets_its_pinned_margin_and_confidence(
     coords[known_coordinates:] = np.nan
     unknown_mask = np.arange(16) < unknown
     p = classify_coordinates(
-        coords, REFS, unknown=unknown_mask, distances=fixed_distances(*distances)
+        coords, REFS, Evidence(unknown=unknown_mask), distances=fixed_distances(*distances)
     )
     assert (p.class_id, p.variant) == ("02", "A")
     assert (p.runner_up.class_id, p.runner_up.variant) == ("04", "AB")

@@ -132,11 +132,13 @@ def test_the_mirrored_reading_is_the_distance_of_the_mirror_image(class_id):
 
     _, _, obs = observe(frame(small(class_id)), LAYOUT)
     coords = cloth_coordinates(obs.segments, obs.up)
+    from dataclasses import replace
+
     evidence = obs.classifier_evidence()
-    assert evidence["back"] is not None and np.isfinite(evidence["back"]).any()
-    flipped = dict(evidence, back=1.0 - np.asarray(evidence["back"], dtype=float))
-    fresh = reference_distances(-coords, REFS, **flipped)
-    derived = reference_terms(coords, REFS, **evidence).mirrored().total()
+    assert evidence.back is not None and np.isfinite(evidence.back).any()
+    flipped = replace(evidence, back=1.0 - np.asarray(evidence.back, dtype=float))
+    fresh = reference_distances(-coords, REFS, flipped)
+    derived = reference_terms(coords, REFS, evidence).mirrored().total()
     np.testing.assert_allclose(derived, fresh, atol=1e-12)
 
 

@@ -33,7 +33,7 @@ from ..core.layout import NapkinLayout
 from ..perception.detect import StickerDetections
 from ..perception.footprint import Footprint
 from ..perception.scale import NapkinRuler
-from .classify import MIN_CONFIDENCE, DistanceTerms, reference_terms
+from .classify import MIN_CONFIDENCE, DistanceTerms, Evidence, reference_terms
 from .references import ReferenceSet
 
 __all__ = [
@@ -303,7 +303,7 @@ def _describe(references: ReferenceSet, k: int) -> str:
 def mirror_problem(
     coords: NDArray[np.float64],
     references: ReferenceSet,
-    evidence: dict[str, NDArray | None],
+    evidence: Evidence,
     footprint: Footprint | None,
     napkin_area_mm2: float,
     *,
@@ -325,11 +325,9 @@ def mirror_problem(
     coords : ndarray, shape (28,)
         Cloth coordinates as measured (NaN where unknown).
     references : ReferenceSet
-    evidence : dict
-        The keyword arguments of :func:`~dgli_vision.classifier.classify.reference_distances`
-        besides the coordinates (``visible``, ``unknown``, ``lifted``, ``heights_mm``,
-        ``past``, ``back``): a mirror changes none of them but ``back``, which it turns
-        round.
+    evidence : Evidence
+        What else was seen (:class:`~dgli_vision.classifier.evidence.Evidence`): a mirror
+        changes none of it but ``back``, which it turns round.
     footprint : Footprint or None
         The cloth's measured footprint.
     napkin_area_mm2 : float
@@ -345,7 +343,7 @@ def mirror_problem(
         Its reason starts with what was seen; the caller prefixes ``"cannot tell: "``.
     """
     if terms is None:
-        terms = reference_terms(coords, references, **evidence)
+        terms = reference_terms(coords, references, evidence)
     if front is None:
         front = terms.total()
     mirrored = terms.mirrored().total()  # a mirror turns every corner's stickers round too

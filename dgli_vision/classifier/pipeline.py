@@ -37,6 +37,7 @@ from .affordances import Affordances, affordances_of
 from .capture_limits import border_factor, sticker_px, sticker_size_problem
 from .classify import (
     MIN_CONFIDENCE,
+    Evidence,
     Prediction,
     classify_coordinates,
     reference_terms,
@@ -57,7 +58,7 @@ from .references import ReferenceSet
 __all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class ClothObservation:
     """The cloth as seen: segments in the camera frame and the table normal.
 
@@ -177,14 +178,14 @@ class ClothObservation:
             return np.zeros(len(self.visible), dtype=bool)
         return self.evidence.unknown
 
-    def classifier_evidence(self) -> dict[str, NDArray | None]:
-        """The keyword arguments of :func:`~dgli_vision.classifier.classify.reference_distances`
-        besides the coordinates: what the classifier weighs beside them."""
-        return {
-            "visible": self.visible, "unknown": self.unknown, "lifted": self.lifted,
-            "heights_mm": self.matched_heights_mm, "past": self.past_vertical,
-            "back": self.back, "spread_mm": self.spread_mm, "tips": self.tips,
-        }
+    def classifier_evidence(self) -> Evidence:
+        """What the classifier weighs beside the coordinates
+        (:class:`~dgli_vision.classifier.evidence.Evidence`)."""
+        return Evidence(
+            visible=self.visible, unknown=self.unknown, lifted=self.lifted,
+            heights_mm=self.matched_heights_mm, past=self.past_vertical,
+            back=self.back, spread_mm=self.spread_mm, tips=self.tips,
+        )
 
     @property
     def segment_visible(self) -> NDArray[np.bool_]:
@@ -210,7 +211,7 @@ class StageClock:
         self._last = now
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class FrameResult:
     """Everything the pipeline computed for one frame.
 
@@ -339,9 +340,11 @@ def observe(
     tips = _tips(frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions)
     clock.lap("tips")
     return detections, markers, ClothObservation(
-        segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
-        turns, markers.points, napkin.occluder, napkin.stride, tips,
-        edge_on_heights(detections, napkin.masks()),
+        segments=segments, visible=visible, up=up, evidence=evidence, heights_mm=heights,
+        flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
+        turns=turns, points_m=markers.points, objects=napkin.occluder,
+        objects_stride=napkin.stride, tips=tips,
+        edge_on_mm=edge_on_heights(detections, napkin.masks()),
     )
 
 
@@ -523,16 +526,19 @@ def _judge(
     its confidence, or "cannot tell" and why."""
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
+    seen_as = {
+        "detections": detections, "markers": markers, "observation": obs, "coordinates": coords,
+    }
     n = int(obs.visible.sum())
     napkin_mm = _napkin_depth(detections, frame.depth_mm)
     problem = _image_problem(frame, detections, obs, napkin_mm, layout)
     if problem is not None:
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {problem}", why=WHY_KINDS[0]
+            **seen_as, prediction=None, reason=f"cannot tell: {problem}", why=WHY_KINDS[0]
         )
     evidence = obs.classifier_evidence()
     try:
-        terms = reference_terms(coords, references, **evidence)
+        terms = reference_terms(coords, references, evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         unknown = _unknown_summary(obs)
@@ -541,7 +547,7 @@ def _judge(
         depth_hint = depth_scale_hint(detections, frame.depth_mm)
         if depth_hint:
             reason += f"; {depth_hint}"
-        return FrameResult(detections, markers, obs, coords, None, reason, why=WHY_KINDS[1])
+        return FrameResult(**seen_as, prediction=None, reason=reason, why=WHY_KINDS[1])
     front = terms.total()
     near = _candidates(front, references)
     guess = _guess(coords, references, evidence, front, obs, layout, min_confidence)
@@ -571,26 +577,25 @@ def _judge(
     doubt = mirror.reason or foot.reason
     if doubt is not None:
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {doubt}", guess,
+            **seen_as, prediction=None, reason=f"cannot tell: {doubt}", best_guess=guess,
             why=WHY_KINDS[2], candidates=near, distances=front,
         )
     if landing.reason is not None and unchecked >= min_confidence:
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {landing.reason}",
-            guess, why=WHY_KINDS[3], candidates=near, distances=front,
+            **seen_as, prediction=None, reason=f"cannot tell: {landing.reason}",
+            best_guess=guess, why=WHY_KINDS[3], candidates=near, distances=front,
         )
     if guess.confidence >= min_confidence:
         return FrameResult(
-            detections, markers, obs, coords, guess, None, guess, candidates=near,
-            distances=front,
+            **seen_as, prediction=guess, best_guess=guess, candidates=near, distances=front
         )
     checks = (("the mirrored reading nearly as close", mirror.factor),
               ("the footprint larger than the state allows", foot.factor),
               ("a flap held up, where it lands not yet seen", landing.factor))
     reason = _low_confidence_reason(guess, obs, min_confidence, border, checks)
     return FrameResult(
-        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near,
-        distances=front,
+        **seen_as, prediction=None, reason=reason, best_guess=guess, why=WHY_KINDS[3],
+        candidates=near, distances=front,
     )
 
 
@@ -614,7 +619,7 @@ def _image_problem(
 def _guess(
     coords: NDArray[np.float64],
     references: ReferenceSet,
-    evidence: dict,
+    evidence: Evidence,
     front: NDArray[np.float64],
     obs: ClothObservation,
     layout: NapkinLayout,
@@ -623,13 +628,13 @@ def _guess(
     """The nearest reference and its confidence; below ``min_confidence``, again with the
     stickers an object hides beside one lying at its flat place taken as known."""
     unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
-    guess = classify_coordinates(coords, references, **evidence, distances=front, unsure=unsure)
+    guess = classify_coordinates(coords, references, evidence, distances=front, unsure=unsure)
     placed = obs.points_m is not None and obs.heights_mm is not None
     if guess.confidence < min_confidence and placed:
         settled = settled_stickers(obs.points_m, obs.heights_mm, obs.turns, layout, obs.up)
         if settled.any():
             guess = classify_coordinates(
-                coords, references, **evidence, distances=front, unsure=unsure,
+                coords, references, evidence, distances=front, unsure=unsure,
                 settled=settled,
             )
     return guess
