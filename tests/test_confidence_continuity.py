@@ -59,7 +59,7 @@ def test_the_mirror_check_lowers_the_confidence_along_a_ramp():
     evidence = obs.classifier_evidence()
     terms = reference_terms(coords, REFS, evidence)
     factors, told = [], []
-    for t in np.linspace(-0.4, 0.6, 2001):
+    for t in np.linspace(-0.4, 0.6, 1001):
         moved = replace(terms, dgli=np.clip(terms.dgli + t, 0.0, 2.0))
         doubt = mirror_problem(coords, REFS, evidence, None, AREA, terms=moved)
         factors.append(doubt.factor)
