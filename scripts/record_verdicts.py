@@ -9,7 +9,8 @@ the packaged references, and its verdict written: the class and variant of the
 prediction (or null and the kind of "cannot tell"), those of the best guess, its
 confidence and distance (6 decimals), and the stickers found. Run it on the code whose
 answers are the reference (it was run on main at cdac10a, before the napkin-region
-work of issue 40).
+work of issue 40, and again when issue 38 made the confidence continuous: the distances
+moved by near ties sharing their ranks, no class or confidence changed).
 """
 
 from __future__ import annotations

@@ -124,6 +124,29 @@ def test_a_bgr_array_is_named_as_the_likely_cause():
     assert dgli_vision.classify_pair(bgr[..., ::-1].copy(), depth).class_id == "05"
 
 
+def test_a_bgr_array_that_reads_mirrored_says_its_channels_are_swapped():
+    # red and blue swapped turn corner A's discs into D's: the layout reads mirrored
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    bgr = cv2.imread(str(samples / "07_000_color.png"))
+    depth = cv2.imread(str(samples / "07_000_depth.png"), cv2.IMREAD_UNCHANGED)
+    p = dgli_vision.classify_pair(bgr, depth)
+    assert p.why == "colour channels" and p.reason.startswith(
+        "cannot tell: colour channels swapped (BGR?): with red and blue swapped it reads as 07"
+    )
+    assert p.class_id is None and p.name is None and p.variant is None
+    assert p.candidates and p.confidence < 0.25
+
+
+def test_a_cannot_tell_names_no_class_and_keeps_the_nearest_in_candidates():
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    rgb = cv2.imread(str(samples / "02_000_color.png"))[:, ::-1, ::-1].copy()  # mirrored
+    depth = cv2.imread(str(samples / "02_000_depth.png"), cv2.IMREAD_UNCHANGED)[:, ::-1].copy()
+    p = dgli_vision.classify_pair(rgb, depth)
+    assert p.reason.startswith("cannot tell:") and "mirror" in p.reason
+    assert p.class_id is None and len(p.candidates) >= 2
+    assert p.candidates[0][2] == pytest.approx(p.distance, abs=1e-5)
+
+
 def test_a_pair_of_another_size_without_intrinsics_is_told_where_they_go(tmp_path):
     samples = Path(__file__).resolve().parents[1] / "sample_images"
     for kind in ("color", "depth"):

@@ -140,16 +140,15 @@ def test_batched_distances_and_verdicts_equal_the_classifiers():
     ny, nx = states[0].mesh.shape
     material = cloth_material(ClothEpisode("seq", pos, grid_faces(ny, nx), (ny, nx)))
     ev = observe_frames(pos, material, place_stickers(material))
-    assert ev.unknown.any() and np.isfinite(ev.past).any()  # a flap held up edge-on
+    e = ev.evidence
+    assert e.unknown.any() and np.isfinite(e.past).any()  # a flap held up edge-on
     batch = frame_distances(ev, REFS)
-    n_unknown = (ev.unknown & ~np.isfinite(ev.past)).sum(axis=1)
+    n_unknown = (e.unknown & ~np.isfinite(e.past)).sum(axis=1)
     v = verdicts(batch, REFS, n_unknown, ev.known_coordinates().sum(axis=1))
     for t in range(len(pos)):
-        args = (ev.coords[t], REFS, ev.visible[t], ev.unknown[t], ev.lifted[t],
-                ev.heights_mm[t], ev.past[t], ev.back[t], ev.spread_mm[t])
-        one = reference_distances(*args)
-        np.testing.assert_allclose(batch[t], one, rtol=0, atol=1e-6)
-        p = classify_coordinates(*args, distances=one)
+        one = reference_distances(ev.coords[t], REFS, e.frame(t))
+        np.testing.assert_allclose(batch[t], one, rtol=0, atol=1e-12)
+        p = classify_coordinates(ev.coords[t], REFS, e.frame(t), distances=one)
         best = REFS.references[v.best[t]]
         assert (best.class_id, best.variant) == (p.class_id, p.variant)
         assert v.confidence[t] == pytest.approx(p.confidence, abs=1e-4)

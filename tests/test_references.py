@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from dgli_vision.classifier.classify import classify_coordinates
+from dgli_vision.classifier.classify import Evidence, classify_coordinates
 from dgli_vision.classifier.references import (
     build_references,
     load_references,
@@ -38,7 +38,7 @@ def accuracy(records, refs, coords, with_visibility=True):
     hits = []
     for k in range(len(records)):
         vis = records.visible[k] if with_visibility else None
-        p = classify_coordinates(coords[k], refs, vis)
+        p = classify_coordinates(coords[k], refs, Evidence(visible=vis))
         hits.append((p.class_id == records.classes[k], p.variant == records.variants[k]))
     return np.mean(hits, axis=0)
 
@@ -70,7 +70,8 @@ def test_leave_one_out_accuracy_on_the_fresh_database(fresh):
     for k in range(0, len(fresh), 3):  # every third sample keeps the test fast
         refs = build_references(fresh.subset(everyone != k))
         hits += (
-            classify_coordinates(coords[k], refs, fresh.visible[k]).class_id == fresh.classes[k]
+            classify_coordinates(coords[k], refs, Evidence(visible=fresh.visible[k])).class_id
+            == fresh.classes[k]
         )
     assert hits / len(range(0, len(fresh), 3)) >= 0.97
 
@@ -80,13 +81,15 @@ def test_visibility_is_evidence_over_or_under(fresh, shipped):
     # corner stickers decide.
     k = fresh.classes.index("03")
     assert (
-        classify_coordinates(fresh.hidden_coordinates()[k], shipped, fresh.visible[k]).class_id
+        classify_coordinates(
+            fresh.hidden_coordinates()[k], shipped, Evidence(visible=fresh.visible[k])
+        ).class_id
         == "03"
     )
 
 
 def test_prediction_fields(fresh, shipped):
-    p = classify_coordinates(fresh.coordinates[0], shipped, fresh.visible[0])
+    p = classify_coordinates(fresh.coordinates[0], shipped, Evidence(visible=fresh.visible[0]))
     assert p.class_id == "01" and p.name == "flat" and p.variant is None
     assert p.runner_up is not None and p.runner_up.class_id != p.class_id
     assert p.margin == pytest.approx(p.runner_up.distance - p.distance)
@@ -132,7 +135,8 @@ def test_a_set_written_before_heights_were_kept_still_classifies(tmp_path, fresh
     heights = fresh.sticker_points[:, :, 2] * 1e3
     for k in range(0, len(fresh), 7):
         p = classify_coordinates(
-            fresh.coordinates[k], old, fresh.visible[k], heights_mm=heights[k], past=np.zeros(16)
+            fresh.coordinates[k], old,
+            Evidence(visible=fresh.visible[k], heights_mm=heights[k], past=np.zeros(16)),
         )
         assert p.class_id == fresh.classes[k]
 
@@ -152,10 +156,10 @@ def test_height_tells_a_half_fold_from_a_strip_held_up_at_the_same_angle(shipped
         heights = np.where(rec.lifted[0], rec.sticker_points[0, :, 2] * 1e3, 0.0)
         assert abs(np.nanmax(heights) - stand) < 25
         coords = rec.hidden_coordinates()[0]
-        p = classify_coordinates(
-            coords, shipped, vis, unknown=rec.lifted[0], lifted=rec.lifted[0].astype(float),
+        p = classify_coordinates(coords, shipped, Evidence(
+            visible=vis, unknown=rec.lifted[0], lifted=rec.lifted[0].astype(float),
             heights_mm=heights, past=np.where(rec.lifted[0], 1.0, np.nan),
-        )
+        ))
         assert p.class_id == class_id
 
 
@@ -207,17 +211,19 @@ def test_reference_json_records_provenance(shipped):
 
 
 def test_reference_ranks_are_kept_per_mask_and_give_the_same_distances(fresh, shipped):
-    from dgli_vision.classifier.classify import reference_distances
-    from dgli_vision.core.distance import pairwise_spearman
+    from dgli_vision.classifier.classify import TIE_SCALE, reference_distances
+    from dgli_vision.core.distance import centred_unit_ranks, spearman_to_ranked
 
     known = np.isfinite(fresh.coordinates[3]) & (np.arange(28) % 3 != 0)
     ranked = shipped.ranked(known)
     assert shipped.ranked(known.copy()) is ranked  # ranked once per mask
     assert not ranked.flags.writeable
     coords = np.where(known, fresh.coordinates[3], np.nan)
-    spearman = pairwise_spearman(coords[known][None], shipped.matrix()[:, known])[0]
+    # the frame's near ties share their ranks (TIE_SCALE); the references' rank exactly
+    fresh_ranks = centred_unit_ranks(shipped.matrix()[:, known])
+    spearman = spearman_to_ranked(coords[known], fresh_ranks, tie_scale=TIE_SCALE)
     got = reference_distances(coords, shipped)
-    np.testing.assert_array_equal(got, spearman)  # no other term given
+    np.testing.assert_allclose(got, spearman, rtol=0, atol=1e-12)  # no other term given
 
 
 def test_loaded_references_come_with_the_tables_every_frame_reads(tmp_path, shipped):

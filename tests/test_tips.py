@@ -10,6 +10,7 @@ from dgli_vision.classifier import pipeline
 from dgli_vision.classifier.classify import (
     TIP_SLACK,
     TIP_WEIGHT,
+    Evidence,
     classify_coordinates,
     confidence_of,
     reference_terms,
@@ -116,7 +117,7 @@ def test_every_fold_clears_the_corners_it_moves_and_no_other():
 def test_references_that_leave_a_bare_corner_in_place_pay():
     refs = load_references(None)
     coords = np.asarray(LAYOUT.flat_coordinates())
-    terms = reference_terms(coords, refs, tips=np.array([1.0, np.nan, np.nan, np.nan]))
+    terms = reference_terms(coords, refs, Evidence(tips=np.array([1.0, np.nan, np.nan, np.nan])))
     by = {(r.class_id, r.variant, r.stage): t for r, t in zip(refs.references, terms.tip)}
     assert by[("01", None, "")] == pytest.approx(TIP_WEIGHT * (1.0 - TIP_SLACK))
     assert by[("02", "A", "")] == 0.0
@@ -200,10 +201,12 @@ def test_settled_stickers_do_not_count_as_unknown_for_the_confidence():
     unknown = np.zeros(16, bool)
     unknown[[1, 14, 15]] = True
     visible = ~unknown
-    loose = classify_coordinates(coords, refs, visible, unknown)
+    loose = classify_coordinates(coords, refs, Evidence(visible=visible, unknown=unknown))
     settled = np.zeros(16, bool)
     settled[[0, 1]] = True
-    firm = classify_coordinates(coords, refs, visible, unknown, settled=settled)
+    firm = classify_coordinates(
+        coords, refs, Evidence(visible=visible, unknown=unknown), settled=settled
+    )
     # the same verdict and margin; only 14 and 15 (A's other edge) stay unknown
     assert (firm.class_id, firm.variant, firm.margin) == (loose.class_id, loose.variant,
                                                           loose.margin)

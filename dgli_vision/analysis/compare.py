@@ -9,7 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from ..classifier.classify import reference_distances
+from ..classifier.classify import Evidence, batch_distances
 from ..classifier.references import ReferenceSet
 from ..core.distance import davies_bouldin, pairwise_spearman
 from ..core.errors import InvalidValueError
@@ -336,28 +336,18 @@ def analyse_sequence(records: StateRecords, references: ReferenceSet) -> Sequenc
     coords = records.hidden_coordinates()
     back = records.seen_back_faces()
     spread = records.seen_spreads_mm()
-    dist = np.array(
-        [
-            reference_distances(
-                coords[k],
-                references,
-                records.visible[k],
-                records.unknown[k],
-                np.where(
-                    records.visible[k] | records.unknown[k], records.lifted[k], np.nan
-                ),
-                np.where(  # held up out of sight: the height its flap gives it
-                    records.visible[k] | records.unknown[k],
-                    records.sticker_points[k, :, 2] * 1e3,
-                    np.nan,
-                ),
-                np.where(records.unknown[k], float(records.past_vertical[k]), np.nan),
-                back[k],
-                spread[k],
-            )
-            for k in range(len(records))
-        ]
+    told = records.visible | records.unknown
+    evidence = Evidence(
+        visible=records.visible,
+        unknown=records.unknown,
+        lifted=np.where(told, records.lifted, np.nan),
+        # held up out of sight: the height its flap gives it
+        heights_mm=np.where(told, records.sticker_points[..., 2] * 1e3, np.nan),
+        past=np.where(records.unknown, np.asarray(records.past_vertical)[:, None], np.nan),
+        back=back,
+        spread_mm=spread,
     )
+    dist = batch_distances(coords, evidence, references)
     predicted = tuple(references.references[int(np.argmin(d))].class_id for d in dist)
     smoothed = tuple(c for c, _ in smooth(dist, references)[0])
     return SequenceAnalysis(

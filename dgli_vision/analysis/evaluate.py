@@ -130,7 +130,7 @@ def _classify_pair(
         d = result.distances
         if d is None:
             obs = result.observation
-            d = reference_distances(result.coordinates, refs, **obs.classifier_evidence())
+            d = reference_distances(result.coordinates, refs, obs.classifier_evidence())
         dist = tuple(round(v, 6) for v in np.asarray(d, dtype=np.float64).tolist())
     guess = result.best_guess
     confidence = guess.confidence if guess is not None else None

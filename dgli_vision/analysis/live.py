@@ -349,7 +349,7 @@ def classify_live(
     distances: tuple[float, ...] = ()
     if guess is not None:
         obs = result.observation
-        d = reference_distances(result.coordinates, references, **obs.classifier_evidence())
+        d = reference_distances(result.coordinates, references, obs.classifier_evidence())
         distances = tuple(round(float(v), 6) for v in d)
     p = result.prediction
     state = (p.class_id, p.variant) if p is not None else None

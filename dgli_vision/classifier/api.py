@@ -91,9 +91,12 @@ def classify_pair(
     Prediction
         The nearest state with its ``confidence``. Below
         :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` (0.25), or when a check
-        of the frame fails, the command line says "cannot tell": a robot should treat
-        such an answer the same way; ``reason`` then says why (``why``: its kind), and is
-        None otherwise. ``stickers`` lists the stickers found, hidden by cloth and
+        of the frame fails, the command line says "cannot tell", and so does this: its
+        ``class_id``, ``name`` and ``variant`` are then None (``"class": null`` in
+        ``--json``), ``reason`` says why (``why``: its kind) and ``candidates`` keeps the
+        nearest states; ``reason`` is None otherwise. A colour array that reads with its
+        red and blue channels swapped gets the reason "colour channels swapped (BGR?)"
+        (kind ``colour channels``). ``stickers`` lists the stickers found, hidden by cloth and
         unknown (with why).
 
     Raises
@@ -103,42 +106,77 @@ def classify_pair(
         problem), or too few stickers seen to rank the references
         (:class:`~dgli_vision.core.errors.DetectionError`).
     """
-    from .pipeline import classify_frame
+    from .pipeline import WHY_KINDS, classify_frame
 
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)
     colours = _check_colours(colours)
     result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
-    told = result.prediction is None
-    hint = _bgr_hint(color, frame, refs, colours) if told else ""
+    swapped = _bgr_reading(color, frame, refs, colours, result)
+    if swapped is not None:
+        reason = (
+            f"cannot tell: colour channels swapped (BGR?): with red and blue swapped it "
+            f"reads as {swapped.class_id} {swapped.name} at confidence "
+            f"{swapped.confidence:.2f}; is the colour array BGR, as OpenCV reads images? "
+            "classify_pair takes RGB (pass color[..., ::-1])"
+        )
+        if result.best_guess is None:
+            raise DetectionError(f"{frame.color_path}: {reason}; as given: {result.reason}")
+        # the reading as given means nothing: no confidence in it
+        guess = replace(result.best_guess, confidence=0.0)
+        result = replace(
+            result, prediction=None, best_guess=guess, reason=reason, why=WHY_KINDS[4]
+        )
     if result.best_guess is None:
-        raise DetectionError(f"{frame.color_path}: {result.reason}{hint}")
-    return replace(
+        raise DetectionError(f"{frame.color_path}: {result.reason}")
+    told = result.prediction is None
+    p = replace(
         result.best_guess,
-        reason=f"{result.reason}{hint}" if told else None,
+        reason=result.reason if told else None,
         why=result.why if told else None,
         stickers=_sticker_ids(result),
+        candidates=result.candidates,
     )
+    if told:  # the nearest states stay in candidates; no class contradicts the reason
+        p = replace(p, class_id=None, name=None, variant=None)
+    return p
 
 
-def _bgr_hint(color: object, frame: RGBDFrame, refs: ReferenceSet, colours: object) -> str:
-    """When a colour array that gave no class gives one with its red and blue channels
-    swapped: a note that it is likely BGR (OpenCV's order); else nothing."""
+#: Stickers whose disc is yellow (corner B): with red and blue swapped a yellow disc
+#: turns cyan, which is no sticker's colour, so a BGR array shows none of them.
+_YELLOW = (2, 3, 4, 5)
+
+
+def _bgr_reading(
+    color: object, frame: RGBDFrame, refs: ReferenceSet, colours: object, result: object
+) -> Prediction | None:
+    """The verdict of a colour array read with its red and blue channels swapped, when
+    the stickers' palette fits the swapped channels better (a BGR array, as OpenCV reads
+    images); else None.
+
+    Looked at when the array gave no class, or when it shows no yellow sticker (a BGR
+    array never does): the swapped reading must give a class and find more stickers
+    (as many, when the array gave no class) at a confidence at least as high.
+    """
     from .pipeline import classify_frame
 
     if not isinstance(color, np.ndarray) or color.ndim != 3 or color.shape[2] != 3:
-        return ""
+        return None
+    found = result.detections.found  # type: ignore[attr-defined]
+    given = result.prediction  # type: ignore[attr-defined]
+    if given is not None and found[list(_YELLOW)].any():
+        return None
     swapped = replace(frame, color=np.ascontiguousarray(frame.color[..., ::-1]))
     try:
         again = classify_frame(swapped, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
     except DgliError:
-        return ""
-    if again.prediction is None:
-        return ""
-    return (
-        f"; with red and blue swapped it reads as {again.prediction.class_id}: is the colour "
-        "array BGR, as OpenCV reads images? classify_pair takes RGB (pass color[..., ::-1])"
-    )
+        return None
+    more = int(again.detections.found.sum()) - int(found.sum())
+    if again.prediction is None or more < (0 if given is None else 1):
+        return None
+    if given is not None and again.prediction.confidence < given.confidence:
+        return None
+    return again.prediction
 
 
 def _sticker_ids(result: object) -> StickerIds:

@@ -20,10 +20,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from ..core.classes import LIFTED_MM
-from ..core.dgli import pair_indices
-from ..core.distance import spearman_to_ranked
+from ..core.distance import soft_centred_unit_ranks
 from ..core.errors import DetectionError, InvalidValueError
 from .affordances import CornerMap
+from .evidence import Evidence
 from .references import ReferenceSet
 
 if TYPE_CHECKING:
@@ -38,11 +38,19 @@ __all__ = [
     "MIN_CONFIDENCE",
     "MIN_COORDINATES",
     "PAST_WEIGHT",
+    "TIE_SCALE",
     "VISIBILITY_WEIGHT",
+    "DistanceTerms",
+    "Evidence",
     "Prediction",
     "RunnerUp",
+    "batch_distances",
     "classify_coordinates",
     "confidence_of",
+    "coordinate_distances",
+    "evidence_terms",
+    "reference_distances",
+    "reference_terms",
 ]
 
 #: Fewer known coordinates than this (3 complete segments give 3) cannot be ranked.
@@ -106,6 +114,12 @@ HEIGHT_SCALE_MM = 50.0
 #: (``dgli robustness``) right answers have a median margin near 0.3; the wrong ones
 #: that remain come with margins below 0.04.
 FULL_MARGIN = 0.2
+#: Near ties among a frame's coordinates share their ranks over this fraction of the
+#: coordinates' range (:func:`~dgli_vision.core.distance.soft_centred_unit_ranks`): a
+#: millimetre of depth noise moves a coordinate by about 0.2% of the range, and two
+#: nearly equal coordinates then swap ranks, which with six coordinates known moved the
+#: Spearman distance by 0.057 and the confidence by up to 0.3 at once.
+TIE_SCALE = 0.005
 #: Below this confidence the answer is "cannot tell" (exit 1): a wrong answer is far
 #: worse for a robot than none. 0.25 asks for a margin of 0.05 with every sticker's
 #: state known (the closest right answers, two crossing flaps against two that do not
@@ -151,10 +165,12 @@ class Prediction:
 
     Attributes
     ----------
-    class_id, name : str
-        ``"02"``, ``"corner-over"``.
+    class_id, name : str or None
+        ``"02"``, ``"corner-over"``. None for a "cannot tell" that
+        :func:`~dgli_vision.classifier.api.classify_pair` returns (``reason`` says why,
+        ``candidates`` keeps the nearest states), as ``"class": null`` in ``--json``.
     variant : str or None
-        SPEC's variant string.
+        SPEC's variant string (None with ``class_id`` None).
     distance : float
         Distance to the winning reference (Spearman + visibility term).
     runner_up : RunnerUp or None
@@ -177,10 +193,14 @@ class Prediction:
         computed.
     folds : tuple of SeenFold
         The folds of the verdict as lines on the table.
+    candidates : tuple of (str, str or None, float)
+        The nearest state of each of the three nearest classes, as (class, variant,
+        distance), nearest first (``classify_pair`` fills it; ``"candidates"`` in
+        ``--json``).
     """
 
-    class_id: str
-    name: str
+    class_id: str | None
+    name: str | None
     variant: str | None
     distance: float
     runner_up: RunnerUp | None
@@ -191,6 +211,7 @@ class Prediction:
     stickers: StickerIds | None = None
     corners: CornerMap = field(default_factory=CornerMap)
     folds: tuple[SeenFold, ...] = ()
+    candidates: tuple[tuple[str, str | None, float], ...] = ()
 
 
 def confidence_of(
@@ -236,16 +257,7 @@ def _n_segments(n_coordinates: int) -> int:
 
 
 def reference_distances(
-    coords: ArrayLike,
-    references: ReferenceSet,
-    visible: ArrayLike | None = None,
-    unknown: ArrayLike | None = None,
-    lifted: ArrayLike | None = None,
-    heights_mm: ArrayLike | None = None,
-    past: ArrayLike | None = None,
-    back: ArrayLike | None = None,
-    spread_mm: ArrayLike | None = None,
-    tips: ArrayLike | None = None,
+    coords: ArrayLike, references: ReferenceSet, evidence: Evidence | None = None
 ) -> NDArray[np.float64]:
     """Distance of one observation to every reference, shape (k,).
 
@@ -254,40 +266,19 @@ def reference_distances(
     coords : array_like, shape (28,)
         dGLI coordinates, NaN where unknown.
     references : ReferenceSet
-    visible : array_like of bool, shape (16,), optional
-        Which stickers were seen.
-    unknown : array_like of bool, shape (16,), optional
-        Stickers not seen for a reason other than cloth on top (out of view, under an
-        object, in a highlight): no evidence either way, left out of the visibility term.
-    lifted : array_like of float, shape (16,), optional
-        1 for a sticker standing more than :data:`LIFTED_MM` above the table, 0 for one
-        lying on it, NaN where that is not known: compared with the references' rates
-        (:data:`LIFTED_WEIGHT`).
-    heights_mm : array_like of float, shape (16,), optional
-        Height of each sticker seen above the table, mm, NaN where not seen: compared
-        with the references' ranges of heights (:data:`HEIGHT_WEIGHT`).
-    past : array_like of float, shape (16,), optional
-        For stickers on a flap held up: 1 where it has turned past 90 degrees, 0 where
-        not, NaN where not measured (:data:`PAST_WEIGHT`).
-    back : array_like of float, shape (4,), optional
-        For each corner A-D: 1 where its stickers show the back face, 0 the front, NaN
-        where they do not tell (:data:`FACE_WEIGHT`; references without back-face
-        rates are not judged on it).
-    spread_mm : array_like of float, shape (120,), optional
-        3D distance between the stickers of each pair (``references.sticker_pairs``),
-        mm, NaN where either was not seen (:data:`SPREAD_WEIGHT`).
-    tips : array_like of float, shape (4,), optional
-        For each corner A-D, the share of its tip's flat place seen bare table, NaN where
-        not told (:data:`TIP_WEIGHT`).
+    evidence : Evidence, optional
+        What else was seen of the frame (:class:`~dgli_vision.classifier.evidence.Evidence`,
+        arrays of one frame): each term it gives is weighed (:data:`VISIBILITY_WEIGHT`,
+        :data:`LIFTED_WEIGHT`, :data:`HEIGHT_WEIGHT`, :data:`PAST_WEIGHT`,
+        :data:`FACE_WEIGHT`, :data:`SPREAD_WEIGHT`, :data:`TIP_WEIGHT`); where it gives
+        ``visible``, coordinates of segments with an unseen sticker are not used.
 
     Raises
     ------
     DetectionError
         With fewer than :data:`MIN_COORDINATES` known coordinates.
     """
-    return reference_terms(
-        coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm, tips
-    ).total()
+    return reference_terms(coords, references, evidence).total()
 
 
 @dataclass(frozen=True)
@@ -319,89 +310,162 @@ class DistanceTerms:
         face, back = self.face, self.back
         if back is not None and self.back_rates is not None:
             back = 1.0 - back
-            face = _face_gap(back, self.back_rates)
+            face = _face_gap(back[None], self.back_rates)[0]
         dgli = np.clip(2.0 - self.dgli, 0.0, 2.0)
         return DistanceTerms(dgli, self.evidence, face, back, self.back_rates)
 
 
 def reference_terms(
-    coords: ArrayLike,
-    references: ReferenceSet,
-    visible: ArrayLike | None = None,
-    unknown: ArrayLike | None = None,
-    lifted: ArrayLike | None = None,
-    heights_mm: ArrayLike | None = None,
-    past: ArrayLike | None = None,
-    back: ArrayLike | None = None,
-    spread_mm: ArrayLike | None = None,
-    tips: ArrayLike | None = None,
+    coords: ArrayLike, references: ReferenceSet, evidence: Evidence | None = None
 ) -> DistanceTerms:
     """:func:`reference_distances` in its parts (same arguments, same errors)."""
+    ev = evidence if evidence is not None else Evidence()
     x = np.asarray(coords, dtype=np.float64)
     ref = references.matrix()
     if x.shape != (ref.shape[1],):
         raise InvalidValueError(f"coords must have shape ({ref.shape[1]},), got {x.shape}")
-    known = ~np.isnan(x)
-    if visible is not None:
-        vis = np.asarray(visible, dtype=bool)
-        if vis.shape != (2 * _n_segments(len(x)),):
-            raise InvalidValueError(
-                f"visible must have shape ({2 * _n_segments(len(x))},), got {vis.shape}"
-            )
-        seen_segment = vis.reshape(-1, 2).all(axis=1)
-        i, j = pair_indices(len(seen_segment))
-        known &= seen_segment[i] & seen_segment[j]
+    n_stickers = 2 * _n_segments(len(x))
+    if ev.visible is not None and np.shape(ev.visible) != (n_stickers,):
+        raise InvalidValueError(
+            f"visible must have shape ({n_stickers},), got {np.shape(ev.visible)}"
+        )
+    known = ev.known_coordinates(x)
     if known.sum() < MIN_COORDINATES:
         raise DetectionError(
             f"only {int(known.sum())} of {len(x)} cloth coordinates are known; "
             f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
-    dgli = spearman_to_ranked(x[known], references.ranked(known))
-    dist = np.zeros_like(dgli)
-    if visible is not None:
-        rates = references.visible_rates()
-        use = np.ones(len(vis), dtype=bool)
-        if unknown is not None:
-            use &= ~np.asarray(unknown, dtype=bool)
-        if use.any():
-            gap = np.abs(vis[None, use] - rates[:, use]).mean(axis=1)
-            dist = dist + VISIBILITY_WEIGHT * gap
-    if lifted is not None:
-        dist = dist + LIFTED_WEIGHT * _rate_gap(lifted, references.lifted_rates())
-    if heights_mm is not None:
-        dist = dist + HEIGHT_WEIGHT * _height_gap(heights_mm, references.height_bounds())
-    if past is not None:
-        dist = dist + PAST_WEIGHT * _rate_gap(past, references.past_rates())
-    face, back_x = np.zeros_like(dgli), None
-    if back is not None:
-        back_x = np.asarray(back, dtype=np.float64)
-        face = _face_gap(back_x, references.back_rates())
-    if spread_mm is not None:
-        dist = dist + SPREAD_WEIGHT * _spread_gap(spread_mm, references.spread_bounds())
-    tip = None if tips is None else TIP_WEIGHT * _tip_gap(tips, references)
+    dgli = coordinate_distances(x[None], known[None], references)[0]
+    rest, face, tip = evidence_terms(ev.stacked(), references)
+    back = None if ev.back is None else np.asarray(ev.back, dtype=np.float64)
     rates = references.back_rates() if back is not None else None
-    return DistanceTerms(dgli, dist, face, back_x, rates, tip)
+    return DistanceTerms(dgli, rest[0], face[0], back, rates, None if tip is None else tip[0])
 
 
-def _tip_gap(tips: ArrayLike, references: ReferenceSet) -> NDArray[np.float64]:
-    """How much more of the corners' tip places shows bare table than each reference
-    leaves bare, beyond :data:`TIP_SLACK`, summed over the corners told, shape (k,)."""
-    t = np.asarray(tips, dtype=np.float64)
-    told = np.isfinite(t)
-    if not told.any():
-        return np.zeros(len(references.references))
-    over = t[told][None, :] - references.tip_clear()[:, told] - TIP_SLACK
-    return np.clip(over, 0.0, None).sum(axis=1)
+def coordinate_distances(
+    coords: NDArray[np.float64], known: NDArray[np.bool_], references: ReferenceSet
+) -> NDArray[np.float64]:
+    """Spearman distance of n frames' coordinates to every reference, over each frame's
+    known coordinates (ranked softly, :data:`TIE_SCALE`), shape (n, k); a row of NaN
+    where a frame has fewer than :data:`MIN_COORDINATES` known.
+
+    Parameters
+    ----------
+    coords : ndarray, shape (n, 28)
+    known : ndarray of bool, shape (n, 28)
+        The coordinates to compare on (:meth:`.Evidence.known_coordinates`).
+    references : ReferenceSet
+    """
+    out = np.full((len(coords), len(references.references)), np.nan)
+    ok = known.sum(axis=1) >= MIN_COORDINATES
+    if not ok.any():
+        return out
+    rows = np.flatnonzero(ok)
+    if len(rows) == 1:  # one frame (the camera's): no grouping to do
+        masks, group = known[rows], np.zeros(1, dtype=np.intp)
+    else:
+        masks, group = np.unique(known[ok], axis=0, return_inverse=True)
+    for g, mask in enumerate(masks):
+        sel = rows[group.ravel() == g]
+        ranks = soft_centred_unit_ranks(coords[sel][:, mask], TIE_SCALE)
+        out[sel] = np.clip(1.0 - ranks @ references.ranked(mask).T, 0.0, 2.0)
+    return out
+
+
+def evidence_terms(
+    evidence: Evidence, references: ReferenceSet
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+    """The evidence terms of n frames (``evidence`` stacked, :meth:`.Evidence.stacked`)
+    against every reference: the weighted sum of all but the corners' faces and tips,
+    the faces' mean disagreement (unweighted; zeros without ``back``), and the weighted
+    tip term (None without ``tips``), each of shape (n, k)."""
+    ev = evidence
+    k = len(references.references)
+    n = next((len(v) for v in vars(ev).values() if v is not None), 1)
+    rest = np.zeros((n, k))
+    if ev.visible is not None:
+        rest += VISIBILITY_WEIGHT * _visibility_gap(
+            ev.visible, ev.unknown, references.visible_rates()
+        )
+    if ev.lifted is not None:
+        rest += LIFTED_WEIGHT * _rate_gap(ev.lifted, references.lifted_rates())
+    if ev.heights_mm is not None:
+        rest += HEIGHT_WEIGHT * _height_gap(ev.heights_mm, references.height_bounds())
+    if ev.past is not None:
+        rest += PAST_WEIGHT * _rate_gap(ev.past, references.past_rates())
+    if ev.spread_mm is not None:
+        rest += SPREAD_WEIGHT * _spread_gap(ev.spread_mm, references.spread_bounds())
+    face = np.zeros((n, k))
+    if ev.back is not None:
+        face = _face_gap(ev.back, references.back_rates())
+    tip = None if ev.tips is None else TIP_WEIGHT * _tip_gap(ev.tips, references.tip_clear())
+    return rest, face, tip
+
+
+def batch_distances(
+    coords: NDArray[np.float64], evidence: Evidence, references: ReferenceSet
+) -> NDArray[np.float64]:
+    """:func:`reference_distances` of n frames at once, shape (n, k): the same terms,
+    computed by the same functions; a row of NaN where a frame has fewer than
+    :data:`MIN_COORDINATES` known coordinates (where the single frame raises).
+
+    Parameters
+    ----------
+    coords : ndarray, shape (n, 28)
+    evidence : Evidence
+        Of the n frames, stacked (a leading axis n on each array).
+    references : ReferenceSet
+    """
+    x = np.asarray(coords, dtype=np.float64)
+    out = coordinate_distances(x, evidence.known_coordinates(x), references)
+    rest, face, tip = evidence_terms(evidence, references)
+    out += rest + FACE_WEIGHT * face
+    return out if tip is None else out + tip
+
+
+def _mean_over(told: NDArray[np.bool_], gap: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean of ``gap`` (n, k, s) over the entries told (n, s); 0 where none is."""
+    g = np.where(told[:, None, :], gap, 0.0).sum(axis=2)
+    return g / np.maximum(told.sum(axis=1), 1)[:, None]
+
+
+def _zeroed(x: NDArray[np.float64]) -> NDArray[np.float64]:
+    """``x`` with 0 where it is not finite (what ``np.nan_to_num`` does with NaN, at a
+    fraction of its overhead on short arrays)."""
+    return np.where(np.isfinite(x), x, 0.0)
+
+
+def _told_columns(told: NDArray[np.bool_]) -> NDArray[np.intp]:
+    """The columns told in some frame: the terms are computed on them alone (a camera
+    frame tells a few of the 120 sticker pairs)."""
+    return np.flatnonzero(told.any(axis=0))
+
+
+def _visibility_gap(
+    visible: ArrayLike, unknown: ArrayLike | None, rates: NDArray[np.float64]
+) -> NDArray[np.float64]:
+    """Mean ``|seen - rate|`` over the stickers that are not unknown, (n, k)."""
+    vis = np.asarray(visible, dtype=bool)
+    use = np.ones_like(vis) if unknown is None else ~np.asarray(unknown, dtype=bool)
+    return _mean_over(use, np.abs(vis[:, None, :] - rates[None]))
 
 
 def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Mean ``|observed - rate|`` over the stickers told (finite), for each reference
-    (``rates`` shape (k, 16)); 0 when none is told."""
+    """Mean ``|observed - rate|`` over the stickers told (finite), (n, k) for ``rates``
+    of shape (k, 16); 0 where none is told."""
     x = np.asarray(observed, dtype=np.float64)
-    told = np.isfinite(x)
-    if not told.any():
-        return np.zeros(len(rates))
-    return np.abs(x[None, told] - rates[:, told]).mean(axis=1)
+    cols = _told_columns(np.isfinite(x))
+    x = x[:, cols]
+    return _mean_over(np.isfinite(x), np.abs(_zeroed(x)[:, None, :] - rates[None, :, cols]))
+
+
+def _tip_gap(tips: ArrayLike, clear: NDArray[np.float64]) -> NDArray[np.float64]:
+    """How much more of the corners' tip places shows bare table than each reference
+    leaves bare (``clear``, (k, 4)), beyond :data:`TIP_SLACK`, summed over the corners
+    told, (n, k)."""
+    t = np.asarray(tips, dtype=np.float64)
+    over = np.clip(_zeroed(t)[:, None, :] - clear[None] - TIP_SLACK, 0.0, None)
+    return np.where(np.isfinite(t)[:, None, :], over, 0.0).sum(axis=2)
 
 
 def _spread_gap(
@@ -409,42 +473,32 @@ def _spread_gap(
     bounds: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]],
 ) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the observed sticker-pair distances with each
-    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`); 0 where none is
-    known, or where some reference keeps no range of a pair told."""
+    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`), (n, k); 0 for a
+    frame where none is known, or where some reference keeps no range of a pair told."""
     lo, hi, kept = bounds
     d = np.asarray(spread_mm, dtype=np.float64)
     told = np.isfinite(d)
-    if told.all():  # every pair seen: the ranges as they are, no copy
-        if not kept.all():
-            return np.zeros(len(lo))
-        x = d
-        outside = np.subtract(lo, x)
-        other = np.subtract(x, hi)
-    else:
-        idx = np.flatnonzero(told)
-        if not len(idx) or not kept[idx].all():
-            return np.zeros(len(lo))
-        x = d[idx]
-        outside = lo.take(idx, axis=1)
-        outside -= x
-        other = hi.take(idx, axis=1)
-        np.subtract(x, other, out=other)
-    np.maximum(outside, other, out=outside)  # max(lo - x, x - hi)
-    outside -= SPREAD_SLACK_MM
-    outside /= SPREAD_SCALE_MM
-    return np.clip(outside, 0.0, 1.0, out=outside).mean(axis=1)
+    usable = told.any(axis=1) & ~(told & ~kept[None]).any(axis=1)
+    out = np.zeros((len(d), len(lo)))
+    if not usable.any():
+        return out
+    cols = _told_columns(told[usable])
+    sub, x = told[usable][:, cols], d[usable][:, None, cols]
+    gap = np.maximum(lo[None, :, cols] - x, x - hi[None, :, cols])  # NaN where not told
+    gap -= SPREAD_SLACK_MM
+    gap /= SPREAD_SCALE_MM
+    np.clip(gap, 0.0, 1.0, out=gap)
+    out[usable] = _mean_over(sub, gap)
+    return out
 
 
 def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean ``|back - rate|`` over the corners told both in the observation and in each
-    reference (``rates`` shape (k, 4), NaN where not told); 0 when none is."""
+    reference (``rates`` shape (k, 4), NaN where not told), (n, k); 0 where none is."""
     x = np.asarray(back, dtype=np.float64)
-    cols = np.flatnonzero(np.isfinite(x))  # the corners the observation tells
-    r = rates[:, cols]
-    both = np.isfinite(r)
-    diff = np.abs(x[cols] - r)
-    diff[~both] = 0.0
-    return diff.sum(axis=1) / np.maximum(both.sum(axis=1), 1)
+    both = np.isfinite(x)[:, None, :] & np.isfinite(rates)[None]
+    diff = np.abs(_zeroed(x)[:, None, :] - _zeroed(rates)[None])
+    return np.where(both, diff, 0.0).sum(axis=2) / np.maximum(both.sum(axis=2), 1)
 
 
 def _height_gap(
@@ -452,35 +506,23 @@ def _height_gap(
     bounds: tuple[NDArray[np.float64], NDArray[np.float64], bool],
 ) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the stickers' heights with each reference's ranges
-    (``bounds``: :meth:`.ReferenceSet.height_bounds`); 0 where a reference keeps no
-    ranges."""
-    lo_all, hi_all, all_kept = bounds
+    (``bounds``: :meth:`.ReferenceSet.height_bounds`), (n, k); 0 where a reference keeps
+    no range."""
+    lo, hi, _ = bounds
     h = np.asarray(heights_mm, dtype=np.float64)
-    told = np.isfinite(h)
-    if not told.any():
-        return np.zeros(len(lo_all))
-    x = h[told]
-    gap = np.subtract(lo_all[:, told], x)  # max(lo - h, h - hi), in place
-    np.maximum(gap, np.subtract(x, hi_all[:, told]), out=gap)
+    cols = _told_columns(np.isfinite(h))
+    x = h[:, None, cols]
+    gap = np.maximum(lo[None, :, cols] - x, x - hi[None, :, cols])
     gap -= HEIGHT_SLACK_MM
     gap /= HEIGHT_SCALE_MM
     np.clip(gap, 0.0, 1.0, out=gap)
-    if not all_kept:
-        gap[~np.isfinite(gap)] = 0.0
-    return gap.mean(axis=1)
+    return _mean_over(np.isfinite(h[:, cols]), np.where(np.isfinite(gap), gap, 0.0))
 
 
 def classify_coordinates(
     coords: ArrayLike,
     references: ReferenceSet,
-    visible: ArrayLike | None = None,
-    unknown: ArrayLike | None = None,
-    lifted: ArrayLike | None = None,
-    heights_mm: ArrayLike | None = None,
-    past: ArrayLike | None = None,
-    back: ArrayLike | None = None,
-    spread_mm: ArrayLike | None = None,
-    tips: ArrayLike | None = None,
+    evidence: Evidence | None = None,
     *,
     distances: ArrayLike | None = None,
     unsure: ArrayLike | None = None,
@@ -493,40 +535,27 @@ def classify_coordinates(
     coords : array_like, shape (28,)
         dGLI coordinates, NaN where a segment is missing.
     references : ReferenceSet
-    visible : array_like of bool, shape (16,), optional
-        Which stickers were seen (SPEC order); improves the verdict when given.
-    unknown : array_like of bool, shape (16,), optional
-        Stickers that are neither seen nor evidence of a fold.
-    lifted : array_like of float, shape (16,), optional
-        1 where a sticker stands above the table, 0 where it lies on it, NaN where not
-        known (see :func:`reference_distances`).
-    heights_mm : array_like of float, shape (16,), optional
-        Heights of the stickers seen, mm (see :func:`reference_distances`).
-    past : array_like of float, shape (16,), optional
-        Whether the flap a sticker held up is on has turned past 90 degrees (see
-        :func:`reference_distances`). A sticker whose flap's lean was measured counts as
-        known for the confidence: it is on that flap, standing.
-    back : array_like of float, shape (4,), optional
-        Which face each corner shows (see :func:`reference_distances`).
-    spread_mm : array_like of float, shape (120,), optional
-        Distances between the stickers seen (see :func:`reference_distances`).
-    tips : array_like of float, shape (4,), optional
-        The corners' tip places seen bare (see :func:`reference_distances`).
+    evidence : Evidence, optional
+        What else was seen (see :func:`reference_distances`). Its ``unknown`` stickers
+        lower the confidence; one whose flap's lean was measured (``past`` finite)
+        counts as known: it is on that flap, standing.
     distances : array_like, shape (k,), keyword-only, optional
         :func:`reference_distances` of these arguments, when already computed.
     unsure : array_like of bool, shape (16,), keyword-only, optional
         Stickers that count as unknown for the confidence whatever else is told of them
         (held up where an object may cover them: the edge of an object over the napkin
         reads as raised cloth too).
+    settled : array_like of bool, shape (16,), keyword-only, optional
+        Stickers that count as known for the confidence (an object hides them beside a
+        partner lying at its flat place).
 
     Returns
     -------
     Prediction
     """
+    ev = evidence if evidence is not None else Evidence()
     if distances is None:
-        dist = reference_distances(
-            coords, references, visible, unknown, lifted, heights_mm, past, back, spread_mm, tips
-        )
+        dist = reference_distances(coords, references, ev)
     else:
         dist = np.asarray(distances, dtype=np.float64)
     order = np.argsort(dist, kind="stable")
@@ -541,20 +570,16 @@ def classify_coordinates(
     d = float(dist[order[0]])
     margin = (runner.distance - d) if runner else float("inf")
     n_unknown = 0
-    if unknown is not None:
-        still = np.asarray(unknown, dtype=bool)
-        if past is not None:
-            still = still & ~np.isfinite(np.asarray(past, dtype=np.float64))
+    if ev.unknown is not None:
+        still = np.asarray(ev.unknown, dtype=bool)
+        if ev.past is not None:
+            still = still & ~np.isfinite(np.asarray(ev.past, dtype=np.float64))
         if unsure is not None:
             still = still | np.asarray(unsure, dtype=bool)
         if settled is not None:
             still = still & ~np.asarray(settled, dtype=bool)
         n_unknown = int(still.sum())
     x = np.asarray(coords, dtype=np.float64)
-    n_known = int(np.isfinite(x).sum())
-    if visible is not None:  # coordinates of segments with an unseen sticker are not used
-        seen_segment = np.asarray(visible, dtype=bool).reshape(-1, 2).all(axis=1)
-        i, j = pair_indices(len(seen_segment))
-        n_known = int((np.isfinite(x) & seen_segment[i] & seen_segment[j]).sum())
+    n_known = int(ev.known_coordinates(x).sum())
     confidence = confidence_of(margin, n_unknown, 2 * _n_segments(len(x)), n_known)
     return Prediction(best.class_id, best.name, best.variant, d, runner, margin, confidence)

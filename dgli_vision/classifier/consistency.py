@@ -24,6 +24,7 @@ napkin looks the same under both): it says what it saw and how to fix it.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,21 +34,26 @@ from ..core.layout import NapkinLayout
 from ..perception.detect import StickerDetections
 from ..perception.footprint import Footprint
 from ..perception.scale import NapkinRuler
-from .classify import DistanceTerms, reference_terms
+from .classify import MIN_CONFIDENCE, DistanceTerms, Evidence, reference_terms
 from .references import ReferenceSet
 
 __all__ = [
     "CLEAR_MARGIN",
     "FOOTPRINT_EXCESS",
     "FOOTPRINT_SCALE",
+    "FOOTPRINT_SHIFT",
     "FOOTPRINT_SLACK",
     "GOOD_FIT",
     "MIRROR_MARGIN",
+    "MIRROR_TWINS",
+    "MIRROR_TWIN_CONFIDENCE",
     "RIGIDITY_TOLERANCE",
     "SCALE_TOLERANCE",
     "UNITS_TOLERANCE",
+    "Doubt",
     "depth_range_hint",
     "depth_scale_hint",
+    "doubt_factor",
     "footprint_penalty",
     "footprint_problem",
     "mirror_problem",
@@ -81,6 +87,64 @@ FOOTPRINT_SLACK = 0.05
 FOOTPRINT_EXCESS = 0.1
 #: Footprint disagreement beyond the slack that counts in full (one distance unit).
 FOOTPRINT_SCALE = 0.1
+#: How far (distance units) the footprint moves the mirror check's margin when it fits
+#: one reading's best reference and rules out the other's: twice :data:`CLEAR_MARGIN`,
+#: so a footprint that clearly speaks for a reading decides a doubt the stickers leave.
+FOOTPRINT_SHIFT = 0.2
+
+#: The states that a napkin lying back face up, seen by a camera that mirrors its image,
+#: shows exactly: two mirrors cancel in the corners' order, and a fold over turned over
+#: lies under. A corner folded over (02) so shows what a corner folded under (03) does,
+#: a strip over (09) what a strip under (10) does, and the other way round; two corners
+#: of one edge folded over and crossing (05) turned over read as a strip under too. The
+#: stickers are the same on both faces, so nothing in one frame tells these apart.
+MIRROR_TWINS: dict[str, tuple[str, ...]] = {
+    "02": ("03",), "03": ("02",), "09": ("10",), "10": ("09", "05"),
+}
+#: The highest confidence a state of :data:`MIRROR_TWINS` is given: answered, but never
+#: confidently (0.5 and more), since a napkin back face up under a mirroring camera in
+#: its twin state looks the same.
+MIRROR_TWIN_CONFIDENCE = 0.45
+
+
+@dataclass(frozen=True)
+class Doubt:
+    """A check's say on a verdict.
+
+    Attributes
+    ----------
+    factor : float
+        In [0, 1], on the verdict's confidence: continuous in what the check measures
+        (:func:`doubt_factor`), so a tiny change of the input never moves the
+        confidence from 1 to 0.
+    reason : str or None
+        Why the check rules the verdict out ("cannot tell"), or None. Where it is given,
+        ``factor`` is at most :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE`.
+    """
+
+    factor: float = 1.0
+    reason: str | None = None
+
+
+def doubt_factor(x: float, ruled_out_below: float, clear_above: float, zero_below: float) -> float:
+    """A confidence factor that is continuous in a check's measure ``x`` (larger is
+    better): 1 from ``clear_above`` up, falling linearly to
+    :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` at ``ruled_out_below`` (where
+    the check starts to rule the verdict out), and on to 0 at ``zero_below``.
+
+    Parameters
+    ----------
+    x : float
+    ruled_out_below, clear_above, zero_below : float
+        ``zero_below < ruled_out_below < clear_above``.
+    """
+    if not np.isfinite(x):
+        return 1.0
+    if x >= ruled_out_below:
+        t = (x - ruled_out_below) / (clear_above - ruled_out_below)
+        return float(MIN_CONFIDENCE + (1.0 - MIN_CONFIDENCE) * min(t, 1.0))
+    t = (x - zero_below) / (ruled_out_below - zero_below)
+    return float(MIN_CONFIDENCE * max(t, 0.0))
 
 
 def scale_problem(
@@ -290,14 +354,16 @@ def footprint_problem(
     references: ReferenceSet,
     front: NDArray[np.float64],
     napkin_area_mm2: float,
-) -> str | None:
-    """The reason the cloth covers too much table for the verdict, or None.
+) -> Doubt:
+    """Whether the cloth covers too much table for the verdict.
 
     A shadow or an object can hide cloth from the footprint, but nothing adds cloth to
     it: a napkin that covers more of the table than every reference nearly as near as
     the best allows (by more than :data:`FOOTPRINT_EXCESS`) is not in that state. (A
     napkin lying back face up with two corners tucked under shows the stickers of a
-    half fold, on three quarters of its area.)
+    half fold, on three quarters of its area.) The factor falls from 1 at an excess of
+    ``FOOTPRINT_EXCESS - FOOTPRINT_SLACK`` to ``MIN_CONFIDENCE`` at ``FOOTPRINT_EXCESS``
+    and to 0 a slack beyond it.
 
     Parameters
     ----------
@@ -308,18 +374,25 @@ def footprint_problem(
     napkin_area_mm2 : float
     """
     if footprint is None:
-        return None
+        return Doubt()
     ranges = references.footprint_ranges()
     near = np.flatnonzero(front <= front.min() + MIRROR_MARGIN)
     lo = footprint.fraction(napkin_area_mm2)[0]
     excess = lo - ranges[near, 1]
-    if not np.isfinite(excess).all() or excess.min() <= FOOTPRINT_EXCESS:
-        return None
+    if not np.isfinite(excess).all():
+        return Doubt()
+    worst = float(excess.min())
+    factor = doubt_factor(
+        -worst, -FOOTPRINT_EXCESS, -(FOOTPRINT_EXCESS - FOOTPRINT_SLACK),
+        -(FOOTPRINT_EXCESS + FOOTPRINT_SLACK),
+    )
+    if worst <= FOOTPRINT_EXCESS:
+        return Doubt(factor)
     k = int(near[np.argmin(front[near])])
-    return (
+    return Doubt(factor, (
         f"the napkin covers {100 * lo:.0f}% of its area, more than "
         f"{_describe(references, k)} can ({100 * ranges[k, 1]:.0f}% at most)"
-    )
+    ))
 
 
 def footprint_penalty(
@@ -345,25 +418,31 @@ def _describe(references: ReferenceSet, k: int) -> str:
 def mirror_problem(
     coords: NDArray[np.float64],
     references: ReferenceSet,
-    evidence: dict[str, NDArray | None],
+    evidence: Evidence,
     footprint: Footprint | None,
     napkin_area_mm2: float,
     *,
     front: NDArray[np.float64] | None = None,
     terms: DistanceTerms | None = None,
-) -> str | None:
-    """The reason the observation may be a mirrored napkin, or None when it is not.
+) -> Doubt:
+    """Whether the observation may be a mirrored napkin.
+
+    The measure is how much better the front-up reading fits than the mirrored one
+    (``better``, distance units), moved by the footprint by up to
+    :data:`FOOTPRINT_SHIFT` towards the reading whose best reference it fits while it
+    rules out the other's (and, towards the front-up reading, only where that fits well,
+    within :data:`GOOD_FIT`). At or above :data:`CLEAR_MARGIN` there is no doubt; below
+    :data:`MIRROR_MARGIN` the answer is "cannot tell"; the factor on the confidence is
+    continuous in between and below (:func:`doubt_factor`, 0 at ``-MIRROR_MARGIN``).
 
     Parameters
     ----------
     coords : ndarray, shape (28,)
         Cloth coordinates as measured (NaN where unknown).
     references : ReferenceSet
-    evidence : dict
-        The keyword arguments of :func:`~dgli_vision.classifier.classify.reference_distances`
-        besides the coordinates (``visible``, ``unknown``, ``lifted``, ``heights_mm``,
-        ``past``, ``back``): a mirror changes none of them but ``back``, which it turns
-        round.
+    evidence : Evidence
+        What else was seen (:class:`~dgli_vision.classifier.evidence.Evidence`): a mirror
+        changes none of it but ``back``, which it turns round.
     footprint : Footprint or None
         The cloth's measured footprint.
     napkin_area_mm2 : float
@@ -375,45 +454,58 @@ def mirror_problem(
 
     Returns
     -------
-    str or None
-        Starts with what was seen; the caller prefixes ``"cannot tell: "``.
+    Doubt
+        Its reason starts with what was seen; the caller prefixes ``"cannot tell: "``.
     """
     if terms is None:
-        terms = reference_terms(coords, references, **evidence)
+        terms = reference_terms(coords, references, evidence)
     if front is None:
         front = terms.total()
     mirrored = terms.mirrored().total()  # a mirror turns every corner's stickers round too
     pen = footprint_penalty(footprint, references, napkin_area_mm2)
     i, j = int(np.argmin(front)), int(np.argmin(mirrored))
-    # The footprint speaks for a reading when it fits that reading's best reference and
-    # clearly not the other's; it only ever overrules the stickers in its favour when
-    # that reading fits well (measured wrong, a shadow's footprint must not).
-    # (judged on the references nearly as near as the best: a tie picks either)
+    # judged on the references nearly as near as the best: a tie picks either
     pen_front = float(pen[front <= front[i] + MIRROR_MARGIN].min())
     pen_mirror = float(pen[mirrored <= mirrored[j] + MIRROR_MARGIN].min())
-    for_front = pen_front == 0.0 and pen_mirror >= 0.5 and front[i] <= GOOD_FIT
-    for_mirror = pen_mirror == 0.0 and pen_front >= 0.5
+    # The footprint speaks for a reading when it fits that reading's best reference and
+    # clearly not the other's; it only ever moves the doubt towards the front-up reading
+    # when that fits well (measured wrong, a shadow's footprint must not).
+    fits_well = float(np.clip(1.0 + (GOOD_FIT - front[i]) / MIRROR_MARGIN, 0.0, 1.0))
+    for_front = _fits(pen_front) * _rules_out(pen_mirror) * fits_well
+    for_mirror = _fits(pen_mirror) * _rules_out(pen_front)
+    better = float(mirrored[j] - front[i])  # > 0: the front-up reading fits better
+    measure = better + FOOTPRINT_SHIFT * (for_front - for_mirror)
+    factor = doubt_factor(measure, MIRROR_MARGIN, CLEAR_MARGIN, -MIRROR_MARGIN)
+    if measure >= MIRROR_MARGIN:
+        return Doubt(factor)
     fix = "turn the napkin front face up, or switch off the camera's mirroring"
-    better = mirrored[j] - front[i]  # > 0: the front-up reading fits better
-    if CLEAR_MARGIN <= better < 2 * CLEAR_MARGIN and for_mirror:
+    if better >= CLEAR_MARGIN:  # the footprint, not the stickers, speaks for the mirror
         lo = footprint.fraction(napkin_area_mm2)[0] if footprint else np.nan
-        return (
+        return Doubt(factor, (
             f"the stickers fit {_describe(references, i)} front up, but the napkin covers "
             f"{100 * lo:.0f}% of its area, as {_describe(references, j)} seen mirrored "
             f"does: the napkin may lie back face up, or the image be mirrored; {fix}"
-        )
-    if better >= CLEAR_MARGIN or for_front:
-        return None
-    if for_mirror or better <= -MIRROR_MARGIN:
-        return (
+        ))
+    if measure <= -MIRROR_MARGIN:
+        return Doubt(factor, (
             f"the stickers run clockwise seen from above: the napkin lies back face up "
             f"or the image is mirrored (mirrored, it reads as {_describe(references, j)} "
             f"at {mirrored[j]:.3f}); {fix}"
-        )
-    if better >= MIRROR_MARGIN:
-        return None
-    return (
+        ))
+    return Doubt(factor, (
         f"the stickers fit the napkin front face up ({_describe(references, i)}, "
         f"{front[i]:.3f}) and mirrored ({_describe(references, j)}, {mirrored[j]:.3f}) "
         f"nearly alike: the napkin may lie back face up, or the image be mirrored; {fix}"
-    )
+    ))
+
+
+def _fits(penalty: float) -> float:
+    """1 where the footprint agrees with a reference (penalty 0), 0 from a penalty of
+    0.1 up, linear between."""
+    return float(np.clip(1.0 - penalty / 0.1, 0.0, 1.0))
+
+
+def _rules_out(penalty: float) -> float:
+    """1 where the footprint rules a reference out (penalty 0.5 and more), linear to 0
+    at penalty 0."""
+    return float(np.clip(2.0 * penalty, 0.0, 1.0))

@@ -39,12 +39,17 @@ from .affordances import Affordances, affordances_of
 from .capture_limits import border_factor, sticker_px, sticker_size_problem
 from .classify import (
     MIN_CONFIDENCE,
+    Evidence,
     Prediction,
     classify_coordinates,
     reference_terms,
 )
 from .consistency import (
+    MIRROR_TWIN_CONFIDENCE,
+    MIRROR_TWINS,
+    Doubt,
     depth_scale_hint,
+    doubt_factor,
     footprint_problem,
     mirror_problem,
     rigidity_problem,
@@ -55,7 +60,7 @@ from .references import ReferenceSet
 __all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class ClothObservation:
     """The cloth as seen: segments in the camera frame and the table normal.
 
@@ -175,14 +180,14 @@ class ClothObservation:
             return np.zeros(len(self.visible), dtype=bool)
         return self.evidence.unknown
 
-    def classifier_evidence(self) -> dict[str, NDArray | None]:
-        """The keyword arguments of :func:`~dgli_vision.classifier.classify.reference_distances`
-        besides the coordinates: what the classifier weighs beside them."""
-        return {
-            "visible": self.visible, "unknown": self.unknown, "lifted": self.lifted,
-            "heights_mm": self.matched_heights_mm, "past": self.past_vertical,
-            "back": self.back, "spread_mm": self.spread_mm, "tips": self.tips,
-        }
+    def classifier_evidence(self) -> Evidence:
+        """What the classifier weighs beside the coordinates
+        (:class:`~dgli_vision.classifier.evidence.Evidence`)."""
+        return Evidence(
+            visible=self.visible, unknown=self.unknown, lifted=self.lifted,
+            heights_mm=self.matched_heights_mm, past=self.past_vertical,
+            back=self.back, spread_mm=self.spread_mm, tips=self.tips,
+        )
 
     @property
     def segment_visible(self) -> NDArray[np.bool_]:
@@ -208,7 +213,7 @@ class StageClock:
         self._last = now
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, kw_only=True)
 class FrameResult:
     """Everything the pipeline computed for one frame.
 
@@ -304,8 +309,12 @@ class FrameResult:
 #: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is
 #: wrong (depth scale, lens), too few stickers to rank the states, the layout reads
 #: mirrored or the cloth covers more table than the state allows, or the nearest states
-#: are too close to call for the evidence seen.
-WHY_KINDS = ("geometry", "too few stickers", "mirror or footprint", "too close to call")
+#: are too close to call for the evidence seen; a colour array whose red and blue
+#: channels are swapped (only :func:`~dgli_vision.classifier.api.classify_pair` tells).
+WHY_KINDS = (
+    "geometry", "too few stickers", "mirror or footprint", "too close to call",
+    "colour channels",
+)
 
 
 def _candidates(
@@ -396,9 +405,11 @@ def observe(
     tips = _tips(frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions)
     clock.lap("tips")
     return detections, markers, ClothObservation(
-        segments, visible, up, evidence, heights, flap_deg, flap_height, ruler, footprint,
-        turns, markers.points, napkin.occluder, napkin.stride, tips,
-        edge_on_heights(detections, napkin.masks()),
+        segments=segments, visible=visible, up=up, evidence=evidence, heights_mm=heights,
+        flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
+        turns=turns, points_m=markers.points, objects=napkin.occluder,
+        objects_stride=napkin.stride, tips=tips,
+        edge_on_mm=edge_on_heights(detections, napkin.masks()),
     )
 
 
@@ -496,21 +507,40 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
 
 
-def _landing_unknown(
-    obs: ClothObservation, near: tuple[tuple[str, str | None, float], ...]
-) -> str | None:
-    """Why the nearest two classes cannot be told apart yet, or None: a flap is held up
-    and they differ only in where it will land (:data:`LANDING_PAIRS`)."""
-    if obs.flap_deg is None or not np.isfinite(obs.flap_deg).any() or len(near) < 2:
-        return None
-    (a, va, da), (b, vb, db) = near[0], near[1]
-    if frozenset({a, b}) not in LANDING_PAIRS:
-        return None
+#: The landing check's measure (:func:`_landing`): how much farther the landing partner
+#: of the nearest class lies than that class, as a share of how much farther the nearest
+#: class of a third kind lies. Below 1 the partner is the runner-up ("cannot tell"); from
+#: :data:`LANDING_CLEAR` up it is far enough behind to leave the confidence alone.
+LANDING_CLEAR = 1.5
+
+
+def _landing(
+    obs: ClothObservation, distances: NDArray[np.float64], references: ReferenceSet
+) -> Doubt:
+    """Whether the nearest two classes cannot be told apart yet: a flap is held up and
+    they differ only in where it will land (:data:`LANDING_PAIRS`). The factor on the
+    confidence is continuous in how far behind the landing partner lies (see
+    :data:`LANDING_CLEAR`); the reason is given where the partner is the runner-up."""
+    if obs.flap_deg is None or not np.isfinite(obs.flap_deg).any():
+        return Doubt()
+    near = _candidates(distances, references, k=4)
+    if len(near) < 3:
+        return Doubt()
+    a, va, da = near[0]
+    partner = [c for c in near[1:] if frozenset({a, c[0]}) in LANDING_PAIRS]
+    if not partner:
+        return Doubt()
+    b, vb, db = partner[0]
+    third = next(c[2] for c in near[1:] if c[0] != b)
+    ratio = (db - da) / max(third - da, 1e-9)
+    factor = doubt_factor(ratio, 1.0, LANDING_CLEAR, 0.0)
+    if ratio >= 1.0:
+        return Doubt(factor)
     lean = float(np.nanmedian(obs.flap_deg))
-    return (
+    return Doubt(factor, (
         f"a flap held up at about {lean:.0f} degrees: {a} {CLASS_NAMES[a]} ({va}, {da:.3f}) "
         f"and {b} {CLASS_NAMES[b]} ({vb}, {db:.3f}) differ only in where it lands"
-    )
+    ))
 
 
 def _too_small(
@@ -561,16 +591,19 @@ def _judge(
     its confidence, or "cannot tell" and why."""
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
+    seen_as = {
+        "detections": detections, "markers": markers, "observation": obs, "coordinates": coords,
+    }
     n = int(obs.visible.sum())
     napkin_mm = _napkin_depth(detections, frame.depth_mm)
     problem = _image_problem(frame, detections, obs, napkin_mm, layout)
     if problem is not None:
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {problem}", why=WHY_KINDS[0]
+            **seen_as, prediction=None, reason=f"cannot tell: {problem}", why=WHY_KINDS[0]
         )
     evidence = obs.classifier_evidence()
     try:
-        terms = reference_terms(coords, references, **evidence)
+        terms = reference_terms(coords, references, evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
         unknown = _unknown_summary(obs)
@@ -582,7 +615,7 @@ def _judge(
         )
         if depth_hint:
             reason += f"; {depth_hint}"
-        return FrameResult(detections, markers, obs, coords, None, reason, why=WHY_KINDS[1])
+        return FrameResult(**seen_as, prediction=None, reason=reason, why=WHY_KINDS[1])
     front = terms.total()
     near = _candidates(front, references)
     guess = _guess(coords, references, evidence, front, obs, layout, min_confidence)
@@ -595,32 +628,42 @@ def _judge(
         guess = replace(guess, confidence=round(guess.confidence * border, 4))
     clock.lap("classify")
     area = layout.width_mm * layout.height_mm
-    doubt = mirror_problem(
+    mirror = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front, terms=terms
-    ) or footprint_problem(obs.footprint, references, front, area)
+    )
+    foot = footprint_problem(obs.footprint, references, front, area)
+    landing = _landing(obs, front, references)
     clock.lap("checks")
+    # each check lowers the confidence continuously; where one rules the verdict out the
+    # nearest reference stays for reports, with the confidence left to it
+    factor = mirror.factor * foot.factor * landing.factor
+    unchecked = guess.confidence
+    if factor < 1.0:
+        guess = replace(guess, confidence=round(guess.confidence * factor, 4))
+    if guess.class_id in MIRROR_TWINS and guess.confidence > MIRROR_TWIN_CONFIDENCE:
+        guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
+    doubt = mirror.reason or foot.reason
     if doubt is not None:
-        # the nearest reference stays for reports, with no confidence in it
-        doubted = replace(guess, confidence=0.0)
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {doubt}", doubted,
+            **seen_as, prediction=None, reason=f"cannot tell: {doubt}", best_guess=guess,
             why=WHY_KINDS[2], candidates=near, distances=front,
         )
-    landing = _landing_unknown(obs, near)
-    if landing is not None and guess.confidence >= min_confidence:
+    if landing.reason is not None and unchecked >= min_confidence:
         return FrameResult(
-            detections, markers, obs, coords, None, f"cannot tell: {landing}",
-            replace(guess, confidence=0.0), why=WHY_KINDS[3], candidates=near, distances=front,
+            **seen_as, prediction=None, reason=f"cannot tell: {landing.reason}",
+            best_guess=guess, why=WHY_KINDS[3], candidates=near, distances=front,
         )
     if guess.confidence >= min_confidence:
         return FrameResult(
-            detections, markers, obs, coords, guess, None, guess, candidates=near,
-            distances=front,
+            **seen_as, prediction=guess, best_guess=guess, candidates=near, distances=front
         )
-    reason = _low_confidence_reason(guess, obs, min_confidence, border)
+    checks = (("the mirrored reading nearly as close", mirror.factor),
+              ("the footprint larger than the state allows", foot.factor),
+              ("a flap held up, where it lands not yet seen", landing.factor))
+    reason = _low_confidence_reason(guess, obs, min_confidence, border, checks)
     return FrameResult(
-        detections, markers, obs, coords, None, reason, guess, why=WHY_KINDS[3], candidates=near,
-        distances=front,
+        **seen_as, prediction=None, reason=reason, best_guess=guess, why=WHY_KINDS[3],
+        candidates=near, distances=front,
     )
 
 
@@ -646,7 +689,7 @@ def _image_problem(
 def _guess(
     coords: NDArray[np.float64],
     references: ReferenceSet,
-    evidence: dict,
+    evidence: Evidence,
     front: NDArray[np.float64],
     obs: ClothObservation,
     layout: NapkinLayout,
@@ -655,20 +698,24 @@ def _guess(
     """The nearest reference and its confidence; below ``min_confidence``, again with the
     stickers an object hides beside one lying at its flat place taken as known."""
     unsure = obs.evidence.near_object & obs.unknown if obs.evidence is not None else None
-    guess = classify_coordinates(coords, references, **evidence, distances=front, unsure=unsure)
+    guess = classify_coordinates(coords, references, evidence, distances=front, unsure=unsure)
     placed = obs.points_m is not None and obs.heights_mm is not None
     if guess.confidence < min_confidence and placed:
         settled = settled_stickers(obs.points_m, obs.heights_mm, obs.turns, layout, obs.up)
         if settled.any():
             guess = classify_coordinates(
-                coords, references, **evidence, distances=front, unsure=unsure,
+                coords, references, evidence, distances=front, unsure=unsure,
                 settled=settled,
             )
     return guess
 
 
 def _low_confidence_reason(
-    guess: Prediction, obs: ClothObservation, min_confidence: float, border: float
+    guess: Prediction,
+    obs: ClothObservation,
+    min_confidence: float,
+    border: float,
+    checks: tuple[tuple[str, float], ...] = (),
 ) -> str:
     """``"cannot tell: confidence 0.12 < 0.25; ..."`` with what lowered it."""
     n = int(obs.visible.sum())
@@ -681,6 +728,7 @@ def _low_confidence_reason(
         )
     if obs.evidence is not None and obs.evidence.occluded:
         why.append("the napkin is partly covered by an object above it")
+    why.extend(f"{what} (confidence x{f:.2f})" for what, f in checks if f < 1.0)
     if border < 1.0:
         why.append(
             "stickers near the image border, lens distortion unknown (confidence "

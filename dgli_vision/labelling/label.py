@@ -150,7 +150,7 @@ def label_part(
         frames = episode.frames(a, b) * material.scale
         ev = observe_frames(frames, material, placement)
         dist.append(frame_distances(ev, refs))
-        n_unknown.append((ev.unknown & ~np.isfinite(ev.past)).sum(axis=1))
+        n_unknown.append((ev.evidence.unknown & ~np.isfinite(ev.evidence.past)).sum(axis=1))
         n_known.append(ev.known_coordinates().sum(axis=1))
         coarse = frames[:, material.coarse_ids]
         pred = predicates(coarse, material.coarse_faces, flat)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from ..classifier.evidence import Evidence
 from ..core.classes import LIFTED_MM, PAST_BAND_DEG
 from ..core.dgli import cloth_coordinates
 from ..core.handedness import back_face_up, corner_turns
@@ -223,11 +224,13 @@ def observe_frames(
     scale = placement.metric_scale
     return FrameEvidence(
         coords=cloth_coordinates(segments),
-        visible=visible,
-        unknown=unknown,
-        lifted=np.where(told, standing.astype(float), np.nan),
-        heights_mm=np.where(told, heights * scale, np.nan),
-        past=np.where(unknown, past, np.nan),
-        back=back_face_up(corner_turns(seen_xyz[..., :2], layout)),
-        spread_mm=sticker_spreads_mm(seen_xyz * 1e3) * scale,
+        evidence=Evidence(
+            visible=visible,
+            unknown=unknown,
+            lifted=np.where(told, standing.astype(float), np.nan),
+            heights_mm=np.where(told, heights * scale, np.nan),
+            past=np.where(unknown, past, np.nan),
+            back=back_face_up(corner_turns(seen_xyz[..., :2], layout)),
+            spread_mm=sticker_spreads_mm(seen_xyz * 1e3) * scale,
+        ),
     )
