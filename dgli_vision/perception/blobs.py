@@ -26,7 +26,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from functools import cached_property
+from functools import cached_property, lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
@@ -662,7 +662,7 @@ class _DiscPixels:
 
 
     @cached_property
-    def unmixing(self) -> list[tuple[NDArray[np.float64], NDArray[np.float64]] | None]:
+    def unmixing(self) -> list[tuple[list[float], list[float]] | None]:
         """Per blob, what :func:`_dot_by_difference` unmixes a small sticker's dot from,
         in linear light: the disc as seen (per channel, the median of the most saturated
         quarter of the outer band, 0.6-0.95 radii, by chroma at or above its 0.75
@@ -691,6 +691,7 @@ class _DiscPixels:
         )
         added = sums / np.maximum(n_mid, 1)[:, None] - disc_seen
         ok = ((n_band >= 4) & (n_mid > 0)).tolist()
+        disc_seen, added = disc_seen.tolist(), added.tolist()
         return [(disc_seen[k], added[k]) if ok[k] else None for k in range(n)]
 
 def _radii(
@@ -837,21 +838,25 @@ def _dot_by_difference(
     # w added; every sticker colour has a channel near 0, so the dot's smallest channel
     # is the disc's (w). The least share b that keeps every channel of the dot at or
     # above it is the share (at most 1: the centre is then the dot).
-    floor = float(disc_seen.min())
-    falls = added < 0
-    room = disc_seen - floor
+    # (On three channels, Python's floats: the same arithmetic as numpy's, without
+    # its per-call cost.)
+    floor = min(disc_seen)
     # (the disc's own smallest channels carry noise only)
-    need = np.where(falls & (room > 0.05), -added / np.maximum(room, 1e-6), 0.0)
+    need = max(
+        -a / max(d - floor, 1e-6) if a < 0 and d - floor > 0.05 else 0.0
+        for d, a in zip(disc_seen, added)
+    )
     # (nothing fell: the centre is the dot itself, sharp, or the disc's own colour)
-    share = float(np.clip(need.max(), p.dot_min_share, 1.0)) if need.max() > 0.1 else 1.0
-    dot_seen = disc_seen + added / share
+    share = min(max(need, p.dot_min_share), 1.0) if need > 0.1 else 1.0
+    dot_seen = [d + a / share for d, a in zip(disc_seen, added)]
     # a plain disc's dot is the disc as seen (a tint of the light or the laminate moves
     # it from the printed colour); another dot is a printed colour
-    targets = _directions(palette)
-    targets[disc - 1] = _directions(disc_seen[None, :])[0]
-    distances = np.abs(targets - _directions(dot_seen[None, :])).max(axis=1)
-    order = np.argsort(distances)
-    best, second = int(order[0]), float(distances[order[1]])
+    targets = list(_palette_directions(palette))
+    targets[disc - 1] = _direction(disc_seen)
+    seen_dir = _direction(dot_seen)
+    distances = [max(abs(t - v) for t, v in zip(target, seen_dir)) for target in targets]
+    order = sorted(range(len(distances)), key=distances.__getitem__)  # (stable)
+    best, second = order[0], distances[order[1]]
     if distances[best] <= p.dot_max_distance and second - distances[best] >= p.dot_margin:
         return _Colours(disc, best + 1, purity)  # (label best + 1; the disc's: plain)
     # a dot is there but two colours fit it alike: unread (the identity may still
@@ -903,12 +908,24 @@ def _grouped_median(
     out = np.where(counts % 2 == 1, upper, (lower + upper) / 2.0)
     return np.where(counts > 0, out, np.nan)
 
-def _directions(rgb: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Chroma directions (n, 3) of linear colours (n, 3): the channels less the
-    smallest, over the chroma (white light added or the light's level leave it)."""
-    low = rgb.min(axis=1, keepdims=True)
-    return (rgb - low) / np.maximum(rgb.max(axis=1, keepdims=True) - low, 1e-6)
+def _direction(rgb: Sequence[float]) -> tuple[float, ...]:
+    """The chroma direction of a linear colour: its channels less the smallest, over
+    the chroma (white light added or the light's level leave it)."""
+    low, high = min(rgb), max(rgb)
+    span = max(high - low, 1e-6)
+    return tuple((c - low) / span for c in rgb)
 
+
+def _palette_directions(palette: NDArray[np.float64]) -> tuple[tuple[float, ...], ...]:
+    """:func:`_direction` of each colour of ``palette`` (n, 3)."""
+    return _directions_of(palette.tobytes(), palette.shape[1])
+
+
+@lru_cache(maxsize=8)
+def _directions_of(palette: bytes, channels: int) -> tuple[tuple[float, ...], ...]:
+    """:func:`_palette_directions` of a palette's bytes (float64, ``channels`` a row)."""
+    rows = np.frombuffer(palette, np.float64).reshape(-1, channels).tolist()
+    return tuple(_direction(row) for row in rows)
 
 def _first_largest(counts: list[int]) -> int:
     """Index of the largest count, the first of equal ones (``np.argmax`` of a list)."""
