@@ -333,8 +333,10 @@ def classify_live(
     guess = result.best_guess
     distances: tuple[float, ...] = ()
     if guess is not None:
-        obs = result.observation
-        d = reference_distances(result.coordinates, references, **obs.classifier_evidence())
+        d = result.distances  # (the pipeline's own, when it ranked the references)
+        if d is None:
+            obs = result.observation
+            d = reference_distances(result.coordinates, references, **obs.classifier_evidence())
         distances = tuple(round(float(v), 6) for v in d)
     p = result.prediction
     state = (p.class_id, p.variant) if p is not None else None
