@@ -120,3 +120,22 @@ def test_live_takes_the_pipelines_distances(monkeypatch) -> None:
     monkeypatch.setattr(classify, "reference_distances", again)
     _, _, _, _, got, _ = live.classify_live(_Loaded(), refs)
     assert got == tuple(round(float(v), 6) for v in want)
+
+
+def test_at_the_recorded_pace_the_capture_thread_decodes(monkeypatch) -> None:
+    """At the recorded pace too, a frame is decoded as it comes (by the capture thread),
+    so that one waiting while the worker is busy is ready when the worker takes it."""
+    from dgli_vision.analysis import live
+
+    log: list = []
+
+    def classify(pair, references, colours=None):
+        frame = pair.load()
+        time.sleep(0.05)
+        return frame, None, None, None, (), "test"
+
+    monkeypatch.setattr(live, "classify_live", classify)
+    monkeypatch.setattr(live, "OnlineSmoother", _Smoother)
+    summary = live.watch([_Pair(k, k, log) for k in range(3)], None, realtime=True)
+    assert summary.classified + summary.dropped == 3
+    assert {e[2] for e in log if e[0] == "load"} == {"dgli-capture"}
