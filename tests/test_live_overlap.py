@@ -88,3 +88,54 @@ def test_colour_frames_of_every_format_read_as_rgb(fmt) -> None:
     got = _colour_array(None, Frame())
     assert got.flags["C_CONTIGUOUS"] and got.dtype == np.uint8
     assert np.array_equal(got, pixels[:, :, list(_COLOUR_FORMATS[fmt])])
+
+
+def test_live_takes_the_pipelines_distances(monkeypatch) -> None:
+    """classify_live gives the distances the pipeline ranked the references by, without
+    working them out a second time (they are the same figures)."""
+    from pathlib import Path
+
+    from dgli_vision.analysis import live
+    from dgli_vision.classifier import classify
+    from dgli_vision.classifier.pipeline import classify_frame
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.sources.frames import read_frame, read_intrinsics
+
+    root = Path(__file__).resolve().parents[1] / "sample_images"
+    intr = read_intrinsics(root / "intrinsics.json")
+    frame = read_frame(root / "05_000_color.png", root / "05_000_depth.png", intr)
+    refs = load_references(None)
+    want = classify_frame(frame, refs).distances
+    assert want is not None
+
+    class _Loaded:
+        time = 0.0
+
+        def load(self):
+            return frame
+
+    def again(*args, **kwargs):
+        raise AssertionError("distances worked out a second time")
+
+    monkeypatch.setattr(classify, "reference_distances", again)
+    _, _, _, _, got, _ = live.classify_live(_Loaded(), refs)
+    assert got == tuple(round(float(v), 6) for v in want)
+
+
+def test_at_the_recorded_pace_the_capture_thread_decodes(monkeypatch) -> None:
+    """At the recorded pace too, a frame is decoded as it comes (by the capture thread),
+    so that one waiting while the worker is busy is ready when the worker takes it."""
+    from dgli_vision.analysis import live
+
+    log: list = []
+
+    def classify(pair, references, colours=None):
+        frame = pair.load()
+        time.sleep(0.05)
+        return frame, None, None, None, (), "test"
+
+    monkeypatch.setattr(live, "classify_live", classify)
+    monkeypatch.setattr(live, "OnlineSmoother", _Smoother)
+    summary = live.watch([_Pair(k, k, log) for k in range(3)], None, realtime=True)
+    assert summary.classified + summary.dropped == 3
+    assert {e[2] for e in log if e[0] == "load"} == {"dgli-capture"}

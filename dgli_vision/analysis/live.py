@@ -1,9 +1,9 @@
 """Classify frames as they come, smoothed over time: the live loop of ``dgli watch``.
 
 Two threads. The capture thread takes frames from a source (a camera, or a recording
-played at its recorded pace or as fast as it reads) and keeps only the newest one not yet
-taken (played as fast as classified, it decodes each one while the worker classifies the
-one before); the worker takes it, classifies it, and smooths the state online. A frame that
+played at its recorded pace or as fast as it reads), decodes each one while the worker
+classifies the one before, and keeps only the newest one not yet taken; the worker takes
+it, classifies it, and smooths the state online. A frame that
 arrives while the worker is busy replaces the one waiting, which is *dropped* and counted:
 a live system must not fall behind the scene it watches.
 
@@ -348,8 +348,10 @@ def classify_live(
     guess = result.best_guess
     distances: tuple[float, ...] = ()
     if guess is not None:
-        obs = result.observation
-        d = reference_distances(result.coordinates, references, obs.classifier_evidence())
+        d = result.distances  # (the pipeline's own, when it ranked the references)
+        if d is None:
+            obs = result.observation
+            d = reference_distances(result.coordinates, references, obs.classifier_evidence())
         distances = tuple(round(float(v), 6) for v in d)
     p = result.prediction
     state = (p.class_id, p.variant) if p is not None else None
@@ -368,10 +370,11 @@ def _capture(
 ) -> None:
     """The capture thread: offer every ``every``-th frame to ``slot`` as it comes (at
     the recording's own pace with ``realtime``), until the source ends or ``stop``.
-    Played as fast as it is classified, each frame is decoded here (its arrival is when
-    the source gave it), on the other core while the worker classifies the one before;
-    at the recorded pace the worker decodes the frame it takes (a frame dropped costs
-    nothing)."""
+    Each frame is decoded here (its arrival is when the source gave it), on the other
+    core while the worker classifies the one before: played as fast as it is
+    classified, nothing waits for decoding; at the recorded pace (or from a camera) a
+    frame that comes while the worker is busy is ready when the worker takes it (a
+    frame dropped cost its decoding on this core, which the worker does not use)."""
     start_wall = start_t = None
     try:
         for index, pair in enumerate(frames):
@@ -392,9 +395,7 @@ def _capture(
             at = time.perf_counter()
             if counts["first"] is None:
                 counts["first"] = at
-            if not realtime:  # (at the recorded pace a frame dropped is never decoded)
-                pair = _decoded(pair)
-            slot.put(_Arrival(index, pair, at), wait=not realtime)
+            slot.put(_Arrival(index, _decoded(pair), at), wait=not realtime)
     except Exception as exc:  # the source failed part-way: the worker raises it
         counts["error"] = exc
     finally:
