@@ -147,6 +147,25 @@ def test_a_cannot_tell_names_no_class_and_keeps_the_nearest_in_candidates():
     assert p.candidates[0][2] == pytest.approx(p.distance, abs=1e-5)
 
 
+def test_a_cannot_tell_with_its_yellow_stickers_in_view_is_classified_once(monkeypatch):
+    """A BGR array never shows a yellow sticker, so a mirrored RGB frame (yellow in view)
+    is not classified a second time with its channels swapped: that would double the
+    time of every "cannot tell" frame in a live loop."""
+    import dgli_vision.classifier.pipeline as pipeline
+
+    calls = []
+    real = pipeline.classify_frame
+    monkeypatch.setattr(
+        pipeline, "classify_frame", lambda *a, **k: calls.append(1) or real(*a, **k)
+    )
+    samples = Path(__file__).resolve().parents[1] / "sample_images"
+    rgb = cv2.imread(str(samples / "02_000_color.png"))[:, ::-1, ::-1].copy()  # mirrored
+    depth = cv2.imread(str(samples / "02_000_depth.png"), cv2.IMREAD_UNCHANGED)[:, ::-1].copy()
+    p = dgli_vision.classify_pair(rgb, depth)
+    assert p.class_id is None and "mirror" in p.reason
+    assert len(calls) <= 1
+
+
 def test_a_pair_of_another_size_without_intrinsics_is_told_where_they_go(tmp_path):
     samples = Path(__file__).resolve().parents[1] / "sample_images"
     for kind in ("color", "depth"):

@@ -154,8 +154,8 @@ def _bgr_reading(
     the stickers' palette fits the swapped channels better (a BGR array, as OpenCV reads
     images); else None.
 
-    Looked at when the array gave no class, or when it shows no yellow sticker (a BGR
-    array never does): the swapped reading must give a class and find more stickers
+    Looked at only when the array shows no yellow sticker (a BGR array never does), so a
+    frame with its yellow stickers in view is classified once: the swapped reading must give a class and find more stickers
     (as many, when the array gave no class) at a confidence at least as high.
     """
     from .pipeline import classify_frame
@@ -164,7 +164,7 @@ def _bgr_reading(
         return None
     found = result.detections.found  # type: ignore[attr-defined]
     given = result.prediction  # type: ignore[attr-defined]
-    if given is not None and found[list(_YELLOW)].any():
+    if found[list(_YELLOW)].any():
         return None
     swapped = replace(frame, color=np.ascontiguousarray(frame.color[..., ::-1]))
     try:
