@@ -155,8 +155,9 @@ def _bgr_reading(
     images); else None.
 
     Looked at only when the array shows no yellow sticker (a BGR array never does), so a
-    frame with its yellow stickers in view is classified once: the swapped reading must give a class and find more stickers
-    (as many, when the array gave no class) at a confidence at least as high.
+    frame with its yellow stickers in view is classified once: the swapped reading must
+    give a class and find more stickers (as many, when the array gave no class) at a
+    confidence at least as high.
     """
     from .pipeline import classify_frame
 
