@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 # the package of this checkout (an installed `dgli` may run another copy)
 DGLI = [sys.executable, "-m", "dgli_vision"]
 ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
-COPIES = 4  # 48 pairs: long enough to interrupt on one core
+COPIES = 2  # 24 pairs: long enough to interrupt (after 4) on one core
 
 
 @pytest.fixture(scope="module")

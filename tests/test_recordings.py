@@ -72,10 +72,18 @@ def bags(episode, tmp_path_factory) -> dict[str, Path]:
     return out
 
 
+_TRACKED: dict[tuple[str, ...], str] = {}
+
+
 def _track(path: Path, *extra: str) -> dict:
-    r = CliRunner().invoke(main, ["track", str(path), "-j", "2", "--json", *extra])
-    assert r.exit_code == 0, r.output
-    return json.loads(r.output)
+    """``dgli track PATH --json``'s answer; a path the module's fixtures made (the episode,
+    its bags) is tracked once and its answer reused by the tests that compare with it."""
+    key = (str(path), *extra)
+    if key not in _TRACKED:
+        r = CliRunner().invoke(main, ["track", str(path), "-j", "2", "--json", *extra])
+        assert r.exit_code == 0, r.output
+        _TRACKED[key] = r.output
+    return json.loads(_TRACKED[key])
 
 
 def _timeline(data: dict) -> list[tuple]:
