@@ -8,8 +8,9 @@ test file imports gets the test files of the package modules that import it ("th
 The helpers of the suite (render_cache.py, cli_runs.py, ...) count for the test files
 that use them.
 
-Usage: ``python scripts/test_map.py`` (from the repository), and paste the table into
-tests/README.md; tests/test_test_map.py checks that every module has a row.
+Usage: ``python scripts/test_map.py`` prints the table; ``python scripts/test_map.py
+--write`` puts it in place of the one in tests/README.md. tests/test_test_map.py checks
+that every module has a row.
 """
 
 from __future__ import annotations
@@ -148,5 +149,22 @@ def table() -> str:
     return "\n".join(rows)
 
 
+def write(readme: Path = TESTS / "README.md") -> None:
+    """Replace the table in ``readme`` (from its ``| module |`` header to the first line
+    that is not a table row) with :func:`table`."""
+    lines = readme.read_text().splitlines()
+    start = next(i for i, line in enumerate(lines) if line.startswith("| module |"))
+    end = start
+    while end < len(lines) and lines[end].startswith("|"):
+        end += 1
+    lines[start:end] = table().splitlines()
+    readme.write_text("\n".join(lines) + "\n")
+
+
 if __name__ == "__main__":
-    print(table())
+    import sys
+
+    if sys.argv[1:] == ["--write"]:
+        write()
+    else:
+        print(table())
