@@ -55,37 +55,27 @@ def test_the_lean_of_a_flap_gives_its_angle_to_a_few_degrees(frames):
 
 def test_a_flap_either_side_of_vertical_reads_as_its_own_class(frames):
     """84.6 degrees is still flat, 95.4 degrees already a corner folded over (SPEC's
-    rule); a camera that sees no sticker on the flap tells them by its lean."""
-    right = 0
+    rule); a camera that sees no sticker on the flap tells them by its lean. Within 5
+    degrees of vertical the two states are within the noise of the lean (colour and
+    depth a frame apart move it by more): "cannot tell", naming both; within 10 degrees
+    an answer, never a confident one."""
     for name, angle, truth, frame in frames:
-        p = classify_frame(frame, REFS).prediction
-        assert p is None or p.class_id == truth, (name, angle, truth, p.class_id)
-        right += p is not None
-    assert right >= len(frames) - 1
+        r = classify_frame(frame, REFS)
+        p = r.prediction
+        if abs(angle - 90.0) < 5.0:
+            assert p is None and "of vertical" in r.reason, (name, angle, r.reason)
+            assert truth in {c[0] for c in r.candidates[:2]}, (name, angle, r.candidates)
+            continue
+        assert p is not None and p.class_id == truth, (name, angle, truth, r.reason)
+        if abs(angle - 90.0) < 10.0:
+            assert p.confidence < 0.5, (name, angle, p.confidence)
 
 
-def test_a_flap_seen_exactly_edge_on_is_raised_cloth_not_a_fold_under(frames):
-    """The flap is a line a pixel or two wide in the image; its stickers are held up,
-    not hidden under cloth."""
-    for name, angle, _, frame in frames:
-        obs = classify_frame(frame, REFS).observation
-        if abs(angle - 90) < 7:
-            missing = ~obs.visible
-            assert missing.any()
-            assert obs.unknown[missing].all(), (name, angle)
+def test_the_confidence_rises_continuously_with_a_flap_s_distance_from_vertical():
+    from dgli_vision.classifier.consistency import doubt_factor
+    from dgli_vision.classifier.pipeline import VERTICAL_CLEAR_DEG, VERTICAL_RULED_OUT_DEG
 
-
-def test_the_lean_is_numpys_least_squares_line_and_a_flying_pixel_is_left_out():
-    """Without outliers the lean is the least-squares line itself (one fit); a flying
-    pixel at the flap's edge is left out of the second fit, which then finds the line."""
-    from dgli_vision.perception.flaps import FlapParams, _line
-
-    rng = np.random.default_rng(5)
-    h = rng.uniform(0.0, 80.0, 400)
-    x = -0.3 * h + 12.0 + rng.normal(0.0, 0.5, 400)
-    beta, at_table = _line(x, h, FlapParams())
-    assert (beta, at_table) == tuple(float(v) for v in np.polyfit(h, x, 1))
-    x[7] += 200.0  # a flying pixel
-    beta, at_table = _line(x, h, FlapParams())
-    assert beta == pytest.approx(-0.3, abs=0.01) and at_table == pytest.approx(12.0, abs=0.3)
-    assert abs(np.polyfit(h, x, 1)[0] + 0.3) > 0.01  # one fit alone would be pulled off
+    offs = np.linspace(0.0, 30.0, 301)
+    f = np.array([doubt_factor(o, VERTICAL_RULED_OUT_DEG, VERTICAL_CLEAR_DEG, 0.0) for o in offs])
+    assert np.all(np.diff(f) >= 0) and np.max(np.diff(f)) < 0.02
+    assert f[0] == 0.0 and f[-1] == 1.0

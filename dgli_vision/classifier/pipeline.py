@@ -543,6 +543,39 @@ def _landing(
     ))
 
 
+#: The vertical check's band (:func:`_near_vertical`), degrees from vertical of a flap
+#: held up: within :data:`VERTICAL_RULED_OUT_DEG` the answer is "cannot tell" (the state
+#: changes as the flap passes 90 degrees, and a flap's measured lean is good to a few
+#: degrees, colour and depth taken a frame apart move it by more); from
+#: :data:`VERTICAL_CLEAR_DEG` on the confidence is left alone, and between the two it
+#: rises continuously (confident, 0.5 or more, from about 10 degrees off vertical).
+VERTICAL_RULED_OUT_DEG = 5.0
+VERTICAL_CLEAR_DEG = 20.0
+
+
+def _near_vertical(
+    obs: ClothObservation, near: tuple[tuple[str, str | None, float], ...]
+) -> Doubt:
+    """Whether a flap held up stands too near vertical to say which side of 90 degrees
+    it is on: the states before and after its fold are then both within the noise of
+    its lean. The factor on the confidence is continuous in the lean's distance from
+    vertical (see :data:`VERTICAL_RULED_OUT_DEG`); the reason names the two nearest
+    classes where it rules the verdict out."""
+    if obs.flap_deg is None or not np.isfinite(obs.flap_deg).any():
+        return Doubt()
+    lean = float(np.nanmedian(obs.flap_deg))
+    off = abs(lean - 90.0)
+    factor = doubt_factor(off, VERTICAL_RULED_OUT_DEG, VERTICAL_CLEAR_DEG, 0.0)
+    if off >= VERTICAL_RULED_OUT_DEG or len(near) < 2:
+        return Doubt(factor)
+    (a, va, da), (b, vb, db) = near[0], near[1]
+    return Doubt(factor, (
+        f"a flap held up at about {lean:.0f} degrees, within {VERTICAL_RULED_OUT_DEG:.0f} "
+        f"of vertical: {a} {CLASS_NAMES[a]} ({va}, {da:.3f}) before or after it passes "
+        f"90 degrees, or {b} {CLASS_NAMES[b]} ({vb}, {db:.3f})"
+    ))
+
+
 def _too_small(
     detections: StickerDetections, frame: RGBDFrame, napkin_mm: float, layout: NapkinLayout
 ) -> str | None:
@@ -633,10 +666,11 @@ def _judge(
     )
     foot = footprint_problem(obs.footprint, references, front, area)
     landing = _landing(obs, front, references)
+    vertical = _near_vertical(obs, near)
     clock.lap("checks")
     # each check lowers the confidence continuously; where one rules the verdict out the
     # nearest reference stays for reports, with the confidence left to it
-    factor = mirror.factor * foot.factor * landing.factor
+    factor = mirror.factor * foot.factor * landing.factor * vertical.factor
     unchecked = guess.confidence
     if factor < 1.0:
         guess = replace(guess, confidence=round(guess.confidence * factor, 4))
@@ -648,9 +682,10 @@ def _judge(
             **seen_as, prediction=None, reason=f"cannot tell: {doubt}", best_guess=guess,
             why=WHY_KINDS[2], candidates=near, distances=front,
         )
-    if landing.reason is not None and unchecked >= min_confidence:
+    told = landing.reason or vertical.reason
+    if told is not None and unchecked >= min_confidence:
         return FrameResult(
-            **seen_as, prediction=None, reason=f"cannot tell: {landing.reason}",
+            **seen_as, prediction=None, reason=f"cannot tell: {told}",
             best_guess=guess, why=WHY_KINDS[3], candidates=near, distances=front,
         )
     if guess.confidence >= min_confidence:
@@ -659,7 +694,8 @@ def _judge(
         )
     checks = (("the mirrored reading nearly as close", mirror.factor),
               ("the footprint larger than the state allows", foot.factor),
-              ("a flap held up, where it lands not yet seen", landing.factor))
+              ("a flap held up, where it lands not yet seen", landing.factor),
+              ("a flap held up near vertical", vertical.factor))
     reason = _low_confidence_reason(guess, obs, min_confidence, border, checks)
     return FrameResult(
         **seen_as, prediction=None, reason=reason, best_guess=guess, why=WHY_KINDS[3],
