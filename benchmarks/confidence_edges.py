@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -28,23 +27,14 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from dgli_vision.classifier.api import frame_from
 from dgli_vision.classifier.pipeline import classify_frame
 from dgli_vision.classifier.references import load_references
+from dgli_vision.sim.jitter import tiny_changes
 from dgli_vision.sources.frames import RGBDFrame
 from dgli_vision.sources.labelled import find_pairs
 
 
 def perturbed(frame: RGBDFrame, rng: np.random.Generator) -> list[RGBDFrame]:
-    """The frame with its depth rounded at another phase, shifted by one pixel, and its
-    colour moved by up to one grey level."""
-    d = frame.depth_mm.astype(np.float64)
-    requant = np.where(d > 0, np.rint(d + rng.uniform(-0.5, 0.5, d.shape)), 0)
-    shifted = np.zeros_like(frame.depth_mm)
-    shifted[:, 1:] = frame.depth_mm[:, :-1]
-    grey = np.clip(frame.color.astype(np.int16) + rng.integers(-1, 2, frame.color.shape), 0, 255)
-    return [
-        replace(frame, depth_mm=requant.astype(np.uint16)),
-        replace(frame, depth_mm=shifted),
-        replace(frame, color=grey.astype(np.uint8)),
-    ]
+    """The frame under the three tiny changes of :func:`tiny_changes`."""
+    return tiny_changes(frame, rng)
 
 
 def main() -> None:

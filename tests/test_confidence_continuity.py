@@ -25,6 +25,7 @@ from dgli_vision.core.camera import Intrinsics
 from dgli_vision.core.dgli import cloth_coordinates
 from dgli_vision.core.layout import default_layout
 from dgli_vision.sim.dataset import render_sample
+from dgli_vision.sim.jitter import tiny_changes
 from dgli_vision.sources.frames import RGBDFrame
 
 REFS = load_references()
@@ -72,19 +73,8 @@ def test_the_mirror_check_lowers_the_confidence_along_a_ramp():
 
 
 def _perturbed(frame: RGBDFrame, seed: int) -> list[RGBDFrame]:
-    """The frame with its depth rounded at another phase (as a 0.1 mm sensor read in mm
-    would be), shifted by one pixel, and its colour moved by a grey level."""
-    rng = np.random.default_rng(seed)
-    d = frame.depth_mm.astype(np.float64)
-    requant = np.where(d > 0, np.rint(d + rng.uniform(-0.5, 0.5, d.shape)), 0)
-    shifted = np.zeros_like(frame.depth_mm)
-    shifted[:, 1:] = frame.depth_mm[:, :-1]
-    grey = np.clip(frame.color.astype(np.int16) + rng.integers(-1, 2, frame.color.shape), 0, 255)
-    return [
-        replace(frame, depth_mm=requant.astype(np.uint16)),
-        replace(frame, depth_mm=shifted),
-        replace(frame, color=grey.astype(np.uint8)),
-    ]
+    """The frame under the three tiny changes of :func:`tiny_changes`."""
+    return tiny_changes(frame, np.random.default_rng(seed))
 
 
 @pytest.mark.parametrize(
