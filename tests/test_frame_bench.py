@@ -181,31 +181,3 @@ def test_a_missed_budget_comes_with_the_machines_load(monkeypatch) -> None:
     assert "1 budget missed (exit 1); load average" in res.stderr
     assert "time them again on an idle machine" in res.stderr
 
-
-def test_both_sides_of_the_aruco_bench_run_on_one_opencv_thread(monkeypatch) -> None:
-    """The anchor is timed in the thread's processor time: with OpenCV's pool at a
-    thread per core, part of ``detectMarkers``' work ran on threads that time does not
-    count. Inside the bench both sides see one OpenCV thread; after it, the pool is as
-    it was."""
-    import cv2
-    import numpy as np
-
-    from dgli_vision.analysis import frame_bench
-    from dgli_vision.core.camera import Intrinsics
-    from dgli_vision.sources.frames import RGBDFrame
-
-    seen: list[int] = []
-    monkeypatch.setattr(frame_bench, "aruco_detector",
-                        lambda: lambda grey: seen.append(cv2.getNumThreads()))
-    monkeypatch.setattr("dgli_vision.classifier.api.classify_pair",
-                        lambda *a, **k: seen.append(cv2.getNumThreads()))
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(2)
-    try:
-        frame = RGBDFrame(np.zeros((8, 8, 3), np.uint8), np.zeros((8, 8), np.uint16),
-                          Intrinsics(8, 8, 10.0, 10.0, 4.0, 4.0), "a", "a")
-        frame_bench.bench_vs_aruco(iter([("clean", "a", frame)]), None, repeats=2)
-        assert seen == [1, 1, 1, 1]
-        assert cv2.getNumThreads() == 2
-    finally:
-        cv2.setNumThreads(before)

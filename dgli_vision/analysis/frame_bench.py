@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,33 +33,10 @@ __all__ = [
     "bench_frames",
     "bench_set",
     "bench_vs_aruco",
-    "one_core",
 ]
 
 #: The sequence rendered with a gripper for the frames of folds in progress.
 SEQUENCE = "II"
-
-
-@contextmanager
-def one_core() -> Iterator[None]:
-    """OpenCV's thread pool held to one thread while the block runs (then as it was).
-
-    The benches measure one core, in the thread's processor time: with OpenCV's default
-    pool (a thread per core) the anchor's ``detectMarkers`` hands part of its work to
-    other threads, which ``time.thread_time`` does not count (on 2 cores ArUco showed
-    2.1-2.8 ms of the thread's time against 3.9 ms of the process's), and ours pays for
-    waking a pool it barely uses. numpy's OpenBLAS threads, fixed when it loads, made no
-    measurable difference to ours (14.1 against 14.2 ms of processor time per frame,
-    ``OPENBLAS_NUM_THREADS`` unset against 1): the pipeline has no large matrix product.
-    """
-    import cv2
-
-    before = cv2.getNumThreads()
-    cv2.setNumThreads(1)
-    try:
-        yield
-    finally:
-        cv2.setNumThreads(before)
 
 
 @dataclass(frozen=True)
@@ -171,13 +147,12 @@ def bench_frames(
     out = []
     for condition, name, frame in frames:
         best, stages = np.inf, {}
-        with one_core():
-            for _ in range(max(repeats, 1)):
-                t0 = time.perf_counter()
-                result = classify_frame(frame, references)
-                dt = (time.perf_counter() - t0) * 1e3
-                if dt < best:
-                    best, stages = dt, dict(result.timings_ms)
+        for _ in range(max(repeats, 1)):
+            t0 = time.perf_counter()
+            result = classify_frame(frame, references)
+            dt = (time.perf_counter() - t0) * 1e3
+            if dt < best:
+                best, stages = dt, dict(result.timings_ms)
         out.append(FrameTime(condition, name, best, stages))
     return FrameBench(tuple(out))
 
@@ -303,9 +278,7 @@ def bench_vs_aruco(
     on arrays (references loaded), and looked at by ArUco's detector
     (:func:`aruco_detector`, on the frame's grey image), in turn, ``repeats`` times each;
     each one's best time is kept, in wall time and in the thread's processor time.
-    Both on one thread (:func:`one_core`: OpenCV's pool held to one thread, so that
-    the thread's processor time is all of each one's work). Interleaving frame by frame
-    makes a busy machine slow both alike; the ratios are the
+    Interleaving frame by frame makes a busy machine slow both alike; the ratios are the
     figure (on a very busy machine, those of the processor times: a short call fits
     between other processes' turns more often than a long one does).
 
@@ -336,17 +309,16 @@ def bench_vs_aruco(
     for condition, name, frame in frames:
         grey = cv2.cvtColor(np.ascontiguousarray(frame.color), cv2.COLOR_RGB2GRAY)
         t_ours, t_anchor, c_ours, c_anchor = [], [], [], []
-        with one_core():  # the frame rendered outside: the renderer keeps its threads
-            for _ in range(max(repeats, 1)):
-                t0, c0 = time.perf_counter(), time.thread_time()
-                ours(frame)
-                t1, c1 = time.perf_counter(), time.thread_time()
-                detect(grey)
-                t2, c2 = time.perf_counter(), time.thread_time()
-                t_ours.append(t1 - t0)
-                t_anchor.append(t2 - t1)
-                c_ours.append(c1 - c0)
-                c_anchor.append(c2 - c1)
+        for _ in range(max(repeats, 1)):
+            t0, c0 = time.perf_counter(), time.thread_time()
+            ours(frame)
+            t1, c1 = time.perf_counter(), time.thread_time()
+            detect(grey)
+            t2, c2 = time.perf_counter(), time.thread_time()
+            t_ours.append(t1 - t0)
+            t_anchor.append(t2 - t1)
+            c_ours.append(c1 - c0)
+            c_anchor.append(c2 - c1)
         out.append(
             AnchorTime(
                 condition, name, min(t_ours) * 1e3, min(t_anchor) * 1e3,
