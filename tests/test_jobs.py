@@ -64,10 +64,13 @@ def test_workers_start_with_one_thread_per_numerical_library(monkeypatch):
     initializer runs); a value the user set is kept."""
     import os
 
-    from dgli_vision.core.parallel import ONE_THREAD_VARIABLES, one_thread_per_library
+    from dgli_vision.core.parallel import ONE_THREAD_VARIABLES, limit_library_threads
 
     for name in ONE_THREAD_VARIABLES:
         monkeypatch.delenv(name, raising=False)
     monkeypatch.setenv("MKL_NUM_THREADS", "3")
-    one_thread_per_library()
+    limit_library_threads()
     assert [os.environ[n] for n in ONE_THREAD_VARIABLES] == ["1", "1", "3"]
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    limit_library_threads(4)  # (a worker of -j 2 on 8 cores)
+    assert os.environ["OMP_NUM_THREADS"] == "4" and os.environ["OPENBLAS_NUM_THREADS"] == "1"

@@ -223,9 +223,9 @@ def _worker_pool(
     import atexit
     import multiprocessing as mp
 
-    from ..core.parallel import one_thread_per_library
+    from ..core.parallel import limit_library_threads
 
-    one_thread_per_library()  # one thread per library in each worker: one per core
+    limit_library_threads()  # one thread per library in each worker (one per core)
     # Spawned, not forked: the parent may hold OpenCV, Open3D or decoding threads, and a
     # forked child inherits their locks.
     pool = ProcessPoolExecutor(
