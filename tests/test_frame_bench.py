@@ -92,6 +92,7 @@ def test_the_ratio_to_aruco_is_of_the_medians_and_per_frame() -> None:
     assert "BUSY" in figures[5].name
     assert busy.ratios(cpu=True) == (4.0, pytest.approx(4.8), 5.0)
     assert figures[6].name.startswith("  the same in processor time") and figures[6].value == 4.0
+    assert "processor time 4.00x, p90 4.80x" in figures[7].name  # each condition's too
 
 
 def test_bench_vs_aruco_on_a_tiny_set_prints_the_ratio_rows() -> None:
@@ -179,3 +180,4 @@ def test_a_missed_budget_comes_with_the_machines_load(monkeypatch) -> None:
     assert "MISSED" in res.stdout
     assert "1 budget missed (exit 1); load average" in res.stderr
     assert "time them again on an idle machine" in res.stderr
+

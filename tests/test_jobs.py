@@ -56,3 +56,21 @@ def test_robustness_on_two_workers_scores_as_one():
     two = score_condition("vga", refs, jobs=2, **kw)
     assert one == two and one[0].n == 2
     assert [s.guesses for s in one] == [s.guesses for s in two]
+
+
+def test_workers_start_with_one_thread_per_numerical_library(monkeypatch):
+    """Before a pool of workers starts, one thread per numerical library is put in the
+    environment the workers inherit (they read it when numpy loads, before any
+    initializer runs); a value the user set is kept."""
+    import os
+
+    from dgli_vision.core.parallel import ONE_THREAD_VARIABLES, limit_library_threads
+
+    for name in ONE_THREAD_VARIABLES:
+        monkeypatch.delenv(name, raising=False)
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    limit_library_threads()
+    assert [os.environ[n] for n in ONE_THREAD_VARIABLES] == ["1", "1", "3"]
+    monkeypatch.delenv("OMP_NUM_THREADS")
+    limit_library_threads(4)  # (a worker of -j 2 on 8 cores)
+    assert os.environ["OMP_NUM_THREADS"] == "4" and os.environ["OPENBLAS_NUM_THREADS"] == "1"

@@ -622,9 +622,13 @@ def anchor_figures(bench: AnchorBench) -> list[BenchResult]:
     for condition in bench.conditions():
         c_med, c_p90, c_top = bench.ratios(condition)
         c_ours, c_anchor = bench.medians_ms(condition)
+        p_med, p_p90, _ = bench.ratios(condition, cpu=True)
+        in_cpu = (
+            f"; processor time {p_med:.2f}x, p90 {p_p90:.2f}x" if np.isfinite(p_med) else ""
+        )
         out.append(BenchResult(
             f"  {condition}: median ratio (p90 {c_p90:.2f}x, max {c_top:.2f}x; "
-            f"ours {c_ours:.2f} ms, ArUco {c_anchor:.2f} ms)", c_med, "x"))
+            f"ours {c_ours:.2f} ms, ArUco {c_anchor:.2f} ms{in_cpu})", c_med, "x"))
     return out
 
 

@@ -223,6 +223,9 @@ def _worker_pool(
     import atexit
     import multiprocessing as mp
 
+    from ..core.parallel import limit_library_threads
+
+    limit_library_threads()  # one thread per library in each worker (one per core)
     # Spawned, not forked: the parent may hold OpenCV, Open3D or decoding threads, and a
     # forked child inherits their locks.
     pool = ProcessPoolExecutor(

@@ -88,10 +88,13 @@ def start_workers_early(jobs: int, references_path: str | None, colours: dict | 
         return
     import atexit
     import multiprocessing as mp
+    import os
     import threading
     from concurrent.futures import ProcessPoolExecutor
 
     take_early_workers(-1, None, None)  # one started earlier and never used: ended
+    for name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        os.environ.setdefault(name, "1")  # one thread per library in each worker
     pool = ProcessPoolExecutor(
         jobs - 1,
         mp_context=mp.get_context("spawn"),
