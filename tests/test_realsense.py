@@ -228,10 +228,20 @@ def test_watch_plays_a_recording_through_the_live_path_with_the_states_of_track(
     assert all(f["latency_ms"] > 0 and 0 <= f["confidence"] <= 1 for f in frames)
 
 
-def test_frames_that_come_while_one_is_classified_are_dropped_and_counted(episode, tmp_path):
+def test_frames_that_come_while_one_is_classified_are_dropped_and_counted(
+    episode, tmp_path, monkeypatch
+):
     """Played at its pace, a recording whose frames come 1 ms apart: the worker cannot
-    keep up, and frames are dropped (never queued), the newest always classified."""
+    keep up, and frames are dropped (never queued), the newest always classified. (The
+    classification is made to take 0.5 s, so that it is slower than decoding the next
+    frames however busy the machine: decoding overlaps classifying.)"""
+    import time
+
+    from dgli_vision.analysis import live
     from dgli_vision.sources.recording import read_recording
+
+    real = live.classify_live
+    monkeypatch.setattr(live, "classify_live", lambda *a, **k: time.sleep(0.5) or real(*a, **k))
 
     folder, _ = episode
     fast = tmp_path / "fast"
