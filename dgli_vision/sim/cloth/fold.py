@@ -13,8 +13,6 @@ what is folded later lies on top.
 
 from __future__ import annotations
 
-from itertools import chain
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial import cKDTree
@@ -57,13 +55,13 @@ def _top_under_flap(
         return 0.0
     if angle != np.pi:
         return max(float(z_rel[stay].max()), 0.0)
-    tree = cKDTree(xyz[stay, :2])
-    near = tree.query_ball_point(landing, 1.5e-3 * max(spacing_mm))
-    # the points near any landing point, repeats kept (only their highest counts):
-    # one pass over the lists instead of an array and a sort for each
-    hit = np.fromiter(chain.from_iterable(near), dtype=np.intp)
-    if hit.size:
-        return max(float(z_rel[stay][hit].max()), 0.0)
+    # every (staying point, landing point) pair at most the radius apart, as arrays (no
+    # Python list a landing point); only the highest staying point of them counts
+    near = cKDTree(xyz[stay, :2]).sparse_distance_matrix(
+        cKDTree(landing), 1.5e-3 * max(spacing_mm), output_type="ndarray"
+    )
+    if near.size:
+        return max(float(z_rel[stay][near["i"]].max()), 0.0)
     return 0.0
 
 
