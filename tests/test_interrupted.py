@@ -13,6 +13,9 @@ import time
 from pathlib import Path
 
 import pytest
+from click.testing import CliRunner
+
+from dgli_vision.cli import main
 
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_images"
 ROOT = Path(__file__).resolve().parent.parent
@@ -65,6 +68,13 @@ def interrupt(args: list[str], results: Path, sig: int) -> subprocess.CompletedP
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
+def in_process(args: list[str]):
+    """dgli in this process (click's runner): the runs that are not about a process of
+    their own (the whole run, the refused rerun, the resume) skip the interpreter's and
+    the libraries' start-up. ``output`` holds stderr as well."""
+    return CliRunner().invoke(main, args)
+
+
 def comparable(report: Path) -> dict:
     summary = json.loads((report / "summary.json").read_text())
     for volatile in ("seconds", "command", "jobs"):
@@ -79,13 +89,8 @@ def comparable(report: Path) -> dict:
 @pytest.fixture(scope="module")
 def uninterrupted(batch, tmp_path_factory) -> dict:
     report = tmp_path_factory.mktemp("whole") / "report"
-    res = subprocess.run(
-        [*DGLI, "evaluate", str(batch), "--report", str(report), "-j", "1"],
-        env=ENV,
-        capture_output=True,
-        text=True,
-    )
-    assert res.returncode == 0, res.stderr
+    res = in_process(["evaluate", str(batch), "--report", str(report), "-j", "1"])
+    assert res.exit_code == 0, res.output
     return comparable(report)
 
 
@@ -105,10 +110,10 @@ def test_an_interrupted_batch_resumes_to_the_same_report(batch, uninterrupted, t
         assert partial["n"] == done  # the report of what is done
     else:
         assert res.returncode == -signal.SIGKILL
-    again = subprocess.run([*DGLI, *args], capture_output=True, text=True, env=ENV)
-    assert again.returncode == 2 and "--resume" in again.stderr  # never silently redone
-    resumed = subprocess.run([*DGLI, *args, "--resume"], capture_output=True, text=True, env=ENV)
-    assert resumed.returncode == 0, resumed.stderr
+    again = in_process(args)
+    assert again.exit_code == 2 and "--resume" in again.output  # never silently redone
+    resumed = in_process([*args, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
     assert lines(results) == 12 * COPIES
     assert comparable(report) == uninterrupted
 
@@ -161,8 +166,8 @@ def test_interrupted_track_keeps_its_frames_and_resumes(recording, tmp_path, sig
     assert partial["n_frames"] == done and partial["interrupted"]["frames_done"] == done
     if sig == signal.SIGINT:
         return
-    resumed = subprocess.run([*DGLI, *args, "--resume"], capture_output=True, text=True, env=ENV)
-    assert resumed.returncode == 0, resumed.stderr
+    resumed = in_process([*args, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
     assert lines(results) == FRAMES  # the frames done before were not classified again
     whole = json.loads((report / "timeline.json").read_text())
     assert whole["n_frames"] == FRAMES and "interrupted" not in whole

@@ -71,10 +71,26 @@ def figure_svg(fig: Any) -> str:
     return buf.getvalue()
 
 
+def _freeze_layout(fig: Any) -> None:
+    """Keep the positions the last draw's constrained layout gave, and lay out no more.
+
+    Matplotlib lays a constrained-layout figure out on every draw, and ``savefig`` draws
+    such a figure twice (a layout pass, then the drawing). Once drawn, the positions are
+    final; later drawings (the SVG after the PNG) reuse them.
+    """
+    fig.set_layout_engine(None)  # not "none": savefig would still lay out a placeholder
+
+
 def chart_files(stem: str, fig: Any) -> dict[str, Any]:
     """``{stem.png: BGR image, stem.svg: SVG text}`` of a figure: the HTML pages show the
-    SVG and link the PNG."""
-    return {f"{stem}.png": figure_bgr(fig), f"{stem}.svg": figure_svg(fig)}
+    SVG and link the PNG.
+
+    The figure is laid out once, for the PNG; the SVG reuses that layout (the figure
+    keeps it afterwards).
+    """
+    png = figure_bgr(fig)
+    _freeze_layout(fig)
+    return {f"{stem}.png": png, f"{stem}.svg": figure_svg(fig)}
 
 
 def _group_runs(labels: Sequence[str]) -> list[tuple[int, int, str]]:

@@ -55,11 +55,13 @@ def _top_under_flap(
         return 0.0
     if angle != np.pi:
         return max(float(z_rel[stay].max()), 0.0)
-    tree = cKDTree(xyz[stay, :2])
-    near = tree.query_ball_point(landing, 1.5e-3 * max(spacing_mm))
-    hit = np.unique(np.concatenate([np.asarray(n, dtype=np.intp) for n in near]))
-    if hit.size:
-        return max(float(z_rel[stay][hit].max()), 0.0)
+    # every (staying point, landing point) pair at most the radius apart, as arrays (no
+    # Python list a landing point); only the highest staying point of them counts
+    near = cKDTree(xyz[stay, :2]).sparse_distance_matrix(
+        cKDTree(landing), 1.5e-3 * max(spacing_mm), output_type="ndarray"
+    )
+    if near.size:
+        return max(float(z_rel[stay][near["i"]].max()), 0.0)
     return 0.0
 
 
