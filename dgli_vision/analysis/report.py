@@ -14,7 +14,6 @@ from numpy.typing import NDArray
 
 __all__ = [
     "confusion_image",
-    "heatmap_image",
     "markdown_table",
 ]
 
@@ -29,44 +28,6 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> s
     lines = ["| " + " | ".join(cell(h) for h in header) + " |", "|" + "---|" * len(header)]
     lines += ["| " + " | ".join(cell(v) for v in row) + " |" for row in rows]
     return "\n".join(lines) + "\n"
-
-
-def heatmap_image(
-    matrix: NDArray[np.float64],
-    *,
-    title: str,
-    groups: Sequence[str] | None = None,
-    value_label: str = "",
-    ticks: Sequence[object] | None = None,
-    tick_label: str = "frame",
-) -> NDArray[np.uint8]:
-    """A matrix as a BGR heatmap image with title, axes, group labels and colour bar
-    (:func:`~dgli_vision.analysis.charts.heatmap_figure`, drawn by Matplotlib).
-
-    Parameters
-    ----------
-    matrix : ndarray, shape (n, k)
-        Values; NaN is drawn grey.
-    title : str, keyword-only
-    groups : sequence of str, optional, keyword-only
-        Label of every row (and column, for square matrices), consecutive runs forming
-        groups: drawn as separators and centred labels (e.g. class ids).
-    value_label : str, keyword-only
-        What the colour means, shown by the colour bar.
-    ticks : sequence, optional, keyword-only
-        What every column is (e.g. its frame number): about ten of them are marked on a
-        tick axis under the matrix, named ``tick_label``.
-    tick_label : str, keyword-only
-
-    Returns
-    -------
-    ndarray of uint8, shape (h, w, 3)
-    """
-    from .charts import figure_bgr, heatmap_figure
-
-    return figure_bgr(heatmap_figure(matrix, title=title, groups=groups,
-                                     value_label=value_label, ticks=ticks,
-                                     tick_label=tick_label))
 
 
 def _outlined_text(
