@@ -7,7 +7,8 @@ import numpy as np
 
 
 def test_grouped_quantile_and_median_are_numpys_to_the_bit() -> None:
-    from dgli_vision.perception.blobs import _grouped_median, _grouped_quantile
+    from dgli_vision.core.colour import srgb_lut
+    from dgli_vision.perception.blobs import _grouped_level_medians, _grouped_quantile
 
     rng = np.random.default_rng(40)
     sizes = np.array([0, 1, 2, 3, 4, 7, 8, 50, 51, 0, 5])
@@ -16,15 +17,20 @@ def test_grouped_quantile_and_median_are_numpys_to_the_bit() -> None:
     values[::7] = values[1]
     shuffled = rng.permutation(group.size)
     values, group = values[shuffled], group[shuffled]
+    ordered = values[np.lexsort((values, group))]
     for q in (0.75, 0.5, 0.1, 0.9):
-        got = _grouped_quantile(values, group, sizes, q)
+        got = _grouped_quantile(ordered, sizes, q)
         for k, n in enumerate(sizes):
             want = np.quantile(values[group == k], q) if n else np.nan
             assert got[k] == want or (np.isnan(want) and np.isnan(got[k])), (q, k)
-    got = _grouped_median(values, group, sizes)
+    levels = rng.integers(0, 256, (group.size, 3), dtype=np.uint8)
+    levels[::5] = levels[2]  # (repeated levels)
+    got = _grouped_level_medians(levels, group, len(sizes))
+    assert got.shape == (len(sizes), 3)
     for k, n in enumerate(sizes):
-        want = np.median(values[group == k]) if n else np.nan
-        assert got[k] == want or (np.isnan(want) and np.isnan(got[k])), k
+        want = np.median(srgb_lut()[levels[group == k]], axis=0) if n else np.full(3, np.nan)
+        assert np.array_equal(got[k], want, equal_nan=True), k
+    assert np.isnan(_grouped_level_medians(levels[:0], group[:0], 2)).all()
 
 
 def test_grouped_statistics_keep_each_groups_pixel_order_for_sums() -> None:
