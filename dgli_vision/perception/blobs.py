@@ -610,12 +610,12 @@ class _DiscPixels:
         """Each pixel's blob times 256: plus an 8-bit value, a key per (blob, value)."""
         return self.blob.astype(np.uint32) << np.uint32(8)
 
-    def upper_medians(self, values: NDArray[np.uint8], where: NDArray[np.bool_]) -> NDArray:
-        """Per blob, the upper median of the 8-bit ``values`` ``where`` holds (as
-        :func:`_median`: the (n // 2)-th smallest of n); -1 for a blob with none.
-        Shape (n_blobs,)."""
+    def upper_medians(self, values: NDArray[np.uint8], at: NDArray[np.intp]) -> NDArray:
+        """Per blob, the upper median of the 8-bit ``values`` of the pixels ``at`` (an
+        index, one value each; as :func:`_median`: the (n // 2)-th smallest of n); -1
+        for a blob with none. Shape (n_blobs,)."""
         counts = np.bincount(
-            (self._by_level + values)[where], minlength=self.n_blobs * 256
+            np.take(self._by_level, at) + values, minlength=self.n_blobs * 256
         ).reshape(self.n_blobs, 256)
         at_most = np.cumsum(counts, axis=1)  # values <= each level, per blob
         n = at_most[:, -1]
@@ -636,9 +636,10 @@ class _DiscPixels:
         (8-bit; -1 where there are none). The sRGB curve is increasing, so these are
         the medians in linear light too."""
         r, norm = self.r, self.norm
-        ring = (r > _RING_INNER) & (r < _RING_OUTER) & ~self.inside
-        disc = self.inside & (self.labels > 0) & (r < 0.95)
-        smallest, largest = _channel_min(norm), _channel_max(norm)
+        ring = np.flatnonzero((r > _RING_INNER) & (r < _RING_OUTER) & ~self.inside)
+        disc = np.flatnonzero(self.inside & (self.labels > 0) & (r < 0.95))
+        smallest = _channel_min(np.take(norm, ring, axis=0))
+        largest = _channel_max(np.take(norm, disc, axis=0))
         return (
             self.upper_medians(smallest, ring).tolist(), self.upper_medians(largest, disc).tolist()
         )
