@@ -740,7 +740,11 @@ class _GrownBlob:
         bx, by, bw, bh = cv2.boundingRect(region)
         ax0, ay0 = max(bx - 1, 0), max(by - 1, 0)
         ax1, ay1 = min(bx + bw + 1, w), min(by + bh + 1, h)
-        up = cv2.dilate(region[ay0:ay1, ax0:ax1].repeat(2, axis=0).repeat(2, axis=1), _SQUARE5)
+        cut = region[ay0:ay1, ax0:ax1]  # (doubled by nearest neighbour: each pixel 2 x 2)
+        doubled = cv2.resize(
+            cut, (2 * cut.shape[1], 2 * cut.shape[0]), interpolation=cv2.INTER_NEAREST
+        )
+        up = cv2.dilate(doubled, _SQUARE5)
         x0, y0 = 2 * c.origin[0], 2 * c.origin[1]
         shape = (min(2 * h, frame_shape[0] - y0), min(2 * w, frame_shape[1] - x0))
         up = up[: shape[0] - 2 * ay0, : shape[1] - 2 * ax0]
