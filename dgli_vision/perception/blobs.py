@@ -552,6 +552,10 @@ class _DiscPixels:
         The balanced colour.
     n_blobs, n_labels : int
         Number of blobs, and of label values (colours + 1).
+    palette : ndarray, shape (n_colours, 3), optional
+        The search image's sticker colours (``SearchImage.palette``).
+    params : DetectorParams, optional
+        The search image's thresholds (needed with ``palette``).
     """
 
     blob: NDArray[np.intp]
@@ -562,6 +566,8 @@ class _DiscPixels:
     norm: NDArray[np.uint8]
     n_blobs: int
     n_labels: int
+    palette: NDArray[np.float64] | None = None
+    params: DetectorParams | None = None
 
     @classmethod
     def of(cls, shaped: list[_Shaped], image: SearchImage) -> _DiscPixels:
@@ -586,7 +592,10 @@ class _DiscPixels:
                 washed[at : at + m].reshape(hw)[...] = b.washed[in_window]
             at += m
         blob = np.repeat(np.arange(len(shaped)), counts)
-        return cls(blob, r, inside, washed, labels, norm, len(shaped), image.n_colours + 1)
+        return cls(
+            blob, r, inside, washed, labels, norm, len(shaped), image.n_colours + 1,
+            image.palette, image.params,
+        )
 
     def count(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
         """Number of pixels ``where`` holds, per blob, shape (n_blobs,)."""
@@ -654,12 +663,24 @@ class _DiscPixels:
         coloured = self.inside & (self.labels > 0)
         inner_area = self.r < 0.28
         return (
-            self.label_counts(coloured & (self.r > 0.6) & (self.r < 0.95)).tolist(),
+            self._band_counts.tolist(),
             self.label_counts(coloured & inner_area).tolist(),
             self.count(inner_area).tolist(),
             (self.count(self.washed & inner_area) > 0).tolist(),
         )
 
+    @cached_property
+    def _band_counts(self) -> NDArray[np.intp]:
+        """Label counts of each blob's coloured pixels in its outer band (0.6-0.95
+        radii), shape (n_blobs, n_labels)."""
+        r = self.r
+        return self.label_counts(self.inside & (self.labels > 0) & (r > 0.6) & (r < 0.95))
+
+    @cached_property
+    def dots(self) -> list[_Colours | None]:
+        """Per blob, its disc and dot colours read by the colour the dot adds at the
+        centre, or None (:func:`_dots_by_difference`)."""
+        return _dots_by_difference(self)
 
     @cached_property
     def unmixing(self) -> list[tuple[list[float], list[float]] | None]:
@@ -675,6 +696,14 @@ class _DiscPixels:
         are those of its 8-bit levels, and a median of linear values is read from the
         8-bit levels' counts (:func:`_grouped_level_medians`) without sorting floats;
         the sums run in pixel order."""
+        disc_seen, added, ok = self._unmixed
+        disc_seen, added, told = disc_seen.tolist(), added.tolist(), ok.tolist()
+        return [(disc_seen[k], added[k]) if told[k] else None for k in range(self.n_blobs)]
+
+    @cached_property
+    def _unmixed(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
+        """:attr:`unmixing` as arrays: the disc as seen and what the centre adds, shape
+        (n_blobs, 3) each, and which blobs have them."""
         r, n, norm = self.r, self.n_blobs, self.norm
         lut = srgb_lut()
         # (an index and np.take gather rows several times faster than a boolean mask)
@@ -695,9 +724,7 @@ class _DiscPixels:
             [np.bincount(mid_group, weights=mid[:, c], minlength=n) for c in range(3)], axis=1
         )
         added = sums / np.maximum(n_mid, 1)[:, None] - disc_seen
-        ok = ((n_band >= 4) & (n_mid > 0)).tolist()
-        disc_seen, added = disc_seen.tolist(), added.tolist()
-        return [(disc_seen[k], added[k]) if ok[k] else None for k in range(n)]
+        return disc_seen, added, (n_band >= 4) & (n_mid > 0)
 
 
 def _radii(
@@ -798,7 +825,7 @@ def _read_colours(
     colours = _disc_and_dot(discs, k, p)
     if s.radius >= p.small_radius_px:
         return colours
-    unmixed = _dot_by_difference(s, image, discs, k)
+    unmixed = _dot_by_difference(discs, k)
     if unmixed is None:
         return colours
     if not image.halved or isinstance(colours, str):
@@ -808,66 +835,71 @@ def _read_colours(
     return colours
 
 
-def _dot_by_difference(
-    s: _Shaped, image: SearchImage, discs: _DiscPixels, k: int
-) -> _Colours | None:
-    """Disc and dot colours of a small sticker whose dot the blur mixed into its disc,
-    read by the colour the dot adds at the centre; None where that cannot be read.
+def _dot_by_difference(discs: _DiscPixels, k: int) -> _Colours | None:
+    """Disc and dot colours of the ``k``-th blob, a small sticker whose dot the blur
+    mixed into its disc, read by the colour the dot adds at the centre; None where that
+    cannot be read (see :attr:`_DiscPixels.dots`, which reads every blob at once)."""
+    return discs.dots[k]
+
+
+def _dots_by_difference(discs: _DiscPixels) -> list[_Colours | None]:
+    """:func:`_dot_by_difference` of every blob of ``discs``, worked out at once.
 
     A 12 mm dot 4-6 pixels across, blurred over 1-1.6 pixels (demosaicing blurs the red
     and blue channels more than the green one), keeps no pixel of its own colour: the
     centre is the disc's colour mixed with the dot's. In linear light the disc is the
     median of the most saturated quarter of the outer band (0.6-0.95 radii: the rest is
-    mixed with the cloth's white) and the centre the mean within 0.2 radii;
-    the dot's colour is unmixed from them (every sticker colour has a channel near 0),
-    and its chroma direction compared with the palette's: the nearest (within
-    ``dot_max_distance`` and ``dot_margin`` nearer than the next) is the dot, the disc's
-    own colour meaning a plain disc; a dot two colours fit alike is left unread (dot
-    None), which the identities may still settle.
+    mixed with the cloth's white) and the centre the mean within 0.2 radii
+    (:attr:`_DiscPixels.unmixing`); the dot's colour is unmixed from them (every
+    sticker colour has a channel near 0), and its chroma direction compared with the
+    palette's: the nearest (within ``dot_max_distance`` and ``dot_margin`` nearer than
+    the next) is the dot, the disc's own colour meaning a plain disc; a dot two colours
+    fit alike is left unread (dot None), which the identities may still settle.
+
+    Each blob's figures are those of the same arithmetic on its own three channels (the
+    same IEEE operations in the same order, on arrays of every blob).
     """
-    palette = image.palette
-    if palette is None:
-        return None
-    p = image.params
-    disc_counts = discs.disc_and_dot[0][k]
-    if not sum(disc_counts):
-        return None
-    disc = _first_largest(disc_counts)  # a label: colour disc - 1 of the palette
-    purity = disc_counts[disc] / sum(disc_counts)
-    if purity < p.min_purity or disc == 0:
-        return None
-    seen = discs.unmixing[k]
-    if seen is None:
-        return None
-    disc_seen, added = seen
+    n, palette, p = discs.n_blobs, discs.palette, discs.params
+    out: list[_Colours | None] = [None] * n
+    if palette is None or p is None or n == 0:
+        return out
+    outer = discs._band_counts  # (n, n_labels) label counts
+    total = outer.sum(axis=1)
+    disc = np.argmax(outer, axis=1)  # (the first of equal counts, as list.index(max))
+    purity = outer[np.arange(n), disc] / np.maximum(total, 1)
+    disc_seen, added, told = discs._unmixed
+    ok = (total > 0) & (purity >= p.min_purity) & (disc != 0) & told
+    rows = np.flatnonzero(ok).tolist()
+    if not rows:
+        return out
+    disc_seen, added = disc_seen[rows], added[rows]  # (m, 3) linear
     # Unmix: centre = (1 - b) disc + b dot, both lit alike and with the same white light
     # w added; every sticker colour has a channel near 0, so the dot's smallest channel
     # is the disc's (w). The least share b that keeps every channel of the dot at or
     # above it is the share (at most 1: the centre is then the dot).
-    # (On three channels, Python's floats: the same arithmetic as numpy's, without
-    # its per-call cost.)
-    floor = min(disc_seen)
+    above = disc_seen - disc_seen.min(axis=1, keepdims=True)
     # (the disc's own smallest channels carry noise only)
-    need = max(
-        -a / max(d - floor, 1e-6) if a < 0 and d - floor > 0.05 else 0.0
-        for d, a in zip(disc_seen, added)
-    )
+    falls = (added < 0) & (above > 0.05)
+    need = np.where(falls, -added / np.maximum(above, 1e-6), 0.0).max(axis=1)
     # (nothing fell: the centre is the dot itself, sharp, or the disc's own colour)
-    share = min(max(need, p.dot_min_share), 1.0) if need > 0.1 else 1.0
-    dot_seen = [d + a / share for d, a in zip(disc_seen, added)]
+    share = np.where(need > 0.1, np.minimum(np.maximum(need, p.dot_min_share), 1.0), 1.0)
+    dot_seen = disc_seen + added / share[:, None]
     # a plain disc's dot is the disc as seen (a tint of the light or the laminate moves
     # it from the printed colour); another dot is a printed colour
-    targets = list(_palette_directions(palette))
-    targets[disc - 1] = _direction(disc_seen)
-    seen_dir = _direction(dot_seen)
-    distances = [max(abs(t - v) for t, v in zip(target, seen_dir)) for target in targets]
-    order = sorted(range(len(distances)), key=distances.__getitem__)  # (stable)
-    best, second = order[0], distances[order[1]]
-    if distances[best] <= p.dot_max_distance and second - distances[best] >= p.dot_margin:
-        return _Colours(disc, best + 1, purity)  # (label best + 1; the disc's: plain)
-    # a dot is there but two colours fit it alike: unread (the identity may still
-    # follow from the stickers of its disc colour left, as for a dot under a highlight)
-    return _Colours(disc, None, purity)
+    m = len(rows)
+    targets = np.repeat(_directions(palette)[None], m, axis=0)  # (m, n_colours, 3)
+    own = disc[rows] - 1
+    targets[np.arange(m), own] = _directions(disc_seen)
+    distances = np.abs(targets - _directions(dot_seen)[:, None, :]).max(axis=2)
+    best = np.argmin(distances, axis=1)  # (the first of equal ones: a stable sort's)
+    ranked = np.sort(distances, axis=1)
+    read = (ranked[:, 0] <= p.dot_max_distance) & (ranked[:, 1] - ranked[:, 0] >= p.dot_margin)
+    best, read = best.tolist(), read.tolist()
+    discs_of, purities = disc.tolist(), purity.tolist()
+    for i, k in enumerate(rows):
+        # label best + 1 (the disc's own: plain); unread where two colours fit alike
+        out[k] = _Colours(discs_of[k], best[i] + 1 if read[i] else None, purities[k])
+    return out
 
 
 def _grouped_quantile(
@@ -987,24 +1019,13 @@ def _grouped_level_medians(
     return np.where(n > 0, out, np.nan).reshape(n_groups, channels)
 
 
-def _direction(rgb: Sequence[float]) -> tuple[float, ...]:
-    """The chroma direction of a linear colour: its channels less the smallest, over
-    the chroma (white light added or the light's level leave it)."""
-    low, high = min(rgb), max(rgb)
-    span = max(high - low, 1e-6)
-    return tuple((c - low) / span for c in rgb)
+def _directions(rgb: NDArray[np.float64]) -> NDArray[np.float64]:
+    """The chroma direction of linear colours (..., 3): their channels less the
+    smallest, over the chroma (white light added or the light's level leave it)."""
+    low = rgb.min(axis=-1, keepdims=True)
+    span = np.maximum(rgb.max(axis=-1, keepdims=True) - low, 1e-6)
+    return (rgb - low) / span
 
-
-def _palette_directions(palette: NDArray[np.float64]) -> tuple[tuple[float, ...], ...]:
-    """:func:`_direction` of each colour of ``palette`` (n, 3)."""
-    return _directions_of(palette.tobytes(), palette.shape[1])
-
-
-@lru_cache(maxsize=8)
-def _directions_of(palette: bytes, channels: int) -> tuple[tuple[float, ...], ...]:
-    """:func:`_palette_directions` of a palette's bytes (float64, ``channels`` a row)."""
-    rows = np.frombuffer(palette, np.float64).reshape(-1, channels).tolist()
-    return tuple(_direction(row) for row in rows)
 
 def _first_largest(counts: list[int]) -> int:
     """Index of the largest count, the first of equal ones (``np.argmax`` of a list)."""
