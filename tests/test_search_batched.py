@@ -265,3 +265,34 @@ def test_a_search_near_the_napkin_computes_its_images_only_as_far_as_its_blobs_r
     assert "not on the napkin" in by_edge[0].reason
     bottom = (edge[1] + r) / 2 + window_pad(r / 2) + 2  # (its window's last row, and more)
     assert near.norm[y1 + 1 : int(bottom)].any() and not near.norm[int(bottom) + 1 :].any()
+
+
+def test_a_search_again_leaves_the_stickers_found_to_them_and_finds_the_rest_alike():
+    """The second search (``known``: the stickers found before) judges no blob covering
+    a found sticker again, gives no one its id, and finds the others where a search of
+    everything finds them."""
+    from dgli_vision.perception.detect import detect_stickers
+
+    img, depth = _scene()
+    first = detect_stickers(img, depth, INTR, LAYOUT)
+    assert first.found.sum() == 16
+    known = first.centroids.copy()
+    lost = np.array([1, 6, 11])
+    known[lost] = np.nan
+    report = ~np.isfinite(known).all(axis=1)
+    again = detect_stickers(img, depth, INTR, LAYOUT, report=report, known=known)
+    assert np.flatnonzero(again.found).tolist() == lost.tolist()
+    assert np.allclose(again.centroids[lost], first.centroids[lost], atol=1e-9)
+    # every sticker known: nothing is left to find, and no blob is taken for one
+    none = detect_stickers(
+        img, depth, INTR, LAYOUT, report=np.zeros(16, bool), known=first.centroids
+    )
+    assert not none.found.any()
+    # (the blobs of the 13 stickers known are not traced for judging)
+    params = DetectorParams()
+    napkin = find_napkin(img, depth, INTR)
+    lut, names = hue_lut(LAYOUT, params, None)
+    args = (img, depth, INTR, LAYOUT, params, napkin, lut, len(names))
+    every = search_image(*args).traced[1]
+    rest = search_image(*args, known=known[~report]).traced[1]
+    assert len(every) - len(rest) == 13

@@ -77,6 +77,7 @@ def detect_stickers(
     colours: dict[str, tuple[int, int, int]] | None = None,
     roi: NDArray[np.bool_] | None = None,
     report: NDArray[np.bool_] | None = None,
+    known: NDArray[np.float64] | None = None,
 ) -> StickerDetections:
     """Find the 16 stickers in an RGB image.
 
@@ -101,6 +102,10 @@ def detect_stickers(
         blob taken for one keeps it from the rest), but they are reported as not found
         and their blobs' centres are measured at full resolution only where that can
         change a wanted id (see :func:`_to_measure`). Their rejections are not reported.
+    known : ndarray, shape (16, 2), keyword-only, optional
+        Centres (u, v; NaN: not found) of the stickers a search before found (with
+        ``report``, for a search again): a blob covering one of them is that sticker,
+        so it is not judged again, and those ids are taken before any blob is named.
 
     Returns
     -------
@@ -111,9 +116,11 @@ def detect_stickers(
     if napkin is None:
         napkin = find_napkin(color, depth_mm, intrinsics)
     lut, names = hue_lut(layout, params, colours)
+    taken = None if known is None else np.isfinite(known).all(axis=1)
     image = search_image(
         color, depth_mm, intrinsics, layout, params, napkin, lut, len(names), roi,
         palette=_palette(layout, names, colours),
+        known=None if known is None else known[taken],
     )
     candidates, rejected = candidate_blobs(image)
     full = None
@@ -123,7 +130,7 @@ def detect_stickers(
             _refine_all(color, napkin.lut, lut, params, measured), params, intrinsics.fx,
             image.disc_radius_mm,
         )
-    ids = identify(candidates, layout, names, full)
+    ids = identify(candidates, layout, names, full, taken=taken)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
         rejected = [_at_full_resolution(r) for r in rejected]
@@ -195,6 +202,7 @@ def search_image(
     roi: NDArray[np.bool_] | None = None,
     *,
     palette: NDArray[np.float64] | None = None,
+    known: NDArray[np.float64] | None = None,
 ) -> SearchImage:
     """The image stickers are searched in, with its colour labels.
 
@@ -240,6 +248,8 @@ def search_image(
     labels = planes.labels if inside is None else planes.labels * inside
     least = least_area(min_px)  # (smaller blobs are specks: not judged, no window read)
     outer = [c for c in _judged_contours(labels, near, box) if cv2.contourArea(c) >= least]
+    if known is not None and len(known) and outer:
+        outer = _not_covering(outer, (known - 0.5) / 2 if halve else known)
     if box != (0, 0, shape[1], shape[0]):  # the rest of the box judging the blobs reads
         rect = cv2.boundingRect(np.concatenate(outer)) if outer else (0, 0, 0, 0)
         planes.extend(_judged_box(rect, depth_mm, disc_mm_px, med_depth))
@@ -554,6 +564,29 @@ def _lies_within(rect: tuple[int, int, int, int], box: tuple[int, int, int, int]
     return x >= box[0] and y >= box[1] and x + w <= box[2] and y + h <= box[3]
 
 
+def _not_covering(
+    contours: list[NDArray[np.int32]], points: NDArray[np.float64]
+) -> list[NDArray[np.int32]]:
+    """The contours that cover none of ``points`` (k, 2), on or within them."""
+    import cv2
+
+    rects = np.array([cv2.boundingRect(c) for c in contours], dtype=np.float64)
+    x, y = points[:, 0][None], points[:, 1][None]
+    near = (
+        (x >= rects[:, :1]) & (x <= rects[:, :1] + rects[:, 2:3])
+        & (y >= rects[:, 1:2]) & (y <= rects[:, 1:2] + rects[:, 3:4])
+    )
+    out = []
+    for c, row in zip(contours, near.tolist()):
+        if any(row) and any(
+            cv2.pointPolygonTest(c, (float(p[0]), float(p[1])), False) >= 0
+            for p, hit in zip(points.tolist(), row) if hit
+        ):
+            continue
+        out.append(c)
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class FullResolution:
     """What measuring a candidate's centre at full resolution needs, after a search of
@@ -592,13 +625,16 @@ class Identities:
     """
 
     def __init__(
-        self, layout: NapkinLayout, names: list[str], full: FullResolution | None
+        self, layout: NapkinLayout, names: list[str], full: FullResolution | None,
+        taken: NDArray[np.bool_] | None = None,
     ) -> None:
         n = layout.n_stickers
         self.layout, self.names, self.full = layout, names, full
         self.centroids = np.full((n, 2), np.nan)
         self.areas = np.full(n, np.nan)
         self.scores = np.zeros(n)
+        if taken is not None:  # (given before: no blob is named for them, none located)
+            self.scores[taken] = 1.0
         self.depths = np.full(n, np.nan)
         self.fores = np.full(n, np.nan)
         self.rejected: list[Rejection] = []
@@ -656,10 +692,13 @@ def identify(
     layout: NapkinLayout,
     names: list[str],
     full: FullResolution | None,
+    *,
+    taken: NDArray[np.bool_] | None = None,
 ) -> Identities:
     """Sticker ids of the candidates, best score first; those whose dot is washed out
-    come last and take what is left of their disc colour."""
-    ids = Identities(layout, names, full)
+    come last and take what is left of their disc colour. ``taken`` (16,): ids given
+    before (a search before found them), which no candidate is given."""
+    ids = Identities(layout, names, full, taken)
     pending = []
     for c in sorted(candidates, key=lambda c: -c.score):
         if c.dot is None:
@@ -826,7 +865,8 @@ def find_washed_out(
     nothing is blown out. The search runs :func:`detect_stickers` again with
     ``washed_saturation`` and ``washed_chroma`` (every other check unchanged: size,
     shape, disc and dot colours, white cloth around) and keeps what it finds of the
-    stickers ``found`` lacks, away from the stickers found (a disc's distance).
+    stickers ``found`` lacks, away from the stickers found (a disc's distance). A blob
+    covering a sticker found is that sticker: it is not judged again (``known``).
 
     Parameters
     ----------
@@ -865,7 +905,7 @@ def find_washed_out(
         roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
     again = detect_stickers(  # (only the stickers not found yet can be merged)
         color, depth_mm, intrinsics, layout, pastel_params(params), napkin=lower,
-        colours=colours, roi=roi, report=~found.found,
+        colours=colours, roi=roi, report=~found.found, known=found.centroids,
     )
     merged = merge_second_search(found, again)
     return with_unread(color, merged, layout, params, lower, colours, looks=looks)
