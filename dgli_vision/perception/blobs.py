@@ -972,53 +972,6 @@ def _grouped_level_medians(
     return np.where((counts > 0)[:, None], out, np.nan)
 
 
-@lru_cache(maxsize=1)
-def _chroma_ranks() -> tuple[NDArray[np.int64], NDArray[np.float64]]:
-    """The linear chroma of every (largest, smallest) pair of 8-bit levels as a rank
-    among them all, shape (256, 256) (equal chromas share one), and the chroma of each
-    rank: a 16-bit integer key that orders chromas exactly (distinct ones lie as close
-    as 1e-19), read-only."""
-    lut = srgb_lut()
-    chromas, inverse = np.unique(lut[:, None] - lut[None, :], return_inverse=True)
-    ranks = inverse.reshape(256, 256).astype(np.int64)
-    ranks.flags.writeable = chromas.flags.writeable = False
-    return ranks, chromas
-
-
-def _channel_max(pixels: NDArray) -> NDArray:
-    """The largest of the 3 channels of each pixel (one pass a channel: ``max`` over a
-    trailing axis of 3 is many times slower)."""
-    return np.maximum(np.maximum(pixels[..., 0], pixels[..., 1]), pixels[..., 2])
-
-
-def _channel_min(pixels: NDArray) -> NDArray:
-    """The smallest of the 3 channels of each pixel (as :func:`_channel_max`)."""
-    return np.minimum(np.minimum(pixels[..., 0], pixels[..., 1]), pixels[..., 2])
-
-
-def _grouped_level_medians(
-    levels: NDArray[np.uint8], group: NDArray[np.intp], n_groups: int
-) -> NDArray[np.float64]:
-    """Per group and channel, ``np.median`` of the linear light of 8-bit ``levels``
-    (m, 3) to the bit (the mean of the two middle values of an even count), shape
-    (n_groups, 3); NaN for an empty group. The sRGB curve is strictly increasing, so
-    the middle values are those of the middle levels, found from the levels' counts."""
-    channels = levels.shape[1]
-    keys = (group.astype(np.uint32) * np.uint32(channels))[:, None] + np.arange(
-        channels, dtype=np.uint32
-    )
-    keys = (keys << np.uint32(8)) + levels
-    counts = np.bincount(keys.ravel(), minlength=n_groups * channels * 256)
-    at_most = np.cumsum(counts.reshape(n_groups * channels, 256), axis=1)
-    n = at_most[:, -1]
-    half = n // 2
-    upper = np.argmax(at_most > half[:, None], axis=1)
-    lower = np.argmax(at_most > np.maximum(half - 1, 0)[:, None], axis=1)
-    lut = srgb_lut()
-    out = np.where(n % 2 == 1, lut[upper], (lut[lower] + lut[upper]) / 2.0)
-    return np.where(n > 0, out, np.nan).reshape(n_groups, channels)
-
-
 def _directions(rgb: NDArray[np.float64]) -> NDArray[np.float64]:
     """The chroma direction of linear colours (..., 3): their channels less the
     smallest, over the chroma (white light added or the light's level leave it)."""
