@@ -18,6 +18,7 @@ from ..core.dgli import cloth_coordinates
 from ..core.errors import DetectionError
 from ..core.json_ready import json_ready
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
+from ..core.order_stats import median
 from ..perception.agreement import edge_on_heights, edge_on_problem
 from ..perception.detect import (
     DetectorParams,
@@ -587,7 +588,7 @@ def _too_small(
     if found.sum() >= 3:
         fore = detections.foreshortening
         fore = fore[found] if fore is not None else 1.0
-        across = float(np.median(2 * np.sqrt(detections.areas[found] / (np.pi * fore))))
+        across = median(2 * np.sqrt(detections.areas[found] / (np.pi * fore)))
         depth_mm = layout.disc_diameter_mm * frame.intrinsics.fx / max(across, 1e-6)
         return sticker_size_problem(depth_mm, frame.intrinsics, layout.disc_diameter_mm)
     if depth_scale_hint(detections, frame.depth_mm, frame.intrinsics):
@@ -600,7 +601,7 @@ def _napkin_depth(detections: StickerDetections, depth_mm: NDArray[np.uint16]) -
     located (at least three), else of the frame's readings (NaN with none)."""
     z = detections.depth_mm[np.isfinite(detections.depth_mm)]
     if len(z) >= 3:
-        return float(np.median(z))
+        return median(z)
     read = depth_mm[::8, ::8]
     read = read[read > 0]
     return float(np.median(read)) if read.size else float("nan")
