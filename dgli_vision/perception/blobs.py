@@ -33,7 +33,7 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
-from ..core.order_stats import quantile
+from ..core.order_stats import median, quantile
 from .detections import DetectorParams, Rejection
 
 __all__ = [
@@ -416,28 +416,35 @@ def _grown_to_its_rim(blob: _Blob, image: SearchImage) -> _Blob:
 
     p = image.params
     x0, y0, x1, y1 = blob.window
-    lin = srgb_lut()[image.norm[y0:y1, x0:x1]]  # (h, w, 3) linear, balanced
-    low = _channel_min(lin)
-    chroma = _channel_max(lin) - low
     yy, xx = blob.grid
     reach = blob.r_exp + p.blur_rim_px
     near = (xx - blob.where[0]) ** 2 + (yy - blob.where[1]) ** 2 <= reach * reach
+    # every figure below is read on the blob and the pixels within reach alone: those
+    # pixels, in the window's row order (as a mask of the window orders them)
+    at = np.flatnonzero(blob.inside | near)
+    near_at, inside_at = near.ravel()[at], blob.inside.ravel()[at]
+    lin = srgb_lut()[np.take(image.norm[y0:y1, x0:x1].reshape(-1, 3), at, axis=0)]  # linear
+    low = _channel_min(lin)
+    chroma = _channel_max(lin) - low
     # the disc's colour: that of the coloured pixels around the blob within reach (the
     # rim the threshold cut off, or the whole ring of a disc too pale to be labelled
     # around a dot that was), else of the blob itself
-    around = near & ~blob.inside & (chroma >= p.rim_min_chroma)
-    source = around if around.sum() >= 4 else blob.inside & (chroma >= p.rim_min_chroma)
+    coloured = chroma >= p.rim_min_chroma
+    around = near_at & ~inside_at & coloured
+    source = around if np.count_nonzero(around) >= 4 else inside_at & coloured
     if not source.any():
         return blob
-    direction = (lin - low[..., None]) / np.maximum(chroma, 1e-6)[..., None]
-    disc_dir = np.median(direction[source], axis=0)
+    direction = (lin - low[:, None]) / np.maximum(chroma, 1e-6)[:, None]
+    seen = direction[source]
+    disc_dir = np.array([median(seen[:, c]) for c in range(3)])  # (np.median, axis 0)
     alike = _channel_max(np.abs(direction - disc_dir)) <= p.rim_direction
-    mine = (blob.inside | near) & alike
-    pure = float(quantile(chroma[mine], 0.9)) if mine.any() else 0.0
+    # (every pixel read is the blob's or within reach: those alike are the disc's)
+    pure = float(quantile(chroma[alike], 0.9)) if alike.any() else 0.0
     if pure <= 0:
         return blob
-    rim = (chroma >= 0.5 * pure) & alike & near
-    union = (blob.inside | rim).astype(np.uint8)
+    rim = (chroma >= 0.5 * pure) & alike & near_at
+    union = blob.inside.astype(np.uint8)
+    union.ravel()[at[rim]] = 1
     _, lab, _, _ = cv2.connectedComponentsWithStats(union, connectivity=8)
     inside = lab == lab[blob.inside][0]
     if inside.sum() <= blob.area:
