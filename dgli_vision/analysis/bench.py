@@ -499,7 +499,7 @@ def run_recording_benchmarks(
     fps, peak = n_frames / t, peak_kib / 1024
     name = f"track a {n_frames}-frame 1280x720 ROS 2 episode ({size:,.0f} MB MCAP), -j 2"
     return [
-        BenchResult(name, fps, "frames/s", ">= 20 frames/s", fps >= 20),
+        BenchResult(name, fps, "frames/s", ">= 100 frames/s", fps >= 100),
         BenchResult("  peak memory of its largest process", peak, "MB", "< 500 MB", peak < 500),
     ]
 
