@@ -212,10 +212,11 @@ def _cell_means(color: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
 
     For an integer factor OpenCV averages each cell pixel by pixel; for a cell side a
     power of two from 4 to 16 the sums are found here instead by whole rows (the ``c``
-    rows of each row of cells added as 16-bit numbers, one reduction)
-    and then by halves of each cell's row (log2 ``c`` additions), and rounded as OpenCV
-    rounds (the nearest integer, ties to even). Other sides are left to OpenCV (its
-    2 x 2 average rounds ties up).
+    rows of each row of cells added as 16-bit numbers, one reduction), then, on those
+    sums turned on their side (a pixel's channel a row, a row of cells a column), by
+    the ``c`` rows of each column of cells (log2 ``c`` additions of long rows, not of
+    a few values per cell), and rounded as OpenCV rounds (the nearest integer, ties
+    to even). Other sides are left to OpenCV (its 2 x 2 average rounds ties up).
     """
     import cv2
 
@@ -227,12 +228,14 @@ def _cell_means(color: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
     rows = crop.reshape(h, c, w * c * ch)  # (a copy only for a cropped frame)
     # one reduction over the rows of each row of cells (at most 16 x 16 x 255: 16 bits
     # hold it), a third less time than adding the rows one by one
-    sums = rows.sum(axis=1, dtype=np.uint16)
-    cells = sums.reshape(h * w, c * ch)  # each cell's row of sums: c pixels of ch values
-    while cells.shape[1] > ch:
-        half = cells.shape[1] // 2
-        cells = cv2.add(cells[:, :half], cells[:, half:])
-    return cv2.convertScaleAbs(cells, alpha=1.0 / (c * c)).reshape(h, w, ch)
+    sums = rows.sum(axis=1, dtype=np.uint16)  # (h, w c ch)
+    side = cv2.transpose(sums).reshape(w, c, ch * h)  # [column of cells, pixel, (ch, row)]
+    while side.shape[1] > 1:
+        half = side.shape[1] // 2
+        side = cv2.add(side[:, :half].reshape(w, -1), side[:, half:].reshape(w, -1))
+        side = side.reshape(w, half, ch * h)
+    cells = side.reshape(w, ch, h).transpose(2, 0, 1)  # (h, w, ch), a view
+    return cv2.convertScaleAbs(np.ascontiguousarray(cells), alpha=1.0 / (c * c))
 
 
 def cloth_regions(
