@@ -119,8 +119,8 @@ def _table_area_mm2(
     h, w = cells.shape
     dx = (np.arange(w) * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
     dy = (np.arange(h) * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
-    grid = (up[0] * dx)[None, :] + (up[1] * dy)[:, None]
-    cos = np.abs(grid[cells] + up[2])
+    ys, xs = np.nonzero(cells)  # (the cells asked only, not the whole grid)
+    cos = np.abs((up[0] * dx)[xs] + (up[1] * dy)[ys] + up[2])
     scale = offset_m**2 * cell * cell / (intrinsics.fx * intrinsics.fy) * 1e6
     return float(scale * np.sum(cos**-3.0))
 
@@ -320,9 +320,10 @@ def cloth_cells(
     h, w = labels.shape
     px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
     px = px[np.isfinite(px).all(axis=1)]
-    cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])
-    held = np.unique(labels[cells[:, 1], cells[:, 0]])
-    held = held[held > 0]
+    col = np.minimum(np.maximum(px[:, 0] // c, 0), w - 1).astype(np.intp)
+    row = np.minimum(np.maximum(px[:, 1] // c, 0), h - 1).astype(np.intp)
+    # the regions holding them (a set of a dozen labels: np.unique costs more)
+    held = np.array(sorted(set(labels[row, col].tolist()) - {0}), dtype=labels.dtype)
     if held.size == 0:
         return None
     cloth = _any_of(labels, held)
@@ -346,7 +347,8 @@ def _any_of(labels: NDArray[np.int32], wanted: NDArray) -> NDArray[np.bool_]:
 
 def _border_cells(cells: NDArray[np.bool_]) -> int:
     """How many of the ``cells`` lie on the grid's border."""
-    return int(cells[0].sum() + cells[-1].sum() + cells[1:-1, 0].sum() + cells[1:-1, -1].sum())
+    count = np.count_nonzero
+    return int(count(cells[0]) + count(cells[-1]) + count(cells[1:-1, 0]) + count(cells[1:-1, -1]))
 
 
 def _in_shade(
