@@ -655,6 +655,8 @@ def _objects(
     isolated samples are depth noise, not an object."""
     import cv2
 
+    if not raised.any():  # (nothing above the table: no object, nothing to open)
+        return np.zeros(raised.shape, dtype=bool)
     occluder = raised & _not_napkin(lum, chroma, p)
     opened = np.ones((3, 3), np.uint8)
     occluder = cv2.morphologyEx(occluder.astype(np.uint8), cv2.MORPH_OPEN, opened)
