@@ -119,8 +119,8 @@ def _table_area_mm2(
     h, w = cells.shape
     dx = (np.arange(w) * cell + (cell / 2 - 0.5) - intrinsics.cx) / intrinsics.fx
     dy = (np.arange(h) * cell + (cell / 2 - 0.5) - intrinsics.cy) / intrinsics.fy
-    grid = (up[0] * dx)[None, :] + (up[1] * dy)[:, None]
-    cos = np.abs(grid[cells] + up[2])
+    ys, xs = np.nonzero(cells)  # (the cells asked only, not the whole grid)
+    cos = np.abs((up[0] * dx)[xs] + (up[1] * dy)[ys] + up[2])
     scale = offset_m**2 * cell * cell / (intrinsics.fx * intrinsics.fy) * 1e6
     return float(scale * np.sum(cos**-3.0))
 
@@ -212,10 +212,11 @@ def _cell_means(color: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
 
     For an integer factor OpenCV averages each cell pixel by pixel; for a cell side a
     power of two from 4 to 16 the sums are found here instead by whole rows (the ``c``
-    rows of each row of cells added as 16-bit numbers, one reduction)
-    and then by halves of each cell's row (log2 ``c`` additions), and rounded as OpenCV
-    rounds (the nearest integer, ties to even). Other sides are left to OpenCV (its
-    2 x 2 average rounds ties up).
+    rows of each row of cells added as 16-bit numbers, one reduction), then, on those
+    sums turned on their side (a pixel's channel a row, a row of cells a column), by
+    the ``c`` rows of each column of cells (log2 ``c`` additions of long rows, not of
+    a few values per cell), and rounded as OpenCV rounds (the nearest integer, ties
+    to even). Other sides are left to OpenCV (its 2 x 2 average rounds ties up).
     """
     import cv2
 
@@ -227,12 +228,14 @@ def _cell_means(color: NDArray[np.uint8], c: int) -> NDArray[np.uint8]:
     rows = crop.reshape(h, c, w * c * ch)  # (a copy only for a cropped frame)
     # one reduction over the rows of each row of cells (at most 16 x 16 x 255: 16 bits
     # hold it), a third less time than adding the rows one by one
-    sums = rows.sum(axis=1, dtype=np.uint16)
-    cells = sums.reshape(h * w, c * ch)  # each cell's row of sums: c pixels of ch values
-    while cells.shape[1] > ch:
-        half = cells.shape[1] // 2
-        cells = cv2.add(cells[:, :half], cells[:, half:])
-    return cv2.convertScaleAbs(cells, alpha=1.0 / (c * c)).reshape(h, w, ch)
+    sums = rows.sum(axis=1, dtype=np.uint16)  # (h, w c ch)
+    side = cv2.transpose(sums).reshape(w, c, ch * h)  # [column of cells, pixel, (ch, row)]
+    while side.shape[1] > 1:
+        half = side.shape[1] // 2
+        side = cv2.add(side[:, :half].reshape(w, -1), side[:, half:].reshape(w, -1))
+        side = side.reshape(w, half, ch * h)
+    cells = side.reshape(w, ch, h).transpose(2, 0, 1)  # (h, w, ch), a view
+    return cv2.convertScaleAbs(np.ascontiguousarray(cells), alpha=1.0 / (c * c))
 
 
 def cloth_regions(
@@ -317,9 +320,10 @@ def cloth_cells(
     h, w = labels.shape
     px = np.asarray(sticker_px, dtype=np.float64).reshape(-1, 2)
     px = px[np.isfinite(px).all(axis=1)]
-    cells = np.clip((px // c).astype(int), 0, [w - 1, h - 1])
-    held = np.unique(labels[cells[:, 1], cells[:, 0]])
-    held = held[held > 0]
+    col = np.minimum(np.maximum(px[:, 0] // c, 0), w - 1).astype(np.intp)
+    row = np.minimum(np.maximum(px[:, 1] // c, 0), h - 1).astype(np.intp)
+    # the regions holding them (a set of a dozen labels: np.unique costs more)
+    held = np.array(sorted(set(labels[row, col].tolist()) - {0}), dtype=labels.dtype)
     if held.size == 0:
         return None
     cloth = _any_of(labels, held)
@@ -343,7 +347,8 @@ def _any_of(labels: NDArray[np.int32], wanted: NDArray) -> NDArray[np.bool_]:
 
 def _border_cells(cells: NDArray[np.bool_]) -> int:
     """How many of the ``cells`` lie on the grid's border."""
-    return int(cells[0].sum() + cells[-1].sum() + cells[1:-1, 0].sum() + cells[1:-1, -1].sum())
+    count = np.count_nonzero
+    return int(count(cells[0]) + count(cells[-1]) + count(cells[1:-1, 0]) + count(cells[1:-1, -1]))
 
 
 def _in_shade(

@@ -198,7 +198,7 @@ def settled_stickers(
     p = params or TipParams()
     corner_of = layout.sticker_corners
     found = np.isfinite(points).all(axis=1)
-    lying = found & (np.nan_to_num(heights_mm, nan=np.inf) < LIFTED_MM)
+    lying = found & (np.asarray(heights_mm) < LIFTED_MM)  # (NaN: not lying)
     if turns is not None:
         lying &= np.asarray(turns)[corner_of] >= 0
     uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(len(points))])
@@ -289,16 +289,19 @@ def corner_tips(
         return out
     corner_of = layout.sticker_corners
     found = np.isfinite(points).all(axis=1)
-    lying = found & (np.nan_to_num(heights_mm, nan=np.inf) < LIFTED_MM)
+    lying = found & (np.asarray(heights_mm) < LIFTED_MM)  # (NaN: not lying)
     if turns is not None:
         lying &= np.asarray(turns)[corner_of] >= 0
-    todo = [
-        k
-        for k in range(len(out))
-        if ((corner_of == k) & found).sum() < 2
-        and ((corner_of == k) & unknown).any()
-        and not ((corner_of == k) & (held_up | (found & ~lying))).any()
-    ]
+
+    def per_corner(which: NDArray[np.bool_]) -> NDArray[np.intp]:
+        return np.bincount(corner_of[which], minlength=len(out))
+
+    # corners with fewer than two stickers located, one unknown, none held up or standing
+    todo = np.flatnonzero(
+        (per_corner(found) < 2)
+        & (per_corner(np.asarray(unknown, dtype=bool)) > 0)
+        & (per_corner(np.asarray(held_up, dtype=bool) | (found & ~lying)) == 0)
+    ).tolist()
     fit = _stay_fit(points, lying, layout, up, p) if todo else None
     if fit is None:
         return out
