@@ -78,14 +78,22 @@ def evaluate(
     exits 130 (143), and --resume goes on from there, giving the same report as an
     uninterrupted run. Exit 1 when no pair could be classified, 2 when none could be read.
     """
-    from ..analysis.evaluation_report import REPORT_FILES
+    import os
+
+    from ..analysis.workers import start_workers_early
     from ..sources.colours_file import read_colours
 
-    pairs, problems, recording = _labelled_input(folder, lenient, recording_opts)
     require_report_for_resume(resume, report_dir)
+    colours = read_colours(colours_path) if colours_path else None  # (a bad file: no work)
+    n_jobs = jobs or os.cpu_count() or 1
+    if os.path.exists(folder):  # they start up while this process loads and reads labels
+        start_workers_early(n_jobs, references_path, colours)
+    from ..analysis.evaluate import adopt_workers
+    from ..analysis.evaluation_report import REPORT_FILES
+
+    pairs, problems, recording = _labelled_input(folder, lenient, recording_opts)
     refs, refs_path = references_of(references_path)
-    if colours_path:
-        read_colours(colours_path)  # a bad file stops the run before any work
+    adopt_workers(n_jobs, refs, colours, references_path)
     run = _EvaluationRun(
         folder,
         report_dir,
