@@ -388,11 +388,11 @@ def evidence_terms(
             ev.visible, ev.unknown, references.visible_rates()
         )
     if ev.lifted is not None:
-        rest += LIFTED_WEIGHT * _rate_gap(ev.lifted, references.lifted_rates())
+        rest += LIFTED_WEIGHT * _rate_gap(ev.lifted, references.by_row("lifted_rate"))
     if ev.heights_mm is not None:
         rest += HEIGHT_WEIGHT * _height_gap(ev.heights_mm, references.height_bounds())
     if ev.past is not None:
-        rest += PAST_WEIGHT * _rate_gap(ev.past, references.past_rates())
+        rest += PAST_WEIGHT * _rate_gap(ev.past, references.by_row("past_rate"))
     if ev.spread_mm is not None:
         rest += SPREAD_WEIGHT * _spread_gap(ev.spread_mm, references.spread_bounds())
     face = np.zeros((n, k))
@@ -429,6 +429,15 @@ def _mean_over(told: NDArray[np.bool_], gap: NDArray[np.float64]) -> NDArray[np.
     return g / np.maximum(told.sum(axis=1), 1)[:, None]
 
 
+def _mean_over_rows(told: NDArray[np.bool_], gap: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean of ``gap`` (n, s, k), one row per sticker or pair, over the rows told (n, s),
+    (n, k); 0 where none is. The rows are added in order, one after the other."""
+    if told.all():  # a frame's own rows (each term takes those it tells): nothing to mask
+        return gap.sum(axis=1) / max(told.shape[1], 1)
+    g = np.where(told[:, :, None], gap, 0.0).sum(axis=1)
+    return g / np.maximum(told.sum(axis=1), 1)[:, None]
+
+
 def _zeroed(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """``x`` with 0 where it is not finite (what ``np.nan_to_num`` does with NaN, at a
     fraction of its overhead on short arrays)."""
@@ -452,11 +461,13 @@ def _visibility_gap(
 
 def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean ``|observed - rate|`` over the stickers told (finite), (n, k) for ``rates``
-    of shape (k, 16); 0 where none is told."""
+    of shape (16, k) (:meth:`.ReferenceSet.by_row`); 0 where none is told."""
     x = np.asarray(observed, dtype=np.float64)
-    cols = _told_columns(np.isfinite(x))
-    x = x[:, cols]
-    return _mean_over(np.isfinite(x), np.abs(_zeroed(x)[:, None, :] - rates[None, :, cols]))
+    told = np.isfinite(x)
+    rows = _told_columns(told)
+    if len(rows) < len(rates):
+        x, told, rates = x[:, rows], told[:, rows], rates[rows]
+    return _mean_over_rows(told, np.abs(_zeroed(x)[:, :, None] - rates))
 
 
 def _tip_gap(tips: ArrayLike, clear: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -468,27 +479,47 @@ def _tip_gap(tips: ArrayLike, clear: NDArray[np.float64]) -> NDArray[np.float64]
     return np.where(np.isfinite(t)[:, None, :], over, 0.0).sum(axis=2)
 
 
+def _range_gap(
+    x: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64],
+    slack: float, scale: float,
+) -> NDArray[np.float64]:
+    """How far each value of ``x`` (n, s) lies outside each reference's range ``lo``
+    to ``hi`` (s, k) beyond ``slack``, as a fraction of ``scale`` capped to [0, 1],
+    (n, s, k); NaN where ``x`` or the range is."""
+    v = x[:, :, None]
+    gap = lo - v
+    np.maximum(gap, v - hi, out=gap)
+    gap -= slack
+    gap /= scale
+    np.clip(gap, 0.0, 1.0, out=gap)
+    return gap
+
+
 def _spread_gap(
     spread_mm: ArrayLike,
     bounds: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]],
 ) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the observed sticker-pair distances with each
-    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`), (n, k); 0 for a
-    frame where none is known, or where some reference keeps no range of a pair told."""
+    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`, one row per
+    pair), (n, k); 0 for a frame where none is known, or where some reference keeps no
+    range of a pair told."""
     lo, hi, kept = bounds
     d = np.asarray(spread_mm, dtype=np.float64)
     told = np.isfinite(d)
-    usable = told.any(axis=1) & ~(told & ~kept[None]).any(axis=1)
-    out = np.zeros((len(d), len(lo)))
-    if not usable.any():
-        return out
-    cols = _told_columns(told[usable])
-    sub, x = told[usable][:, cols], d[usable][:, None, cols]
-    gap = np.maximum(lo[None, :, cols] - x, x - hi[None, :, cols])  # NaN where not told
-    gap -= SPREAD_SLACK_MM
-    gap /= SPREAD_SCALE_MM
-    np.clip(gap, 0.0, 1.0, out=gap)
-    out[usable] = _mean_over(sub, gap)
+    usable = told.any(axis=1) & ~(told & ~kept).any(axis=1)
+    every = bool(usable.all())
+    if not every:
+        if not usable.any():
+            return np.zeros((len(d), lo.shape[1]))
+        d, told = d[usable], told[usable]
+    rows = _told_columns(told)
+    if len(rows) < len(lo):
+        d, told, lo, hi = d[:, rows], told[:, rows], lo[rows], hi[rows]
+    gap = _mean_over_rows(told, _range_gap(d, lo, hi, SPREAD_SLACK_MM, SPREAD_SCALE_MM))
+    if every:
+        return gap
+    out = np.zeros((len(usable), lo.shape[1]))
+    out[usable] = gap
     return out
 
 
@@ -506,17 +537,18 @@ def _height_gap(
     bounds: tuple[NDArray[np.float64], NDArray[np.float64], bool],
 ) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the stickers' heights with each reference's ranges
-    (``bounds``: :meth:`.ReferenceSet.height_bounds`), (n, k); 0 where a reference keeps
-    no range."""
-    lo, hi, _ = bounds
+    (``bounds``: :meth:`.ReferenceSet.height_bounds`, one row per sticker), (n, k); 0
+    where a reference keeps no range."""
+    lo, hi, kept = bounds
     h = np.asarray(heights_mm, dtype=np.float64)
-    cols = _told_columns(np.isfinite(h))
-    x = h[:, None, cols]
-    gap = np.maximum(lo[None, :, cols] - x, x - hi[None, :, cols])
-    gap -= HEIGHT_SLACK_MM
-    gap /= HEIGHT_SCALE_MM
-    np.clip(gap, 0.0, 1.0, out=gap)
-    return _mean_over(np.isfinite(h[:, cols]), np.where(np.isfinite(gap), gap, 0.0))
+    told = np.isfinite(h)
+    rows = _told_columns(told)
+    if len(rows) < len(lo):
+        h, told, lo, hi = h[:, rows], told[:, rows], lo[rows], hi[rows]
+    gap = _range_gap(h, lo, hi, HEIGHT_SLACK_MM, HEIGHT_SCALE_MM)
+    if not kept:  # (a reference without a range of a sticker: no disagreement)
+        gap = _zeroed(gap)
+    return _mean_over_rows(told, gap)
 
 
 def classify_coordinates(
