@@ -13,6 +13,7 @@ the dGLI is near-singular and its sign follows millimetre-level noise.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -242,7 +243,9 @@ def confidence_of(
     n_coordinates : int, optional
         Cloth coordinates the verdict rests on.
     """
-    margin_part = 1.0 if not np.isfinite(margin) else float(np.clip(margin / FULL_MARGIN, 0, 1))
+    margin_part = 1.0  # (math and min/max: np.clip's value without its overhead on one)
+    if math.isfinite(margin):
+        margin_part = min(max(float(margin) / FULL_MARGIN, 0.0), 1.0)
     known = 1.0 - n_unknown_stickers / max(n_stickers, 1)
     coords_part = 1.0 if n_coordinates is None else min(1.0, n_coordinates / FULL_COORDINATES)
     return round(margin_part * max(known, 0.0) ** 3 * coords_part, 4)
@@ -250,7 +253,7 @@ def confidence_of(
 
 def _n_segments(n_coordinates: int) -> int:
     """m such that m (m - 1) / 2 == n_coordinates."""
-    m = round((1 + float(np.sqrt(1 + 8 * n_coordinates))) / 2)
+    m = round((1 + math.sqrt(1 + 8 * n_coordinates)) / 2)
     if m * (m - 1) // 2 != n_coordinates:
         raise ValueError(f"{n_coordinates} is not a number of segment pairs")
     return m
