@@ -259,7 +259,7 @@ def _table_offset(obs: Any) -> float:
 def _lying(obs: Any) -> NDArray[np.bool_]:
     """Stickers located and lying (not held up), shape (16,)."""
     h = obs.heights_mm if obs.heights_mm is not None else np.zeros(len(obs.visible))
-    return obs.visible & ~(np.nan_to_num(h, nan=0.0) > LIFTED_MM)
+    return obs.visible & ~(h > LIFTED_MM)  # (NaN, not known, is not above: as 0 mm)
 
 
 def napkin_maps(

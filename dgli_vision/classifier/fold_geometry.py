@@ -270,22 +270,26 @@ def solve_flaps(
     col_a, col_c = 3 + 2 * flap_g, 4 + 2 * flap_g
     has_flaps = len(flap_rows) > 0
     c_mask = np.where(on_flap, 1.0, 0.0)
+    n = np.empty((n_pts, 2))  # each point's crease normal (0 on the napkin that stays)
+    nt = np.empty((n_pts, 2))  # and its direction
     for _ in range(5):
         rot, drot = rotation_2d(x[0])
         alpha, c = x[3::2], x[4::2]
-        n = np.stack([np.cos(alpha[gi]), np.sin(alpha[gi])], axis=1) * c_mask[:, None]
-        s = (m * n).sum(axis=1) - c[gi] * c_mask
+        n[:, 0] = np.cos(alpha[gi])
+        n[:, 1] = np.sin(alpha[gi])
+        n *= c_mask[:, None]
+        s = np.add.reduce(m * n, axis=1) - c[gi] * c_mask
         ref = m - 2.0 * s[:, None] * n
         res = ref @ rot.T + x[1:3] - p
         jac[:, :, 0] = ref @ drot.T
         if has_flaps:
-            nt = np.stack([-n[:, 1], n[:, 0]], axis=1)
-            d_a = (-2.0 * (m * nt).sum(axis=1)[:, None] * n - 2.0 * s[:, None] * nt) @ rot.T
+            np.negative(n[:, 1], out=nt[:, 0])
+            nt[:, 1] = n[:, 0]
+            along = np.add.reduce(m * nt, axis=1)
+            d_a = (-2.0 * along[:, None] * n - 2.0 * s[:, None] * nt) @ rot.T
             d_c = 2.0 * n @ rot.T
-            jac[flap_rows, 0, col_a] = d_a[flap_rows, 0]
-            jac[flap_rows, 1, col_a] = d_a[flap_rows, 1]
-            jac[flap_rows, 0, col_c] = d_c[flap_rows, 0]
-            jac[flap_rows, 1, col_c] = d_c[flap_rows, 1]
+            jac[flap_rows, :, col_a] = d_a[flap_rows]
+            jac[flap_rows, :, col_c] = d_c[flap_rows]
         jm = jac.reshape(2 * n_pts, n_par)
         jtj = jm.T @ jm
         rhs = -(jm.T @ res.reshape(-1))
@@ -296,7 +300,7 @@ def solve_flaps(
         x = x + step
         # (the residuals and J^T J of the last pass stand for the solution's: the
         # last step is below a hundredth of a mm)
-        if float(np.max(np.abs(step))) < 1e-5:
+        if float(np.maximum.reduce(np.abs(step))) < 1e-5:
             break
     return x, jtj, res
 
@@ -331,7 +335,7 @@ def fit_folds(
     pts = obs.points_m if obs.points_m is not None else np.full((n, 3), np.nan)
     h = obs.heights_mm if obs.heights_mm is not None else np.zeros(n)
     seen = np.asarray(obs.visible, dtype=bool) & np.isfinite(pts).all(axis=1)
-    lifted = seen & (np.nan_to_num(h, nan=0.0) > LIFTED_MM)
+    lifted = seen & (h > LIFTED_MM)  # (NaN, not known, is not above: as 0 mm)
     lying = seen & ~lifted
     part = np.asarray(sticker_part) if len(sticker_part) == n else np.full(n, -1)
     n_stay = int(np.count_nonzero(lying & (part == -1)))
@@ -365,7 +369,9 @@ def fit_folds(
     if active:
         basis = _plane_basis(obs.up)
         p2 = (np.nan_to_num(pts) @ basis.T) * 1e3
-        use = lying & (np.isin(part, active) | (part == -1))
+        fitted = np.zeros(len(folds) + 1, dtype=bool)  # part -> in the fit ([-1]: stays)
+        fitted[active] = fitted[-1] = True
+        use = lying & fitted[part]
         results = _fit(p2, part, use, active, folds, layout)
     return tuple(
         results.get(j)
