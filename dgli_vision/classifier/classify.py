@@ -518,7 +518,22 @@ def _spread_gap(
     rows = _told_columns(told)
     if len(rows) < len(lo):
         d, told, lo, hi = d[:, rows], told[:, rows], lo[rows], hi[rows]
-    gap = _mean_over_rows(told, _range_gap(d, lo, hi, SPREAD_SLACK_MM, SPREAD_SCALE_MM))
+    # The mean of clip((g - slack) / scale, 0, 1) over the pairs told, g the distance
+    # outside the range, taken as (the sum of clip(g, slack, slack + scale) less the
+    # slack of each pair) / scale: two passes over the (pairs, references) table fewer
+    # than term by term, the same to rounding (1e-16).
+    v = d[:, :, None]
+    g = lo - v
+    np.maximum(g, v - hi, out=g)
+    np.clip(g, SPREAD_SLACK_MM, SPREAD_SLACK_MM + SPREAD_SCALE_MM, out=g)
+    if told.all():
+        total, count = g.sum(axis=1), max(g.shape[1], 1)
+    else:  # a pair not told counts as within the slack
+        total = np.where(told[:, :, None], g, SPREAD_SLACK_MM).sum(axis=1)
+        count = np.maximum(told.sum(axis=1), 1)[:, None]
+    total -= g.shape[1] * SPREAD_SLACK_MM
+    total /= SPREAD_SCALE_MM
+    gap = total / count
     if every:
         return gap
     out = np.zeros((len(usable), lo.shape[1]))
