@@ -365,9 +365,11 @@ def coordinate_distances(
         return out
     rows = np.flatnonzero(ok)
     if len(rows) == 1:  # one frame (the camera's): no grouping to do
-        masks, group = known[rows], np.zeros(1, dtype=np.intp)
-    else:
-        masks, group = np.unique(known[ok], axis=0, return_inverse=True)
+        mask = known[rows[0]]
+        ranks = soft_centred_unit_ranks(coords[rows][:, mask], TIE_SCALE)
+        out[rows] = np.clip(1.0 - ranks @ references.ranked(mask).T, 0.0, 2.0)
+        return out
+    masks, group = np.unique(known[ok], axis=0, return_inverse=True)
     for g, mask in enumerate(masks):
         sel = rows[group.ravel() == g]
         ranks = soft_centred_unit_ranks(coords[sel][:, mask], TIE_SCALE)
