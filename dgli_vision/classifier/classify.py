@@ -610,16 +610,24 @@ def classify_coordinates(
         dist = reference_distances(coords, references, ev)
     else:
         dist = np.asarray(distances, dtype=np.float64)
-    order = np.argsort(dist, kind="stable")
-    best = references.references[order[0]]
+    codes = references.class_codes()
+    if np.isfinite(dist).all():
+        # the first nearest, and the first nearest of another class: what a stable sort
+        # puts first (argmin takes the first of equal values), without sorting
+        b = int(dist.argmin())
+        other = codes != codes[b]
+        k = int(np.where(other, dist, np.inf).argmin()) if other.any() else -1
+    else:  # (NaN or inf: as the stable sort orders them)
+        order = np.argsort(dist, kind="stable")
+        b = int(order[0])
+        other = codes[order] != codes[b]
+        k = int(order[int(np.argmax(other))]) if other.any() else -1
+    best = references.references[b]
     runner = None
-    codes = references.class_codes()[order]
-    other = codes != codes[0]
-    if other.any():  # the nearest reference of another class
-        k = int(order[int(np.argmax(other))])
+    if k >= 0:  # the nearest reference of another class
         r = references.references[k]
         runner = RunnerUp(r.class_id, r.name, r.variant, float(dist[k]))
-    d = float(dist[order[0]])
+    d = float(dist[b])
     margin = (runner.distance - d) if runner else float("inf")
     n_unknown = 0
     if ev.unknown is not None:
