@@ -19,6 +19,7 @@ folded over, with no flap lying over it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -714,7 +715,7 @@ def affordances_of(
         pixels = {k: (float(p[0]), float(p[1])) for k, p in zip(front, px)}
     corners = [
         CornerAffordance(
-            name, None if point is None else tuple(float(v) for v in point), pixels.get(k),
+            name, None if point is None else tuple(point.tolist()), pixels.get(k),
             state, free, how,
         )
         for k, (name, (state, free, point, how)) in enumerate(zip(CORNERS, judged))
@@ -777,7 +778,7 @@ def _seen_fold(maps: NapkinMaps, j: int, corners: list[CornerAffordance]) -> See
         if flat is not None and all(t is not None for t in tips):
             tip = maps.on_table(np.mean(np.asarray(tips, dtype=float), axis=0))
             ends = bisector_through(tip, maps.on_table(flat), ends, maps.up)
-    line = None if ends is None else tuple(tuple(float(v) for v in e) for e in ends)
+    line = None if ends is None else tuple(tuple(e.tolist()) for e in ends)
     return SeenFold(f.word, f.corner, f.side, f.under, line)
 
 
@@ -790,10 +791,11 @@ def bisector_through(
     """The perpendicular bisector of ``a`` -> ``b`` in the table plane, as the segment
     between the projections of ``ends`` onto it (``ends`` unchanged when a and b meet)."""
     d = b - a
-    if np.linalg.norm(d) < 1e-6:
+    # (the lengths as np.linalg.norm takes a vector's, sqrt(x . x), without its overhead)
+    if math.sqrt(d.dot(d)) < 1e-6:
         return ends
     mid = 0.5 * (a + b)
     (u0, u1, u2), (d0, d1, d2) = np.asarray(up, dtype=float).tolist(), d.tolist()
     along = np.array([u1 * d2 - u2 * d1, u2 * d0 - u0 * d2, u0 * d1 - u1 * d0])  # up x d
-    along /= np.linalg.norm(along)
+    along /= math.sqrt(along.dot(along))
     return tuple(mid + ((e - mid) @ along) * along for e in ends)  # type: ignore[return-value]
