@@ -239,12 +239,15 @@ def mirror_crease_fit(m: NDArray, q: NDArray) -> tuple[float, float] | None:
 def rigid_fit_2d(m: NDArray, p: NDArray) -> tuple[float, NDArray]:
     """The rotation angle and translation of the proper rigid map nearest to taking
     ``m`` (k, 2) onto ``p`` (k >= 2)."""
-    mc, pc = m - m.mean(axis=0), p - p.mean(axis=0)
-    a = float(np.sum(mc[:, 0] * pc[:, 0] + mc[:, 1] * pc[:, 1]))
-    b = float(np.sum(mc[:, 0] * pc[:, 1] - mc[:, 1] * pc[:, 0]))
+    # (the means and sums as ndarray.mean and np.sum take them, without their overhead)
+    m_mean = np.add.reduce(m, axis=0) / len(m)
+    p_mean = np.add.reduce(p, axis=0) / len(p)
+    mc, pc = m - m_mean, p - p_mean
+    a = float(np.add.reduce(mc[:, 0] * pc[:, 0] + mc[:, 1] * pc[:, 1]))
+    b = float(np.add.reduce(mc[:, 0] * pc[:, 1] - mc[:, 1] * pc[:, 0]))
     th = math.atan2(b, a)
     r = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
-    return th, p.mean(axis=0) - r @ m.mean(axis=0)
+    return th, p_mean - r @ m_mean
 
 
 def rotation_2d(th: float) -> tuple[NDArray, NDArray]:
@@ -410,7 +413,7 @@ def _fit(
             break
         use[ids[worst]] = False
     dof = max(2 * len(m) - len(x), 0)
-    var = (float(np.sum(d * d)) + PRIOR_DOF * STICKER_SD_MM**2) / (dof + PRIOR_DOF)
+    var = (float(np.add.reduce(d * d)) + PRIOR_DOF * STICKER_SD_MM**2) / (dof + PRIOR_DOF)
     try:
         cov = var * np.linalg.inv(jtj)
     except np.linalg.LinAlgError:
@@ -423,11 +426,13 @@ def _fit(
         # The cloth bends round its own thickness at the crease, so a flap lands short
         # of its mirror image by about pi / 2 thicknesses: the mirror's axis lies a
         # quarter turn's worth (pi / 4 thicknesses) inside the flap. Move it back.
-        side = float(np.mean(m[mine] @ np.array([math.cos(a), math.sin(a)]) - c))
+        # (means as np.mean takes them, the sum over the count, without its overhead)
+        count = int(np.count_nonzero(mine))
+        side = float(np.add.reduce(m[mine] @ np.array([math.cos(a), math.sin(a)]) - c) / count)
         c -= math.copysign(bend, side)
         block = cov[3 + 2 * j : 5 + 2 * j, 3 + 2 * j : 5 + 2 * j]
         crease = Crease.from_normal(a, c)
-        rms = float(np.sqrt(np.mean(d[mine] ** 2)))
+        rms = math.sqrt(np.add.reduce(d[mine] ** 2) / count)
         if not np.all(np.isfinite(block)) or _edge_sd(crease, block, layout) > MAX_SD_MM:
             out[fold_index] = empty_geometry(word, "the stickers seen do not fix the crease")
             continue
