@@ -299,6 +299,9 @@ class DistanceTerms:
     back: NDArray[np.float64] | None
     back_rates: NDArray[np.float64] | None
     tip: NDArray[np.float64] | None = None
+    #: The faces' term of the mirror image, when worked out with ``face`` (None: by
+    #: :meth:`mirrored` when asked).
+    mirror_face: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def total(self) -> NDArray[np.float64]:
         """The distance to every reference, shape (k,)."""
@@ -313,7 +316,9 @@ class DistanceTerms:
         face, back = self.face, self.back
         if back is not None and self.back_rates is not None:
             back = 1.0 - back
-            face = _face_gap(back[None], self.back_rates)[0]
+            face = self.mirror_face
+            if face is None:
+                face = _face_gap(back[None], self.back_rates.T)[0]
         dgli = np.clip(2.0 - self.dgli, 0.0, 2.0)
         return DistanceTerms(dgli, self.evidence, face, back, self.back_rates)
 
@@ -339,10 +344,17 @@ def reference_terms(
             f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
     dgli = coordinate_distances(x[None], known[None], references)[0]
-    rest, face, tip = evidence_terms(ev.stacked(), references)
     back = None if ev.back is None else np.asarray(ev.back, dtype=np.float64)
-    rates = references.back_rates() if back is not None else None
-    return DistanceTerms(dgli, rest[0], face[0], back, rates, None if tip is None else tip[0])
+    rest, face, tip = _evidence_terms(ev.stacked(), references, faces=back is None)
+    if back is None:
+        return DistanceTerms(dgli, rest[0], face[0], None, None, None if tip is None else tip[0])
+    # the faces' term of the mirror image with this one, in one call (mirror_problem
+    # asks for it every frame)
+    face, mirror_face = _face_gap(np.stack([back, 1.0 - back]), references.by_row("back_rate"))
+    rates = references.back_rates()
+    return DistanceTerms(
+        dgli, rest[0], face, back, rates, None if tip is None else tip[0], mirror_face
+    )
 
 
 def coordinate_distances(
@@ -384,6 +396,14 @@ def evidence_terms(
     against every reference: the weighted sum of all but the corners' faces and tips,
     the faces' mean disagreement (unweighted; zeros without ``back``), and the weighted
     tip term (None without ``tips``), each of shape (n, k)."""
+    return _evidence_terms(evidence, references)
+
+
+def _evidence_terms(
+    evidence: Evidence, references: ReferenceSet, *, faces: bool = True
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+    """:func:`evidence_terms`; without ``faces``, zeros for the faces' term (the caller
+    works it out)."""
     ev = evidence
     k = len(references.references)
     n = next((len(v) for v in vars(ev).values() if v is not None), 1)
@@ -401,9 +421,11 @@ def evidence_terms(
     if ev.spread_mm is not None:
         rest += SPREAD_WEIGHT * _spread_gap(ev.spread_mm, references.spread_bounds())
     face = np.zeros((n, k))
-    if ev.back is not None:
-        face = _face_gap(ev.back, references.back_rates())
-    tip = None if ev.tips is None else TIP_WEIGHT * _tip_gap(ev.tips, references.tip_clear())
+    if ev.back is not None and faces:
+        face = _face_gap(ev.back, references.by_row("back_rate"))
+    tip = None
+    if ev.tips is not None:
+        tip = TIP_WEIGHT * _tip_gap(ev.tips, references.by_row("tip_clear"))
     return rest, face, tip
 
 
@@ -477,11 +499,11 @@ def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.flo
 
 def _tip_gap(tips: ArrayLike, clear: NDArray[np.float64]) -> NDArray[np.float64]:
     """How much more of the corners' tip places shows bare table than each reference
-    leaves bare (``clear``, (k, 4)), beyond :data:`TIP_SLACK`, summed over the corners
-    told, (n, k)."""
+    leaves bare (``clear``, one row per corner, (4, k): :meth:`.ReferenceSet.by_row`),
+    beyond :data:`TIP_SLACK`, summed over the corners told, (n, k)."""
     t = np.asarray(tips, dtype=np.float64)
-    over = np.clip(_zeroed(t)[:, None, :] - clear[None] - TIP_SLACK, 0.0, None)
-    return np.where(np.isfinite(t)[:, None, :], over, 0.0).sum(axis=2)
+    over = np.clip(_zeroed(t)[:, :, None] - clear[None] - TIP_SLACK, 0.0, None)
+    return np.where(np.isfinite(t)[:, :, None], over, 0.0).sum(axis=1)
 
 
 def _range_gap(
@@ -545,11 +567,12 @@ def _spread_gap(
 
 def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean ``|back - rate|`` over the corners told both in the observation and in each
-    reference (``rates`` shape (k, 4), NaN where not told), (n, k); 0 where none is."""
+    reference (``rates`` one row per corner, shape (4, k): :meth:`.ReferenceSet.by_row`,
+    NaN where not told), (n, k); 0 where none is."""
     x = np.asarray(back, dtype=np.float64)
-    both = np.isfinite(x)[:, None, :] & np.isfinite(rates)[None]
-    diff = np.abs(_zeroed(x)[:, None, :] - _zeroed(rates)[None])
-    return np.where(both, diff, 0.0).sum(axis=2) / np.maximum(both.sum(axis=2), 1)
+    both = np.isfinite(x)[:, :, None] & np.isfinite(rates)[None]
+    diff = np.abs(_zeroed(x)[:, :, None] - _zeroed(rates)[None])
+    return np.where(both, diff, 0.0).sum(axis=1) / np.maximum(both.sum(axis=1), 1)
 
 
 def _height_gap(

@@ -233,12 +233,14 @@ class ReferenceSet:
         return self._stacks["spread_lo"], self._stacks["spread_hi"], self._stacks["spread_kept"]
 
     def by_row(self, name: str) -> NDArray[np.float64]:
-        """The references' rates ``name`` (``"lifted_rate"``, ``"past_rate"``,
-        ``"back_rate"``) with one row per sticker or corner, shape (16 or 4, k),
-        contiguous, read-only; built once (a frame's terms take the rows it tells)."""
+        """The references' table ``name`` (the rates ``"lifted_rate"``, ``"past_rate"``,
+        ``"back_rate"``, or ``"tip_clear"``: :meth:`tip_clear`) with one row per sticker
+        or corner, shape (16 or 4, k), contiguous, read-only; built once (a frame's terms
+        take the rows it tells, and sum over rows, not over short columns)."""
         key = name + " by row"
         if key not in self._stacks:
-            a = np.ascontiguousarray(self._stacked(name).T)
+            table = self.tip_clear() if name == "tip_clear" else self._stacked(name)
+            a = np.ascontiguousarray(table.T)
             a.flags.writeable = False
             self._stacks[key] = a
         return self._stacks[key]
@@ -555,7 +557,7 @@ def _warmed(refs: ReferenceSet) -> ReferenceSet:
     refs.class_codes()
     refs.height_bounds()
     refs.spread_bounds()
-    for name in ("lifted_rate", "past_rate", "back_rate"):
+    for name in ("lifted_rate", "past_rate", "back_rate", "tip_clear"):
         refs.by_row(name)
     layout_of_size(refs.napkin_mm)
     refs.tip_clear()
