@@ -53,3 +53,54 @@ def test_kabsch_sign_fix_gives_a_rotation_for_mirrored_points():
     r, _ = aff._kabsch(src, src * [1, 1, -1] + 0.1)
     assert np.linalg.det(r) > 0.99
     np.testing.assert_allclose(r @ r.T, np.eye(3), atol=1e-12)
+
+
+def test_rigid_maps_fitted_together_are_those_fitted_alone_to_the_bit():
+    # one LAPACK call for a frame's fits must not move a point: fits of every size, a
+    # misread sticker (refitted without it), too few points and no problem at all
+    rng = np.random.default_rng(7)
+    up = np.array([0.0, 0.0, 1.0])
+    problems = []
+    for n in (1, 2, 3, 4, 6, 8):
+        uv = rng.uniform(0, 400, (n, 2))
+        points = np.column_stack([uv * 1e-3, np.zeros(n)]) + np.array([0.1, 0.0, 0.7])
+        points += rng.normal(0, 0.002, (n, 3))
+        if n >= 4:
+            points[1] += 0.05  # a misread sticker: the fit is made again without it
+        if n == 6:
+            points[0] = np.nan
+        problems.append((uv, points, up, 1 if n % 2 else -1))
+    problems.insert(2, None)
+    together = aff.fit_maps(problems)
+    assert together[2] is None and together[0] is None  # (one point is not enough)
+    for problem, m in zip(problems, together):
+        if problem is None:
+            continue
+        alone = _fit_alone(*problem)
+        assert (m is None) == (alone is None)
+        if m is not None:
+            assert m.rotation.tobytes() == alone.rotation.tobytes()
+            assert m.translation.tobytes() == alone.translation.tobytes()
+
+
+def _fit_alone(uv_mm, points, up, face):
+    """fit_map's rigid map, fitted alone with a SVD of its own (as it was before the
+    frame's fits were made together)."""
+    keep = np.isfinite(points).all(axis=1)
+    m = None
+    for _ in range(3):
+        n = int(np.count_nonzero(keep))
+        if n < 2:
+            return None
+        src = np.zeros((2 * n, 3))
+        src[:n, :2] = src[n:, :2] = uv_mm[keep] * 1e-3
+        src[n:, 2] = 0.05
+        pts = points[keep]
+        r, t = aff._kabsch(src, np.concatenate([pts, pts + face * 0.05 * up]))
+        m = aff.RigidMap(r, t)
+        res = np.sqrt(np.add.reduce((src[:n] @ r.T + t - pts) ** 2, axis=1))
+        worst = int(np.argmax(res))
+        if res[worst] <= aff.FIT_TOLERANCE_M or n <= 2:
+            return m
+        keep[np.flatnonzero(keep)[worst]] = False
+    return m

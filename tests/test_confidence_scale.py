@@ -114,3 +114,23 @@ def test_the_reliability_table_of_a_fixed_render_set(monkeypatch):
     assert [r["right"] for r in rows] == [2, 0, 2, 1, 0]
     _, table = robustness.reliability_table(scores)
     assert table[2] == ["[0.25, 0.5)", "2", "2", "100%"]
+
+
+def test_the_nearest_and_the_runner_up_are_those_a_stable_sort_puts_first():
+    # ties go to the first reference, finite or not (the verdict must not depend on how
+    # the nearest is found)
+    rng = np.random.default_rng(3)
+    codes = REFS.class_codes()
+    coords = rng.normal(size=28)
+    for trial in range(200):
+        d = rng.choice([0.1, 0.2, 0.3], len(REFS.references))
+        if trial % 3 == 0:
+            d[rng.integers(len(d), size=4)] = np.inf
+        if trial % 4 == 0:
+            d[rng.integers(len(d), size=2)] = np.nan
+        order = np.argsort(d, kind="stable")
+        best = REFS.references[order[0]]
+        runner = REFS.references[order[int(np.argmax(codes[order] != codes[order[0]]))]]
+        got = classify_coordinates(coords, REFS, distances=d)
+        assert (got.class_id, got.variant) == (best.class_id, best.variant)
+        assert (got.runner_up.class_id, got.runner_up.variant) == (runner.class_id, runner.variant)

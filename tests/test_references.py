@@ -232,7 +232,9 @@ def test_loaded_references_come_with_the_tables_every_frame_reads(tmp_path, ship
     write_references(path, shipped)
     refs = load_references(path)
     for name in ("coordinates", "visible_rate", "lifted_rate", "class_codes", "spread_lo",
-                 "height_lo", "back_rate", "past_rate", "footprint_range", "tip_clear"):
+                 "height_lo", "back_rate", "past_rate", "footprint_range", "tip_clear",
+                 "lifted_rate by row", "past_rate by row", "back_rate by row",
+                 "tip_clear by row"):
         assert name in refs._stacks, name
     assert np.array_equal(refs.matrix(), shipped.matrix())
     assert np.array_equal(refs.tip_clear(), shipped.tip_clear())

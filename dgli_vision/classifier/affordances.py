@@ -19,6 +19,7 @@ folded over, with no flap lying over it.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, replace
 from functools import lru_cache
@@ -79,9 +80,24 @@ class RigidMap:
 
 
 def _kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
+    cs, cd, h = _cross_covariance(src, dst)
+    u, _, vt = np.linalg.svd(h)
+    return _kabsch_rotation(u, vt, cs, cd)
+
+
+def _cross_covariance(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray, NDArray]:
+    """The means of ``src`` and ``dst`` (k, 3) and their cross-covariance (3, 3), whose
+    SVD gives the rotation (:func:`_kabsch_rotation`)."""
     # the means as ndarray.mean takes them (sum, then divide), without its overhead
     cs, cd = np.add.reduce(src, axis=0) / len(src), np.add.reduce(dst, axis=0) / len(dst)
-    u, _, vt = np.linalg.svd((src - cs).T @ (dst - cd))
+    return cs, cd, (src - cs).T @ (dst - cd)
+
+
+def _kabsch_rotation(
+    u: NDArray, vt: NDArray, cs: NDArray, cd: NDArray
+) -> tuple[NDArray, NDArray]:
+    """The rotation and translation of :func:`_kabsch` from the SVD of its
+    cross-covariance."""
     r = u @ vt
     if _det3(r) < 0:  # a reflection: turn the last axis round (u @ diag(1, 1, -1) @ vt)
         r = (u * np.array([1.0, 1.0, -1.0])) @ vt
@@ -96,39 +112,67 @@ def _det3(m: NDArray) -> float:
     return a * (e * i - f * h) - b * (d * i - f * g) + c * (d * h - e * g)
 
 
+#: A rigid map to fit (:func:`fit_map`'s arguments): material points (k, 2) in mm, camera
+#: points (k, 3), the table's normal and the face shown.
+MapProblem = tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], int]
+
+
 def fit_map(
     uv_mm: NDArray[np.float64], points: NDArray[np.float64], up: NDArray[np.float64], face: int
 ) -> RigidMap | None:
     """The rigid map of material points (k, 2) onto camera points (k, 3), with the
     napkin's normal held to ``face * up`` (+1: front face up, -1: back face up), which
     makes two points enough. None with fewer than two points."""
-    keep = np.isfinite(points).all(axis=1)
-    uv_all = np.asarray(uv_mm, dtype=float)
+    return fit_maps([(uv_mm, points, up, face)])[0]
+
+
+def fit_maps(problems: list[MapProblem | None]) -> list[RigidMap | None]:
+    """:func:`fit_map` of each problem (None: no map), all at once: each round's SVDs
+    are one LAPACK call on their stack (each matrix's result the same as alone, to the
+    bit), a frame's five or so fits costing one call instead of five."""
+    out: list[RigidMap | None] = [None] * len(problems)
     lift = 0.05  # m: the virtual points along the normal
-    along = face * lift * up
-    every = bool(keep.all())  # (then no rows to pick)
+    active = []
+    for i, problem in enumerate(problems):
+        if problem is None:
+            continue
+        uv_mm, points, up, face = problem
+        keep = np.isfinite(points).all(axis=1)
+        every = bool(keep.all())  # (then no rows to pick)
+        active.append([i, np.asarray(uv_mm, dtype=float), points, face * lift * up, keep, every])
     for _ in range(3):
-        n = len(keep) if every else int(np.count_nonzero(keep))
-        if n < 2:
-            return None
-        pts = points if every else points[keep]
-        src = np.zeros((2 * n, 3))  # the points on the napkin, then lifted along z
-        src[:n, :2] = src[n:, :2] = (uv_all if every else uv_all[keep]) * 1e-3
-        src[n:, 2] = lift
-        dst = np.concatenate([pts, pts + along], axis=0)
-        r, t = _kabsch(src, dst)
-        m = RigidMap(r, t)
-        # the residuals of the points on the napkin: m(uv) of those points, whose
-        # material coordinates are the first n rows of src (their lengths as
-        # np.linalg.norm takes them, without its overhead)
-        res = src[:n] @ r.T + t - pts
-        res = np.sqrt(np.add.reduce(res * res, axis=1))
-        worst = int(np.argmax(res))
-        if res[worst] <= FIT_TOLERANCE_M or n <= 2:
-            return m
-        keep[np.flatnonzero(keep)[worst]] = False
-        every = False
-    return m
+        todo = []
+        for fit in active:
+            _, uv_all, points, along, keep, every = fit
+            n = len(keep) if every else int(np.count_nonzero(keep))
+            if n < 2:
+                continue
+            pts = points if every else points[keep]
+            src = np.zeros((2 * n, 3))  # the points on the napkin, then lifted along z
+            src[:n, :2] = src[n:, :2] = (uv_all if every else uv_all[keep]) * 1e-3
+            src[n:, 2] = lift
+            dst = np.concatenate([pts, pts + along], axis=0)
+            todo.append((fit, n, pts, src, *_cross_covariance(src, dst)))
+        if not todo:
+            break
+        u, _, vt = np.linalg.svd(np.stack([h for *_, h in todo]))
+        active = []
+        for (fit, n, pts, src, cs, cd, _), u_i, vt_i in zip(todo, u, vt):
+            r, t = _kabsch_rotation(u_i, vt_i, cs, cd)
+            out[fit[0]] = RigidMap(r, t)
+            # the residuals of the points on the napkin: m(uv) of those points, whose
+            # material coordinates are the first n rows of src (their lengths as
+            # np.linalg.norm takes them, without its overhead)
+            res = src[:n] @ r.T + t - pts
+            res = np.sqrt(np.add.reduce(res * res, axis=1))
+            worst = int(res.argmax())
+            if res[worst] <= FIT_TOLERANCE_M or n <= 2:
+                continue
+            keep = fit[4]
+            keep[np.flatnonzero(keep)[worst]] = False
+            fit[5] = False
+            active.append(fit)
+    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -216,7 +260,7 @@ def _table_offset(obs: Any) -> float:
 def _lying(obs: Any) -> NDArray[np.bool_]:
     """Stickers located and lying (not held up), shape (16,)."""
     h = obs.heights_mm if obs.heights_mm is not None else np.zeros(len(obs.visible))
-    return obs.visible & ~(np.nan_to_num(h, nan=0.0) > LIFTED_MM)
+    return obs.visible & ~(h > LIFTED_MM)  # (NaN, not known, is not above: as 0 mm)
 
 
 def napkin_maps(
@@ -226,20 +270,33 @@ def napkin_maps(
     ``class_id``/``variant``, fitted to the stickers of ``obs`` (a
     :class:`~dgli_vision.classifier.pipeline.ClothObservation`) lying on each."""
     plan = _plan(class_id, variant, layout)
-    folds = plan.folds
+    problems = _napkin_problems(obs, plan, layout)
+    return _napkin_maps(obs, plan, layout, fit_maps(problems))
+
+
+def _napkin_problems(obs: Any, plan: _Plan, layout: NapkinLayout) -> list[MapProblem | None]:
+    """The fits of :func:`napkin_maps`: the napkin that stays, then each flap (None for
+    a flap folded under)."""
     uv = np.asarray(layout.sticker_uv, dtype=float)
     pts = obs.points_m if obs.points_m is not None else np.full((len(uv), 3), np.nan)
     lying = _lying(obs)
     part = np.asarray(plan.sticker_part)
     seen = np.where(lying[:, None], pts, np.nan)
-    stay = fit_map(uv[part == -1], seen[part == -1], obs.up, +1)
-    flaps = tuple(
-        None if f.under else fit_map(uv[part == j], seen[part == j], obs.up, -1)
-        for j, f in enumerate(folds)
-    )
+    on = part == -1
+    problems: list[MapProblem | None] = [(uv[on], seen[on], obs.up, +1)]
+    for j, f in enumerate(plan.folds):
+        on = part == j
+        problems.append(None if f.under else (uv[on], seen[on], obs.up, -1))
+    return problems
+
+
+def _napkin_maps(
+    obs: Any, plan: _Plan, layout: NapkinLayout, fits: list[RigidMap | None]
+) -> NapkinMaps:
+    """:func:`napkin_maps` from the fits of :func:`_napkin_problems`."""
     return NapkinMaps(
-        folds, stay, flaps, obs.up, _table_offset(obs), layout.thickness_mm * 1e-3,
-        plan.sticker_part,
+        plan.folds, fits[0], tuple(fits[1:]), obs.up, _table_offset(obs),
+        layout.thickness_mm * 1e-3, plan.sticker_part,
     )
 
 
@@ -421,7 +478,7 @@ def _held_up(lifted: NDArray[np.float64] | None, ids: tuple[int, ...]) -> bool:
     """Whether any of the stickers ``ids`` stands up (``lifted``: the observation's)."""
     if lifted is None:
         return False
-    return bool(np.any(lifted[list(ids)] >= 1.0))  # NaN (not told) is not standing
+    return any(lifted[i] >= 1.0 for i in ids)  # NaN (not told) is not standing
 
 
 def _sticker_part(maps: NapkinMaps, i: int, layout: NapkinLayout) -> int:
@@ -443,6 +500,32 @@ def _own_fit(
     held up, whose face is not known); with ``maps``, only those on the corner's part
     (a corner on a fold line has stickers on both sides of it): ``ids``, when already
     known."""
+    uv, pts = _own_points(obs, k, layout, maps, ids)
+    corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
+    if face == 0:
+        ok = np.isfinite(pts).all(axis=1)
+        if ok.sum() < 3:
+            return None
+        src = np.column_stack([uv[ok] * 1e-3, np.zeros(int(ok.sum()))])
+        r, t = _kabsch(src, pts[ok])
+        return r @ np.r_[corner_uv * 1e-3, 0.0] + t
+    return _placed(fit_map(uv, pts, obs.up, face), corner_uv)
+
+
+def _placed(m: RigidMap | None, uv_mm: NDArray[np.float64]) -> NDArray[np.float64] | None:
+    """The point (3,) where ``m`` takes the material point ``uv_mm``; None without map."""
+    return None if m is None else m(uv_mm)[0]
+
+
+def _own_points(
+    obs: Any,
+    k: int,
+    layout: NapkinLayout,
+    maps: NapkinMaps | None = None,
+    ids: tuple[int, ...] | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The material places (n, 2) and camera points (n, 3, NaN where not seen) of the
+    stickers :func:`_own_fit` places corner ``k`` by."""
     if ids is not None:
         ids = list(ids)
     else:
@@ -452,17 +535,7 @@ def _own_fit(
             ids = [i for i in ids if _sticker_part(maps, i, layout) == mine]
     pts = obs.points_m[ids] if obs.points_m is not None else np.full((len(ids), 3), np.nan)
     pts = np.where(obs.visible[ids][:, None], pts, np.nan)
-    uv = np.asarray(layout.sticker_uv, dtype=float)[ids]
-    corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
-    if face == 0:
-        ok = np.isfinite(pts).all(axis=1)
-        if ok.sum() < 3:
-            return None
-        src = np.column_stack([uv[ok] * 1e-3, np.zeros(int(ok.sum()))])
-        r, t = _kabsch(src, pts[ok])
-        return r @ np.r_[corner_uv * 1e-3, 0.0] + t
-    m = fit_map(uv, pts, obs.up, face)
-    return None if m is None else m(corner_uv)[0]
+    return np.asarray(layout.sticker_uv, dtype=float)[ids], pts
 
 
 def _on_line_fit(
@@ -517,6 +590,22 @@ def _covered(folds: tuple[NominalFold, ...], corner_uv: NDArray, layout: NapkinL
     return False
 
 
+#: :func:`_corner_of_verdict`'s ``own`` when not worked out beforehand.
+_NOT_FITTED = object()
+
+
+def _corner_state(fold: NominalFold | None, k: int, lifted: NDArray | None) -> str:
+    """The state of corner ``k`` given the verdict: held up, or as the part it lies on
+    (``fold``: the fold of its flap, None on the napkin that stays)."""
+    if _held_up(lifted, CORNER_STICKERS[k]):
+        return "held up"
+    return "flat" if fold is None else ("on a flap under" if fold.under else "on a flap over")
+
+
+#: The face a corner's stickers show in each state (0: not known, for a corner held up).
+_FACE = {"flat": 1, "on a flap over": -1, "on a flap under": 1}
+
+
 def _corner_of_verdict(
     obs: Any,
     k: int,
@@ -524,18 +613,19 @@ def _corner_of_verdict(
     layout: NapkinLayout,
     lifted: NDArray | None,
     plan: _Plan | None = None,
+    own: Any = _NOT_FITTED,
 ) -> tuple[str, bool, NDArray | None, str | None]:
     """State, graspable, point and how placed of corner ``k`` given the verdict
-    (``plan``: the verdict's, whose folds are ``maps.folds``)."""
+    (``plan``: the verdict's, whose folds are ``maps.folds``; ``own``: the corner placed
+    by its own stickers, :func:`_own_fit`, when already worked out)."""
     corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
     j = maps.part_of(corner_uv) if plan is None else plan.corner_part[k]
     fold = maps.folds[j] if j >= 0 else None
-    state = "flat" if fold is None else ("on a flap under" if fold.under else "on a flap over")
-    if _held_up(lifted, CORNER_STICKERS[k]):
-        state = "held up"
-    face = {"flat": 1, "on a flap over": -1, "on a flap under": 1}.get(state, 0)
-    own = None if plan is None else plan.own_ids[k]
-    point, how = _own_fit(obs, k, layout, face, maps, own), PLACED_BY[0]
+    state = _corner_state(fold, k, lifted)
+    face = _FACE.get(state, 0)
+    if own is _NOT_FITTED:
+        own = _own_fit(obs, k, layout, face, maps, None if plan is None else plan.own_ids[k])
+    point, how = own, PLACED_BY[0]
     if point is None and fold is None and state == "flat":
         point = _on_line_fit(obs, k, maps, layout, plan)
     if point is None and state != "held up":
@@ -548,21 +638,38 @@ def _corner_of_verdict(
     return state, bool(free and point is not None), point, how
 
 
-def _corner_of_evidence(
-    obs: Any, k: int, layout: NapkinLayout, lifted: NDArray | None
-) -> tuple[str, bool, NDArray | None, str | None]:
-    """State, graspable, point and how placed of corner ``k`` without a verdict: from
-    its own stickers alone (the face they show, whether they stand up)."""
-    ids = CORNER_STICKERS[k]
-    if _held_up(lifted, ids):
-        return "held up", False, _own_fit(obs, k, layout, 0), PLACED_BY[0]
-    turn = 0.0 if obs.turns is None else float(obs.turns[k])
-    if int(obs.visible[list(ids)].sum()) < 2 or turn == 0:
-        return "unknown", False, None, None
-    face = 1 if turn > 0 else -1
-    point = _own_fit(obs, k, layout, face)
-    state = "flat" if face > 0 else "on a flap over"
-    return state, point is not None, point, PLACED_BY[0] if point is not None else None
+def _corners_of_evidence(
+    obs: Any, layout: NapkinLayout, lifted: NDArray | None
+) -> list[tuple[str, bool, NDArray | None, str | None]]:
+    """State, graspable, point and how placed of each corner without a verdict: from
+    its own stickers alone (the face they show, whether they stand up); the rigid maps
+    of the corners lying flat or folded over fitted together (:func:`fit_maps`)."""
+    faces: list[int | None] = []
+    for k, ids in enumerate(CORNER_STICKERS[: len(CORNERS)]):
+        if _held_up(lifted, ids):
+            faces.append(0)
+            continue
+        turn = 0.0 if obs.turns is None else float(obs.turns[k])
+        if int(obs.visible[list(ids)].sum()) < 2 or turn == 0:
+            faces.append(None)  # unknown
+        else:
+            faces.append(1 if turn > 0 else -1)
+    fits = fit_maps([
+        None if not face else (*_own_points(obs, k, layout), obs.up, face)
+        for k, face in enumerate(faces)
+    ])
+    out: list[tuple[str, bool, NDArray | None, str | None]] = []
+    for k, (face, m) in enumerate(zip(faces, fits)):
+        if face == 0:
+            out.append(("held up", False, _own_fit(obs, k, layout, 0), PLACED_BY[0]))
+        elif face is None:
+            out.append(("unknown", False, None, None))
+        else:
+            point = _placed(m, np.asarray(layout.corner_uv[k], dtype=float))
+            state = "flat" if face > 0 else "on a flap over"
+            placed = point is not None
+            out.append((state, placed, point, PLACED_BY[0] if placed else None))
+    return out
 
 
 def affordances_of(
@@ -589,15 +696,17 @@ def affordances_of(
     -------
     Affordances
     """
-    maps = napkin_maps(obs, class_id, variant, layout) if class_id else None
-    plan = _plan(class_id, variant, layout) if class_id else None
     lifted = obs.lifted  # worked out from the evidence: once, not per corner
-    judged = [
-        _corner_of_verdict(obs, k, maps, layout, lifted, plan)
-        if maps is not None
-        else _corner_of_evidence(obs, k, layout, lifted)
-        for k in range(len(CORNERS))
-    ]
+    maps, plan = None, None
+    if class_id:
+        plan = _plan(class_id, variant, layout)
+        maps, own = _verdict_fits(obs, plan, layout, lifted)
+        judged = [
+            _corner_of_verdict(obs, k, maps, layout, lifted, plan, own[k])
+            for k in range(len(CORNERS))
+        ]
+    else:
+        judged = _corners_of_evidence(obs, layout, lifted)
     # every point in front of the camera projected at once (point by point, the same)
     front = [k for k, (_, _, point, _) in enumerate(judged) if point is not None and point[2] > 0]
     pixels: dict[int, tuple[float, float]] = {}
@@ -606,7 +715,7 @@ def affordances_of(
         pixels = {k: (float(p[0]), float(p[1])) for k, p in zip(front, px)}
     corners = [
         CornerAffordance(
-            name, None if point is None else tuple(float(v) for v in point), pixels.get(k),
+            name, None if point is None else tuple(point.tolist()), pixels.get(k),
             state, free, how,
         )
         for k, (name, (state, free, point, how)) in enumerate(zip(CORNERS, judged))
@@ -619,6 +728,32 @@ def affordances_of(
             for j in range(len(maps.folds))
         )
     return Affordances(CornerMap(corners), folds)
+
+
+def _verdict_fits(
+    obs: Any, plan: _Plan, layout: NapkinLayout, lifted: NDArray | None
+) -> tuple[NapkinMaps, list[Any]]:
+    """The napkin's maps (:func:`napkin_maps`) and each corner placed by its own stickers
+    (:func:`_own_fit`; :data:`_NOT_FITTED` for a corner held up), their rigid maps
+    fitted together (:func:`fit_maps`)."""
+    napkin = _napkin_problems(obs, plan, layout)
+    problems = list(napkin)
+    faces = []
+    for k in range(len(CORNERS)):
+        j = plan.corner_part[k]
+        face = _FACE.get(_corner_state(plan.folds[j] if j >= 0 else None, k, lifted), 0)
+        faces.append(face)
+        if face != 0:
+            uv, pts = _own_points(obs, k, layout, ids=plan.own_ids[k])
+            problems.append((uv, pts, obs.up, face))
+    fits = fit_maps(problems)
+    maps = _napkin_maps(obs, plan, layout, fits[: len(napkin)])
+    own: list[Any] = []
+    rest = iter(fits[len(napkin):])
+    for k, face in enumerate(faces):
+        corner_uv = np.asarray(layout.corner_uv[k], dtype=float)
+        own.append(_NOT_FITTED if face == 0 else _placed(next(rest), corner_uv))
+    return maps, own
 
 
 def fold_line_3d(
@@ -643,7 +778,7 @@ def _seen_fold(maps: NapkinMaps, j: int, corners: list[CornerAffordance]) -> See
         if flat is not None and all(t is not None for t in tips):
             tip = maps.on_table(np.mean(np.asarray(tips, dtype=float), axis=0))
             ends = bisector_through(tip, maps.on_table(flat), ends, maps.up)
-    line = None if ends is None else tuple(tuple(float(v) for v in e) for e in ends)
+    line = None if ends is None else tuple(tuple(e.tolist()) for e in ends)
     return SeenFold(f.word, f.corner, f.side, f.under, line)
 
 
@@ -656,10 +791,11 @@ def bisector_through(
     """The perpendicular bisector of ``a`` -> ``b`` in the table plane, as the segment
     between the projections of ``ends`` onto it (``ends`` unchanged when a and b meet)."""
     d = b - a
-    if np.linalg.norm(d) < 1e-6:
+    # (the lengths as np.linalg.norm takes a vector's, sqrt(x . x), without its overhead)
+    if math.sqrt(d.dot(d)) < 1e-6:
         return ends
     mid = 0.5 * (a + b)
     (u0, u1, u2), (d0, d1, d2) = np.asarray(up, dtype=float).tolist(), d.tolist()
     along = np.array([u1 * d2 - u2 * d1, u2 * d0 - u0 * d2, u0 * d1 - u1 * d0])  # up x d
-    along /= np.linalg.norm(along)
+    along /= math.sqrt(along.dot(along))
     return tuple(mid + ((e - mid) @ along) * along for e in ends)  # type: ignore[return-value]

@@ -109,4 +109,4 @@ def border_factor(
     r = float(np.sqrt(x * x + y * y).max())
     moved = TYPICAL_K1 * r**3 * intrinsics.fx / sticker_diameter_px
     lo, hi = BORDER_DOUBT
-    return float(np.clip(1.0 - 0.5 * (moved - lo) / (hi - lo), 0.5, 1.0))
+    return min(max(1.0 - 0.5 * (moved - lo) / (hi - lo), 0.5), 1.0)  # (np.clip's value)

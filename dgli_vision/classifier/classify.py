@@ -13,6 +13,7 @@ the dGLI is near-singular and its sign follows millimetre-level noise.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -242,7 +243,9 @@ def confidence_of(
     n_coordinates : int, optional
         Cloth coordinates the verdict rests on.
     """
-    margin_part = 1.0 if not np.isfinite(margin) else float(np.clip(margin / FULL_MARGIN, 0, 1))
+    margin_part = 1.0  # (math and min/max: np.clip's value without its overhead on one)
+    if math.isfinite(margin):
+        margin_part = min(max(float(margin) / FULL_MARGIN, 0.0), 1.0)
     known = 1.0 - n_unknown_stickers / max(n_stickers, 1)
     coords_part = 1.0 if n_coordinates is None else min(1.0, n_coordinates / FULL_COORDINATES)
     return round(margin_part * max(known, 0.0) ** 3 * coords_part, 4)
@@ -250,7 +253,7 @@ def confidence_of(
 
 def _n_segments(n_coordinates: int) -> int:
     """m such that m (m - 1) / 2 == n_coordinates."""
-    m = round((1 + float(np.sqrt(1 + 8 * n_coordinates))) / 2)
+    m = round((1 + math.sqrt(1 + 8 * n_coordinates)) / 2)
     if m * (m - 1) // 2 != n_coordinates:
         raise ValueError(f"{n_coordinates} is not a number of segment pairs")
     return m
@@ -296,6 +299,9 @@ class DistanceTerms:
     back: NDArray[np.float64] | None
     back_rates: NDArray[np.float64] | None
     tip: NDArray[np.float64] | None = None
+    #: The faces' term of the mirror image, when worked out with ``face`` (None: by
+    #: :meth:`mirrored` when asked).
+    mirror_face: NDArray[np.float64] | None = field(default=None, repr=False)
 
     def total(self) -> NDArray[np.float64]:
         """The distance to every reference, shape (k,)."""
@@ -310,7 +316,9 @@ class DistanceTerms:
         face, back = self.face, self.back
         if back is not None and self.back_rates is not None:
             back = 1.0 - back
-            face = _face_gap(back[None], self.back_rates)[0]
+            face = self.mirror_face
+            if face is None:
+                face = _face_gap(back[None], self.back_rates.T)[0]
         dgli = np.clip(2.0 - self.dgli, 0.0, 2.0)
         return DistanceTerms(dgli, self.evidence, face, back, self.back_rates)
 
@@ -336,10 +344,17 @@ def reference_terms(
             f"need at least {MIN_COORDINATES} (3 segments with both stickers seen)"
         )
     dgli = coordinate_distances(x[None], known[None], references)[0]
-    rest, face, tip = evidence_terms(ev.stacked(), references)
     back = None if ev.back is None else np.asarray(ev.back, dtype=np.float64)
-    rates = references.back_rates() if back is not None else None
-    return DistanceTerms(dgli, rest[0], face[0], back, rates, None if tip is None else tip[0])
+    rest, face, tip = _evidence_terms(ev.stacked(), references, faces=back is None)
+    if back is None:
+        return DistanceTerms(dgli, rest[0], face[0], None, None, None if tip is None else tip[0])
+    # the faces' term of the mirror image with this one, in one call (mirror_problem
+    # asks for it every frame)
+    face, mirror_face = _face_gap(np.stack([back, 1.0 - back]), references.by_row("back_rate"))
+    rates = references.back_rates()
+    return DistanceTerms(
+        dgli, rest[0], face, back, rates, None if tip is None else tip[0], mirror_face
+    )
 
 
 def coordinate_distances(
@@ -362,9 +377,11 @@ def coordinate_distances(
         return out
     rows = np.flatnonzero(ok)
     if len(rows) == 1:  # one frame (the camera's): no grouping to do
-        masks, group = known[rows], np.zeros(1, dtype=np.intp)
-    else:
-        masks, group = np.unique(known[ok], axis=0, return_inverse=True)
+        mask = known[rows[0]]
+        ranks = soft_centred_unit_ranks(coords[rows][:, mask], TIE_SCALE)
+        out[rows] = np.clip(1.0 - ranks @ references.ranked(mask).T, 0.0, 2.0)
+        return out
+    masks, group = np.unique(known[ok], axis=0, return_inverse=True)
     for g, mask in enumerate(masks):
         sel = rows[group.ravel() == g]
         ranks = soft_centred_unit_ranks(coords[sel][:, mask], TIE_SCALE)
@@ -379,6 +396,14 @@ def evidence_terms(
     against every reference: the weighted sum of all but the corners' faces and tips,
     the faces' mean disagreement (unweighted; zeros without ``back``), and the weighted
     tip term (None without ``tips``), each of shape (n, k)."""
+    return _evidence_terms(evidence, references)
+
+
+def _evidence_terms(
+    evidence: Evidence, references: ReferenceSet, *, faces: bool = True
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64] | None]:
+    """:func:`evidence_terms`; without ``faces``, zeros for the faces' term (the caller
+    works it out)."""
     ev = evidence
     k = len(references.references)
     n = next((len(v) for v in vars(ev).values() if v is not None), 1)
@@ -388,17 +413,19 @@ def evidence_terms(
             ev.visible, ev.unknown, references.visible_rates()
         )
     if ev.lifted is not None:
-        rest += LIFTED_WEIGHT * _rate_gap(ev.lifted, references.lifted_rates())
+        rest += LIFTED_WEIGHT * _rate_gap(ev.lifted, references.by_row("lifted_rate"))
     if ev.heights_mm is not None:
         rest += HEIGHT_WEIGHT * _height_gap(ev.heights_mm, references.height_bounds())
     if ev.past is not None:
-        rest += PAST_WEIGHT * _rate_gap(ev.past, references.past_rates())
+        rest += PAST_WEIGHT * _rate_gap(ev.past, references.by_row("past_rate"))
     if ev.spread_mm is not None:
         rest += SPREAD_WEIGHT * _spread_gap(ev.spread_mm, references.spread_bounds())
     face = np.zeros((n, k))
-    if ev.back is not None:
-        face = _face_gap(ev.back, references.back_rates())
-    tip = None if ev.tips is None else TIP_WEIGHT * _tip_gap(ev.tips, references.tip_clear())
+    if ev.back is not None and faces:
+        face = _face_gap(ev.back, references.by_row("back_rate"))
+    tip = None
+    if ev.tips is not None:
+        tip = TIP_WEIGHT * _tip_gap(ev.tips, references.by_row("tip_clear"))
     return rest, face, tip
 
 
@@ -429,6 +456,15 @@ def _mean_over(told: NDArray[np.bool_], gap: NDArray[np.float64]) -> NDArray[np.
     return g / np.maximum(told.sum(axis=1), 1)[:, None]
 
 
+def _mean_over_rows(told: NDArray[np.bool_], gap: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Mean of ``gap`` (n, s, k), one row per sticker or pair, over the rows told (n, s),
+    (n, k); 0 where none is. The rows are added in order, one after the other."""
+    if told.all():  # a frame's own rows (each term takes those it tells): nothing to mask
+        return gap.sum(axis=1) / max(told.shape[1], 1)
+    g = np.where(told[:, :, None], gap, 0.0).sum(axis=1)
+    return g / np.maximum(told.sum(axis=1), 1)[:, None]
+
+
 def _zeroed(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """``x`` with 0 where it is not finite (what ``np.nan_to_num`` does with NaN, at a
     fraction of its overhead on short arrays)."""
@@ -452,20 +488,38 @@ def _visibility_gap(
 
 def _rate_gap(observed: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean ``|observed - rate|`` over the stickers told (finite), (n, k) for ``rates``
-    of shape (k, 16); 0 where none is told."""
+    of shape (16, k) (:meth:`.ReferenceSet.by_row`); 0 where none is told."""
     x = np.asarray(observed, dtype=np.float64)
-    cols = _told_columns(np.isfinite(x))
-    x = x[:, cols]
-    return _mean_over(np.isfinite(x), np.abs(_zeroed(x)[:, None, :] - rates[None, :, cols]))
+    told = np.isfinite(x)
+    rows = _told_columns(told)
+    if len(rows) < len(rates):
+        x, told, rates = x[:, rows], told[:, rows], rates[rows]
+    return _mean_over_rows(told, np.abs(_zeroed(x)[:, :, None] - rates))
 
 
 def _tip_gap(tips: ArrayLike, clear: NDArray[np.float64]) -> NDArray[np.float64]:
     """How much more of the corners' tip places shows bare table than each reference
-    leaves bare (``clear``, (k, 4)), beyond :data:`TIP_SLACK`, summed over the corners
-    told, (n, k)."""
+    leaves bare (``clear``, one row per corner, (4, k): :meth:`.ReferenceSet.by_row`),
+    beyond :data:`TIP_SLACK`, summed over the corners told, (n, k)."""
     t = np.asarray(tips, dtype=np.float64)
-    over = np.clip(_zeroed(t)[:, None, :] - clear[None] - TIP_SLACK, 0.0, None)
-    return np.where(np.isfinite(t)[:, None, :], over, 0.0).sum(axis=2)
+    over = np.clip(_zeroed(t)[:, :, None] - clear[None] - TIP_SLACK, 0.0, None)
+    return np.where(np.isfinite(t)[:, :, None], over, 0.0).sum(axis=1)
+
+
+def _range_gap(
+    x: NDArray[np.float64], lo: NDArray[np.float64], hi: NDArray[np.float64],
+    slack: float, scale: float,
+) -> NDArray[np.float64]:
+    """How far each value of ``x`` (n, s) lies outside each reference's range ``lo``
+    to ``hi`` (s, k) beyond ``slack``, as a fraction of ``scale`` capped to [0, 1],
+    (n, s, k); NaN where ``x`` or the range is."""
+    v = x[:, :, None]
+    gap = lo - v
+    np.maximum(gap, v - hi, out=gap)
+    gap -= slack
+    gap /= scale
+    np.clip(gap, 0.0, 1.0, out=gap)
+    return gap
 
 
 def _spread_gap(
@@ -473,32 +527,52 @@ def _spread_gap(
     bounds: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]],
 ) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the observed sticker-pair distances with each
-    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`), (n, k); 0 for a
-    frame where none is known, or where some reference keeps no range of a pair told."""
+    reference's ranges (``bounds``: :meth:`.ReferenceSet.spread_bounds`, one row per
+    pair), (n, k); 0 for a frame where none is known, or where some reference keeps no
+    range of a pair told."""
     lo, hi, kept = bounds
     d = np.asarray(spread_mm, dtype=np.float64)
     told = np.isfinite(d)
-    usable = told.any(axis=1) & ~(told & ~kept[None]).any(axis=1)
-    out = np.zeros((len(d), len(lo)))
-    if not usable.any():
-        return out
-    cols = _told_columns(told[usable])
-    sub, x = told[usable][:, cols], d[usable][:, None, cols]
-    gap = np.maximum(lo[None, :, cols] - x, x - hi[None, :, cols])  # NaN where not told
-    gap -= SPREAD_SLACK_MM
-    gap /= SPREAD_SCALE_MM
-    np.clip(gap, 0.0, 1.0, out=gap)
-    out[usable] = _mean_over(sub, gap)
+    usable = told.any(axis=1) & ~(told & ~kept).any(axis=1)
+    every = bool(usable.all())
+    if not every:
+        if not usable.any():
+            return np.zeros((len(d), lo.shape[1]))
+        d, told = d[usable], told[usable]
+    rows = _told_columns(told)
+    if len(rows) < len(lo):
+        d, told, lo, hi = d[:, rows], told[:, rows], lo[rows], hi[rows]
+    # The mean of clip((g - slack) / scale, 0, 1) over the pairs told, g the distance
+    # outside the range, taken as (the sum of clip(g, slack, slack + scale) less the
+    # slack of each pair) / scale: two passes over the (pairs, references) table fewer
+    # than term by term, the same to rounding (1e-16).
+    v = d[:, :, None]
+    g = lo - v
+    np.maximum(g, v - hi, out=g)
+    np.clip(g, SPREAD_SLACK_MM, SPREAD_SLACK_MM + SPREAD_SCALE_MM, out=g)
+    if told.all():
+        total, count = g.sum(axis=1), max(g.shape[1], 1)
+    else:  # a pair not told counts as within the slack
+        total = np.where(told[:, :, None], g, SPREAD_SLACK_MM).sum(axis=1)
+        count = np.maximum(told.sum(axis=1), 1)[:, None]
+    total -= g.shape[1] * SPREAD_SLACK_MM
+    total /= SPREAD_SCALE_MM
+    gap = total / count
+    if every:
+        return gap
+    out = np.zeros((len(usable), lo.shape[1]))
+    out[usable] = gap
     return out
 
 
 def _face_gap(back: ArrayLike, rates: NDArray[np.float64]) -> NDArray[np.float64]:
     """Mean ``|back - rate|`` over the corners told both in the observation and in each
-    reference (``rates`` shape (k, 4), NaN where not told), (n, k); 0 where none is."""
+    reference (``rates`` one row per corner, shape (4, k): :meth:`.ReferenceSet.by_row`,
+    NaN where not told), (n, k); 0 where none is."""
     x = np.asarray(back, dtype=np.float64)
-    both = np.isfinite(x)[:, None, :] & np.isfinite(rates)[None]
-    diff = np.abs(_zeroed(x)[:, None, :] - _zeroed(rates)[None])
-    return np.where(both, diff, 0.0).sum(axis=2) / np.maximum(both.sum(axis=2), 1)
+    both = np.isfinite(x)[:, :, None] & np.isfinite(rates)[None]
+    diff = np.abs(_zeroed(x)[:, :, None] - _zeroed(rates)[None])
+    return np.where(both, diff, 0.0).sum(axis=1) / np.maximum(both.sum(axis=1), 1)
 
 
 def _height_gap(
@@ -506,17 +580,18 @@ def _height_gap(
     bounds: tuple[NDArray[np.float64], NDArray[np.float64], bool],
 ) -> NDArray[np.float64]:
     """Mean disagreement in [0, 1] of the stickers' heights with each reference's ranges
-    (``bounds``: :meth:`.ReferenceSet.height_bounds`), (n, k); 0 where a reference keeps
-    no range."""
-    lo, hi, _ = bounds
+    (``bounds``: :meth:`.ReferenceSet.height_bounds`, one row per sticker), (n, k); 0
+    where a reference keeps no range."""
+    lo, hi, kept = bounds
     h = np.asarray(heights_mm, dtype=np.float64)
-    cols = _told_columns(np.isfinite(h))
-    x = h[:, None, cols]
-    gap = np.maximum(lo[None, :, cols] - x, x - hi[None, :, cols])
-    gap -= HEIGHT_SLACK_MM
-    gap /= HEIGHT_SCALE_MM
-    np.clip(gap, 0.0, 1.0, out=gap)
-    return _mean_over(np.isfinite(h[:, cols]), np.where(np.isfinite(gap), gap, 0.0))
+    told = np.isfinite(h)
+    rows = _told_columns(told)
+    if len(rows) < len(lo):
+        h, told, lo, hi = h[:, rows], told[:, rows], lo[rows], hi[rows]
+    gap = _range_gap(h, lo, hi, HEIGHT_SLACK_MM, HEIGHT_SCALE_MM)
+    if not kept:  # (a reference without a range of a sticker: no disagreement)
+        gap = _zeroed(gap)
+    return _mean_over_rows(told, gap)
 
 
 def classify_coordinates(
@@ -558,16 +633,24 @@ def classify_coordinates(
         dist = reference_distances(coords, references, ev)
     else:
         dist = np.asarray(distances, dtype=np.float64)
-    order = np.argsort(dist, kind="stable")
-    best = references.references[order[0]]
+    codes = references.class_codes()
+    if np.isfinite(dist).all():
+        # the first nearest, and the first nearest of another class: what a stable sort
+        # puts first (argmin takes the first of equal values), without sorting
+        b = int(dist.argmin())
+        other = codes != codes[b]
+        k = int(np.where(other, dist, np.inf).argmin()) if other.any() else -1
+    else:  # (NaN or inf: as the stable sort orders them)
+        order = np.argsort(dist, kind="stable")
+        b = int(order[0])
+        other = codes[order] != codes[b]
+        k = int(order[int(np.argmax(other))]) if other.any() else -1
+    best = references.references[b]
     runner = None
-    codes = references.class_codes()[order]
-    other = codes != codes[0]
-    if other.any():  # the nearest reference of another class
-        k = int(order[int(np.argmax(other))])
+    if k >= 0:  # the nearest reference of another class
         r = references.references[k]
         runner = RunnerUp(r.class_id, r.name, r.variant, float(dist[k]))
-    d = float(dist[order[0]])
+    d = float(dist[b])
     margin = (runner.distance - d) if runner else float("inf")
     n_unknown = 0
     if ev.unknown is not None:

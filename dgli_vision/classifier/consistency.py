@@ -470,7 +470,7 @@ def mirror_problem(
     # The footprint speaks for a reading when it fits that reading's best reference and
     # clearly not the other's; it only ever moves the doubt towards the front-up reading
     # when that fits well (measured wrong, a shadow's footprint must not).
-    fits_well = float(np.clip(1.0 + (GOOD_FIT - front[i]) / MIRROR_MARGIN, 0.0, 1.0))
+    fits_well = _unit_clip(float(1.0 + (GOOD_FIT - front[i]) / MIRROR_MARGIN))
     for_front = _fits(pen_front) * _rules_out(pen_mirror) * fits_well
     for_mirror = _fits(pen_mirror) * _rules_out(pen_front)
     better = float(mirrored[j] - front[i])  # > 0: the front-up reading fits better
@@ -502,10 +502,16 @@ def mirror_problem(
 def _fits(penalty: float) -> float:
     """1 where the footprint agrees with a reference (penalty 0), 0 from a penalty of
     0.1 up, linear between."""
-    return float(np.clip(1.0 - penalty / 0.1, 0.0, 1.0))
+    return _unit_clip(1.0 - penalty / 0.1)
 
 
 def _rules_out(penalty: float) -> float:
     """1 where the footprint rules a reference out (penalty 0.5 and more), linear to 0
     at penalty 0."""
-    return float(np.clip(2.0 * penalty, 0.0, 1.0))
+    return _unit_clip(2.0 * penalty)
+
+
+def _unit_clip(x: float) -> float:
+    """``x`` clipped to [0, 1] as ``np.clip`` does it (NaN stays NaN), without its
+    overhead on one number."""
+    return min(max(x, 0.0), 1.0)

@@ -239,12 +239,15 @@ def mirror_crease_fit(m: NDArray, q: NDArray) -> tuple[float, float] | None:
 def rigid_fit_2d(m: NDArray, p: NDArray) -> tuple[float, NDArray]:
     """The rotation angle and translation of the proper rigid map nearest to taking
     ``m`` (k, 2) onto ``p`` (k >= 2)."""
-    mc, pc = m - m.mean(axis=0), p - p.mean(axis=0)
-    a = float(np.sum(mc[:, 0] * pc[:, 0] + mc[:, 1] * pc[:, 1]))
-    b = float(np.sum(mc[:, 0] * pc[:, 1] - mc[:, 1] * pc[:, 0]))
+    # (the means and sums as ndarray.mean and np.sum take them, without their overhead)
+    m_mean = np.add.reduce(m, axis=0) / len(m)
+    p_mean = np.add.reduce(p, axis=0) / len(p)
+    mc, pc = m - m_mean, p - p_mean
+    a = float(np.add.reduce(mc[:, 0] * pc[:, 0] + mc[:, 1] * pc[:, 1]))
+    b = float(np.add.reduce(mc[:, 0] * pc[:, 1] - mc[:, 1] * pc[:, 0]))
     th = math.atan2(b, a)
     r = np.array([[math.cos(th), -math.sin(th)], [math.sin(th), math.cos(th)]])
-    return th, p.mean(axis=0) - r @ m.mean(axis=0)
+    return th, p_mean - r @ m_mean
 
 
 def rotation_2d(th: float) -> tuple[NDArray, NDArray]:
@@ -270,22 +273,26 @@ def solve_flaps(
     col_a, col_c = 3 + 2 * flap_g, 4 + 2 * flap_g
     has_flaps = len(flap_rows) > 0
     c_mask = np.where(on_flap, 1.0, 0.0)
+    n = np.empty((n_pts, 2))  # each point's crease normal (0 on the napkin that stays)
+    nt = np.empty((n_pts, 2))  # and its direction
     for _ in range(5):
         rot, drot = rotation_2d(x[0])
         alpha, c = x[3::2], x[4::2]
-        n = np.stack([np.cos(alpha[gi]), np.sin(alpha[gi])], axis=1) * c_mask[:, None]
-        s = (m * n).sum(axis=1) - c[gi] * c_mask
+        n[:, 0] = np.cos(alpha[gi])
+        n[:, 1] = np.sin(alpha[gi])
+        n *= c_mask[:, None]
+        s = np.add.reduce(m * n, axis=1) - c[gi] * c_mask
         ref = m - 2.0 * s[:, None] * n
         res = ref @ rot.T + x[1:3] - p
         jac[:, :, 0] = ref @ drot.T
         if has_flaps:
-            nt = np.stack([-n[:, 1], n[:, 0]], axis=1)
-            d_a = (-2.0 * (m * nt).sum(axis=1)[:, None] * n - 2.0 * s[:, None] * nt) @ rot.T
+            np.negative(n[:, 1], out=nt[:, 0])
+            nt[:, 1] = n[:, 0]
+            along = np.add.reduce(m * nt, axis=1)
+            d_a = (-2.0 * along[:, None] * n - 2.0 * s[:, None] * nt) @ rot.T
             d_c = 2.0 * n @ rot.T
-            jac[flap_rows, 0, col_a] = d_a[flap_rows, 0]
-            jac[flap_rows, 1, col_a] = d_a[flap_rows, 1]
-            jac[flap_rows, 0, col_c] = d_c[flap_rows, 0]
-            jac[flap_rows, 1, col_c] = d_c[flap_rows, 1]
+            jac[flap_rows, :, col_a] = d_a[flap_rows]
+            jac[flap_rows, :, col_c] = d_c[flap_rows]
         jm = jac.reshape(2 * n_pts, n_par)
         jtj = jm.T @ jm
         rhs = -(jm.T @ res.reshape(-1))
@@ -296,7 +303,7 @@ def solve_flaps(
         x = x + step
         # (the residuals and J^T J of the last pass stand for the solution's: the
         # last step is below a hundredth of a mm)
-        if float(np.max(np.abs(step))) < 1e-5:
+        if float(np.maximum.reduce(np.abs(step))) < 1e-5:
             break
     return x, jtj, res
 
@@ -331,7 +338,7 @@ def fit_folds(
     pts = obs.points_m if obs.points_m is not None else np.full((n, 3), np.nan)
     h = obs.heights_mm if obs.heights_mm is not None else np.zeros(n)
     seen = np.asarray(obs.visible, dtype=bool) & np.isfinite(pts).all(axis=1)
-    lifted = seen & (np.nan_to_num(h, nan=0.0) > LIFTED_MM)
+    lifted = seen & (h > LIFTED_MM)  # (NaN, not known, is not above: as 0 mm)
     lying = seen & ~lifted
     part = np.asarray(sticker_part) if len(sticker_part) == n else np.full(n, -1)
     n_stay = int(np.count_nonzero(lying & (part == -1)))
@@ -365,7 +372,9 @@ def fit_folds(
     if active:
         basis = _plane_basis(obs.up)
         p2 = (np.nan_to_num(pts) @ basis.T) * 1e3
-        use = lying & (np.isin(part, active) | (part == -1))
+        fitted = np.zeros(len(folds) + 1, dtype=bool)  # part -> in the fit ([-1]: stays)
+        fitted[active] = fitted[-1] = True
+        use = lying & fitted[part]
         results = _fit(p2, part, use, active, folds, layout)
     return tuple(
         results.get(j)
@@ -404,7 +413,7 @@ def _fit(
             break
         use[ids[worst]] = False
     dof = max(2 * len(m) - len(x), 0)
-    var = (float(np.sum(d * d)) + PRIOR_DOF * STICKER_SD_MM**2) / (dof + PRIOR_DOF)
+    var = (float(np.add.reduce(d * d)) + PRIOR_DOF * STICKER_SD_MM**2) / (dof + PRIOR_DOF)
     try:
         cov = var * np.linalg.inv(jtj)
     except np.linalg.LinAlgError:
@@ -417,11 +426,13 @@ def _fit(
         # The cloth bends round its own thickness at the crease, so a flap lands short
         # of its mirror image by about pi / 2 thicknesses: the mirror's axis lies a
         # quarter turn's worth (pi / 4 thicknesses) inside the flap. Move it back.
-        side = float(np.mean(m[mine] @ np.array([math.cos(a), math.sin(a)]) - c))
+        # (means as np.mean takes them, the sum over the count, without its overhead)
+        count = int(np.count_nonzero(mine))
+        side = float(np.add.reduce(m[mine] @ np.array([math.cos(a), math.sin(a)]) - c) / count)
         c -= math.copysign(bend, side)
         block = cov[3 + 2 * j : 5 + 2 * j, 3 + 2 * j : 5 + 2 * j]
         crease = Crease.from_normal(a, c)
-        rms = float(np.sqrt(np.mean(d[mine] ** 2)))
+        rms = math.sqrt(np.add.reduce(d[mine] ** 2) / count)
         if not np.all(np.isfinite(block)) or _edge_sd(crease, block, layout) > MAX_SD_MM:
             out[fold_index] = empty_geometry(word, "the stickers seen do not fix the crease")
             continue

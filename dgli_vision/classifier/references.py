@@ -194,12 +194,13 @@ class ReferenceSet:
 
     def height_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
         """The height ranges split for the classifier's per-frame use: lows and highs,
-        shape (k, 16) each (contiguous), and whether every range is known; built once."""
+        one row per sticker, shape (16, k) each (contiguous: a frame's terms take the rows
+        of the stickers it tells), and whether every range is known; built once."""
         if "height_lo" not in self._stacks:
             r = self.height_ranges()
             for name, a in (
-                ("height_lo", np.ascontiguousarray(r[..., 0])),
-                ("height_hi", np.ascontiguousarray(r[..., 1])),
+                ("height_lo", np.ascontiguousarray(r[..., 0].T)),
+                ("height_hi", np.ascontiguousarray(r[..., 1].T)),
                 ("height_kept", np.asarray(np.isfinite(r).all())),
             ):
                 a.flags.writeable = False
@@ -217,18 +218,32 @@ class ReferenceSet:
 
     def spread_bounds(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_]]:
         """The sticker-pair ranges split for the classifier's per-frame use: lows and
-        highs, shape (k, 120) each (contiguous), and which pairs every reference keeps a
-        range of, shape (120,); built once."""
+        highs, one row per pair, shape (120, k) each (contiguous: a frame's terms take the
+        rows of the pairs it tells), and which pairs every reference keeps a range of,
+        shape (120,); built once."""
         if "spread_lo" not in self._stacks:
             r = self.spread_ranges()
             for name, a in (
-                ("spread_lo", np.ascontiguousarray(r[..., 0])),
-                ("spread_hi", np.ascontiguousarray(r[..., 1])),
+                ("spread_lo", np.ascontiguousarray(r[..., 0].T)),
+                ("spread_hi", np.ascontiguousarray(r[..., 1].T)),
                 ("spread_kept", np.isfinite(r).all(axis=(0, 2))),
             ):
                 a.flags.writeable = False
                 self._stacks[name] = a
         return self._stacks["spread_lo"], self._stacks["spread_hi"], self._stacks["spread_kept"]
+
+    def by_row(self, name: str) -> NDArray[np.float64]:
+        """The references' table ``name`` (the rates ``"lifted_rate"``, ``"past_rate"``,
+        ``"back_rate"``, or ``"tip_clear"``: :meth:`tip_clear`) with one row per sticker
+        or corner, shape (16 or 4, k), contiguous, read-only; built once (a frame's terms
+        take the rows it tells, and sum over rows, not over short columns)."""
+        key = name + " by row"
+        if key not in self._stacks:
+            table = self.tip_clear() if name == "tip_clear" else self._stacked(name)
+            a = np.ascontiguousarray(table.T)
+            a.flags.writeable = False
+            self._stacks[key] = a
+        return self._stacks[key]
 
     def tip_clear(self) -> NDArray[np.float64]:
         """The share of each corner's tip place each reference leaves bare table, shape
@@ -542,6 +557,8 @@ def _warmed(refs: ReferenceSet) -> ReferenceSet:
     refs.class_codes()
     refs.height_bounds()
     refs.spread_bounds()
+    for name in ("lifted_rate", "past_rate", "back_rate", "tip_clear"):
+        refs.by_row(name)
     layout_of_size(refs.napkin_mm)
     refs.tip_clear()
     return refs

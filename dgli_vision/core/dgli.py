@@ -44,6 +44,7 @@ Degenerate input
 
 from __future__ import annotations
 
+import math
 from functools import lru_cache
 
 import numpy as np
@@ -106,13 +107,15 @@ def _frame_cached(x: float, y: float, z: float) -> NDArray[np.float64]:
     u = np.array([x, y, z])
     if u.shape != (3,):
         raise ValueError(f"up must be a 3-vector, got shape {u.shape}")
-    norm = float(np.linalg.norm(u))
-    if not np.isfinite(norm) or norm == 0.0:
+    # (a vector's norm as np.linalg.norm takes it, sqrt(x . x), without its overhead:
+    # a new up every frame)
+    norm = math.sqrt(u.dot(u))
+    if not math.isfinite(norm) or norm == 0.0:
         raise ValueError(f"up must be a finite non-zero vector, got {u.tolist()}")
     e3 = u / norm
     helper = np.array([1.0, 0.0, 0.0]) if abs(e3[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
     e1 = _cross3(helper, e3)
-    e1 /= np.linalg.norm(e1)
+    e1 /= math.sqrt(e1.dot(e1))
     e2 = _cross3(e3, e1)
     rot = np.stack([e1, e2, e3])
     rot.flags.writeable = False

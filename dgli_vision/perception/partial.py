@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.classes import LIFTED_MM
 from ..core.layout import NapkinLayout
+from ..core.order_stats import median, nanmedian
 from .detections import DetectorParams, StickerDetections
 from .evidence import SEEN, StickerEvidence
 from .labels import colour_labels, hue_lut
@@ -89,16 +90,16 @@ def confirm_partly_hidden(
         The same, with each confirmed sticker found at its predicted pixel and 3D
         place (on the cloth at the height of the stickers lying around it).
     """
-    p = params or PartialParams()
-    dp = detector or DetectorParams()
     ids = np.flatnonzero(
         evidence.near_object & evidence.unknown & np.isfinite(evidence.predicted_px).all(1)
     )
-    if not len(ids) or not markers.found.any():
+    if not len(ids) or not markers.found.any():  # (most frames: nothing to confirm)
         return detections, markers, evidence
+    p = params or PartialParams()
+    dp = detector or DetectorParams()
     up, offset = table
     lying = _lying_height(markers, up, offset)
-    z = float(np.nanmedian(markers.points[markers.found, 2]))
+    z = nanmedian(markers.points[markers.found, 2])
     radius = 0.5e-3 * layout.disc_diameter_mm * intrinsics.fx / z
     lut, names = hue_lut(layout, dp, colours)
     confirmed = [
@@ -119,7 +120,7 @@ def _lying_height(markers: Markers3D, up: NDArray, offset: float) -> float:
     metres."""
     h = markers.points[markers.found] @ up - offset
     low = h[h < LIFTED_MM / 1e3]
-    return float(np.median(low)) if len(low) else 0.0
+    return median(low) if len(low) else 0.0
 
 
 def _shows_disc(

@@ -15,14 +15,19 @@ __all__ = ["kabsch", "rigid_prediction"]
 def kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
     """Rotations R (..., 3, 3) and translations t (..., 3) with dst ~ src @ R.T + t, in
     the least-squares sense, for stacks of point sets src, dst (..., k, 3)."""
-    cs, cd = src.mean(axis=-2, keepdims=True), dst.mean(axis=-2, keepdims=True)
-    cov = np.swapaxes(src - cs, -1, -2) @ (dst - cd)
-    u, _, vt = np.linalg.svd(cov)
-    d = np.sign(np.linalg.det(u @ vt))
-    fix = np.ones(u.shape[:-1])
-    fix[..., -1] = d
-    r = np.swapaxes((u * fix[..., None, :]) @ vt, -1, -2)
-    t = cd[..., 0, :] - (cs @ np.swapaxes(r, -1, -2))[..., 0, :]
+    # the means as ndarray.mean takes them (sum, then divide), without its overhead
+    k = src.shape[-2]
+    cs = np.add.reduce(src, axis=-2, keepdims=True) / k
+    cd = np.add.reduce(dst, axis=-2, keepdims=True) / k
+    u, _, vt = np.linalg.svd((src - cs).mT @ (dst - cd))
+    r = u @ vt
+    d = np.sign(np.linalg.det(r))
+    if not (d > 0).all():  # a reflection: turn the last axis of u round (times 1 elsewhere)
+        fix = np.ones(u.shape[:-1])
+        fix[..., -1] = d
+        r = (u * fix[..., None, :]) @ vt
+    r = r.mT
+    t = cd[..., 0, :] - (cs @ r.mT)[..., 0, :]
     return r, t
 
 
@@ -49,7 +54,8 @@ def rigid_prediction(
         return None
     triples = ids[_triples(ids.size)]  # (T, 3), as combinations(ids, 3)
     a, b, c = (uv_m[triples[:, k]] for k in range(3))
-    area = np.abs(np.cross(b - a, c - a)[:, 2])
+    ab, ac = b - a, c - a
+    area = np.abs(ab[:, 0] * ac[:, 1] - ab[:, 1] * ac[:, 0])  # np.cross's z, as it takes it
     triples = triples[area > 1e-4]  # not nearly collinear (m^2)
     if len(triples) == 0:
         return None
@@ -62,7 +68,8 @@ def rigid_prediction(
             continue
         r, t = kabsch(uv_m[chunk], pts[chunk])  # (T, 3, 3), (T, 3)
         pred = np.einsum("tij,nj->tni", r, uv_m[ids]) + t[:, None, :]
-        inl = np.concatenate([inl, np.linalg.norm(pred - pts[ids][None], axis=2) < tol_m])
+        off = pred - pts[ids][None]  # (its lengths as np.linalg.norm takes them)
+        inl = np.concatenate([inl, np.sqrt(np.add.reduce(off * off, axis=2)) < tol_m])
         if inl.all(axis=1).any():
             break
     best = inl[int(np.argmax(inl.sum(axis=1)))]
