@@ -23,7 +23,7 @@ import threading
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
@@ -641,6 +641,10 @@ class LivePair(LabelledPair):
     Not for other processes: it holds the SDK's frames."""
 
     frame: Any = None
+
+    #: Read in this process only (the live loop decodes it before a worker process
+    #: classifies it).
+    local: ClassVar[bool] = True
 
     def load(self) -> RGBDFrame:
         """The decoded frame, depth aligned to colour by the SDK."""
