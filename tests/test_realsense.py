@@ -146,7 +146,7 @@ def test_track_on_an_sdk_recording_gives_the_timeline_of_the_png_pairs(episode):
     times = [f["time"] for f in rs_data["frames"]]
     assert times == pytest.approx([f["time"] for f in png["frames"]], abs=1e-3)
     assert rs_data["recording"]["kind"] == "RealSense recording"
-    assert any("aligned to colour by the SDK" in n for n in rs_data["recording"]["notes"])
+    assert any("aligned to colour as the SDK aligns" in n for n in rs_data["recording"]["notes"])
 
 
 def test_extract_of_a_640x480_recording_uses_its_own_intrinsics(rs, tmp_path):

@@ -595,8 +595,11 @@ def watch(
 def _for_worker(pair: Any) -> Any:
     """What the capture thread offers a worker process: a frame it can read itself (a
     recording's encoded images, where they lie in its file) as it is; a frame only this
-    process can read (a camera's or the SDK's frames, ``local``) decoded now."""
-    return _decoded(pair) if getattr(pair, "local", False) else pair
+    process can read (the SDK's frames, ``local``) decoded now, unless its pixels can
+    go as recorded (``portable``: aligned and classified by the worker)."""
+    if getattr(pair, "local", False) and not getattr(pair, "portable", False):
+        return _decoded(pair)
+    return pair
 
 
 @dataclass(frozen=True)
