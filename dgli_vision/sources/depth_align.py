@@ -11,8 +11,11 @@ depth). A rectangle with a corner outside the colour image is left out.
 :class:`DepthToColour` does the same in one vectorised pass, in single precision as the
 SDK does. When the two streams share their centre of projection (no translation), where
 a depth pixel lands does not depend on its depth: the rectangles are worked out once per
-recording, and aligning a frame is a few gathers (:meth:`DepthToColour.align`). Otherwise
-each frame's rectangles are computed and filled with a minimum (``np.minimum.at``).
+recording, and aligning a frame is a few gathers (:meth:`DepthToColour.align`; when the
+streams differ only in their intrinsics, a depth column lands on colour columns of its
+own and a row on rows: gathers of rows, then of columns, 1.4 ms a 1280 x 720 frame
+against 5.6 for whole-image gathers and about 4-7 for ``rs.align``). Otherwise each
+frame's rectangles are computed and filled with a minimum (``np.minimum.at``).
 
 Streams read: without lens distortion (every D400's depth stream; a colour stream whose
 coefficients are all zero, as a D435's are). Others are aligned by the SDK itself
@@ -34,6 +37,10 @@ __all__ = ["DepthToColour", "StreamCamera"]
 _PLAIN_MODELS = frozenset(
     {"none", "brown_conrady", "inverse_brown_conrady", "modified_brown_conrady"}
 )
+
+
+#: No rotation between the streams (the SDK's column-major 3 x 3).
+_IDENTITY = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
 @dataclass(frozen=True)
@@ -116,6 +123,8 @@ class DepthToColour:
             )
         if not self.supported:
             raise ValueError("lens model not read: align with the SDK")
+        if self.fixed and self.rotation == _IDENTITY:
+            return _separable_min(raw, *_separable_sources(self))
         if self.fixed:
             return _gather_min(raw, _fixed_sources(self), (c.height, c.width))
         return _scatter_min(self, raw)
@@ -188,6 +197,58 @@ def _fixed_sources(cal: DepthToColour) -> NDArray[np.intp]:
     out = np.full((int(rank.max()) + 1, c.width * c.height), none, np.intp)
     out[rank, target] = source
     return out
+
+
+def _covering(lo: NDArray[np.int32], hi: NDArray[np.int32], size: int) -> NDArray[np.intp]:
+    """For each of ``size`` colour columns (or rows), the depth columns (rows) whose
+    span ``lo..hi`` covers it, shape (K, size); ``len(lo)`` (a sentinel) where fewer
+    than K do. Spans with an end outside the image cover nothing."""
+    inside = (lo >= 0) & (hi < size)
+    cover: list[list[int]] = [[] for _ in range(size)]
+    for k in np.flatnonzero(inside):
+        for c in range(int(lo[k]), int(hi[k]) + 1):
+            cover[c].append(int(k))
+    width = max(1, max(len(c) for c in cover))
+    out = np.full((width, size), len(lo), np.intp)
+    for c, found in enumerate(cover):
+        out[: len(found), c] = found
+    return out
+
+
+@lru_cache(maxsize=4)
+def _separable_sources(cal: DepthToColour) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """For streams that differ only in their intrinsics (no rotation, no translation, no
+    distortion): a depth column lands on colour columns that depend on it alone, a row
+    on rows: the depth rows covering each colour row, (K, H), and the depth columns
+    covering each colour column, (K, W) (:func:`_covering`). A depth pixel is left out
+    when its rectangle leaves the image, that is when its row's span or its column's
+    does."""
+    x0, y0, x1, y1 = _corner_rays(cal)
+    one = np.float32(1.0)
+    c0, _ = _project(cal, x0[0], y0[:, 0][:1].repeat(x0.shape[1]), one)
+    c1, _ = _project(cal, x1[0], y1[:, 0][:1].repeat(x1.shape[1]), one)
+    _, rows0 = _project(cal, x0[0][:1].repeat(y0.shape[0]), y0[:, 0], one)
+    _, rows1 = _project(cal, x1[0][:1].repeat(y1.shape[0]), y1[:, 0], one)
+    c = cal.colour
+    return _covering(rows0, rows1, c.height), _covering(c0, c1, c.width)
+
+
+def _separable_min(
+    raw: NDArray[np.uint16], rows: NDArray[np.intp], cols: NDArray[np.intp]
+) -> NDArray[np.uint16]:
+    """:func:`_gather_min` for separable streams: the nearest reading over each colour
+    row's depth rows, then over each colour column's depth columns."""
+    h, w = raw.shape
+    ext = np.full((h + 1, w + 1), 65535, np.uint16)  # a last row and column of "none"
+    np.subtract(raw, 1, out=ext[:h, :w], casting="unsafe")  # 0 -> 65535
+    by_row = np.take(ext, rows[0], axis=0)
+    for k in range(1, len(rows)):
+        np.minimum(by_row, np.take(ext, rows[k], axis=0), out=by_row)
+    best = np.take(by_row, cols[0], axis=1)
+    for k in range(1, len(cols)):
+        np.minimum(best, np.take(by_row, cols[k], axis=1), out=best)
+    best += 1  # 65535 (no reading) -> 0
+    return best
 
 
 def _gather_min(

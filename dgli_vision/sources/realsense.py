@@ -191,14 +191,17 @@ def _colour_array(rs: Any, frame: Any) -> NDArray[np.uint8]:
     return _colour_pixels(np.asanyarray(frame.get_data()), fmt)
 
 
-def _colour_pixels(pixels: NDArray[np.uint8], fmt: str) -> NDArray[np.uint8]:
+def _colour_pixels(
+    pixels: NDArray[np.uint8], fmt: str, *, copy: bool = True
+) -> NDArray[np.uint8]:
     """RGB uint8 (H, W, 3) of a colour frame's pixels in format ``fmt`` (one of
-    :data:`_COLOUR_FORMATS`), a copy owned by numpy."""
+    :data:`_COLOUR_FORMATS`), a copy owned by numpy (RGB itself without ``copy``: the
+    pixels outlive the frame)."""
     import cv2
 
     code = _COLOUR_CODES[fmt]
     if code is None:
-        return np.array(pixels, dtype=np.uint8, order="C")
+        return np.array(pixels, dtype=np.uint8, order="C", copy=copy or None)
     return cv2.cvtColor(np.ascontiguousarray(pixels), getattr(cv2, code))
 
 
@@ -786,7 +789,8 @@ class RawRealSensePair(LabelledPair):
         color = _pixels(self.color_data, np.uint8).reshape(c.height, c.width, channels)
         raw = _pixels(self.depth_data, np.uint16).reshape(d.height, d.width)
         return RGBDFrame(
-            _colour_pixels(color, self.color_format), _aligned_mm(raw, cal), self.intrinsics,
+            _colour_pixels(color, self.color_format, copy=False), _aligned_mm(raw, cal),
+            self.intrinsics,
             self.color, self.depth, "stream",
         )
 
