@@ -1,11 +1,18 @@
 """Classify frames as they come, smoothed over time: the live loop of ``dgli watch``.
 
-Two threads. The capture thread takes frames from a source (a camera, or a recording
-played at its recorded pace or as fast as it reads), decodes each one while the worker
-classifies the one before, and keeps only the newest one not yet taken; the worker takes
-it, classifies it, and smooths the state online. A frame that
-arrives while the worker is busy replaces the one waiting, which is *dropped* and counted:
-a live system must not fall behind the scene it watches.
+The capture thread takes frames from a source (a camera, or a recording played at its
+recorded pace or as fast as it reads) and keeps only the newest one not yet taken; a
+worker takes it, classifies it, and the state is smoothed online. A frame that arrives
+while every worker is busy replaces the one waiting, which is *dropped* and counted: a
+live system must not fall behind the scene it watches.
+
+With ``jobs=1`` the worker is a thread of this process and the capture thread decodes
+each frame while the worker classifies the one before. Python holds the GIL through
+most of a classification, so decoding and classifying hardly overlap that way; with
+``jobs=N`` the frames are classified in N worker processes (:class:`_ClassifierPool`),
+each fed by a thread here, and sent as recorded (a bag's encoded images, a RealSense
+frame's raw pixels through shared memory): decoding, aligning and classifying run in
+the workers, side by side, and the answers are smoothed and reported in frame order.
 
 The smoothing is :mod:`~dgli_vision.analysis.track`'s hidden Markov model run forward
 (:class:`OnlineSmoother`): after each frame, the state at the end of the most likely
