@@ -1,26 +1,31 @@
 """Depth aligned to colour as the RealSense SDK aligns it (``rs.align``), in numpy.
 
-The SDK's alignment of a depth frame to the colour stream (``align_images`` in
-librealsense's ``src/proc/align.cpp``) takes every depth pixel with a reading, maps the
-top-left corner ``(u - 0.5, v - 0.5)`` and the bottom-right corner ``(u + 0.5, v + 0.5)``
-of the pixel to 3-D at its depth, moves them by the depth-to-colour extrinsics, projects
-them into the colour image, rounds each (``int(x + 0.5)``) and writes the depth into every
-colour pixel of that rectangle, keeping the nearest where rectangles overlap (0: no
-depth). A rectangle with a corner outside the colour image is left out.
+The SDK's alignment of a depth frame to the colour stream (its SSE ``image_transform``,
+what the x86-64 wheels run) takes every depth pixel with a reading, maps the top-left
+corner ``(u - 0.5, v - 0.5)`` of the pixel to 3-D at its depth, moves it by the
+depth-to-colour extrinsics and projects it into the colour image, in single precision;
+``p + 0.5`` truncated is the colour pixel. Where colour has more pixels per degree than
+depth it does the same with the bottom-right corner ``(u + 0.5, v + 0.5)`` and fills the
+rectangle between them, else it writes that one pixel; it keeps the nearest depth where
+pixels meet, clips at the image's edges, and leaves 0 (no depth) where none lands.
+Matched here bit for bit (tests/test_depth_align.py: every pixel of every frame, depth at
+half the colour resolution, at the same resolution, 15 mm to the side and turned).
 
-:class:`DepthToColour` does the same in one vectorised pass, in single precision as the
-SDK does. When the two streams share their centre of projection (no translation), where
-a depth pixel lands does not depend on its depth: the rectangles are worked out once per
-recording, and aligning a frame is a few gathers (:meth:`DepthToColour.align`; when the
-streams differ only in their intrinsics, a depth column lands on colour columns of its
-own and a row on rows: gathers of rows, then of columns, 1.4 ms a 1280 x 720 frame
-against 5.6 for whole-image gathers and about 4-7 for ``rs.align``). Otherwise each
-frame's rectangles are computed and filled with a minimum (``np.minimum.at``).
+:class:`DepthToColour` does the same, vectorised. When the two streams share their
+centre of projection, where a corner lands does not depend on its depth, but for the
+rounding of ``(x z) / z`` in single precision, which moves a corner by about 1e-4 pixel:
+unless a corner lands that close to a truncation boundary, the rectangles are worked out
+once per recording, and aligning a frame is a few gathers (:attr:`DepthToColour.fast`;
+when the streams differ only in their intrinsics, rows then columns: 1.4 ms a 1280 x 720
+frame from 640 x 360, against about 4-7 for ``rs.align``). Otherwise the corners near a
+boundary are worked out at their pixels' depths, and where one differs (a depth camera
+to the side, or depth at colour's resolution, every corner at a tie) the whole frame is
+aligned pixel by pixel (``np.minimum.at``; 30-100 ms a frame, which is why a playback
+leaves those to the SDK).
 
 Streams read: without lens distortion (every D400's depth stream; a colour stream whose
-coefficients are all zero, as a D435's are). Others are aligned by the SDK itself
-(:attr:`DepthToColour.supported` is False): a distorted colour stream's projection was
-not matched here (Brown-Conrady with k1 0.05: 30% of the pixels equal).
+coefficients are all zero, as a D435's are). Others are aligned by the SDK
+(:attr:`DepthToColour.supported` is False).
 """
 
 from __future__ import annotations
@@ -106,6 +111,14 @@ class DepthToColour:
         """Where a depth pixel lands does not depend on its depth (no translation)."""
         return not any(self.translation)
 
+    @property
+    def fast(self) -> bool:
+        """Aligned by precomputed gathers, every frame (1.4 ms a 1280 x 720 frame from
+        640 x 360): the streams share their centre of projection and no corner lands
+        near a rounding tie (where the SDK's rounding depends on each pixel's depth and
+        the frame is aligned pixel by pixel, 30-100 ms)."""
+        return self.supported and self.fixed and _at_risk(self) is None
+
     def align(self, raw: NDArray[np.uint16]) -> NDArray[np.uint16]:
         """The depth frame ``raw`` (the depth stream's size, its own units) aligned to
         the colour stream: the colour stream's size, the same units, 0 where no depth
@@ -123,17 +136,20 @@ class DepthToColour:
             )
         if not self.supported:
             raise ValueError("lens model not read: align with the SDK")
-        if self.fixed and self.rotation == _IDENTITY:
-            return _separable_min(raw, *_separable_sources(self))
         if self.fixed:
-            return _gather_min(raw, _fixed_sources(self), (c.height, c.width))
-        return _scatter_min(self, raw)
+            risky = _at_risk(self)
+            near = raw.ravel()[risky] if risky is not None else None
+            if near is None or not near.any() or _as_at_unit_depth(self, raw, risky):
+                if self.rotation == _IDENTITY:
+                    return _separable_min(raw, *_separable_sources(self))
+                return _gather_min(raw, _fixed_sources(self), (c.height, c.width))
+        return _scatter_min(self, raw, _frame_corners(self, raw))
 
 
 def _corner_rays(cal: DepthToColour) -> tuple[NDArray[np.float32], ...]:
     """The rays through every depth pixel's top-left and bottom-right corners, in the
-    depth camera at unit depth: x0, y0 (top-left), x1, y1 (bottom-right), float32, each
-    broadcastable to the depth image (row or column vectors)."""
+    depth camera at unit depth, float32 as the SDK precomputes them: x0 and x1 as row
+    vectors (1, W), y0 and y1 as column vectors (H, 1)."""
     d = cal.depth
     f32 = np.float32
     u = np.arange(d.width, dtype=f32)[None, :]
@@ -146,49 +162,159 @@ def _corner_rays(cal: DepthToColour) -> tuple[NDArray[np.float32], ...]:
     return x0, y0, x1, y1
 
 
+def _fov_pixels(cam: StreamCamera) -> tuple[np.float32, np.float32]:
+    """Pixels per degree across and down (the SDK's ``rs2_fov``, in single precision)."""
+    f32 = np.float32
+    out = []
+    for size, pp, f in ((cam.width, cam.ppx, cam.fx), (cam.height, cam.ppy, cam.fy)):
+        a = f32(pp) + f32(0.5)
+        fov = (np.arctan2(a, f32(f)) + np.arctan2(f32(size) - a, f32(f))) * f32(57.2957795)
+        out.append(f32(size) / fov)
+    return out[0], out[1]
+
+
+def _both_corners(cal: DepthToColour) -> bool:
+    """Whether the SDK fills each depth pixel's rectangle from corner to corner (colour
+    has more pixels per degree than depth, or two special sizes) or writes one pixel
+    where the top-left corner lands."""
+    d, c = cal.depth, cal.colour
+    dx, dy = _fov_pixels(d)
+    cx, cy = _fov_pixels(c)
+    special = ((d.width, d.height), (c.width, c.height)) in (
+        ((640, 240), (320, 180)), ((640, 480), (640, 360))
+    )
+    return bool(dx < cx or dy < cy or special)
+
+
 def _project(
-    cal: DepthToColour, x: NDArray, y: NDArray, z: NDArray | np.float32
-) -> tuple[NDArray[np.int32], NDArray[np.int32]]:
-    """Colour pixels (rounded as the SDK rounds, ``int(p + 0.5)``) of the depth-camera
-    points ``(x z, y z, z)``."""
+    cal: DepthToColour, x: NDArray, y: NDArray, z: NDArray | np.float32, *, exact: bool = False
+) -> tuple[NDArray, NDArray]:
+    """Colour pixels of the depth-camera points ``(x z, y z, z)``, computed as the SDK's
+    SSE alignment computes them (its order of operations in single precision), then
+    ``p + 0.5`` truncated (what the SDK 2.59 wheel gives, measured: its 1:1 alignment's
+    holes and its 2:1 overlaps are those of truncation, not of rounding)."""
     r = [np.float32(v) for v in cal.rotation]
     t = [np.float32(v) for v in cal.translation]
-    px, py = x * z, y * z
-    qx = r[0] * px + r[3] * py + r[6] * z + t[0]
-    qy = r[1] * px + r[4] * py + r[7] * z + t[1]
-    qz = r[2] * px + r[5] * py + r[8] * z + t[2]
+    px, py = z * x, z * y
+    qx = r[0] * px + (r[3] * py + (r[6] * z + t[0]))
+    qy = r[1] * px + (r[4] * py + (r[7] * z + t[1]))
+    qz = r[2] * px + (r[5] * py + (r[8] * z + t[2]))
     nx, ny = qx / qz, qy / qz
     c = cal.colour
     half = np.float32(0.5)
-    col = (nx * np.float32(c.fx) + np.float32(c.ppx) + half).astype(np.int32)  # truncates
-    row = (ny * np.float32(c.fy) + np.float32(c.ppy) + half).astype(np.int32)
-    return col, row
+    col = (nx * np.float32(c.fx) + np.float32(c.ppx)) + half
+    row = (ny * np.float32(c.fy) + np.float32(c.ppy)) + half
+    if exact:  # before the truncation
+        return col, row
+    return col.astype(np.int32), row.astype(np.int32)  # truncated toward zero
+
+
+@dataclass(frozen=True, eq=False)
+class _Corners:
+    """Where a frame's depth pixels with a reading land: their flat indices, readings
+    and the colour rectangles (c0, r0) - (c1, r1), unclipped."""
+
+    index: NDArray[np.intp]
+    values: NDArray[np.uint16]
+    c0: NDArray[np.int32]
+    r0: NDArray[np.int32]
+    c1: NDArray[np.int32]
+    r1: NDArray[np.int32]
+
+
+def _frame_corners(cal: DepthToColour, raw: NDArray[np.uint16]) -> _Corners:
+    """Every depth pixel's rectangle at its own depth (as the SDK computes it)."""
+    x0, y0, x1, y1 = _corner_rays(cal)
+    index = np.flatnonzero(raw)
+    v, u = np.divmod(index, raw.shape[1])
+    values = raw.ravel()[index]
+    z = values.astype(np.float32) * np.float32(cal.scale_m)
+    c0, r0 = _project(cal, x0[0, u], y0[v, 0], z)
+    if _both_corners(cal):
+        c1, r1 = _project(cal, x1[0, u], y1[v, 0], z)
+    else:
+        c1, r1 = c0, r0
+    return _Corners(index, values, c0, r0, c1, r1)
+
+
+@lru_cache(maxsize=4)
+def _unit_corners(cal: DepthToColour) -> tuple[NDArray[np.int32], ...]:
+    """Every depth pixel's rectangle (c0, r0, c1, r1, flat over the depth image) at 1 m:
+    where it lands at any depth when the streams share their centre of projection, but
+    for the rounding of a corner at a tie (checked frame by frame)."""
+    x0, y0, x1, y1 = _corner_rays(cal)
+    full = np.ones((cal.depth.height, cal.depth.width), np.float32)
+    one = np.float32(1.0)
+    c0, r0 = _project(cal, x0 * full, y0 * full, one)
+    if _both_corners(cal):
+        c1, r1 = _project(cal, x1 * full, y1 * full, one)
+    else:
+        c1, r1 = c0, r0
+    return c0.ravel(), r0.ravel(), c1.ravel(), r1.ravel()
+
+
+#: A corner landing within this many colour pixels of a whole number (where ``p + 0.5``
+#: is truncated) at 1 m may land on the other side at another depth: single precision
+#: moves ``(x z) / z`` by about 1e-7 of itself, 1e-4 pixel across a 1280-pixel image.
+_TIE_PX = 1e-3
+
+
+@lru_cache(maxsize=4)
+def _at_risk(cal: DepthToColour) -> NDArray[np.intp] | None:
+    """For streams sharing their centre of projection: the depth pixels (flat indices)
+    one of whose corners lands within :data:`_TIE_PX` of a truncation boundary at 1 m,
+    whose rectangle may then depend on their depth (the SDK computes it at that depth);
+    None when there are none (a 640 x 360 stream under 1280 x 720: every corner half a
+    pixel from one)."""
+    x0, y0, x1, y1 = _corner_rays(cal)
+    full = np.ones((cal.depth.height, cal.depth.width), np.float32)
+    one = np.float32(1.0)
+    risky = np.zeros(full.shape, bool)
+    corners = [(x0, y0), (x1, y1)] if _both_corners(cal) else [(x0, y0)]
+    for x, y in corners:
+        for p in _project(cal, x * full, y * full, one, exact=True):
+            risky |= np.abs(p - np.rint(p)) < _TIE_PX
+    found = np.flatnonzero(risky)
+    return found if len(found) else None
+
+
+def _as_at_unit_depth(
+    cal: DepthToColour, raw: NDArray[np.uint16], risky: NDArray[np.intp]
+) -> bool:
+    """The frame's rectangles at its own depths are those at 1 m, checked where they may
+    not be (``risky`` pixels with a reading): the precomputed gathers then give the
+    SDK's answer exactly."""
+    x0, y0, x1, y1 = _corner_rays(cal)
+    index = risky[raw.ravel()[risky] > 0]
+    v, u = np.divmod(index, raw.shape[1])
+    z = raw.ravel()[index].astype(np.float32) * np.float32(cal.scale_m)
+    unit = _unit_corners(cal)
+    got = list(_project(cal, x0[0, u], y0[v, 0], z))
+    got += list(_project(cal, x1[0, u], y1[v, 0], z)) if _both_corners(cal) else got
+    return all(np.array_equal(a, b[index]) for a, b in zip(got, unit))
 
 
 @lru_cache(maxsize=4)
 def _fixed_sources(cal: DepthToColour) -> NDArray[np.intp]:
     """For streams sharing their centre of projection: for every colour pixel, the depth
-    pixels whose rectangle covers it, shape (K, H*W); a depth pixel's index, or the
-    index one past the last (a zero appended to the frame) where fewer than K cover it."""
+    pixels whose rectangle (clipped to the image) covers it, shape (K, H*W); a depth
+    pixel's index, or the index one past the last (a zero appended to the frame) where
+    fewer than K cover it."""
     d, c = cal.depth, cal.colour
-    x0, y0, x1, y1 = _corner_rays(cal)
-    one = np.float32(1.0)
-    full = np.ones((d.height, d.width), np.float32)
-    c0, r0 = _project(cal, x0 * full, y0 * full, one)
-    c1, r1 = _project(cal, x1 * full, y1 * full, one)
-    inside = (c0 >= 0) & (r0 >= 0) & (c1 < c.width) & (r1 < c.height)
-    src = np.flatnonzero(inside)
-    c0, r0, c1, r1 = (a.ravel()[src] for a in (c0, r0, c1, r1))
+    c0, r0, c1, r1 = _unit_corners(cal)
+    src = np.arange(d.width * d.height)
     targets, sources = [], []
     for dy in range(int((r1 - r0).max(initial=-1)) + 1):
         for dx in range(int((c1 - c0).max(initial=-1)) + 1):
-            ok = (r0 + dy <= r1) & (c0 + dx <= c1)
-            targets.append((r0[ok] + dy) * c.width + (c0[ok] + dx))
+            col, row = c0 + dx, r0 + dy
+            ok = (row <= r1) & (col <= c1) & (col >= 0) & (row >= 0)
+            ok &= (col < c.width) & (row < c.height)
+            targets.append(row[ok] * c.width + col[ok])
             sources.append(src[ok])
     none = d.width * d.height  # the zero appended to each frame
-    if not targets:
+    target = np.concatenate(targets) if targets else np.zeros(0, np.intp)
+    if not len(target):
         return np.full((1, c.width * c.height), none, np.intp)
-    target = np.concatenate(targets)
     source = np.concatenate(sources)
     order = np.argsort(target, kind="stable")
     target, source = target[order], source[order]
@@ -201,13 +327,12 @@ def _fixed_sources(cal: DepthToColour) -> NDArray[np.intp]:
 
 def _covering(lo: NDArray[np.int32], hi: NDArray[np.int32], size: int) -> NDArray[np.intp]:
     """For each of ``size`` colour columns (or rows), the depth columns (rows) whose
-    span ``lo..hi`` covers it, shape (K, size); ``len(lo)`` (a sentinel) where fewer
-    than K do. Spans with an end outside the image cover nothing."""
-    inside = (lo >= 0) & (hi < size)
+    span ``lo..hi`` (clipped to the image) covers it, shape (K, size); ``len(lo)`` (a
+    sentinel) where fewer than K do."""
     cover: list[list[int]] = [[] for _ in range(size)]
-    for k in np.flatnonzero(inside):
-        for c in range(int(lo[k]), int(hi[k]) + 1):
-            cover[c].append(int(k))
+    for k in range(len(lo)):
+        for c in range(max(int(lo[k]), 0), min(int(hi[k]), size - 1) + 1):
+            cover[c].append(k)
     width = max(1, max(len(c) for c in cover))
     out = np.full((width, size), len(lo), np.intp)
     for c, found in enumerate(cover):
@@ -220,17 +345,13 @@ def _separable_sources(cal: DepthToColour) -> tuple[NDArray[np.intp], NDArray[np
     """For streams that differ only in their intrinsics (no rotation, no translation, no
     distortion): a depth column lands on colour columns that depend on it alone, a row
     on rows: the depth rows covering each colour row, (K, H), and the depth columns
-    covering each colour column, (K, W) (:func:`_covering`). A depth pixel is left out
-    when its rectangle leaves the image, that is when its row's span or its column's
-    does."""
-    x0, y0, x1, y1 = _corner_rays(cal)
-    one = np.float32(1.0)
-    c0, _ = _project(cal, x0[0], y0[:, 0][:1].repeat(x0.shape[1]), one)
-    c1, _ = _project(cal, x1[0], y1[:, 0][:1].repeat(x1.shape[1]), one)
-    _, rows0 = _project(cal, x0[0][:1].repeat(y0.shape[0]), y0[:, 0], one)
-    _, rows1 = _project(cal, x1[0][:1].repeat(y1.shape[0]), y1[:, 0], one)
-    c = cal.colour
-    return _covering(rows0, rows1, c.height), _covering(c0, c1, c.width)
+    covering each colour column, (K, W) (:func:`_covering`)."""
+    d, c = cal.depth, cal.colour
+    c0, r0, c1, r1 = (a.reshape(d.height, d.width) for a in _unit_corners(cal))
+    return (
+        _covering(r0[:, 0], r1[:, 0], c.height),
+        _covering(c0[0], c1[0], c.width),
+    )
 
 
 def _separable_min(
@@ -267,22 +388,20 @@ def _gather_min(
     return best.reshape(shape)
 
 
-def _scatter_min(cal: DepthToColour, raw: NDArray[np.uint16]) -> NDArray[np.uint16]:
-    """A frame aligned when where its pixels land depends on their depth."""
+def _scatter_min(
+    cal: DepthToColour, raw: NDArray[np.uint16], corners: _Corners
+) -> NDArray[np.uint16]:
+    """A frame aligned from its own rectangles (clipped to the image), the nearest
+    reading kept."""
     c = cal.colour
-    x0, y0, x1, y1 = _corner_rays(cal)
-    v, u = np.nonzero(raw)
-    values = raw[v, u]
-    z = values.astype(np.float32) * np.float32(cal.scale_m)
-    c0, r0 = _project(cal, x0[0, u], y0[v, 0], z)
-    c1, r1 = _project(cal, x1[0, u], y1[v, 0], z)
-    inside = (c0 >= 0) & (r0 >= 0) & (c1 < c.width) & (r1 < c.height)
-    c0, r0, c1, r1 = (a[inside] for a in (c0, r0, c1, r1))
-    values = values[inside] - np.uint16(1)  # no 0 here; 0 (no reading) is 65535 below
+    k = corners
+    values = k.values - np.uint16(1)  # no 0 here; 0 (no reading) is 65535 below
     out = np.full(c.width * c.height, 65535, np.uint16)
-    for dy in range(int((r1 - r0).max(initial=-1)) + 1):
-        for dx in range(int((c1 - c0).max(initial=-1)) + 1):
-            ok = (r0 + dy <= r1) & (c0 + dx <= c1)
-            np.minimum.at(out, (r0[ok] + dy) * c.width + (c0[ok] + dx), values[ok])
+    for dy in range(int((k.r1 - k.r0).max(initial=-1)) + 1):
+        for dx in range(int((k.c1 - k.c0).max(initial=-1)) + 1):
+            col, row = k.c0 + dx, k.r0 + dy
+            ok = (row <= k.r1) & (col <= k.c1) & (col >= 0) & (row >= 0)
+            ok &= (col < c.width) & (row < c.height)
+            np.minimum.at(out, row[ok] * c.width + col[ok], values[ok])
     out += 1  # 65535 (no reading) -> 0
     return out.reshape(c.height, c.width)
