@@ -180,3 +180,20 @@ def test_worker_processes_give_the_answers_of_one_thread_in_frame_order() -> Non
 
     assert not [p for p in multiprocessing.active_children() if p.name.startswith("dgli-watch")]
     assert not {t.name for t in threading.enumerate()} - before - {"dgli-capture"}
+
+
+def test_overlays_need_the_frames_here(tmp_path) -> None:
+    """--overlay-dir draws from each frame's whole result, which a worker process keeps:
+    with -j 2 it stops at once with one line; without -j it classifies here."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from dgli_vision.cli import main
+
+    samples = Path(__file__).parent.parent / "sample_images"
+    ov = tmp_path / "ov"
+    r = CliRunner().invoke(main, ["watch", "--bag", str(samples), "--overlay-dir", str(ov),
+                                  "-j", "2"])
+    assert r.exit_code == 2 and "use -j 1" in r.output and "Traceback" not in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not ov.exists()

@@ -703,7 +703,11 @@ class _ClassifierPool:
             self.conns.append(here)
             self.procs.append(proc)
         for conn in self.conns:  # all started side by side; each says when it is ready
-            if not conn.poll(self.START_S) or conn.recv() != "ready":
+            try:
+                ready = conn.poll(self.START_S) and conn.recv() == "ready"
+            except (EOFError, OSError):  # it ended while starting
+                ready = False
+            if not ready:
                 self.close()
                 raise DgliError("a worker process of the live loop did not start")
         self.slots = SharedSlots(jobs)

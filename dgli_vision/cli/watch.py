@@ -112,15 +112,15 @@ def watch(
         raise InvalidInputError("dgli watch needs one source: --realsense [SERIAL] or --bag FILE")
     refs, _ = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
+    if jobs is None:
+        jobs = 1 if overlay_dir is not None else _cores()
+    elif jobs > 1 and overlay_dir is not None:
+        raise InvalidInputError("--overlay-dir draws each frame in this process: use -j 1")
     overlays = _overlay_folder(overlay_dir, overwrite)
     frames, notes = _source(serial, bag, camera_mode)
     for note in notes:
         click.echo(f"{bag}: {note}", err=True)
     out = _Printer(jsonl, overlays)
-    if jobs is None:
-        jobs = 1 if overlays is not None else _cores()
-    elif jobs > 1 and overlays is not None:
-        raise InvalidInputError("--overlay-dir draws each frame in this process: use -j 1")
     summary = _run(
         frames, refs, colours, every, realtime and bag is not None, out, bool(bag), jobs
     )
