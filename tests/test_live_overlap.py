@@ -139,3 +139,61 @@ def test_at_the_recorded_pace_the_capture_thread_decodes(monkeypatch) -> None:
     summary = live.watch([_Pair(k, k, log) for k in range(3)], None, realtime=True)
     assert summary.classified + summary.dropped == 3
     assert {e[2] for e in log if e[0] == "load"} == {"dgli-capture"}
+
+
+def test_worker_processes_give_the_answers_of_one_thread_in_frame_order() -> None:
+    """-j 2: the frames are classified in two worker processes, side by side; the
+    answers are reported in frame order and are those of the in-process worker (states,
+    confidences, the whole path); a failing ``on_update`` (a closed pipe) stops the run
+    and is raised, the processes ended."""
+    from pathlib import Path
+
+    from dgli_vision.analysis import live
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.sources.recording import read_recording
+
+    refs = load_references(None)
+    samples = Path(__file__).parent.parent / "sample_images"
+    pairs = list(read_recording(samples).frames)[:4]
+    got: dict[int, list] = {1: [], 2: []}
+    summaries = {}
+    for jobs in (1, 2):
+        summaries[jobs] = live.watch(
+            pairs, refs, jobs=jobs,
+            on_update=lambda u, f, r, jobs=jobs: got[jobs].append(
+                (u.frame, u.state, u.confidence, u.smoothed, (f is None, r is None))
+            ),
+        )
+    assert [g[0] for g in got[2]] == list(range(4))
+    assert [g[:4] for g in got[2]] == [g[:4] for g in got[1]]
+    assert any(g[1] is not None for g in got[2])
+    assert {g[4] for g in got[1]} == {(False, False)} and {g[4] for g in got[2]} == {(True, True)}
+    assert summaries[2].path == summaries[1].path and summaries[2].dropped == 0
+
+    def closed(*_):
+        raise BrokenPipeError("reader gone")
+
+    before = {t.name for t in threading.enumerate()}
+    with pytest.raises(BrokenPipeError):
+        live.watch(pairs, refs, jobs=2, on_update=closed)
+    import multiprocessing
+
+    assert not [p for p in multiprocessing.active_children() if p.name.startswith("dgli-watch")]
+    assert not {t.name for t in threading.enumerate()} - before - {"dgli-capture"}
+
+
+def test_overlays_need_the_frames_here(tmp_path) -> None:
+    """--overlay-dir draws from each frame's whole result, which a worker process keeps:
+    with -j 2 it stops at once with one line; without -j it classifies here."""
+    from pathlib import Path
+
+    from click.testing import CliRunner
+
+    from dgli_vision.cli import main
+
+    samples = Path(__file__).parent.parent / "sample_images"
+    ov = tmp_path / "ov"
+    r = CliRunner().invoke(main, ["watch", "--bag", str(samples), "--overlay-dir", str(ov),
+                                  "-j", "2"])
+    assert r.exit_code == 2 and "use -j 1" in r.output and "Traceback" not in r.output
+    assert len(r.output.strip().splitlines()) == 1 and not ov.exists()

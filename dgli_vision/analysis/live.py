@@ -1,11 +1,18 @@
 """Classify frames as they come, smoothed over time: the live loop of ``dgli watch``.
 
-Two threads. The capture thread takes frames from a source (a camera, or a recording
-played at its recorded pace or as fast as it reads), decodes each one while the worker
-classifies the one before, and keeps only the newest one not yet taken; the worker takes
-it, classifies it, and smooths the state online. A frame that
-arrives while the worker is busy replaces the one waiting, which is *dropped* and counted:
-a live system must not fall behind the scene it watches.
+The capture thread takes frames from a source (a camera, or a recording played at its
+recorded pace or as fast as it reads) and keeps only the newest one not yet taken; a
+worker takes it, classifies it, and the state is smoothed online. A frame that arrives
+while every worker is busy replaces the one waiting, which is *dropped* and counted: a
+live system must not fall behind the scene it watches.
+
+With ``jobs=1`` the worker is a thread of this process and the capture thread decodes
+each frame while the worker classifies the one before. Python holds the GIL through
+most of a classification, so decoding and classifying hardly overlap that way; with
+``jobs=N`` the frames are classified in N worker processes (:class:`_ClassifierPool`),
+each fed by a thread here, and sent as recorded (a bag's encoded images, a RealSense
+frame's raw pixels through shared memory): decoding, aligning and classifying run in
+the workers, side by side, and the answers are smoothed and reported in frame order.
 
 The smoothing is :mod:`~dgli_vision.analysis.track`'s hidden Markov model run forward
 (:class:`OnlineSmoother`): after each frame, the state at the end of the most likely
@@ -367,6 +374,7 @@ def _capture(
     every: int,
     realtime: bool,
     stop: threading.Event,
+    prepare: Callable[[Any], Any] | None = None,
 ) -> None:
     """The capture thread: offer every ``every``-th frame to ``slot`` as it comes (at
     the recording's own pace with ``realtime``), until the source ends or ``stop``.
@@ -374,7 +382,10 @@ def _capture(
     core while the worker classifies the one before: played as fast as it is
     classified, nothing waits for decoding; at the recorded pace (or from a camera) a
     frame that comes while the worker is busy is ready when the worker takes it (a
-    frame dropped cost its decoding on this core, which the worker does not use)."""
+    frame dropped cost its decoding on this core, which the worker does not use).
+    ``prepare`` replaces that decoding (worker processes: a frame they can read
+    themselves travels as it is)."""
+    prepare = prepare or _decoded
     start_wall = start_t = None
     try:
         for index, pair in enumerate(frames):
@@ -395,7 +406,7 @@ def _capture(
             at = time.perf_counter()
             if counts["first"] is None:
                 counts["first"] = at
-            slot.put(_Arrival(index, _decoded(pair), at), wait=not realtime)
+            slot.put(_Arrival(index, prepare(pair), at), wait=not realtime)
     except Exception as exc:  # the source failed part-way: the worker raises it
         counts["error"] = exc
     finally:
@@ -429,6 +440,17 @@ class _Worker:
         frame, result, state, conf, dist, note = classify_live(
             arrival.pair, self.references, self.colours
         )
+        return self.record(arrival, dropped, (state, conf, dist, note)), frame, result
+
+    def record(
+        self,
+        arrival: _Arrival,
+        dropped: int,
+        answer: tuple[StateKey | None, float | None, tuple[float, ...], str | None],
+    ) -> LiveUpdate:
+        """Smooth one frame's answer (state, confidence, distances, note), classified
+        here or by a worker process, now: its update, latency measured to now."""
+        state, conf, dist, note = answer
         smoothed = self.smoother.update(dist)
         change = None
         if self.last is not None and smoothed != self.last:
@@ -442,10 +464,7 @@ class _Worker:
         self.latencies.append(latency)
         self.max_latency = max(self.max_latency, latency)
         t = getattr(arrival.pair, "time", None)
-        update = LiveUpdate(
-            arrival.index, t, state, smoothed, conf, change, dropped, latency, note
-        )
-        return update, frame, result
+        return LiveUpdate(arrival.index, t, state, smoothed, conf, change, dropped, latency, note)
 
     def summary(self, counts: dict[str, Any], dropped: int, stopped: bool) -> LiveSummary:
         """What the run did."""
@@ -487,6 +506,7 @@ def watch(
     on_update: Callable[[LiveUpdate, Any, Any], None] | None = None,
     stop: threading.Event | None = None,
     keep_path: bool = True,
+    jobs: int = 1,
 ) -> LiveSummary:
     """Classify the frames of a source as they come, smoothed online.
 
@@ -511,6 +531,11 @@ def watch(
     keep_path : bool, keyword-only
         Keep what settles the whole path (44 bytes a frame) for the summary; an endless
         camera keeps only the latest state.
+    jobs : int, keyword-only
+        1: classify in a thread of this process (``on_update`` gets the frame and its
+        ``FrameResult``). More: in that many worker processes, each taking the newest
+        frame when it is free, the answers smoothed in frame order (``on_update`` gets
+        None for the frame and the result: they stay in the worker).
 
     Returns
     -------
@@ -526,14 +551,32 @@ def watch(
     counts: dict[str, Any] = {
         "arrived": 0, "skipped": 0, "first": None, "error": None, "behind": 0.0
     }
+    worker = _Worker(references, colours, keep_path)
+    pool = _ClassifierPool(jobs, references, colours) if jobs > 1 else None
     capture = threading.Thread(
         target=_capture,
         args=(frames, slot, counts),
-        kwargs={"every": every, "realtime": realtime, "stop": stop},
+        kwargs={
+            "every": every,
+            "realtime": realtime,
+            "stop": stop,
+            "prepare": None if pool is None else _for_worker,
+        },
         name="dgli-capture",
         daemon=True,  # a camera blocked in its driver never holds the process
     )
-    worker = _Worker(references, colours, keep_path)
+    if pool is not None:
+        try:
+            capture.start()
+            stopped = pool.run(slot, worker, on_update, stop)
+        finally:
+            stop.set()
+            slot.close()
+            capture.join(timeout=CAPTURE_STOP_S)
+            pool.close()
+        if isinstance(counts["error"], Exception) and not stopped:
+            raise counts["error"]
+        return worker.summary(counts, slot.dropped, stopped)
     capture.start()
     try:
         while not stop.is_set():
@@ -554,3 +597,229 @@ def watch(
     if isinstance(counts["error"], Exception) and not stopped:
         raise counts["error"]
     return worker.summary(counts, slot.dropped, stopped)
+
+
+def _for_worker(pair: Any) -> Any:
+    """What the capture thread offers a worker process: a frame it can read itself (a
+    recording's encoded images, where they lie in its file) as it is; a frame only this
+    process can read (the SDK's frames, ``local``) decoded now, unless its pixels can
+    go as recorded (``portable``: aligned and classified by the worker)."""
+    if getattr(pair, "local", False) and not getattr(pair, "portable", False):
+        return _decoded(pair)
+    return pair
+
+
+@dataclass(frozen=True)
+class _SlotFrame:
+    """A decoded frame whose pixels wait in a shared slot (sent to a worker process
+    without pickling them)."""
+
+    time: float | None
+    color: Any
+    depth: Any
+    shape: tuple[int, int]
+    intrinsics: Any
+    names: tuple[str, str, str]
+
+    def load(self) -> Any:
+        from ..sources.frames import RGBDFrame
+
+        h, w = self.shape
+        color = np.frombuffer(self.color.view(), np.uint8).reshape(h, w, 3)
+        depth = np.frombuffer(self.depth.view(), np.uint16).reshape(h, w)
+        return RGBDFrame(color, depth, self.intrinsics, *self.names)
+
+
+def _ship(pair: Any, slots: Any) -> tuple[Any, int | None]:
+    """``pair`` as sent to a worker process, and the shared slot holding its pixels (to
+    free once its answer is back; None: none used)."""
+    shared = getattr(pair, "shared", None)
+    if shared is not None:
+        return shared(slots)
+    frame = pair.frame if isinstance(pair, _Decoded) else None
+    if frame is None or frame.color.dtype != np.uint8 or frame.depth_mm.dtype != np.uint16:
+        return pair, None
+    put = slots.put([np.ascontiguousarray(frame.color), np.ascontiguousarray(frame.depth_mm)])
+    if put is None:
+        return pair, None
+    slot, (c, d) = put
+    names = (frame.color_path, frame.depth_path, frame.intrinsics_source)
+    return _SlotFrame(pair.time, c, d, frame.depth_mm.shape, frame.intrinsics, names), slot
+
+
+def _serve(conn: Any, references: ReferenceSet, colours: dict | None) -> None:
+    """A worker process: classify each frame it is sent (:func:`classify_live`) and send
+    back its state, confidence, distances and note, until it is sent None."""
+    from .workers import init_worker
+
+    init_worker(references, colours)
+    # what reading and classifying a frame imports, before the first frame comes
+    from ..classifier import classify, pipeline  # noqa: F401
+    from ..sources import realsense, recording  # noqa: F401
+
+    conn.send("ready")
+    while True:
+        try:
+            pair = conn.recv()
+        except (EOFError, OSError):
+            return
+        if pair is None:
+            return
+        try:
+            _, _, state, conf, dist, note = classify_live(pair, references, colours)
+            conn.send(((state, conf, dist, note), None))
+        except Exception as exc:  # not a frame's problem (those are notes): raised there
+            conn.send((None, exc))
+
+
+class _ClassifierPool:
+    """``jobs`` worker processes classifying the frames of the live loop, each fed by a
+    thread of this process: the thread takes the newest frame from the slot when its
+    process is free, sends it (its pixels through shared memory) and waits for the
+    answer (without the GIL); the answers are smoothed and reported in frame order, the
+    latency measured when a frame's answer is reported."""
+
+    #: Seconds a worker process is given to start (a new interpreter, the imports, the
+    #: references) before the live loop gives up on it.
+    START_S = 60.0
+
+    def __init__(self, jobs: int, references: ReferenceSet, colours: dict | None) -> None:
+        import multiprocessing as mp
+
+        from ..core.parallel import SharedSlots, limit_library_threads
+
+        limit_library_threads(1)
+        ctx = mp.get_context("spawn")  # no fork: the SDK's and this process's threads
+        self.conns: list[Any] = []
+        self.procs: list[Any] = []
+        for k in range(jobs):
+            here, there = ctx.Pipe()
+            proc = ctx.Process(
+                target=_serve, args=(there, references, colours), name=f"dgli-watch-{k}",
+                daemon=True,
+            )
+            proc.start()
+            there.close()
+            self.conns.append(here)
+            self.procs.append(proc)
+        for conn in self.conns:  # all started side by side; each says when it is ready
+            try:
+                ready = conn.poll(self.START_S) and conn.recv() == "ready"
+            except (EOFError, OSError):  # it ended while starting
+                ready = False
+            if not ready:
+                self.close()
+                raise DgliError("a worker process of the live loop did not start")
+        self.slots = SharedSlots(jobs)
+        self.take_lock = threading.Lock()  # a frame taken and numbered at once
+        self.slots_lock = threading.Lock()
+        self.emit = threading.Condition()
+        self.answers: dict[int, tuple[_Arrival, Any]] = {}
+        self.taken = 0
+        self.reported = 0
+        self.error: BaseException | None = None
+
+    def run(
+        self,
+        slot: LatestFrame,
+        worker: _Worker,
+        on_update: Callable[[LiveUpdate, Any, Any], None] | None,
+        stop: threading.Event,
+    ) -> bool:
+        """Classify the frames offered to ``slot`` until it ends or ``stop``; whether
+        stopped by the caller."""
+        feeders = [
+            threading.Thread(
+                target=self._feed, args=(conn, slot, worker, on_update, stop),
+                name=f"dgli-feed-{k}", daemon=True,
+            )
+            for k, conn in enumerate(self.conns)
+        ]
+        for t in feeders:
+            t.start()
+        try:
+            for t in feeders:
+                while t.is_alive():
+                    t.join(0.1)
+        except BaseException:
+            stop.set()
+            raise
+        stopped = stop.is_set() and self.error is None
+        if self.error is not None:
+            raise self.error
+        return stopped
+
+    def _feed(
+        self,
+        conn: Any,
+        slot: LatestFrame,
+        worker: _Worker,
+        on_update: Callable[[LiveUpdate, Any, Any], None] | None,
+        stop: threading.Event,
+    ) -> None:
+        try:
+            while not stop.is_set():
+                with self.take_lock:
+                    got, arrival = slot.take()
+                    if got:
+                        seq, self.taken = self.taken, self.taken + 1
+                if not got:
+                    if slot.ended:
+                        return
+                    continue
+                slot.done()
+                with self.slots_lock:
+                    sent, used = _ship(arrival.pair, self.slots)
+                try:
+                    conn.send(sent)
+                    answer, error = conn.recv()
+                except (EOFError, OSError):
+                    raise DgliError("a worker process of the live loop ended") from None
+                finally:
+                    if used is not None:
+                        with self.slots_lock:
+                            self.slots.release(used)
+                if error is not None:
+                    raise error
+                self._report(seq, arrival, answer, slot, worker, on_update)
+        except BaseException as exc:
+            with self.emit:
+                self.error = self.error or exc
+            stop.set()
+
+    def _report(
+        self,
+        seq: int,
+        arrival: _Arrival,
+        answer: Any,
+        slot: LatestFrame,
+        worker: _Worker,
+        on_update: Callable[[LiveUpdate, Any, Any], None] | None,
+    ) -> None:
+        """Keep the answer; report every answer now next in frame order."""
+        with self.emit:
+            self.answers[seq] = (arrival, answer)
+            while self.reported in self.answers:
+                arr, ans = self.answers.pop(self.reported)
+                self.reported += 1
+                update = worker.record(arr, slot.dropped, ans)
+                if on_update is not None:
+                    on_update(update, None, None)
+
+    def close(self) -> None:
+        """Stop the worker processes and free the shared slots."""
+        for conn in self.conns:
+            try:
+                conn.send(None)
+            except (OSError, ValueError):
+                pass
+        for proc in self.procs:
+            proc.join(timeout=2.0)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join(timeout=1.0)
+        for conn in self.conns:
+            conn.close()
+        slots = getattr(self, "slots", None)
+        if slots is not None:
+            slots.close()

@@ -69,6 +69,14 @@ if TYPE_CHECKING:
     show_default=True,
     help="--realsense: the colour stream, WIDTHxHEIGHT@FPS.",
 )
+@click.option(
+    "-j",
+    "--jobs",
+    type=click.IntRange(1),
+    default=None,
+    help="Processes classifying frames side by side (1: in this process) [default: all "
+    "cores; 1 with --overlay-dir].",
+)
 @references_option
 @colours_option
 @overwrite_option
@@ -81,6 +89,7 @@ def watch(
     overlay_dir: str | None,
     realtime: bool,
     camera_mode: str,
+    jobs: int | None,
     references_path: str | None,
     colours_path: str | None,
     overwrite: bool,
@@ -103,12 +112,18 @@ def watch(
         raise InvalidInputError("dgli watch needs one source: --realsense [SERIAL] or --bag FILE")
     refs, _ = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
+    if jobs is None:
+        jobs = 1 if overlay_dir is not None else _cores()
+    elif jobs > 1 and overlay_dir is not None:
+        raise InvalidInputError("--overlay-dir draws each frame in this process: use -j 1")
     overlays = _overlay_folder(overlay_dir, overwrite)
     frames, notes = _source(serial, bag, camera_mode)
     for note in notes:
         click.echo(f"{bag}: {note}", err=True)
     out = _Printer(jsonl, overlays)
-    summary = _run(frames, refs, colours, every, realtime and bag is not None, out, bool(bag))
+    summary = _run(
+        frames, refs, colours, every, realtime and bag is not None, out, bool(bag), jobs
+    )
     out.done(summary)
     if summary.classified and not summary.stopped and not out.answered:
         sys.exit(1)  # the source ended and no frame could be classified at all
@@ -162,6 +177,7 @@ def _run(
     realtime: bool,
     out: _Printer,
     keep_path: bool,
+    jobs: int,
 ) -> LiveSummary:
     """The live loop with Ctrl-C and SIGTERM turned into a clean stop."""
     import signal
@@ -185,10 +201,19 @@ def _run(
             on_update=out.update,
             stop=stop,
             keep_path=keep_path,
+            jobs=jobs,
         )
     finally:
         for s, handler in before.items():
             signal.signal(s, handler)
+
+
+def _cores() -> int:
+    """The processors this process may run on."""
+    import os
+
+    getter = getattr(os, "sched_getaffinity", None)
+    return len(getter(0)) if getter is not None else os.cpu_count() or 1
 
 
 def _state_text(key: StateKey | None) -> str:

@@ -21,15 +21,17 @@ import queue
 import sqlite3
 import threading
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.errors import InvalidInputError, UnreadableInputError
+from ..core.parallel import SharedSlots
+from .depth_align import DepthToColour, StreamCamera
 from .frames import RGBDFrame
 from .labelled import LabelledPair
 
@@ -38,6 +40,7 @@ __all__ = [
     "CameraFrame",
     "LazyRealSenseFrame",
     "LivePair",
+    "RawRealSensePair",
     "RealSenseFrame",
     "RealSensePlayback",
     "camera_pairs",
@@ -177,7 +180,6 @@ def colour_intrinsics(rs: Any, profile: Any) -> tuple[Intrinsics, str | None]:
 def _colour_array(rs: Any, frame: Any) -> NDArray[np.uint8]:
     """RGB uint8 (H, W, 3) of a colour frame, a copy owned by numpy (one pass: a copy
     of RGB, OpenCV's channel swap or drop for the others)."""
-    import cv2
 
     fmt = str(frame.get_profile().format()).rsplit(".", 1)[-1]
     order = _COLOUR_FORMATS.get(fmt)
@@ -186,10 +188,20 @@ def _colour_array(rs: Any, frame: Any) -> NDArray[np.uint8]:
             f"RealSense colour format {fmt} is not read (expected one of "
             f"{', '.join(_COLOUR_FORMATS)})"
         )
-    pixels = np.asanyarray(frame.get_data())
+    return _colour_pixels(np.asanyarray(frame.get_data()), fmt)
+
+
+def _colour_pixels(
+    pixels: NDArray[np.uint8], fmt: str, *, copy: bool = True
+) -> NDArray[np.uint8]:
+    """RGB uint8 (H, W, 3) of a colour frame's pixels in format ``fmt`` (one of
+    :data:`_COLOUR_FORMATS`), a copy owned by numpy (RGB itself without ``copy``: the
+    pixels outlive the frame)."""
+    import cv2
+
     code = _COLOUR_CODES[fmt]
     if code is None:
-        return np.array(pixels, dtype=np.uint8, order="C")
+        return np.array(pixels, dtype=np.uint8, order="C", copy=copy or None)
     return cv2.cvtColor(np.ascontiguousarray(pixels), getattr(cv2, code))
 
 
@@ -213,10 +225,40 @@ def _depth_mm(frame: Any, scale_m: float) -> NDArray[np.uint16]:
     """Depth in mm, uint16, of a Z16 frame whose unit is ``scale_m`` metres (each value
     ``rint(value * float32(scale_m * 1000))`` clipped to uint16, looked up in a table
     made once per unit)."""
-    raw = np.asanyarray(frame.get_data())
+    return _mm_of(np.asanyarray(frame.get_data()), scale_m)
+
+
+def _mm_of(raw: NDArray[np.uint16], scale_m: float) -> NDArray[np.uint16]:
+    """:func:`_depth_mm` of a Z16 frame's values (a new array)."""
     if abs(scale_m - 0.001) < 1e-9:
         return np.array(raw, dtype=np.uint16)
     return np.take(_depth_table(scale_m), raw)
+
+
+def stream_calibration(
+    c_profile: Any, d_profile: Any, scale_m: float
+) -> DepthToColour | None:
+    """What aligning depth to colour needs, from the two streams' profiles (None when
+    the SDK has no extrinsics between them)."""
+
+    def camera(profile: Any) -> StreamCamera:
+        i = profile.as_video_stream_profile().get_intrinsics()
+        return StreamCamera(
+            int(i.width), int(i.height), float(i.fx), float(i.fy), float(i.ppx),
+            float(i.ppy), str(i.model).rsplit(".", 1)[-1], tuple(float(c) for c in i.coeffs),
+        )
+
+    try:
+        e = d_profile.get_extrinsics_to(c_profile)
+    except RuntimeError:
+        return None
+    return DepthToColour(
+        camera(d_profile),
+        camera(c_profile),
+        tuple(float(v) for v in e.rotation),
+        tuple(float(v) for v in e.translation),  # type: ignore[arg-type]
+        float(scale_m),
+    )
 
 
 class _Aligner:
@@ -301,8 +343,16 @@ class LazyRealSenseFrame:
     align: Any
 
     def decode(self) -> RealSenseFrame:
-        """The frame with depth aligned to colour, in mm, and the colour as RGB."""
+        """The frame with depth aligned to colour, in mm, and the colour as RGB (aligned
+        here as the SDK aligns, :mod:`.depth_align`, or by the SDK where the lens
+        models are not read there)."""
         rs, pb = self.playback.rs, self.playback
+        if pb.calibration is not None:
+            return RealSenseFrame(
+                self.index, self.time, _colour_array(rs, self.color),
+                _aligned_mm(np.asanyarray(self.depth.get_data()), pb.calibration),
+                pb.intrinsics,
+            )
         depth = self.align(self.color, self.depth)
         return RealSenseFrame(
             self.index,
@@ -311,6 +361,30 @@ class LazyRealSenseFrame:
             _depth_mm(depth, pb.depth_scale_m),
             pb.intrinsics,
         )
+
+    def raw(self) -> RawRealSensePair | None:
+        """The frame's pixels as recorded, for another process to align and classify
+        (None when this process's SDK must align it)."""
+        pb = self.playback
+        if pb.calibration is None:
+            return None
+        fmt = str(self.color.get_profile().format()).rsplit(".", 1)[-1]
+        return RawRealSensePair(
+            "", "", "", None, None, self.time,
+            color_data=np.asanyarray(self.color.get_data()),
+            depth_data=np.asanyarray(self.depth.get_data()),
+            color_format=fmt,
+            calibration=pb.calibration,
+            intrinsics=pb.intrinsics,
+        )
+
+
+def _aligned_mm(raw: NDArray[np.uint16], calibration: DepthToColour) -> NDArray[np.uint16]:
+    """A Z16 frame's values aligned to colour (:mod:`.depth_align`), in mm."""
+    aligned = calibration.align(raw)
+    if abs(calibration.scale_m - 0.001) < 1e-9:
+        return aligned
+    return np.take(_depth_table(calibration.scale_m), aligned)
 
 
 class RealSensePlayback:
@@ -329,6 +403,12 @@ class RealSensePlayback:
     tolerance : float, keyword-only
         Largest difference between a colour frame's and its depth frame's timestamps,
         seconds.
+    align : {"auto", "sdk", "numpy"}, keyword-only
+        Who aligns depth to colour: :mod:`.depth_align` where it is exact and fast (the
+        streams share their centre of projection and no corner lands at a rounding tie;
+        ``"auto"``), the SDK's ``rs.align`` (``"sdk"``, and ``"auto"`` otherwise), or
+        :mod:`.depth_align` wherever it reads the lens models (``"numpy"``: also a
+        depth camera to the side, 30 ms a 1280 x 720 frame against the SDK's 4-7).
 
     Raises
     ------
@@ -340,11 +420,18 @@ class RealSensePlayback:
     """
 
     def __init__(
-        self, path: str | Path, *, real_time: bool = False, tolerance: float = 0.020
+        self,
+        path: str | Path,
+        *,
+        real_time: bool = False,
+        tolerance: float = 0.020,
+        align: str = "auto",
     ) -> None:
         self.path = Path(path)
         self.real_time = real_time
         self.tolerance = tolerance
+        self.align_by = align
+        self.calibration: DepthToColour | None = None
         self.notes: list[str] = []
         self._device: Any = None
         self._started: list[Any] = []
@@ -368,6 +455,10 @@ class RealSensePlayback:
         _, c_profile, d_sensor, d_profile = self._sensors
         self.intrinsics, note = colour_intrinsics(rs, c_profile)
         self.depth_scale_m = _depth_scale(rs, d_sensor)
+        cal = stream_calibration(c_profile, d_profile, self.depth_scale_m)
+        if cal is not None and cal.supported and self.align_by != "sdk":
+            if self.align_by == "numpy" or cal.fast:
+                self.calibration = cal
         fps = c_profile.fps() or 30
         seconds = self.playback.get_duration().total_seconds()
         self.count = _colour_count(self.path) or max(1, round(seconds * fps))
@@ -375,7 +466,9 @@ class RealSensePlayback:
         self.notes.append(
             f"RealSense colour {self.intrinsics.width}x{self.intrinsics.height} "
             f"{str(c_profile.format()).rsplit('.', 1)[-1]}, depth {d_intr.width}x"
-            f"{d_intr.height} aligned to colour by the SDK, depth unit "
+            f"{d_intr.height} aligned to colour "
+            + ("as the SDK aligns" if self.calibration is not None else "by the SDK")
+            + ", depth unit "
             f"{self.depth_scale_m * 1000:.4g} mm"
         )
         if note:
@@ -642,10 +735,74 @@ class LivePair(LabelledPair):
 
     frame: Any = None
 
+    #: Holds the SDK's frames: read in this process (the live loop decodes it before a
+    #: worker process classifies it) unless :meth:`shared` sends its pixels as recorded.
+    local: ClassVar[bool] = True
+
     def load(self) -> RGBDFrame:
-        """The decoded frame, depth aligned to colour by the SDK."""
+        """The decoded frame, depth aligned to colour."""
         f = self.frame.decode()
         return RGBDFrame(f.color, f.depth_mm, f.intrinsics, self.color, self.depth, "stream")
+
+    @property
+    def portable(self) -> bool:
+        """Another process can align and classify it from its pixels (:meth:`shared`)."""
+        playback = getattr(self.frame, "playback", None)
+        return getattr(playback, "calibration", None) is not None
+
+    def shared(self, slots: SharedSlots) -> tuple[Any, int | None]:
+        """The frame's pixels as recorded, for a worker process (a
+        :class:`RawRealSensePair`), copied into a slot of ``slots`` (the slot to free
+        once the worker is done; None when none was free: the pixels are then copied into
+        the pair); the frame itself when only this process can decode it."""
+        raw = self.frame.raw() if getattr(self.frame, "raw", None) is not None else None
+        if raw is None:
+            return self, None
+        raw = replace(raw, color=self.color, depth=self.depth, time=self.time)
+        put = slots.put([raw.color_data, raw.depth_data])
+        if put is None:
+            data = (np.array(raw.color_data), np.array(raw.depth_data))
+            return replace(raw, color_data=data[0], depth_data=data[1]), None
+        slot, (c, d) = put
+        return replace(raw, color_data=c, depth_data=d), slot
+
+
+@dataclass(frozen=True)
+class RawRealSensePair(LabelledPair):
+    """A RealSense frame's pixels as recorded (colour in its format, depth in its stream's
+    size and units) with what aligning them needs: read in any process, without the SDK.
+
+    ``color_data`` and ``depth_data`` are arrays, or references to bytes in shared
+    memory (:class:`~dgli_vision.core.parallel.SlotRef`).
+    """
+
+    color_data: Any = None
+    depth_data: Any = None
+    color_format: str = "rgb8"
+    calibration: DepthToColour | None = None
+    intrinsics: Intrinsics | None = None
+
+    def load(self) -> RGBDFrame:
+        """The decoded frame, depth aligned to colour (:mod:`.depth_align`), in mm."""
+        cal = self.calibration
+        assert cal is not None and self.intrinsics is not None
+        c, d = cal.colour, cal.depth
+        channels = 4 if self.color_format.endswith("a8") else 3
+        color = _pixels(self.color_data, np.uint8).reshape(c.height, c.width, channels)
+        raw = _pixels(self.depth_data, np.uint16).reshape(d.height, d.width)
+        return RGBDFrame(
+            _colour_pixels(color, self.color_format, copy=False), _aligned_mm(raw, cal),
+            self.intrinsics,
+            self.color, self.depth, "stream",
+        )
+
+
+def _pixels(data: Any, dtype: Any) -> NDArray:
+    """The values of an array, or of bytes in shared memory, as a flat array."""
+    view = getattr(data, "view", None)
+    if isinstance(data, np.ndarray) or view is None:
+        return np.asarray(data).reshape(-1).view(dtype)
+    return np.frombuffer(view(), dtype)
 
     def light(self) -> LabelledPair:
         """This frame as names only."""

@@ -84,6 +84,7 @@ def write_realsense_recording(
     compress: bool = True,
     serial: str = "000000000000",
     paced: bool = False,
+    extrinsics: tuple[tuple[float, ...], tuple[float, ...]] | None = None,
 ) -> Path:
     """Record ``frames`` (time in seconds, RGB uint8, depth uint16 in mm registered to
     colour) with the RealSense SDK's recorder.
@@ -109,6 +110,9 @@ def write_realsense_recording(
         Push the frames at the pace of their times, as a camera gives them (the recorder
         stamps each message with its arrival: a recording played at its recorded pace
         then plays at the frames' pace); otherwise as fast as they come.
+    extrinsics : (rotation, translation), keyword-only, optional
+        From depth to colour as the SDK holds them (9 numbers column-major, 3 in
+        metres); default: the same place (the depth written is colour's, subsampled).
 
     Returns
     -------
@@ -140,6 +144,9 @@ def write_realsense_recording(
     same_place = rs.extrinsics()
     same_place.rotation = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
     same_place.translation = [0.0, 0.0, 0.0]
+    if extrinsics is not None:
+        same_place.rotation = [float(v) for v in extrinsics[0]]
+        same_place.translation = [float(v) for v in extrinsics[1]]
     d_prof.register_extrinsics_to(c_prof, same_place)
     try:
         recorder = rs.recorder(str(path), dev, compress)
