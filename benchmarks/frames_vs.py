@@ -123,10 +123,10 @@ def table(index: list[dict], base: list, new: list) -> str:
             f"| {np.median(anchor):.2f} | {_ratios(b, anchor)} | {_ratios(a, anchor)} |"
         )
     lines += ["", "| stage | before: median (ms) | after | after / before |", "|---|---|---|---|"]
-    stages = list(dict.fromkeys(s for run in (base, new) for _, st in run for s in st))
+    stages = list(dict.fromkeys(s for run in (base, new) for frame in run for s in frame[1]))
     for s in stages:
-        b = np.median([st.get(s, 0.0) for _, st in base])
-        a = np.median([st.get(s, 0.0) for _, st in new])
+        b = np.median([frame[1].get(s, 0.0) for frame in base])
+        a = np.median([frame[1].get(s, 0.0) for frame in new])
         ratio = f"{a / b:.2f}" if b > 0 else "new"
         lines.append(f"| {s} | {b:.2f} | {a:.2f} | {ratio} |")
     return "\n".join(lines) + "\n"
