@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -243,13 +244,22 @@ def _mesh_of(
     on: every vertex, or the material's coarse mesh."""
     if not coarse:
         return position, material.uv, material.faces
-    position = position[material.coarse_ids]
+    uv, faces = _coarse_mesh(material)
+    return position[material.coarse_ids], uv, faces
+
+
+@lru_cache(maxsize=8)
+def _coarse_mesh(material: ClothMaterial) -> tuple[NDArray[np.float64], NDArray[np.intp]]:
+    """The material's coarse vertices (uv) and triangles, worked out once per material
+    (every frame of an episode shares them). The Delaunay triangles of the coarse
+    vertices include slivers along the border, which would join two flaps: only
+    triangles of its spacing are kept."""
     uv, faces = material.uv[material.coarse_ids], material.coarse_faces
-    # the Delaunay triangles of the coarse vertices include slivers along the border,
-    # which would join two flaps: only triangles of its spacing are kept
     edge = np.stack([np.linalg.norm(uv[faces[:, i]] - uv[faces[:, (i + 1) % 3]], axis=1)
                      for i in range(3)]).max(axis=0)
-    return position, uv, faces[edge <= 2.5 * material.spacing_mm]
+    faces = faces[edge <= 2.5 * material.spacing_mm]
+    uv.flags.writeable = faces.flags.writeable = False  # (shared by every frame)
+    return uv, faces
 
 
 def _corner_pieces(
