@@ -85,13 +85,13 @@ def evaluate(
 
     require_report_for_resume(resume, report_dir)
     colours = read_colours(colours_path) if colours_path else None  # (a bad file: no work)
+    pairs, problems, recording = _labelled_input(folder, lenient, recording_opts)
     n_jobs = jobs or os.cpu_count() or 1
-    if os.path.exists(folder):  # they start up while this process loads and reads labels
-        start_workers_early(n_jobs, references_path, colours)
+    # the labels are good: the workers start up while this process loads the references
+    start_workers_early(n_jobs, references_path, colours)
     from ..analysis.evaluate import adopt_workers
     from ..analysis.evaluation_report import REPORT_FILES
 
-    pairs, problems, recording = _labelled_input(folder, lenient, recording_opts)
     refs, refs_path = references_of(references_path)
     adopt_workers(n_jobs, refs, colours, references_path)
     run = _EvaluationRun(
