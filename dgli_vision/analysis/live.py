@@ -566,17 +566,36 @@ def watch(
         daemon=True,  # a camera blocked in its driver never holds the process
     )
     if pool is not None:
-        try:
-            capture.start()
-            stopped = pool.run(slot, worker, on_update, stop)
-        finally:
-            stop.set()
-            slot.close()
-            capture.join(timeout=CAPTURE_STOP_S)
-            pool.close()
-        if isinstance(counts["error"], Exception) and not stopped:
-            raise counts["error"]
-        return worker.summary(counts, slot.dropped, stopped)
+        stopped = _run_in_pool(pool, capture, slot, worker, on_update, stop)
+    else:
+        stopped = _run_here(capture, slot, worker, on_update, stop)
+    if isinstance(counts["error"], Exception) and not stopped:
+        raise counts["error"]
+    return worker.summary(counts, slot.dropped, stopped)
+
+
+def _run_in_pool(
+    pool: Any, capture: threading.Thread, slot: LatestFrame, worker: Any,
+    on_update: Callable | None, stop: threading.Event,
+) -> bool:
+    """:func:`watch` with worker processes: the frames classified in ``pool`` and
+    smoothed here, in frame order. Whether it was stopped."""
+    try:
+        capture.start()
+        return pool.run(slot, worker, on_update, stop)
+    finally:
+        stop.set()
+        slot.close()
+        capture.join(timeout=CAPTURE_STOP_S)
+        pool.close()
+
+
+def _run_here(
+    capture: threading.Thread, slot: LatestFrame, worker: Any,
+    on_update: Callable | None, stop: threading.Event,
+) -> bool:
+    """:func:`watch` in this process: the newest frame classified each time the one
+    before is done. Whether it was stopped."""
     capture.start()
     try:
         while not stop.is_set():
@@ -589,14 +608,11 @@ def watch(
             if on_update is not None:
                 on_update(update, frame, result)
             slot.done()
-        stopped = stop.is_set()
+        return stop.is_set()
     finally:  # also when on_update fails (a closed pipe): the source is let go first
         stop.set()
         slot.close()  # a capture waiting to offer a frame goes on, sees the stop
         capture.join(timeout=CAPTURE_STOP_S)
-    if isinstance(counts["error"], Exception) and not stopped:
-        raise counts["error"]
-    return worker.summary(counts, slot.dropped, stopped)
 
 
 def _for_worker(pair: Any) -> Any:

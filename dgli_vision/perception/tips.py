@@ -287,21 +287,11 @@ def corner_tips(
     out = np.full(len(layout.corner_uv), np.nan)
     if cloth is None:
         return out
-    corner_of = layout.sticker_corners
     found = np.isfinite(points).all(axis=1)
     lying = found & (np.asarray(heights_mm) < LIFTED_MM)  # (NaN: not lying)
     if turns is not None:
-        lying &= np.asarray(turns)[corner_of] >= 0
-
-    def per_corner(which: NDArray[np.bool_]) -> NDArray[np.intp]:
-        return np.bincount(corner_of[which], minlength=len(out))
-
-    # corners with fewer than two stickers located, one unknown, none held up or standing
-    todo = np.flatnonzero(
-        (per_corner(found) < 2)
-        & (per_corner(np.asarray(unknown, dtype=bool)) > 0)
-        & (per_corner(np.asarray(held_up, dtype=bool) | (found & ~lying)) == 0)
-    ).tolist()
+        lying &= np.asarray(turns)[layout.sticker_corners] >= 0
+    todo = _corners_to_tell(layout.sticker_corners, found, lying, unknown, held_up, len(out))
     fit = _stay_fit(points, lying, layout, up, p) if todo else None
     if fit is None:
         return out
@@ -309,23 +299,59 @@ def corner_tips(
     near_objects = None
     if objects is not None and objects.any():
         near_objects = cv2.dilate(objects.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)
-    h, w = cloth.shape
     for k in todo:
         uv = _tip_samples(layout, k, p)
         px = intrinsics.project(np.column_stack([uv * 1e-3, np.zeros(len(uv))]) @ r.T + t)
-        ok = np.isfinite(px).all(axis=1)
-        cx = np.where(ok, px[:, 0], -1.0) // cell_px
-        cy = np.where(ok, px[:, 1], -1.0) // cell_px
-        inview = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
-        cxi, cyi = np.clip(cx, 0, w - 1).astype(int), np.clip(cy, 0, h - 1).astype(int)
-        is_cloth = inview & cloth[cyi, cxi]
-        is_object = np.zeros(len(uv), dtype=bool)
-        if near_objects is not None:
-            gy, gx = near_objects.shape
-            oy = np.clip(np.round(np.where(ok, px[:, 1], 0) / stride).astype(int), 0, gy - 1)
-            ox = np.clip(np.round(np.where(ok, px[:, 0], 0) / stride).astype(int), 0, gx - 1)
-            is_object = inview & ~is_cloth & near_objects[oy, ox]
-        table = inview & ~is_cloth & ~is_object
-        if table.sum() >= p.min_table_share * len(uv):
-            out[k] = table.sum() / (table.sum() + is_cloth.sum())
+        out[k] = _table_share(px, cloth, cell_px, near_objects, stride, p.min_table_share)
     return out
+
+
+def _corners_to_tell(
+    corner_of: NDArray[np.intp],
+    found: NDArray[np.bool_],
+    lying: NDArray[np.bool_],
+    unknown: NDArray[np.bool_],
+    held_up: NDArray[np.bool_],
+    n_corners: int,
+) -> list[int]:
+    """The corners with fewer than two stickers located, one unknown, and none held up
+    or standing (:func:`corner_tips`)."""
+
+    def per_corner(which: NDArray[np.bool_]) -> NDArray[np.intp]:
+        return np.bincount(corner_of[which], minlength=n_corners)
+
+    return np.flatnonzero(
+        (per_corner(found) < 2)
+        & (per_corner(np.asarray(unknown, dtype=bool)) > 0)
+        & (per_corner(np.asarray(held_up, dtype=bool) | (found & ~lying)) == 0)
+    ).tolist()
+
+
+def _table_share(
+    px: NDArray[np.float64],
+    cloth: NDArray[np.bool_],
+    cell_px: int,
+    near_objects: NDArray[np.bool_] | None,
+    stride: int,
+    min_share: float,
+) -> float:
+    """The share of a corner's band samples (pixels ``px``, (n, 2)) seen as table among
+    those seen as table or cloth; NaN with fewer than ``min_share`` of them on table.
+    ``near_objects``: objects above the table grown by two samples (None: none)."""
+    h, w = cloth.shape
+    ok = np.isfinite(px).all(axis=1)
+    cx = np.where(ok, px[:, 0], -1.0) // cell_px
+    cy = np.where(ok, px[:, 1], -1.0) // cell_px
+    inview = (cx >= 0) & (cy >= 0) & (cx < w) & (cy < h)
+    cxi, cyi = np.clip(cx, 0, w - 1).astype(int), np.clip(cy, 0, h - 1).astype(int)
+    is_cloth = inview & cloth[cyi, cxi]
+    is_object = np.zeros(len(px), dtype=bool)
+    if near_objects is not None:
+        gy, gx = near_objects.shape
+        oy = np.clip(np.round(np.where(ok, px[:, 1], 0) / stride).astype(int), 0, gy - 1)
+        ox = np.clip(np.round(np.where(ok, px[:, 0], 0) / stride).astype(int), 0, gx - 1)
+        is_object = inview & ~is_cloth & near_objects[oy, ox]
+    table = inview & ~is_cloth & ~is_object
+    if table.sum() >= min_share * len(px):
+        return float(table.sum() / (table.sum() + is_cloth.sum()))
+    return float("nan")

@@ -129,25 +129,10 @@ def write_realsense_recording(
     path = Path(path)
     if path.exists():
         raise OverwriteError(f"'{path}' exists; a recording is written only to a new path")
-    d_intr = depth_intrinsics(intrinsics, depth_step)
-    dev = rs.software_device()
-    dev.register_info(rs.camera_info.name, "Intel RealSense D435 (software)")
-    dev.register_info(rs.camera_info.serial_number, serial)
-    d_sensor, c_sensor = dev.add_sensor("Stereo Module"), dev.add_sensor("RGB Camera")
-    d_sensor.add_read_only_option(rs.option.depth_units, depth_scale_m)
-    d_prof = d_sensor.add_video_stream(
-        _stream(rs, rs.stream.depth, 0, d_intr, rs.format.z16, 2, fps)
+    dev, (d_sensor, d_prof), (c_sensor, c_prof) = _software_camera(
+        rs, intrinsics, depth_intrinsics(intrinsics, depth_step), depth_scale_m, fps,
+        serial, extrinsics,
     )
-    c_prof = c_sensor.add_video_stream(
-        _stream(rs, rs.stream.color, 1, intrinsics, rs.format.rgb8, 3, fps)
-    )
-    same_place = rs.extrinsics()
-    same_place.rotation = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
-    same_place.translation = [0.0, 0.0, 0.0]
-    if extrinsics is not None:
-        same_place.rotation = [float(v) for v in extrinsics[0]]
-        same_place.translation = [float(v) for v in extrinsics[1]]
-    d_prof.register_extrinsics_to(c_prof, same_place)
     try:
         recorder = rs.recorder(str(path), dev, compress)
     except RuntimeError as exc:
@@ -177,3 +162,36 @@ def write_realsense_recording(
             sensor.close()
         del recorder  # the file is complete once the recorder is released
     return path
+
+
+def _software_camera(
+    rs: Any,
+    intrinsics: Intrinsics,
+    d_intr: Intrinsics,
+    depth_scale_m: float,
+    fps: int,
+    serial: str,
+    extrinsics: tuple[tuple[float, ...], tuple[float, ...]] | None,
+) -> tuple[Any, tuple[Any, Any], tuple[Any, Any]]:
+    """A software D435 for :func:`write_realsense_recording`: the device, and its depth
+    and colour sensors with their stream profiles, depth placed to colour by
+    ``extrinsics`` (default: the same place)."""
+    dev = rs.software_device()
+    dev.register_info(rs.camera_info.name, "Intel RealSense D435 (software)")
+    dev.register_info(rs.camera_info.serial_number, serial)
+    d_sensor, c_sensor = dev.add_sensor("Stereo Module"), dev.add_sensor("RGB Camera")
+    d_sensor.add_read_only_option(rs.option.depth_units, depth_scale_m)
+    d_prof = d_sensor.add_video_stream(
+        _stream(rs, rs.stream.depth, 0, d_intr, rs.format.z16, 2, fps)
+    )
+    c_prof = c_sensor.add_video_stream(
+        _stream(rs, rs.stream.color, 1, intrinsics, rs.format.rgb8, 3, fps)
+    )
+    place = rs.extrinsics()
+    place.rotation = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]
+    place.translation = [0.0, 0.0, 0.0]
+    if extrinsics is not None:
+        place.rotation = [float(v) for v in extrinsics[0]]
+        place.translation = [float(v) for v in extrinsics[1]]
+    d_prof.register_extrinsics_to(c_prof, place)
+    return dev, (d_sensor, d_prof), (c_sensor, c_prof)
