@@ -93,7 +93,7 @@ class SearchImage:
         only while ``labels`` is that array); None: traced when judged.
     palette : ndarray, shape (n_colours, 3), optional
         The sticker colours, linear RGB in label order: a small sticker's dot blurred
-        into its disc is read by the colour it adds (:func:`_dot_by_difference`).
+        into its disc is read by the colour it adds (:func:`_dots_by_difference`).
         None: dots are read by their labels only.
     """
 
@@ -691,7 +691,7 @@ class _DiscPixels:
 
     @cached_property
     def unmixing(self) -> list[tuple[list[float], list[float]] | None]:
-        """Per blob, what :func:`_dot_by_difference` unmixes a small sticker's dot from,
+        """Per blob, what :func:`_dots_by_difference` unmixes a small sticker's dot from,
         in linear light: the disc as seen (per channel, the median of the most saturated
         quarter of the outer band, 0.6-0.95 radii, by chroma at or above its 0.75
         quantile) and what the centre (within 0.2 radii) adds to it (its mean less the
@@ -825,14 +825,14 @@ def _read_colours(
     Large stickers are read by their labels (:func:`_disc_and_dot`). A small one (disc
     radius under ``small_radius_px`` in the search image) has its dot blurred into its
     disc: in a search at full resolution it is read by unmixing the dot's colour
-    (:func:`_dot_by_difference`); in a halved search the labels are kept unless they
+    (:func:`_dots_by_difference`); in a halved search the labels are kept unless they
     cannot be read or the unmixing reads another dot colour without doubt.
     """
     p = image.params
     colours = _disc_and_dot(discs, k, p)
     if s.radius >= p.small_radius_px:
         return colours
-    unmixed = _dot_by_difference(discs, k)
+    unmixed = discs.dots[k]  # (every blob's, read at once: _dots_by_difference)
     if unmixed is None:
         return colours
     if not image.halved or isinstance(colours, str):
@@ -842,15 +842,10 @@ def _read_colours(
     return colours
 
 
-def _dot_by_difference(discs: _DiscPixels, k: int) -> _Colours | None:
-    """Disc and dot colours of the ``k``-th blob, a small sticker whose dot the blur
-    mixed into its disc, read by the colour the dot adds at the centre; None where that
-    cannot be read (see :attr:`_DiscPixels.dots`, which reads every blob at once)."""
-    return discs.dots[k]
-
-
 def _dots_by_difference(discs: _DiscPixels) -> list[_Colours | None]:
-    """:func:`_dot_by_difference` of every blob of ``discs``, worked out at once.
+    """Disc and dot colours of every blob of ``discs`` read as those of a small sticker
+    whose dot the blur mixed into its disc, by the colour the dot adds at the centre
+    (None where that cannot be read), worked out for every blob at once.
 
     A 12 mm dot 4-6 pixels across, blurred over 1-1.6 pixels (demosaicing blurs the red
     and blue channels more than the green one), keeps no pixel of its own colour: the
