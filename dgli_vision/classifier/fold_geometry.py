@@ -40,7 +40,9 @@ __all__ = [
     "empty_geometry",
     "fit_folds",
     "geometry_from_crease",
+    "initial_flaps",
     "mirror_crease_fit",
+    "plane_basis",
     "rigid_fit_2d",
     "rotation_2d",
     "solve_flaps",
@@ -203,7 +205,7 @@ def geometry_from_crease(
     return FoldGeometry(word, kind, m, sd, crease, stickers, rms_mm, None, source, ends)
 
 
-def _plane_basis(up: NDArray[np.float64]) -> NDArray[np.float64]:
+def plane_basis(up: NDArray[np.float64]) -> NDArray[np.float64]:
     """Two unit vectors (2, 3) spanning the table plane, with e1 x e2 = up."""
     u0, u1, u2 = (float(v) for v in up)
     a = (1.0, 0.0, 0.0) if abs(u0) < 0.9 else (0.0, 1.0, 0.0)
@@ -370,7 +372,7 @@ def fit_folds(
         active = []
     results: dict[int, FoldGeometry] = {}
     if active:
-        basis = _plane_basis(obs.up)
+        basis = plane_basis(obs.up)
         p2 = (np.nan_to_num(pts) @ basis.T) * 1e3
         fitted = np.zeros(len(folds) + 1, dtype=bool)  # part -> in the fit ([-1]: stays)
         fitted[active] = fitted[-1] = True
@@ -402,7 +404,7 @@ def _fit(
         ids = np.flatnonzero(use)
         g = lut[part[ids]]
         m, p = uv[ids], p2[ids]
-        x = _initial(m, p, g, [folds[j] for j in active])
+        x = initial_flaps(m, p, g, [folds[j] for j in active])
         x, jtj, res = solve_flaps(m, p, g, x, len(active))
         d = np.hypot(res[:, 0], res[:, 1])
         worst = int(np.argmax(d))
@@ -465,7 +467,7 @@ def _nominal_normal(f: NominalFold) -> tuple[float, float]:
     return alpha, math.cos(alpha) * x0 + math.sin(alpha) * y0
 
 
-def _initial(m: NDArray, p: NDArray, g: NDArray, folds: list[NominalFold]) -> NDArray:
+def initial_flaps(m: NDArray, p: NDArray, g: NDArray, folds: list[NominalFold]) -> NDArray:
     """The first guess of (theta, tau, alpha_j, c_j): the napkin that stays from its
     own stickers (two or more), else from the flap with most stickers mirrored back
     across its nominal crease; each crease by :func:`mirror_crease_fit` on that."""

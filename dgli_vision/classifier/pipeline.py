@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
+from enum import Enum
 from typing import Any
 
 import numpy as np
@@ -56,7 +57,14 @@ from .consistency import (
     rigidity_problem,
     scale_problem,
 )
+from .known_states import (
+    crumpled_problem,
+    diagonal_crease_stretch,
+    folded_apart_problem,
+    footprint_problem_below,
+)
 from .references import ReferenceSet
+from .state_fit import StateFit, fit_state
 
 __all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
 
@@ -242,6 +250,7 @@ class FrameResult:
     candidates: tuple[tuple[str, str | None, float], ...] = ()
     affordances: Affordances | None = None
     distances: NDArray[np.float64] | None = None
+    fit: StateFit | None = None
 
     def to_json(self, color: str, depth: str) -> dict[str, Any]:
         """The JSON object of ``dgli classify --json``, naming the pair as ``color`` and
@@ -295,10 +304,12 @@ class FrameResult:
         ]
         if p is None:
             out["why"] = {
-                "kind": self.why,
+                "kind": None if self.why is None else str(self.why),
                 "classes": [c for c, _, _ in self.candidates[:2]],
                 "stickers": out["stickers"],
             }
+            if self.why == WhyKind.NO_STATE_FITS and self.fit is not None:
+                out["why"]["unexplained"] = _unexplained_json(self.fit)
         if self.affordances is not None:
             out.update(self.affordances.to_json())
         out["coordinates"] = [
@@ -311,11 +322,31 @@ class FrameResult:
 #: wrong (depth scale, lens), too few stickers to rank the states, the layout reads
 #: mirrored or the cloth covers more table than the state allows, or the nearest states
 #: are too close to call for the evidence seen; a colour array whose red and blue
-#: channels are swapped (only :func:`~dgli_vision.classifier.api.classify_pair` tells).
+#: channels are swapped (only :func:`~dgli_vision.classifier.api.classify_pair` tells);
+#: the napkin is in none of the twelve states (the nearest state's folds leave stickers
+#: unexplained, :mod:`.state_fit`, :mod:`.known_states`); it is crumpled.
 WHY_KINDS = (
     "geometry", "too few stickers", "mirror or footprint", "too close to call",
-    "colour channels",
+    "colour channels", "no state fits", "crumpled",
 )
+
+
+class WhyKind(str, Enum):
+    """The kinds of "cannot tell" (:data:`WHY_KINDS`, by name; each is its string)."""
+
+    GEOMETRY = "geometry"
+    TOO_FEW = "too few stickers"
+    MIRROR = "mirror or footprint"
+    TOO_CLOSE = "too close to call"
+    CHANNELS = "colour channels"
+    NO_STATE_FITS = "no state fits"
+    CRUMPLED = "crumpled"
+    #: (internal: a corner stretched as a diagonal fold's crease cuts it, for the
+    #: state fit to judge; never a result's kind)
+    DEFERRED = "deferred"
+
+    def __str__(self) -> str:
+        return self.value
 
 
 def _candidates(
@@ -622,7 +653,8 @@ def _judge(
     clock: StageClock,
 ) -> FrameResult:
     """The verdict on an observed frame: the fault checks, the nearest reference and
-    its confidence, or "cannot tell" and why."""
+    its confidence, whether its state's folds explain what was seen, or "cannot tell"
+    and why."""
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
     seen_as = {
@@ -630,16 +662,29 @@ def _judge(
     }
     n = int(obs.visible.sum())
     napkin_mm = _napkin_depth(detections, frame.depth_mm)
-    problem = _image_problem(frame, detections, obs, napkin_mm, layout)
-    if problem is not None:
+    border = border_factor(
+        detections.centroids,
+        frame.intrinsics,
+        sticker_px(napkin_mm, frame.intrinsics, layout.disc_diameter_mm),
+    )
+    kind, problem = _image_problem(frame, detections, obs, napkin_mm, layout, border)
+    stretched = problem if kind == WhyKind.DEFERRED else None
+    if problem is not None and stretched is None:
         return FrameResult(
-            **seen_as, prediction=None, reason=f"cannot tell: {problem}", why=WHY_KINDS[0]
+            **seen_as, prediction=None, reason=f"cannot tell: {problem}", why=kind
         )
     evidence = obs.classifier_evidence()
+    area = layout.width_mm * layout.height_mm
     try:
         terms = reference_terms(coords, references, evidence)
     except DetectionError as exc:
         reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
+        below = footprint_problem_below(obs.footprint, references, area)
+        if below is not None:
+            return FrameResult(
+                **seen_as, prediction=None, why=WhyKind.NO_STATE_FITS,
+                reason=f"cannot tell: no known state fits: {below}; {reason}",
+            )
         unknown = _unknown_summary(obs)
         if unknown:
             reason += f" ({unknown})"
@@ -649,59 +694,90 @@ def _judge(
         )
         if depth_hint:
             reason += f"; {depth_hint}"
-        return FrameResult(**seen_as, prediction=None, reason=reason, why=WHY_KINDS[1])
+        return FrameResult(**seen_as, prediction=None, reason=reason, why=WhyKind.TOO_FEW)
     front = terms.total()
     near = _candidates(front, references)
     guess = _guess(coords, references, evidence, front, obs, layout, min_confidence)
-    border = border_factor(
-        detections.centroids,
-        frame.intrinsics,
-        sticker_px(napkin_mm, frame.intrinsics, layout.disc_diameter_mm),
-    )
     if border < 1.0:  # an uncorrected lens may have moved the stickers near the border
         guess = replace(guess, confidence=round(guess.confidence * border, 4))
     clock.lap("classify")
-    area = layout.width_mm * layout.height_mm
     mirror = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front, terms=terms
     )
     foot = footprint_problem(obs.footprint, references, front, area)
     landing = _landing(obs, front, references)
     vertical = _near_vertical(obs, near)
+    fit = fit_state(obs, guess.class_id, guess.variant, layout)
     clock.lap("checks")
     # each check lowers the confidence continuously; where one rules the verdict out the
     # nearest reference stays for reports, with the confidence left to it
-    factor = mirror.factor * foot.factor * landing.factor * vertical.factor
+    factor = mirror.factor * foot.factor * landing.factor * vertical.factor * fit.factor
     unchecked = guess.confidence
     if factor < 1.0:
         guess = replace(guess, confidence=round(guess.confidence * factor, 4))
     if guess.class_id in MIRROR_TWINS and guess.confidence > MIRROR_TWIN_CONFIDENCE:
         guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
+    told = {"best_guess": guess, "candidates": near, "distances": front, "fit": fit}
     doubt = mirror.reason or foot.reason
+    if not fit.fits and not (doubt and _mirrored_state_fits(obs, terms, references, layout)):
+        return FrameResult(
+            **seen_as, **told, prediction=None, why=WhyKind.NO_STATE_FITS,
+            reason=f"cannot tell: no known state fits: {fit.describe()}",
+        )
+    if stretched is not None and guess.class_id != "12":
+        # a corner's stickers cut as a diagonal fold's crease cuts them, but the state
+        # nearest is no diagonal fold: a lens may bend the napkin
+        return FrameResult(
+            **seen_as, **told, prediction=None, reason=f"cannot tell: {stretched}",
+            why=WhyKind.GEOMETRY,
+        )
     if doubt is not None:
         return FrameResult(
-            **seen_as, prediction=None, reason=f"cannot tell: {doubt}", best_guess=guess,
-            why=WHY_KINDS[2], candidates=near, distances=front,
+            **seen_as, **told, prediction=None, reason=f"cannot tell: {doubt}",
+            why=WhyKind.MIRROR,
         )
-    told = landing.reason or vertical.reason
-    if told is not None and unchecked >= min_confidence:
+    told_reason = landing.reason or vertical.reason
+    if told_reason is not None and unchecked >= min_confidence:
         return FrameResult(
-            **seen_as, prediction=None, reason=f"cannot tell: {told}",
-            best_guess=guess, why=WHY_KINDS[3], candidates=near, distances=front,
+            **seen_as, **told, prediction=None, reason=f"cannot tell: {told_reason}",
+            why=WhyKind.TOO_CLOSE,
         )
     if guess.confidence >= min_confidence:
-        return FrameResult(
-            **seen_as, prediction=guess, best_guess=guess, candidates=near, distances=front
-        )
+        return FrameResult(**seen_as, **told, prediction=guess)
     checks = (("the mirrored reading nearly as close", mirror.factor),
               ("the footprint larger than the state allows", foot.factor),
               ("a flap held up, where it lands not yet seen", landing.factor),
-              ("a flap held up near vertical", vertical.factor))
+              ("a flap held up near vertical", vertical.factor),
+              ("the state's folds explain the stickers only in part", fit.factor))
     reason = _low_confidence_reason(guess, obs, min_confidence, border, checks)
     return FrameResult(
-        **seen_as, prediction=None, reason=reason, best_guess=guess, why=WHY_KINDS[3],
-        candidates=near, distances=front,
+        **seen_as, **told, prediction=None, reason=reason, why=WhyKind.TOO_CLOSE
     )
+
+
+def _mirrored_state_fits(
+    obs: ClothObservation, terms: Any, references: ReferenceSet, layout: NapkinLayout
+) -> bool:
+    """Whether the nearest state of the mirrored reading (a napkin back face up, or a
+    mirroring camera) explains the stickers: then the mirror check, not "no known state
+    fits", says what is wrong."""
+    j = int(np.argmin(terms.mirrored().total()))
+    r = references.references[j]
+    return fit_state(obs, r.class_id, r.variant, layout).fits
+
+
+def _unexplained_json(fit: StateFit) -> dict[str, Any]:
+    """``why.unexplained`` of a "no state fits": the state fitted, each sticker off its
+    place (mm), the stickers seen that it hides, its folds that are not its own and
+    the stickers in the air on no flap it can be folding."""
+    return {
+        "class": fit.class_id,
+        "variant": fit.variant,
+        "stickers_mm": {str(i): round(float(fit.residual_mm[i]), 1) for i in fit.misplaced},
+        "hidden_seen": list(fit.hidden_seen),
+        "folds": list(fit.wrong_folds),
+        "in_the_air": list(fit.in_the_air),
+    }
 
 
 def _image_problem(
@@ -710,17 +786,31 @@ def _image_problem(
     obs: ClothObservation,
     napkin_mm: float,
     layout: NapkinLayout,
-) -> str | None:
-    """Why the images themselves give no verdict (stickers too small, colour and depth
-    of different instants, a wrong scale, a lens bending the napkin), or None."""
-    return (
+    border: float,
+) -> tuple[WhyKind, str | None]:
+    """Why the images themselves give no verdict, and its kind: stickers too small,
+    colour and depth of different instants, a wrong scale (geometry); cloth in a heap
+    (crumpled); a corner's stickers folded apart (no state fits); a lens bending the
+    napkin (geometry). ``(GEOMETRY, None)`` when none."""
+    problem = (
         _too_small(detections, frame, napkin_mm, layout)
         or (edge_on_problem(obs.edge_on_mm) if obs.edge_on_mm is not None else None)
         or scale_problem(
             obs.ruler, layout, frame.intrinsics, nominal=frame.intrinsics_source == "default"
         )
-        or rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
     )
+    if problem is not None:
+        return WhyKind.GEOMETRY, problem
+    crumpled = crumpled_problem(obs, layout)
+    if crumpled is not None:
+        return WhyKind.CRUMPLED, crumpled
+    apart = folded_apart_problem(obs, layout, lens_possible=border < 1.0)
+    if apart is not None:
+        return WhyKind.NO_STATE_FITS, f"no known state fits: {apart}"
+    rigid = rigidity_problem(obs.ruler, lens_known=frame.intrinsics.distorted)
+    if rigid is not None and diagonal_crease_stretch(obs, layout):
+        return WhyKind.DEFERRED, rigid  # the state fit says (a diagonal fold's crease)
+    return WhyKind.GEOMETRY, rigid
 
 
 def _guess(

@@ -44,8 +44,12 @@ CORNER_LEG_RANGES: dict[str, tuple[tuple[float, float], tuple[float, float]]] = 
     "07": ((150.0, 170.0), (150.0, 170.0)),
     "08": ((170.0, 200.0), (170.0, 200.0)),
 }
+#: The inset ranges of the side classes (mm on the 400 mm napkin, SPEC section 3).
+SIDE_INSET_RANGES: dict[str, tuple[float, float]] = {
+    "09": (125.0, 140.0), "10": (125.0, 140.0), "11": (198.0, 210.0),
+}
 #: Middle of the inset ranges of the side classes (mm on the 400 mm napkin).
-SIDE_INSET_MM: dict[str, float] = {"09": 132.5, "10": 132.5, "11": 204.0}
+SIDE_INSET_MM: dict[str, float] = {k: 0.5 * (lo + hi) for k, (lo, hi) in SIDE_INSET_RANGES.items()}
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from ..core.camera import DEFAULT_INTRINSICS, CameraPose, Intrinsics, look_at_ta
 from ..core.classes import CORNERS
 from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout, default_layout
+from .cloth.outside import OUTSIDE_KINDS, OUTSIDE_LABEL, sample_outside
 from .cloth.sequences import SEQUENCES, sequence_progress, sequence_state, sequence_steps
 from .cloth.states import CLASS_IDS, VARIANTS, ClothState, sample_state
 from .conditions import Conditions, Grasp, draw_conditions, draw_lens, held_corner, turn_over
@@ -257,16 +258,23 @@ def render_sample(
     conditions: tuple[str, ...] = (),
     layout: NapkinLayout | None = None,
 ) -> RenderedSample:
-    """Sample ``k`` of class ``class_id`` of :func:`render_samples` (same arguments)."""
+    """Sample ``k`` of class ``class_id`` of :func:`render_samples` (same arguments);
+    ``class_id`` ``"none"``: a state outside the twelve, of kind ``OUTSIDE_KINDS[k % 8]``
+    (:func:`~dgli_vision.sim.cloth.outside.sample_outside`)."""
     layout = layout or default_layout()
-    options = VARIANTS[class_id]
-    rng = np.random.default_rng([seed, int(class_id), k, 7])
+    outside = class_id == OUTSIDE_LABEL
+    # (a state outside the twelve draws from streams of its own: class number 0)
+    number = 0 if outside else int(class_id)
+    options = (None,) if outside else VARIANTS[class_id]
+    rng = np.random.default_rng([seed, number, k, 7])
     cond = _set_lens(
-        draw_conditions(conditions, np.random.default_rng([seed, int(class_id), k, 23])), seed
+        draw_conditions(conditions, np.random.default_rng([seed, number, k, 23])), seed
     )
     intr, heights = _camera_for(cond, intrinsics, layout)
     variant = options[(k + seed) % len(options)]
-    if cond.grasp is not None:
+    if outside:
+        state = sample_outside(OUTSIDE_KINDS[k % len(OUTSIDE_KINDS)], rng, layout=layout)
+    elif cond.grasp is not None:
         state = _grasped_state(class_id, variant, rng, layout, cond.grasp)
     else:
         state = sample_state(class_id, variant, rng, layout=layout)
