@@ -18,9 +18,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
-from ..core.classes import VARIANTS
+from ..core.classes import OUTSIDE, VARIANTS
 from ..core.errors import DgliError, InvalidValueError
 from ..core.json_ready import json_ready
+from ..core.why import OUTSIDE_KINDS
 from ..sources.labelled import LabelledPair
 from .workers import init_worker, worker_references
 
@@ -65,10 +66,19 @@ class PairOutcome:
     confidence: float | None = None
     distances: tuple[float, ...] = ()
     affordances: dict[str, Any] | None = None
+    why: str | None = None
+
+    @property
+    def outside(self) -> bool:
+        """Read and found in none of the twelve states ("no state fits", "crumpled")."""
+        return self.error is None and self.why in OUTSIDE_KINDS
 
     @property
     def correct(self) -> bool:
-        """Class predicted right."""
+        """Class predicted right; for a pair labelled ``none`` (a state outside the
+        twelve), read and given no class."""
+        if self.pair.label == OUTSIDE:
+            return self.predicted is None and self.error is None
         return self.predicted == self.pair.label
 
     def to_json(self) -> dict[str, Any]:
@@ -144,6 +154,7 @@ def _classify_pair(
             confidence=confidence,
             distances=dist,
             affordances=aff,
+            why=None if result.why is None else str(result.why),
         )
     return PairOutcome(
         pair.light(),
@@ -412,7 +423,7 @@ class EvaluationResult:
         index = {c: k for k, c in enumerate(self.labels)}
         rows = [[*row[:-1], 0, 0] for row in self.confusion]
         for o in self.outcomes:
-            if o.predicted is None:
+            if o.predicted is None and not o.correct:
                 rows[index[o.pair.label]][-2 if o.error is None else -1] += 1
         return rows
 
@@ -450,7 +461,9 @@ def outcome_counts(outcomes: Iterable[PairOutcome]) -> dict[str, int]:
     outs = list(outcomes)
     return {
         "right": sum(o.error is None and o.correct for o in outs),
-        "cannot_tell": sum(o.error is None and o.predicted is None for o in outs),
+        "cannot_tell": sum(
+            o.error is None and o.predicted is None and o.pair.label != OUTSIDE for o in outs
+        ),
         "wrong": sum(o.predicted is not None and not o.correct for o in outs),
         "unreadable": sum(o.error is not None for o in outs),
     }
@@ -532,6 +545,7 @@ def outcome_from_dict(data: dict[str, Any]) -> PairOutcome:
         data.get("confidence"),
         tuple(_float(v) for v in data.get("distances") or ()),
         data.get("affordances"),
+        data.get("why"),
     )
 
 
@@ -552,7 +566,10 @@ def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResu
     index = {c: k for k, c in enumerate(labels)}
     conf = np.zeros((len(labels), len(labels) + 1), dtype=int)
     for o in outs:
-        col = index[o.predicted] if o.predicted else len(labels)
+        # (a state outside the twelve given no class is the diagonal: right)
+        col = index[o.predicted] if o.predicted else (
+            index[OUTSIDE] if o.correct else len(labels)
+        )
         conf[index[o.pair.label], col] += 1
     per_class = {}
     for c, k in index.items():
@@ -590,7 +607,7 @@ def summarise(outcomes: Iterable[PairOutcome], seconds: float) -> EvaluationResu
         cannot_tell=[
             {"color": o.pair.color, "depth": o.pair.depth, "reason": o.reason or ""}
             for o in outs
-            if o.error is None and o.predicted is None
+            if o.error is None and o.predicted is None and not o.correct
         ],
     )
 

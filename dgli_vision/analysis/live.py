@@ -34,9 +34,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
+from ..core.classes import OUTSIDE
 from ..core.errors import DgliError
 from ..core.fold_graph import StateKey, folds_of, state_keys
 from ..core.json_ready import json_ready
+from ..core.why import OUTSIDE_KINDS
 from .track import (
     EMISSION_SCALE,
     FOLD_PRIOR,
@@ -362,6 +364,9 @@ def classify_live(
         distances = tuple(round(float(v), 6) for v in d)
     p = result.prediction
     state = (p.class_id, p.variant) if p is not None else None
+    if result.why is not None and str(result.why) in OUTSIDE_KINDS:
+        # in none of the twelve states: no evidence for one, and the frame's own answer
+        state, distances = (OUTSIDE, None), ()
     confidence = guess.confidence if guess is not None else None
     return frame, result, state, confidence, distances, result.reason if p is None else None
 
@@ -452,6 +457,8 @@ class _Worker:
         here or by a worker process, now: its update, latency measured to now."""
         state, conf, dist, note = answer
         smoothed = self.smoother.update(dist)
+        if state is not None and state[0] == OUTSIDE:  # a "no known state" span, as it is
+            smoothed = (OUTSIDE, None)
         change = None
         if self.last is not None and smoothed != self.last:
             change = (self.last, smoothed)

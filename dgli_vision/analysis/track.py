@@ -7,7 +7,9 @@ to a state one fold or one unfold away (:func:`~dgli_vision.core.fold_graph.neig
 any other move costs :data:`JUMP_PROBABILITY`, so only many frames of clear evidence
 make one. The evidence of a frame for a state is ``exp(-d / EMISSION_SCALE)``, ``d`` the
 distance to that state's nearest reference; a frame that could not be read is a gap
-(no evidence either way).
+(no evidence either way). A frame found in none of the twelve states ("no state fits",
+"crumpled") is no evidence for any of them and stays what it is on the timeline: its
+smoothed state is ``none``, never the neighbouring frames' state.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
+from ..core.classes import OUTSIDE
 from ..core.fold_graph import StateKey, folds_of, neighbours, state_keys
 from ..core.json_ready import json_ready
 
@@ -381,8 +384,8 @@ def track_outcomes(
     k_refs = len(references)
     d = np.full((len(outcomes), k_refs), np.nan)
     for t, o in enumerate(outcomes):
-        if len(o.distances) == k_refs:
-            d[t] = o.distances
+        if len(o.distances) == k_refs and not getattr(o, "outside", False):
+            d[t] = o.distances  # (a frame in none of the states is no evidence for one)
     states, costs = smooth(d, references, stay=stay)
     path = [keys.index(k) for k in states]
     times = list(times) if times is not None else [None] * len(outcomes)
@@ -390,6 +393,8 @@ def track_outcomes(
     for t, (o, s) in enumerate(zip(outcomes, path)):
         cls, var = keys[s]
         dist = costs[t, s]
+        if getattr(o, "outside", False):  # a "no known state" span, never smoothed over
+            cls, var, dist = OUTSIDE, None, np.nan
         frames.append(
             TimelineFrame(
                 index=t,
@@ -409,10 +414,9 @@ def track_outcomes(
                 folds=(o.affordances or {}).get("folds"),
             )
         )
+    shown = [(f.smoothed_class, f.smoothed_variant) for f in frames]
     changes = tuple(
-        (t, keys[path[t - 1]], keys[path[t]])
-        for t in range(1, len(path))
-        if path[t] != path[t - 1]
+        (t, shown[t - 1], shown[t]) for t in range(1, len(shown)) if shown[t] != shown[t - 1]
     )
     score = None
     if labelled:

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from enum import Enum
 from typing import Any
 
 import numpy as np
@@ -20,6 +19,7 @@ from ..core.errors import DetectionError
 from ..core.json_ready import json_ready
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
 from ..core.order_stats import median
+from ..core.why import WhyKind
 from ..perception.agreement import edge_on_heights, edge_on_problem
 from ..perception.detect import (
     DetectorParams,
@@ -318,35 +318,10 @@ class FrameResult:
         return json_ready(out)
 
 
-#: The kinds of "cannot tell" (``FrameResult.why``): the napkin's measured geometry is
-#: wrong (depth scale, lens), too few stickers to rank the states, the layout reads
-#: mirrored or the cloth covers more table than the state allows, or the nearest states
-#: are too close to call for the evidence seen; a colour array whose red and blue
-#: channels are swapped (only :func:`~dgli_vision.classifier.api.classify_pair` tells);
-#: the napkin is in none of the twelve states (the nearest state's folds leave stickers
-#: unexplained, :mod:`.state_fit`, :mod:`.known_states`); it is crumpled.
-WHY_KINDS = (
-    "geometry", "too few stickers", "mirror or footprint", "too close to call",
-    "colour channels", "no state fits", "crumpled",
-)
-
-
-class WhyKind(str, Enum):
-    """The kinds of "cannot tell" (:data:`WHY_KINDS`, by name; each is its string)."""
-
-    GEOMETRY = "geometry"
-    TOO_FEW = "too few stickers"
-    MIRROR = "mirror or footprint"
-    TOO_CLOSE = "too close to call"
-    CHANNELS = "colour channels"
-    NO_STATE_FITS = "no state fits"
-    CRUMPLED = "crumpled"
-    #: (internal: a corner stretched as a diagonal fold's crease cuts it, for the
-    #: state fit to judge; never a result's kind)
-    DEFERRED = "deferred"
-
-    def __str__(self) -> str:
-        return self.value
+#: The kinds of "cannot tell" (``FrameResult.why``), as strings in
+#: :class:`~dgli_vision.core.why.WhyKind`'s order (kept for programs that import it;
+#: compare ``why`` with :class:`~dgli_vision.core.why.WhyKind`'s members).
+WHY_KINDS = tuple(k.value for k in WhyKind if k is not WhyKind.DEFERRED)
 
 
 def _candidates(

@@ -199,7 +199,7 @@ class _EvaluationRun:
                 err=True,
             )
             sys.exit(stop.exit_code)
-        if result.n and not result.classified:
+        if result.n and not result.classified and not any(o.correct for o in outcomes):
             if all(o.error for o in outcomes):
                 click.echo(f"error: {_none_of(result.n)} could be read", err=True)
                 sys.exit(2)

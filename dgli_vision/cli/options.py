@@ -73,15 +73,17 @@ size_option = click.option(
 )
 
 
-def per_class_option(default: int, maximum: int, help_text: str) -> Callable[[F], F]:
-    """``--per-class N``: how many of each class, 1 to ``maximum``: bounded, so that a
-    slip of the keyboard (100000) stops at once with a clear message instead of running
-    for hours and out of memory."""
+def per_class_option(
+    default: int, maximum: int, help_text: str, *, minimum: int = 1
+) -> Callable[[F], F]:
+    """``--per-class N``: how many of each class, ``minimum`` (1) to ``maximum``: bounded,
+    so that a slip of the keyboard (100000) stops at once with a clear message instead of
+    running for hours and out of memory."""
     return click.option(
         "--per-class",
         default=default,
         show_default=True,
-        type=click.IntRange(1, maximum),
+        type=click.IntRange(minimum, maximum),
         help=f"{help_text} (at most {maximum}).",
     )
 

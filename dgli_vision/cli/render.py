@@ -24,7 +24,16 @@ from .runs import Stop, folder_lock, stop_signals
 
 @click.command("render")
 @click.argument("out", type=click.Path(file_okay=False))
-@per_class_option(1, 50, "Pairs per class")
+@per_class_option(1, 50, "Pairs per class (0: none, with --outside)", minimum=0)
+@click.option(
+    "--outside",
+    default=0,
+    show_default=True,
+    type=click.IntRange(0, 400),
+    help="Also render this many states outside the twelve (folded in quarters, "
+    "gate-folded, a strip and a corner, a corner folded twice, a skewed fold, two "
+    "strips, a diagonal folded again, crumpled: eight kinds in turn), labelled none.",
+)
 @click.option("--seed", default=0, show_default=True, type=int, help="Seed of the whole set.")
 @click.option(
     "--clean", is_flag=True, help="Switch the sensor model off (no noise, blur, dropouts)."
@@ -106,6 +115,7 @@ from .runs import Stop, folder_lock, stop_signals
 def render_cmd(
     out: str,
     per_class: int,
+    outside: int,
     seed: int,
     clean: bool,
     nominal: bool,
@@ -123,7 +133,8 @@ def render_cmd(
     overwrite: bool,
 ) -> None:
     """Render a labelled RGB-D folder of simulated states to OUT (the labelled-folder
-    format of docs/napkin.md).
+    format of docs/napkin.md). --outside N adds N states outside the twelve, labelled
+    none (docs/outside.md).
 
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
     --conditions applies all its conditions together to every pair; with
@@ -143,6 +154,12 @@ def render_cmd(
 
     if per_condition and not conditions:
         raise click.UsageError("--per-condition needs --conditions C,...")
+    if not sequence and per_class == 0 and outside == 0:
+        raise click.UsageError("--per-class 0 renders nothing: give --outside N as well")
+    if sequence and outside:
+        raise click.UsageError("--outside renders single pairs, not a --sequence")
+    if engine == "cycles" and outside:
+        raise click.UsageError("--outside renders with the raster engine only")
     # (folder, its conditions): one set, or one per condition
     sets = ([(str(Path(out) / c), (c,)) for c in conditions] if per_condition
             else [(out, conditions)])
@@ -150,7 +167,9 @@ def render_cmd(
         sets = [(f, c if "grasp" in c else (*c, "grasp")) for f, c in sets]
     # a path-traced set is slow: in the order of the pairs' numbers, so that one stopped
     # part-way (Ctrl-C writes what is done) has every class
-    names, cases = render_plan(per_class, sequence, frames, by_number=engine == "cycles")
+    names, cases = render_plan(
+        per_class, sequence, frames, by_number=engine == "cycles", outside=outside
+    )
     for folder, _ in sets:  # every folder before the work
         guard_outputs(labelled_folder_files(folder, names, frames=bool(sequence)),
                       overwrite=overwrite)
@@ -162,6 +181,7 @@ def render_cmd(
             "seed": seed,
             **({"sequence": sequence, "frames": frames} if sequence
                else {"per_class": per_class}),
+            **({"outside": outside} if outside else {}),
             "clean": clean,
             "nominal": nominal,
             **({"conditions": list(conds)} if conds else {}),

@@ -225,7 +225,8 @@ class _TrackRun:
             return
 
         def state(key: tuple[str, str | None]) -> str:
-            return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
+            name = CLASS_NAMES.get(key[0], "(no known state)")
+            return f"{key[0]} {name}" + (f" {key[1]}" if key[1] else "")
 
         first = next((f for f in timeline.frames if not f.gap), None)
         echo(

@@ -221,7 +221,8 @@ def _state_text(key: StateKey | None) -> str:
 
     if key is None:
         return "cannot tell"
-    return f"{key[0]} {CLASS_NAMES[key[0]]}" + (f" {key[1]}" if key[1] else "")
+    name = CLASS_NAMES.get(key[0], "(no known state)")
+    return f"{key[0]} {name}" + (f" {key[1]}" if key[1] else "")
 
 
 class _Printer:

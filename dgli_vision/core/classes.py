@@ -13,6 +13,7 @@ __all__ = [
     "CORNERS",
     "LANDING_PAIRS",
     "LIFTED_MM",
+    "OUTSIDE",
     "PAST_BAND_DEG",
     "SIDES",
     "VARIANTS",
@@ -34,6 +35,9 @@ CLASS_NAMES: dict[str, str] = {
     "12": "diagonal-fold",
 }
 CLASS_IDS: tuple[str, ...] = tuple(CLASS_NAMES)
+#: The label of a state none of the twelve (labels.csv, a recording's labels, a
+#: simulated state outside them): scored right only when no class is given.
+OUTSIDE = "none"
 
 #: How a class may be written, for messages.
 CLASS_HINT = "a class: 01-12 (or 1-12), a name such as corner-over, or both (02_corner-over)"

@@ -30,10 +30,14 @@ class FrameEvidence:
     ----------
     coords : ndarray, shape (n, 28)
     evidence : Evidence
+    points_m : ndarray, shape (n, 16, 3), optional
+        The sticker centres, metres, z up (what the state fit of
+        :mod:`~dgli_vision.classifier.state_fit` takes).
     """
 
     coords: NDArray[np.float64]
     evidence: Evidence
+    points_m: NDArray[np.float64] | None = None
 
     def known_coordinates(self) -> NDArray[np.bool_]:
         """Coordinates the classifier uses: known, both segments seen, shape (n, 28)."""

@@ -24,7 +24,7 @@ from ..core.classes import CLASS_NAMES, LANDING_PAIRS
 from ..core.errors import DgliError
 from ..core.fold_graph import folds_of
 from ..core.json_ready import json_ready
-from ..core.layout import layout_of_size
+from ..core.layout import NapkinLayout, layout_of_size
 from .distances import frame_distances, verdicts
 from .episodes import ReadOptions, read_episode, read_rest
 from .fold_mesh import mesh_flaps, mesh_fold_geometry
@@ -75,6 +75,11 @@ class PartResult:
     last : dict, optional
         In the part that holds the episode's last frame: ``{"position", "rest", "uv",
         "flaps"}`` (metres, metres, mm, its flaps) for ``--goal``.
+    stickers : tuple of ndarray, optional
+        Each frame's sticker centres (stop - start, 16, 3; metres, z up), which a camera
+        above sees (stop - start, 16), which stand (1), lie (0) or are not told (NaN)
+        and their heights above the table (mm at the references' napkin size; NaN not
+        told) (stop - start, 16): for the state fit of each frame's verdict.
     error : str or None
         The one-line error that stopped the episode.
     """
@@ -90,6 +95,7 @@ class PartResult:
     error: str | None = None
     omnigibson: NDArray[np.bool_] | None = None
     below_mm: NDArray[np.float64] | None = None
+    stickers: tuple[NDArray[np.float64], ...] | None = None
     front: NDArray[np.float64] | None = None
     flaps: list[list[dict[str, Any]]] | None = None
     last: dict[str, Any] | None = None
@@ -144,12 +150,17 @@ def label_part(
         area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
     flat = (float(area[0]), float(diagonal[0]))
     dist, n_unknown, n_known, og, below, front = [], [], [], [], [], []
+    xyz, seen, standing, heights = [], [], [], []
     flaps: list[list[dict[str, Any]]] = []
     for a in range(start, stop, BLOCK):
         b = min(a + BLOCK, stop)
         frames = episode.frames(a, b) * material.scale
         ev = observe_frames(frames, material, placement)
         dist.append(frame_distances(ev, refs))
+        xyz.append(ev.points_m)
+        seen.append(ev.evidence.visible)
+        standing.append(ev.evidence.lifted)
+        heights.append(ev.evidence.heights_mm)
         n_unknown.append((ev.evidence.unknown & ~np.isfinite(ev.evidence.past)).sum(axis=1))
         n_known.append(ev.known_coordinates().sum(axis=1))
         coarse = frames[:, material.coarse_ids]
@@ -198,6 +209,10 @@ def label_part(
         front=joined(front, np.zeros(0)),
         flaps=flaps if options.geometry else None,
         last=last,
+        stickers=(
+            joined(xyz, np.zeros((0, 16, 3))), joined(seen, np.zeros((0, 16), bool)),
+            joined(standing, np.zeros((0, 16))), joined(heights, np.zeros((0, 16))),
+        ),
     )
 
 
@@ -414,10 +429,14 @@ def assemble(
     refused = np.array([n is not None for n in layer_notes], dtype=bool)
     states, _ = smooth(np.where(refused[:, None], np.nan, dist), references)
     frames = []
+    stickers = _joined_stickers(parts)
     for t in range(len(dist)):
         best, conf = int(v.best[t]), float(v.confidence[t])
         note = layer_notes[t] or _note(conf, best, references, int(n_known[t]))
         ref = references.references[best] if best >= 0 else None
+        if note is None and ref is not None and stickers is not None:
+            note = _outside_note(stickers, t, ref, layout) or _mesh_flap_note(flaps[t])
+            conf = 0.0 if note is not None else conf
         answer = ref if note is None else None
         if refused[t]:
             best, conf = -1, 0.0
@@ -453,6 +472,62 @@ def assemble(
         verdict["frame"] = final.index
     return EpisodeLabels(parts[0].path, tuple(frames), changes, dict(parts[0].info or {}),
                          verdict)
+
+
+def _joined_stickers(parts: list[PartResult]) -> tuple | None:
+    """The parts' sticker centres, sight and standing, joined in frame order (None when
+    a part has none: an older worker's)."""
+    if any(p.stickers is None for p in parts):
+        return None
+    return tuple(np.concatenate([p.stickers[k] for p in parts]) for k in range(4))
+
+
+def _outside_note(
+    stickers: tuple, t: int, ref: Any, layout: NapkinLayout
+) -> str | None:
+    """Why frame ``t``'s mesh is in none of the twelve states, or None: the stickers'
+    places on the mesh against the nearest state's folds (the camera's state fit,
+    :func:`~dgli_vision.classifier.state_fit.fit_state`), and whether the cloth is in a
+    heap (:func:`~dgli_vision.classifier.known_states.crumpled_problem`)."""
+    from types import SimpleNamespace
+
+    from ..classifier.known_states import crumpled_problem
+    from ..classifier.state_fit import fit_state
+
+    xyz, seen, standing, heights = (a[t] for a in stickers)
+    obs = SimpleNamespace(
+        points_m=xyz, visible=seen, up=np.array([0.0, 0.0, 1.0]), lifted=standing,
+        heights_mm=np.where(seen, heights, np.nan),
+    )
+    crumpled = crumpled_problem(obs, layout)
+    if crumpled is not None:
+        return f"cannot tell: {crumpled}"
+    fit = fit_state(obs, ref.class_id, ref.variant, layout)
+    return None if fit.fits else f"cannot tell: no known state fits: {fit.describe()}"
+
+
+#: A flap found lying on the mesh farther than this (RMS, mm) from one rigid turn of the
+#: flat cloth about its crease is folded more than once (a corner folded, then its tip
+#: folded back; a napkin folded in quarters): the twelve states' flaps give 0-1 mm.
+MESH_FLAP_RMS_MM = 10.0
+
+
+def _mesh_flap_note(flaps: list[dict[str, Any]]) -> str | None:
+    """Why the flaps found on a frame's mesh are no state's (a flap folded more than
+    once, or a flap that holds no corner), or None."""
+    for f in flaps:
+        if f["rms_mm"] > MESH_FLAP_RMS_MM:
+            return (
+                f"cannot tell: no known state fits: the flap of {f['corners'] or 'no corner'} "
+                f"lies {f['rms_mm']:.0f} mm (RMS) off one fold of the flat cloth: folded "
+                "more than once"
+            )
+        if not f["corners"]:
+            return (
+                "cannot tell: no known state fits: a flap that holds no corner or side "
+                f"({f['vertices']} vertices): a fold no known state has"
+            )
+    return None
 
 
 def state_text(key: tuple[str, str | None]) -> str:

@@ -233,4 +233,5 @@ def observe_frames(
             back=back_face_up(corner_turns(seen_xyz[..., :2], layout)),
             spread_mm=sticker_spreads_mm(seen_xyz * 1e3) * scale,
         ),
+        points_m=centres,
     )

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from ..core.classes import CORNERS
+from ..core.classes import CORNERS, OUTSIDE
 from ..core.errors import InvalidValueError
 from ..core.fold_graph import StateKey, folds_of
 from ..core.fold_measure import (
@@ -30,6 +30,7 @@ from ..core.fold_measure import (
     planned_crease,
 )
 from ..core.layout import NapkinLayout
+from ..core.why import OUTSIDE_KINDS
 
 __all__ = ["DEFAULT_TOLERANCE_MM", "FoldCheck", "parse_legs", "verify_fold"]
 
@@ -212,6 +213,11 @@ def verify_fold(
     """
     p = result.prediction
     base = {"expect": expect, "tolerance_mm": tolerance_mm}
+    if p is None and result.why is not None and str(result.why) in OUTSIDE_KINDS:
+        # the fold left the napkin in none of the twelve states: it went wrong
+        why = (result.reason or "").removeprefix("cannot tell: ")
+        return FoldCheck(False, (OUTSIDE, None), fold=fold, reasons=(
+            f"the napkin is in no known state, expected {_name(expect)}: {why}",), **base)
     if p is None:
         why = result.reason or "the state cannot be told"
         return FoldCheck(None, None, fold=fold, reasons=(f"cannot tell the state: {why}",),

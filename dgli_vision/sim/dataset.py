@@ -576,16 +576,23 @@ def merge_kept_pairs(
 
 
 def render_plan(
-    per_class: int, sequence: str | None, frames: int, *, by_number: bool = False
+    per_class: int,
+    sequence: str | None,
+    frames: int,
+    *,
+    by_number: bool = False,
+    outside: int = 0,
 ) -> tuple[list[str], list[tuple[str, int]]]:
     """The names of the pairs of a set to render and, for a set of classes (no
-    ``sequence``), each pair's class and number: ``per_class`` pairs of every class, or
-    the ``frames`` frames of folding ``sequence``. ``by_number``: every class's first
-    pair, then every class's second... (a slow render stopped part-way has every class)."""
+    ``sequence``), each pair's class and number: ``per_class`` pairs of every class and
+    ``outside`` states outside the twelve (class ``"none"``, last), or the ``frames``
+    frames of folding ``sequence``. ``by_number``: every class's first pair, then every
+    class's second... (a slow render stopped part-way has every class)."""
     if sequence:
         return [f"{sequence}_{k:03d}" for k in range(frames)], []
     if by_number:
         cases = [(c, k) for k in range(per_class) for c in CLASS_IDS]
     else:
         cases = [(c, k) for c in CLASS_IDS for k in range(per_class)]
+    cases += [(OUTSIDE_LABEL, k) for k in range(outside)]
     return [sample_name(c, k) for c, k in cases], cases

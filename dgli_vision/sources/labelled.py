@@ -261,12 +261,21 @@ def _check_labels(
     """Split pairs into usable ones and problems (unknown class or variant, duplicates,
     missing files). Pairs with missing files stay usable: reading them fails and is
     reported with the batch."""
-    from ..core.classes import CLASS_HINT, CLASS_NAMES, VARIANTS
+    from ..core.classes import CLASS_HINT, CLASS_NAMES, OUTSIDE, VARIANTS
 
     keep, problems = [], []
     seen: dict[tuple[str, str], str] = {}
     for pair, at in zip(pairs, where):
-        if pair.label not in CLASS_NAMES:
+        if pair.label == OUTSIDE and pair.variant is not None:
+            problems.append(
+                LabelProblem(
+                    at, "unknown variant",
+                    f"{at}: a state outside the twelve ({OUTSIDE}) has no variant, "
+                    f"got {pair.variant!r}",
+                )
+            )
+            continue
+        if pair.label not in CLASS_NAMES and pair.label != OUTSIDE:
             problems.append(
                 LabelProblem(
                     at,
@@ -300,6 +309,14 @@ def _check_labels(
     return keep, problems
 
 
+def _outside_or(label: str) -> str:
+    """``"none"`` (a state outside the twelve) for that label in any case, else the
+    label as written (an unknown class, reported as such)."""
+    from ..core.classes import OUTSIDE
+
+    return OUTSIDE if label.strip().lower() == OUTSIDE else label
+
+
 def _pairs_from_labels_csv(root: Path, labels: Path) -> tuple[list[LabelledPair], list[str]]:
     """The pairs ``labels.csv`` lists, and where each is listed (``'<file>' line k``)."""
     import csv
@@ -324,7 +341,7 @@ def _pairs_from_labels_csv(root: Path, labels: Path) -> tuple[list[LabelledPair]
                     LabelledPair(
                         str(color),
                         str(root / row["depth"]),
-                        class_id_of(label) or label,
+                        class_id_of(label) or _outside_or(label),
                         variant,
                         k,
                         intrinsics_file=folder_intrinsics(root, color),

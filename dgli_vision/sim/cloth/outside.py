@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from ...core.classes import CORNERS
+from ...core.classes import CORNERS, OUTSIDE
 from ...core.errors import InvalidValueError
 from ...core.layout import NapkinLayout, default_layout
 from .states import (
@@ -46,7 +46,7 @@ from .states import (
 __all__ = ["OUTSIDE_KINDS", "OUTSIDE_LABEL", "sample_outside"]
 
 #: The label of a state outside the twelve (labels.csv, ``ClothState.class_id``).
-OUTSIDE_LABEL = "none"
+OUTSIDE_LABEL = OUTSIDE
 
 #: The kinds of state outside the twelve, in the order ``dgli render --outside`` takes
 #: them (sample ``k`` is of kind ``OUTSIDE_KINDS[k % 8]``).

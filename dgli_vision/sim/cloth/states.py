@@ -111,8 +111,9 @@ class ClothState:
 
     @property
     def name(self) -> str:
-        """The class name (``"corner-over"``...)."""
-        return CLASS_NAMES[self.class_id]
+        """The class name (``"corner-over"``...); ``"none"`` for a state outside the
+        twelve (:mod:`.outside`)."""
+        return CLASS_NAMES.get(self.class_id, self.class_id)
 
     @property
     def visible(self) -> NDArray[np.bool_]:
