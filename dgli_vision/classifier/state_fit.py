@@ -9,7 +9,9 @@ which stickers no camera can see and which may stand in the air. The state fits 
 
 * every sticker seen lying flat lies within :data:`PLACE_TOLERANCE_MM` of where the
   fitted state puts it (one sticker alone may be off by up to :data:`LONE_TOLERANCE_MM`:
-  a sticker half covered at a crease shows the centroid of its uncovered part);
+  a sticker half covered at a crease shows the centroid of its uncovered part; farther,
+  it lowers the confidence, by :data:`LONE_FLOOR` at most, but never alone rules the
+  state out: a misread sticker is no fold);
 * each fitted fold is the state's: its legs, inset or place on the diagonal within
   :data:`SIZE_SLACK_MM` of SPEC's ranges, a strip's crease within
   :data:`SKEW_SLACK_DEG` of parallel to its side;
@@ -72,6 +74,9 @@ PLACE_TOLERANCE_MM = 15.0
 #: One sticker alone is still explained up to this far (a sticker half covered at a
 #: crease shows its uncovered part, whose centroid lies up to a radius off).
 LONE_TOLERANCE_MM = 25.0
+#: The factor one sticker alone off its place leaves at most: a sticker misread (a
+#: coloured object taken for it, a disc cut by a crease) is no fold, but a doubt.
+LONE_FLOOR = 0.5
 #: How far (mm on the 400 mm napkin, scaled with it) a fitted fold's size may lie outside
 #: its class's range (SPEC section 3) and still be that fold: a robot's fold is seldom
 #: exactly in range, and the fit is good to a few mm.
@@ -275,6 +280,8 @@ def fit_state(
         score = (-factor, float(np.nansum(np.minimum(res, 50.0))))
         if best is None or score < best[0]:
             best = (score, factor, res, misplaced, covered, wrong, mirrored)
+        if factor == 1.0:  # explained as seen: the mirrored fit can do no better
+            break
     _, factor, res, misplaced, covered, wrong, mirrored = best
     hidden = tuple(sorted(set(np.flatnonzero(hidden_under).tolist()) | set(covered)))
     if factor > 0.0:  # what is listed is what rules the state out
@@ -308,7 +315,9 @@ def _place_factor(res: NDArray[np.float64]) -> tuple[float, tuple[int, ...]]:
     d = np.sort(np.nan_to_num(res[np.isfinite(res)]))[::-1]
     if not len(d):
         return 1.0, ()
-    factor = _ramp(float(d[0]), LONE_TOLERANCE_MM)
+    # one sticker alone never rules the state out (a sticker misread, or half covered):
+    # it halves the confidence at most
+    factor = max(_ramp(float(d[0]), LONE_TOLERANCE_MM), LONE_FLOOR)
     if len(d) > 1:
         factor = min(factor, _ramp(float(d[1]), PLACE_TOLERANCE_MM))
     far = np.flatnonzero(np.nan_to_num(res) > PLACE_TOLERANCE_MM)
@@ -466,24 +475,28 @@ def _covered_depth(
     airborne: NDArray[np.bool_],
 ) -> NDArray[np.float64]:
     """How far (mm, on the flat napkin) each sticker lies inside the place that a flap
-    folded over later, and lying down (not ``airborne``), covers; negative where none
+    folded over later, and lying down (not ``airborne``), covers; -inf where none
     covers it. Where the sticker lies on the flat napkin (its own flap's fold undone),
     mirrored across a later fold's crease, is the flap's cloth that lands there."""
     out = np.full(len(uv), -np.inf)
     w, hgt = layout.width_mm, layout.height_mm
     lines = [creases.get(j) or _normal_form(f) for j, f in enumerate(folds)]
-    for i in range(len(uv)):
-        q = uv[i]
-        if part[i] >= 0:
-            q = _reflect(q, lines[part[i]])
-        for j in range(part[i] + 1, len(folds)):
-            if folds[j].under or airborne[j]:
-                continue
-            back = _reflect(q, lines[j])  # the flap's cloth that lands on q, if any
-            a, c = lines[j]
-            beyond = back[0] * math.cos(a) + back[1] * math.sin(a) - c
-            depth = beyond if _flap_positive(folds[j], lines[j]) else -beyond
-            out[i] = max(out[i], min(depth, back[0], w - back[0], back[1], hgt - back[1]))
+    q = uv.copy()  # each sticker's place on the flat napkin, its own fold undone
+    for j in range(len(folds)):
+        mine = part == j
+        q[mine] = _reflect(uv[mine], lines[j])
+    for j, f in enumerate(folds):
+        later = part < j  # a flap folded later lies on the napkin and earlier flaps
+        if f.under or airborne[j] or not later.any():
+            continue
+        back = _reflect(q[later], lines[j])  # the flap's cloth that lands there, if any
+        a, c = lines[j]
+        beyond = back[:, 0] * math.cos(a) + back[:, 1] * math.sin(a) - c
+        depth = beyond if _flap_positive(f, lines[j]) else -beyond
+        inside = np.minimum.reduce(
+            [depth, back[:, 0], w - back[:, 0], back[:, 1], hgt - back[:, 1]]
+        )
+        out[later] = np.maximum(out[later], inside)
     return out
 
 
@@ -501,6 +514,7 @@ def _flap_positive(f: NominalFold, line: tuple[float, float]) -> bool:
 
 
 def _reflect(q: NDArray, line: tuple[float, float]) -> NDArray:
+    """Points (k, 2) mirrored across the line (normal angle, offset)."""
     a, c = line
     nrm = np.array([math.cos(a), math.sin(a)])
-    return q - 2.0 * (float(q @ nrm) - c) * nrm
+    return q - 2.0 * (q @ nrm - c)[:, None] * nrm
