@@ -679,10 +679,15 @@ def _judge(
     mirror = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front, terms=terms
     )
-    foot = footprint_problem(obs.footprint, references, front, area)
     landing = _landing(obs, front, references)
     vertical = _near_vertical(obs, near)
     fit = fit_state(obs, guess.class_id, guess.variant, layout)
+    # a flap in the air, one the state can be folding, stands over the table the camera
+    # sees past it: the footprint measured then says nothing of the state's
+    foot = (
+        Doubt() if _flap_in_the_air(obs) and fit.factor == 1.0
+        else footprint_problem(obs.footprint, references, front, area)
+    )
     clock.lap("checks")
     # each check lowers the confidence continuously; where one rules the verdict out the
     # nearest reference stays for reports, with the confidence left to it
@@ -728,6 +733,13 @@ def _judge(
     return FrameResult(
         **seen_as, **told, prediction=None, reason=reason, why=WhyKind.TOO_CLOSE
     )
+
+
+def _flap_in_the_air(obs: ClothObservation) -> bool:
+    """Whether cloth stands in the air: stickers seen above ``LIFTED_MM``, or held up
+    out of sight (a fold in progress, when the state fit finds it one flap)."""
+    lifted = obs.lifted
+    return lifted is not None and bool(np.any(np.nan_to_num(lifted) > 0.5))
 
 
 def _mirrored_state_fits(
