@@ -543,14 +543,19 @@ def read_jsonl(path: str | Path) -> list[Any]:
 
 
 class JsonLinesWriter:
-    """Appends one JSON object per line and flushes each, so that whatever stops the
-    process (Ctrl-C, a kill, a full disk) keeps every line written before it."""
+    """Appends one JSON object per line, each line whole or not at all, so that whatever
+    stops the process (Ctrl-C, a kill, a full disk) keeps every line written before it
+    and no torn one: a line goes to the file in one ``os.write`` of all its bytes
+    (nothing of it is buffered in the process), and a write that fails or takes only
+    part of them is cut back off the file (the file's length before it is restored)."""
 
     def __init__(self, path: str | Path, *, append: bool) -> None:
         p = Path(path)
+        flags = os.O_WRONLY | os.O_CREAT | (os.O_APPEND if append else os.O_TRUNC)
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = p.open("a" if append else "w", encoding="utf-8")
+            self._fd: int | None = os.open(p, flags, 0o666)
+            self._size = os.fstat(self._fd).st_size
         except OSError as exc:
             raise _unwritable(p, exc.strerror or str(exc)) from None
         self.path = p
@@ -558,30 +563,50 @@ class JsonLinesWriter:
         self._failed = False
 
     def write(self, obj: Any) -> None:
-        """Append ``obj`` as one line and flush it to the operating system.
+        """Append ``obj`` as one line, whole, to the operating system's copy of the file.
 
         Raises
         ------
         OutputError
-            Naming the file, the reason and how many lines before it are kept.
+            Naming the file, the reason and how many lines before it are kept (the
+            line that failed is not left in part).
         """
+        data = (json.dumps(obj) + "\n").encode("utf-8")
         try:
-            self._fh.write(json.dumps(obj) + "\n")
-            self._fh.flush()
+            if self._fd is None:
+                raise OSError(9, "the file is closed")
+            n = os.write(self._fd, data)
+            if n != len(data):  # a filling disk took part of it
+                raise OSError(28, os.strerror(28))
         except OSError as exc:
             self._failed = True
+            self._cut_back()
             if self.lines == 0:
                 kept = "no line was written before it"
             else:
                 lines = "1 line" if self.lines == 1 else f"{self.lines} lines"
                 kept = f"the {lines} written before it are kept"
             raise _unwritable(self.path, f"{exc.strerror or exc}; {kept}") from None
+        self._size += len(data)
         self.lines += 1
+
+    def _cut_back(self) -> None:
+        """Restore the file's length before the failed line (best effort: a file that
+        cannot be truncated keeps the part, which :func:`read_jsonl` leaves out)."""
+        if self._fd is None:
+            return
+        try:
+            os.ftruncate(self._fd, self._size)
+        except OSError:
+            pass
 
     def close(self) -> None:
         """Close the file (after a failed write, quietly: that failure was reported)."""
+        fd, self._fd = self._fd, None
+        if fd is None:
+            return
         try:
-            self._fh.close()
+            os.close(fd)
         except OSError as exc:
             if not self._failed:
                 raise _unwritable(self.path, exc.strerror or str(exc)) from None
