@@ -355,7 +355,7 @@ def _check_labels(
     """Split pairs into usable ones and problems (unknown class or variant, duplicates,
     missing files). Pairs with missing files stay usable: reading them fails and is
     reported with the batch."""
-    from ..core.classes import CLASS_HINT, CLASS_NAMES, OUTSIDE, VARIANTS
+    from ..core.classes import CLASS_HINT, CLASS_NAMES, OUTSIDE, VARIANTS, digits_note
 
     keep, problems = [], []
     seen: dict[tuple[str, str], str] = {}
@@ -374,7 +374,8 @@ def _check_labels(
                 LabelProblem(
                     at,
                     "unknown class",
-                    f"{at}: class {pair.label!r} is not {CLASS_HINT}",
+                    f"{at}: class {pair.label!r}{digits_note(pair.label)} is not "
+                    f"{CLASS_HINT}",
                 )
             )
             continue
