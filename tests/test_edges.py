@@ -125,6 +125,23 @@ def test_extract_of_a_bag_that_fails_part_way_lists_what_it_wrote(corrupt_bag, t
     assert run("track", out, "-j", "1", "--json").exit_code in (0, 1)  # a folder to read
 
 
+def test_extract_takes_the_run_lock_of_its_folder(tmp_path):
+    """Two extracts into one folder were stopped only by the overwrite guard: now the
+    second stops at once naming the first, as every writing command does."""
+    from dgli_vision.core.run_lock import RunLock
+
+    bag = _tiny_episode_bag(tmp_path / "bag", frames=3)
+    out = tmp_path / "out"
+    with RunLock(out, "dgli extract bag out"):
+        r = run("extract", bag, out)
+    line = one_error_line(r)
+    assert "in use by another dgli run" in line and "dgli extract bag out" in line
+    assert not (out / "frames.csv").exists() and not list(out.glob("*.png"))
+    r = run("extract", bag, out)  # the lock released: the folder is written
+    assert r.exit_code == 0, r.output
+    assert len((out / "frames.csv").read_text().splitlines()) == 4
+
+
 # --- standard output: flushed and checked, a closed pipe quiet ----------------------------
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -34,8 +35,9 @@ def batch(tmp_path_factory) -> Path:
     for c in range(COPIES):
         for row in rows:
             color, depth = f"c{c}_{row['color']}", f"c{c}_{row['depth']}"
-            os.link(SAMPLES / row["color"], folder / color)
-            os.link(SAMPLES / row["depth"], folder / depth)
+            # copies: a hard link (as a symbolic one) is the same pair, listed twice
+            shutil.copyfile(SAMPLES / row["color"], folder / color)
+            shutil.copyfile(SAMPLES / row["depth"], folder / depth)
             out.append(f"{color},{depth},{row['label']},{row['variant']}")
     (folder / "labels.csv").write_text("\n".join(out) + "\n")
     os.link(SAMPLES / "intrinsics.json", folder / "intrinsics.json")

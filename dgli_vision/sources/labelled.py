@@ -322,10 +322,16 @@ def folder_intrinsics(root: str | Path, color: str | Path) -> str | None:
     return str(shared)
 
 
-def _real_path(path: str) -> str:
-    """The path with symbolic links resolved as far as they go (a link loop does not
-    raise: reading the file reports it)."""
-    return os.path.realpath(path)
+def _file_identity(path: str) -> tuple[int, int] | str:
+    """The file ``path`` names, by its identity on disk, ``(st_dev, st_ino)``: the same
+    for two names of one file, whether a symbolic link or a hard link joins them. A path
+    that cannot be looked up (missing, a link loop: reading it reports why) is its path
+    with symbolic links resolved as far as they go."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return os.path.realpath(path)
+    return st.st_dev, st.st_ino
 
 
 def _unreadable(kind: str, path: str) -> str | None:
@@ -358,7 +364,7 @@ def _check_labels(
     from ..core.classes import CLASS_HINT, CLASS_NAMES, OUTSIDE, VARIANTS, digits_note
 
     keep, problems = [], []
-    seen: dict[tuple[str, str], str] = {}
+    seen: dict[tuple[Any, Any], str] = {}  # by the files' identity: links are the same pair
     for pair, at in zip(pairs, where):
         if pair.label == OUTSIDE and pair.variant is not None:
             problems.append(
@@ -390,7 +396,7 @@ def _check_labels(
                 )
             )
             continue
-        key = (_real_path(pair.color), _real_path(pair.depth))
+        key = (_file_identity(pair.color), _file_identity(pair.depth))
         if key in seen:
             problems.append(LabelProblem(at, "duplicate", f"{at}: the same pair as {seen[key]}"))
             continue
