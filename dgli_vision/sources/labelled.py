@@ -164,6 +164,7 @@ class LabelledFolderWriter:
         self._label_rows: dict[str, tuple[str, ...]] = {}
         self._frame_rows: dict[str, tuple[str, ...]] = {}
         self._truth: dict[str, Any] = {}
+        self._truth_text: dict[str, str] = {}  # each entry's JSON, as truth.json nests it
         for name, pair in (kept or {}).items():
             self._label_rows[name] = tuple(pair.label_row)
             if pair.frame_row is not None:
@@ -224,8 +225,7 @@ class LabelledFolderWriter:
             **({"render": sample.result.info} if sample.result.info.get("engine") else {}),
         }
         order = [n for n in self.names if n in self._truth]
-        truth = {"provenance": self.provenance, "images": {n: self._truth[n] for n in order}}
-        files.append((self.root / "truth.json", (json.dumps(truth, indent=1) + "\n").encode()))
+        files.append((self.root / "truth.json", self._truth_json(order).encode()))
         if self.frames:
             files.append((self.root / "frames.csv", csv_table(
                 ["color", "depth", "time"], [self._frame_rows[n] for n in order]
@@ -238,10 +238,23 @@ class LabelledFolderWriter:
         try:
             write_recorded(files, self.command)
         except OutputError as exc:  # not listed: the listings on disk do not name it
-            for rows in (self._label_rows, self._frame_rows, self._truth):
+            for rows in (self._label_rows, self._frame_rows, self._truth, self._truth_text):
                 rows.pop(sample.name, None)
             raise self._failed(exc) from None
         self.written += 1
+
+    def _truth_json(self, order: list[str]) -> str:
+        """``truth.json``'s text, ``{"provenance", "images"}`` with ``order``'s entries,
+        exactly as ``json.dumps(..., indent=1)`` writes it, from each entry's text made
+        once (rewritten after every pair, the whole file would cost a set of N pairs
+        N^2 / 2 entries' encoding)."""
+        for name in order:
+            if name not in self._truth_text:
+                self._truth_text[name] = _indented(json.dumps(self._truth[name], indent=1), 2)
+        provenance = _indented(json.dumps(self.provenance, indent=1), 1)
+        images = ",\n".join(f"  {json.dumps(n)}: {self._truth_text[n]}" for n in order)
+        images = f"{{\n{images}\n }}" if order else "{}"
+        return f'{{\n "provenance": {provenance},\n "images": {images}\n}}\n'
 
     def _failed(self, exc: OutputError) -> OutputError:
         """``exc`` naming the pairs kept (those listed before the failed one)."""
@@ -252,6 +265,13 @@ class LabelledFolderWriter:
         return OutputError(
             f"{exc}; {pairs} written before it are kept and listed in '{self.labels}'"
         )
+
+
+def _indented(text: str, depth: int) -> str:
+    """JSON ``text`` written with ``indent=1`` as it reads nested ``depth`` levels deep
+    (its lines after the first moved right by ``depth`` spaces; a JSON string holds no
+    raw newline, so every newline is one of the layout's)."""
+    return text.replace("\n", "\n" + " " * depth)
 
 
 def _camera_folder(k: int) -> str:
