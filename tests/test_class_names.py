@@ -22,10 +22,30 @@ SAMPLES = Path(__file__).resolve().parents[1] / "sample_images"
     [("2", "02"), ("02", "02"), ("corner-over", "02"), ("Corner_Over", "02"),
      ("02_corner-over", "02"), ("02 corner-over", "02"), ("8", "08"), ("12", "12"),
      ("four corners centre", "08"), ("03_corner-over", None), ("13", None), ("0", None),
-     ("", None), ("corner", None)],
+     ("", None), ("corner", None),
+     # ASCII digits only: Arabic-Indic 02 was read as 02, a superscript 2 raised
+     ("\u0660\u0662", None), ("\uff10\uff12", None), ("\u00b2", None),
+     ("\u0662_corner-over", None)],
 )
 def test_a_class_is_read_from_its_id_or_name(text, cid):
     assert class_id_of(text) == cid
+
+
+def test_class_ids_in_other_digits_are_refused_saying_so(tmp_path):
+    arabic = "\u0660\u0662"  # 02 in Arabic-Indic digits
+    flat = [str(SAMPLES / "01_000_color.png"), str(SAMPLES / "01_000_depth.png")]
+    for args in (["plan", *flat, "--goal", arabic],
+                 ["plan", "--from", arabic, "--goal", "08"],
+                 ["verify", *flat, "--expect", arabic]):
+        res = CliRunner().invoke(main, args)
+        assert res.exit_code == 2 and "Traceback" not in res.output, (args, res.output)
+        assert f"unknown class '{arabic}' (its digits are not the ASCII digits 0-9)" in (
+            res.output), res.output
+    folder = _folder(tmp_path, [f"01_000_color.png,01_000_depth.png,{arabic},",
+                                "02_000_color.png,02_000_depth.png,02,C"])
+    res = CliRunner().invoke(main, ["evaluate", str(folder), "-j", "1"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert f"class '{arabic}' (its digits are not the ASCII digits 0-9) is not" in res.output
 
 
 def test_plan_takes_a_goal_by_short_id_or_name():

@@ -185,6 +185,32 @@ def test_all_zero_depth(pair, tmp_path):
             '"intrinsic_matrix": [605, 0, 0, 0, 605, 0, 319.5, 239.5, 1]}',
             "are for 640x480 images",
         ),
+        # a number is a JSON number: fx "605.0" was read as 605, true as 1
+        (
+            '{"width": 1280, "height": 720, '
+            '"intrinsic_matrix": ["605.0", 0, 0, 0, 605, 0, 639.5, 359.5, 1]}',
+            'intrinsic_matrix[0] is a string ("605.0"); expected a number',
+        ),
+        (
+            '{"width": 1280, "height": 720, '
+            '"intrinsic_matrix": [605, false, 0, 0, 605, 0, 639.5, 359.5, true]}',
+            "intrinsic_matrix[1] is a boolean (false); expected a number",
+        ),
+        (
+            '{"width": "1280", "height": 720, '
+            '"intrinsic_matrix": [605, 0, 0, 0, 605, 0, 639.5, 359.5, 1]}',
+            'width is a string ("1280")',
+        ),
+        (
+            '{"width": 1280.5, "height": 720, '
+            '"intrinsic_matrix": [605, 0, 0, 0, 605, 0, 639.5, 359.5, 1]}',
+            "width is 1280.5; expected a whole number",
+        ),
+        (
+            '{"width": 1280, "height": 720, "distortion": ["0.1", 0, 0, 0], '
+            '"intrinsic_matrix": [605, 0, 0, 0, 605, 0, 639.5, 359.5, 1]}',
+            'distortion[0] is a string ("0.1")',
+        ),
     ],
 )
 def test_bad_intrinsics(pair, tmp_path, content, needle):

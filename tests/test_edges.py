@@ -125,6 +125,23 @@ def test_extract_of_a_bag_that_fails_part_way_lists_what_it_wrote(corrupt_bag, t
     assert run("track", out, "-j", "1", "--json").exit_code in (0, 1)  # a folder to read
 
 
+def test_extract_takes_the_run_lock_of_its_folder(tmp_path):
+    """Two extracts into one folder were stopped only by the overwrite guard: now the
+    second stops at once naming the first, as every writing command does."""
+    from dgli_vision.core.run_lock import RunLock
+
+    bag = _tiny_episode_bag(tmp_path / "bag", frames=3)
+    out = tmp_path / "out"
+    with RunLock(out, "dgli extract bag out"):
+        r = run("extract", bag, out)
+    line = one_error_line(r)
+    assert "in use by another dgli run" in line and "dgli extract bag out" in line
+    assert not (out / "frames.csv").exists() and not list(out.glob("*.png"))
+    r = run("extract", bag, out)  # the lock released: the folder is written
+    assert r.exit_code == 0, r.output
+    assert len((out / "frames.csv").read_text().splitlines()) == 4
+
+
 # --- standard output: flushed and checked, a closed pipe quiet ----------------------------
 
 
@@ -235,6 +252,48 @@ def test_a_report_folder_on_a_disk_with_no_room_is_one_line_naming_the_file(tmp_
             "written"
         ]
         assert list(report.iterdir()) == []
+
+
+@pytest.mark.parametrize(
+    "command, files",
+    [("evaluate", ("report.md", "report.html", "summary.json")),
+     ("track", ("report.html", "timeline.json"))],
+)
+def test_the_report_is_written_when_standard_output_closes_early(tmp_path, command, files):
+    """`dgli evaluate --report DIR | head -1` exited 141 leaving results.jsonl and no
+    report: the report is the run's record, written all the same, then exit 141."""
+    folder = sample_folder(tmp_path / "pairs")
+    report = tmp_path / "report"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "dgli_vision", command, str(folder), "--report", str(report),
+         "-j", "1"],
+        cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )
+    proc.stdout.close()  # the reader has gone before the first line
+    with proc.stderr:
+        err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert "Traceback" not in err and "report written to" in err
+    for name in files:
+        assert (report / name).stat().st_size > 0, name
+    assert len((report / "results.jsonl").read_text().splitlines()) == 3  # header, 2 pairs
+
+
+def test_results_lines_are_whole_when_the_disk_fills_up(tmp_path):
+    """With 28 KB left, results.jsonl kept a torn last line: each line now goes in one
+    write, and a write the disk takes only in part is cut back off."""
+    folder = sample_folder(tmp_path / "pairs", ("05_000", "09_000", "01_000", "02_000"))
+    report = tmp_path / "report"
+    proc = run_process(
+        ["evaluate", folder, "--report", report, "-j", "1"],
+        stdout=subprocess.PIPE, preexec_fn=_limited_to(3000),  # a line is about 1.4 kB
+    )
+    assert proc.returncode == 2, proc.stderr
+    (line,) = proc.stderr.splitlines()
+    assert f"cannot write '{report / 'results.jsonl'}'" in line and "kept" in line
+    data = (report / "results.jsonl").read_bytes()
+    assert data.endswith(b"\n") and len(data) <= 3000
+    assert [json.loads(x) for x in data.splitlines()]  # every line whole
 
 
 # --- files written whole or not at all ------------------------------------------------------

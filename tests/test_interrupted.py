@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -34,8 +35,9 @@ def batch(tmp_path_factory) -> Path:
     for c in range(COPIES):
         for row in rows:
             color, depth = f"c{c}_{row['color']}", f"c{c}_{row['depth']}"
-            os.link(SAMPLES / row["color"], folder / color)
-            os.link(SAMPLES / row["depth"], folder / depth)
+            # copies: a hard link (as a symbolic one) is the same pair, listed twice
+            shutil.copyfile(SAMPLES / row["color"], folder / color)
+            shutil.copyfile(SAMPLES / row["depth"], folder / depth)
             out.append(f"{color},{depth},{row['label']},{row['variant']}")
     (folder / "labels.csv").write_text("\n".join(out) + "\n")
     os.link(SAMPLES / "intrinsics.json", folder / "intrinsics.json")
@@ -211,3 +213,52 @@ def test_a_stop_that_lands_inside_a_c_function_still_counts_as_the_stop():
     stop.stopped = True
     assert stop.cut_short(wrapped) and stop.cut_short(KeyboardInterrupt())
     assert not stop.cut_short(SystemError("something else"))
+
+
+def listed_pairs(folder: Path) -> list[str]:
+    """The colour images a labels.csv lists (none when there is no labels.csv yet)."""
+    labels = folder / "labels.csv"
+    if not labels.exists():
+        return []
+    with labels.open(newline="") as fh:
+        return [row["color"] for row in csv.DictReader(fh)]
+
+
+#: A recording's frames (rendered in one process), and a set of classes over workers;
+#: VGA: a quarter of the pixels to render
+RENDERS = {
+    "sequence": ["--sequence", "III", "--frames", "6", "--conditions", "vga", "--seed", "4"],
+    "classes-j2": ["--per-class", "1", "--conditions", "vga", "--seed", "4", "-j", "2"],
+}
+
+
+@pytest.mark.parametrize("kind", list(RENDERS))
+def test_a_killed_render_keeps_its_finished_pairs_and_resumes(tmp_path, kind):
+    """SIGKILL in the middle of a render (the pairs were written only at the end: 0 kept,
+    --resume rendered everything again): every pair finished is kept, listed in a
+    labels.csv that names only complete pairs, and --resume renders only the rest."""
+    args = RENDERS[kind]
+    whole, out = tmp_path / "whole", tmp_path / "out"
+    proc = subprocess.Popen([*DGLI, "render", str(out), *args], env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while len(listed_pairs(out)) < 2 and proc.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert proc.poll() is None, "the render ended before it could be killed"
+    proc.kill()
+    proc.communicate(timeout=60)
+    assert proc.returncode == -signal.SIGKILL
+    kept = listed_pairs(out)
+    n = 6 if kind == "sequence" else 12
+    assert 2 <= len(kept) < n
+    assert in_process(["render", str(whole), *args]).exit_code == 0
+    for color in kept:  # each listed pair complete, as the whole render wrote it
+        for name in (color, color.replace("_color", "_depth")):
+            assert (out / name).read_bytes() == (whole / name).read_bytes()
+    resumed = in_process(["render", str(out), *args, "--resume"])
+    assert resumed.exit_code == 0, resumed.output
+    assert f"resuming: {len(kept)} of {n} pairs kept" in resumed.output
+    assert listed_pairs(out) == listed_pairs(whole)
+    listings = ["labels.csv", "frames.csv"] if kind == "sequence" else ["labels.csv"]
+    for name in (*listings, *(p.name for p in whole.glob("*.png"))):
+        assert (out / name).read_bytes() == (whole / name).read_bytes(), name

@@ -246,7 +246,12 @@ def test_a_single_frame_is_an_episode_of_one_frame(tmp_path):
     state = sample_state("06", "BD", np.random.default_rng(SEED))
     path = tmp_path / "one.npz"
     np.savez(path, positions=state.mesh.xyz * 1000, grid=np.array(state.mesh.shape))
-    res = CliRunner().invoke(main, ["label", str(path), "--units", "mm", "--json"])
+    flat = flat_mesh(default_layout())
+    np.savez(tmp_path / "rest.npz", positions=flat.xyz * 1000, grid=np.array(flat.shape))
+    args = ["label", str(path), "--units", "mm", "--json"]
+    res = CliRunner().invoke(main, args)  # the frame is its own rest frame: folded
+    assert res.exit_code == 2 and "rest frame is folded" in res.stderr
+    res = CliRunner().invoke(main, [*args, "--rest", str(tmp_path / "rest.npz")])
     assert res.exit_code == 0, res.output
     (frame,) = json.loads(res.stdout)["episodes"][0]["frames"]
     assert (frame["class"], frame["variant"]) == ("06", "BD")

@@ -24,6 +24,7 @@ from dgli_vision.labelling.export import remesh, rigid_motion, write_npz
 from dgli_vision.labelling.label import EpisodeFailure, EpisodeLabels
 from dgli_vision.labelling.run import LabelJob, label_episodes
 from dgli_vision.sim.cloth.mesh import flat_mesh
+from dgli_vision.sim.cloth.sequences import sequence_state, sequence_steps
 from dgli_vision.sim.cloth.states import sample_state
 
 SEED = 38
@@ -100,7 +101,7 @@ def test_a_cloth_lying_back_face_up_is_reported_not_labelled(tmp_path, grid_epis
     assert ep.frames[1].smoothed_class == "01"  # smoothing goes over it
 
 
-def test_a_folded_first_frame_is_refused_or_noted(tmp_path, grid_episode):
+def test_a_folded_first_frame_is_refused(tmp_path, grid_episode):
     pos, shape, _ = grid_episode
     half = pos[[6, 0, 1]]  # starts as a half fold: 4 of 6 states were wrong
     write_npz(tmp_path / "half.npz", half, grid=shape)
@@ -113,15 +114,67 @@ def test_a_folded_first_frame_is_refused_or_noted(tmp_path, grid_episode):
     write_npz(tmp_path / "mesh.npz", rm.positions([corner, flat]), faces=rm.faces)
     failed = _label(tmp_path / "mesh.npz")
     assert isinstance(failed, EpisodeFailure) and "rest frame is folded" in failed.error
-    # a grid whose first frame has one corner folded: its coordinates come from the
-    # grid, and most of it shows the front: labelled, with a note saying so
+    # a grid whose first frame has one corner folded was labelled, with a note: refused
     write_npz(tmp_path / "corner.npz", pos[[1, 0, 1]], grid=shape)
     res = CliRunner().invoke(main, ["label", str(tmp_path / "corner.npz"), "--json"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    (line,) = [e for e in res.stderr.splitlines() if e.startswith("error:")]
+    assert "corner.npz" in line and "rest frame is folded" in line and "--rest" in line
+    assert json.loads(res.stdout)["episodes"] == []
+
+
+@pytest.mark.parametrize("remeshed", [False, True])
+def test_an_episode_starting_with_a_corner_fold_settled_gives_no_confident_answer(
+    tmp_path, remeshed
+):
+    """Sequence II from its first corner laid flat on the table: without --rest every
+    frame was labelled from the folded first frame; now the episode is refused with the
+    reason, and with the flat cloth as --rest every answer is right."""
+    steps = sequence_steps("II")
+    progress = np.linspace(1.0, 4.0, 13)  # 02 laid flat first, then three more corners
+    states = [sequence_state("II", float(t), steps=steps) for t in progress]
+    meshes = [flat_mesh(default_layout())] + [s.mesh for s in states]
+    truth = [(s.class_id, s.variant) for s in states]
+    pos = rigid_motion(np.stack([m.xyz for m in meshes]), np.random.default_rng(SEED))
+    if remeshed:
+        rm = remesh((400.0, 400.0), 800, np.random.default_rng(SEED))
+        pos = rm.positions(meshes)
+        write_npz(tmp_path / "episode.npz", pos[1:], faces=rm.faces)
+        write_npz(tmp_path / "rest.npz", pos[:1], faces=rm.faces)
+    else:
+        write_npz(tmp_path / "episode.npz", pos[1:], grid=meshes[0].shape)
+        write_npz(tmp_path / "rest.npz", pos[:1], grid=meshes[0].shape)
+    args = ["label", str(tmp_path / "episode.npz"), "--json"]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "episode.npz" in res.stderr and "rest frame is folded" in res.stderr
+    assert json.loads(res.stdout)["episodes"] == []  # no frame answered from it
+    res = CliRunner().invoke(main, [*args, "--rest", str(tmp_path / "rest.npz")])
     assert res.exit_code == 0, res.output
-    assert "note: " in res.stderr and "rest frame is folded" in res.stderr
     (ep,) = json.loads(res.stdout)["episodes"]
-    assert "rest frame is folded" in ep["note"]
-    assert [f["class"] for f in ep["frames"]] == ["02", "01", "02"]
+    answers = [(f["class"], f["variant"]) for f in ep["frames"]]
+    wrong = [(a, t) for a, t in zip(answers, truth) if a[0] is not None and a != t]
+    assert not wrong and sum(a[0] is not None for a in answers) >= len(truth) // 2
+
+
+def test_a_size_the_mesh_contradicts_is_refused(tmp_path, grid_episode):
+    """--size 250 on a 400 mm cloth (metres) labelled one frame wrong and four variants:
+    the rest frame's own size, a napkin's, says otherwise."""
+    pos, shape, _ = grid_episode
+    write_npz(tmp_path / "cloth.npz", pos, grid=shape)
+    res = CliRunner().invoke(main, ["label", str(tmp_path / "cloth.npz"), "--size", "250"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    (line,) = [e for e in res.stderr.splitlines() if e.startswith("error:")]
+    assert "cloth.npz" in line and "--size 250x250" in line and "400 x 400 mm" in line
+    for near in ("400", "410x390"):  # within a few percent: scaled to it
+        res = CliRunner().invoke(main, ["label", str(tmp_path / "cloth.npz"), "--size", near])
+        assert res.exit_code == 0, res.output
+    # positions in no napkin's size in --units (millimetres read as metres): --size scales
+    write_npz(tmp_path / "mm.npz", pos * 1000, grid=shape)
+    res = CliRunner().invoke(main, ["label", str(tmp_path / "mm.npz"), "--size", "400",
+                                    "--json"])
+    assert res.exit_code == 0, res.output
+    assert json.loads(res.stdout)["episodes"][0]["size_mm"] == [400.0, 400.0]
 
 
 def test_a_grid_rest_frame_that_is_not_flat_is_refused(tmp_path, grid_episode):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 import shutil
 from pathlib import Path
 
@@ -148,6 +149,23 @@ def test_bad_label_rows_stop_the_run_unless_lenient(tmp_path, row, message):
     data = __import__("json").loads(out[-1])
     assert data["n"] == 1 and len(data["skipped"]) == 1 and message in data["skipped"][0]
     assert sum(message in line for line in out) == 2  # listed once on stderr, once in JSON
+
+
+@pytest.mark.parametrize("link", ["symbolic", "hard"])
+def test_a_pair_listed_again_through_a_link_is_the_same_pair(tmp_path, link):
+    """Duplicates are found by the files' identity (device and inode): a hard link was
+    a second pair, scored twice."""
+    folder = _labelled(tmp_path, ["01_000_color.png,01_000_depth.png,01,",
+                                  "again_color.png,again_depth.png,01,"])
+    for kind in ("color", "depth"):
+        first, again = folder / f"01_000_{kind}.png", folder / f"again_{kind}.png"
+        if link == "hard":
+            os.link(first, again)
+        else:
+            again.symlink_to(first.name)
+    res = CliRunner().invoke(main, ["evaluate", str(folder), "-j", "1"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "line 3: the same pair as" in res.output and "line 2" in res.output
 
 
 def test_a_row_with_a_missing_file_is_reported_once_with_its_line(tmp_path):

@@ -370,12 +370,13 @@ def _parallel_evaluate_figures(pairs: list, refs: Any) -> list[BenchResult]:
     """``dgli evaluate`` of about 144 pairs with -j 1 and -j 2, as commands (start-up and
     the worker's start included, as the budget is the command's), and the speed-up.
 
-    The folder is the sample pairs over and over (hard links, or copies, and a
-    labels.csv in a temporary folder: a symbolic link is the same pair again); each
+    The folder is the sample pairs over and over (copies, and a labels.csv in a
+    temporary folder: a symbolic or a hard link is the same pair again); each
     command runs in turn, three pairs of runs, and the median of the three paired ratios
     is kept (robust to a noisy machine). Beside it, the speed-up of the same work in this
     process once its worker is running: what start-up costs the command."""
     import csv
+    import shutil
     import subprocess
     import sys
     import tempfile
@@ -392,7 +393,7 @@ def _parallel_evaluate_figures(pairs: list, refs: Any) -> list[BenchResult]:
                 for p in pairs:
                     names = [f"{k:03d}_{Path(x).name}" for x in (p.color, p.depth)]
                     for name, src in zip(names, (p.color, p.depth)):
-                        _link_or_copy(src, Path(tmp) / name)
+                        shutil.copyfile(src, Path(tmp) / name)
                     rows.writerow([*names, p.label, p.variant or ""])
         n = copies * len(pairs)
 
@@ -428,18 +429,6 @@ def _parallel_evaluate_figures(pairs: list, refs: Any) -> list[BenchResult]:
             "  the same in one process, its worker already started (no start-up)", warm, "x"
         ),
     ]
-
-
-def _link_or_copy(src: str, dst: Any) -> None:
-    """``dst`` a hard link to ``src``, or a copy where the two lie on different file
-    systems."""
-    import os
-    import shutil
-
-    try:
-        os.link(src, dst)
-    except OSError:
-        shutil.copyfile(src, dst)
 
 
 def _track_figure(pairs: list, refs: Any) -> BenchResult:

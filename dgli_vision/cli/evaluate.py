@@ -19,7 +19,7 @@ from .options import (
     report_option,
     run_overwrite_option,
 )
-from .output import command_line, echo, echo_json, package_version
+from .output import answer_then_report, command_line, echo, echo_json, package_version
 from .runs import (
     Stop,
     classify_into,
@@ -189,9 +189,10 @@ class _EvaluationRun:
         if self.recording:
             recording_notes(self.recording, quiet=self.as_json)
             skipped += [f"{name}: no label" for name in self.unlabelled]
-        self._print(result, skipped)
-        if self.report_dir:
-            self._report(result, skipped, overwrite)
+        answer_then_report(
+            lambda: self._print(result, skipped),
+            (lambda: self._report(result, skipped, overwrite)) if self.report_dir else None,
+        )
         if stop.stopped:
             click.echo(
                 f"interrupted: {len(outcomes)} of {counted(len(self.pairs), 'pair')} done"

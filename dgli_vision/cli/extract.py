@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import click
@@ -10,7 +11,7 @@ from ..core.words import counted
 from .errors import handle_errors
 from .options import finite_seconds, overwrite_option, recording_options
 from .output import command_line, echo, progress_bar
-from .runs import open_recording_with, recording_notes
+from .runs import folder_lock, open_recording_with, recording_notes
 
 
 @click.command()
@@ -50,15 +51,20 @@ def extract(
     OUT gets frame_NNNNNN_color.png / _depth.png (NNNNNN: the frame's number in the
     recording), intrinsics.json, frames.csv (color,depth,time in seconds from the start)
     and, with --labels, labels.csv: the folder format every command reads. Frames that
-    cannot be written (no depth near them in time) are listed, not lost silently.
+    cannot be written (no depth near them in time) are listed, not lost silently. One
+    run at a time writes into OUT (a second stops at once, naming the first).
     """
     from ..core.errors import InvalidInputError
-    from ..sources.extract import extract_recording
+    from ..core.io import guard_outputs
+    from ..sources.extract import extract_recording, listing_files
 
     if start is not None and end is not None and end < start:
         raise InvalidInputError(f"--end {end} is before --start {start}")
     recording = open_recording_with(recording_path, recording_opts)
-    with progress_bar(recording.count, "extracting") as bar:
+    # an OUT that cannot be written stops here; then one run at a time writes into it,
+    # as with every command that writes a folder
+    guard_outputs(listing_files(out), overwrite=overwrite)
+    with folder_lock(Path(out)), progress_bar(recording.count, "extracting") as bar:
         result = extract_recording(
             recording,
             out,

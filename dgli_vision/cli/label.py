@@ -57,8 +57,9 @@ from .output import command_line
     "size_mm",
     callback=parse_size,
     metavar="W[xH]",
-    help="The cloth's real size in mm (positions are scaled to it) [default: measured on "
-    "the rest frame in --units].",
+    help="The cloth's real size in mm (positions are scaled to it; refused when a rest "
+    "frame of a napkin's size in --units measures more than 5% otherwise) [default: "
+    "measured on the rest frame in --units].",
 )
 @click.option(
     "--rest",

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 import sys
+from collections.abc import Callable
 from typing import Any
 
 import click
@@ -75,6 +76,22 @@ def echo(text: str = "", *, nl: bool = True) -> None:
         stream.flush()
     except OSError as exc:
         raise stdout_error(exc) from None
+
+
+def answer_then_report(answer: Callable[[], None], report: Callable[[], None] | None) -> None:
+    """Print a run's answer (``answer()``), then write its report (``report()``, None:
+    none asked for), the report even when standard output cannot take the answer (a
+    pipe whose reader has gone, ``| head -1``; a full disk): the report and its
+    results.jsonl are the run's record, and what stopped the answer is raised after
+    it (exit 141 for the pipe, 2 for the disk)."""
+    try:
+        answer()
+    except (StdoutClosed, OutputError):
+        if report is not None:
+            report()
+        raise
+    if report is not None:
+        report()
 
 
 def echo_json(data: Any) -> None:

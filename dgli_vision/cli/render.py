@@ -19,7 +19,7 @@ from .options import (
     size_option,
 )
 from .output import command_line, echo, napkin_provenance, package_version, progress
-from .runs import Stop, folder_lock, stop_signals
+from .runs import folder_lock, stop_signals
 
 
 @click.command("render")
@@ -139,8 +139,9 @@ def render_cmd(
     With --sequence, a folding sequence as the frames of one recording, for `dgli track`.
     --conditions applies all its conditions together to every pair; with
     --per-condition each condition gets a set of its own, in OUT/<condition>/.
-    Ctrl-C or SIGTERM writes the pairs rendered so far with their labels.csv and exits
-    130 (143); --resume renders the rest. -j spreads the pairs over processes (the same
+    Each pair is written, and listed in labels.csv, as soon as it is rendered: Ctrl-C
+    or SIGTERM exits 130 (143), and even a kill keeps the pairs done; --resume renders
+    the rest. -j spreads the pairs over processes (the same
     pairs as one; a sequence's frames render in one).
     """
     if engine == "cycles":
@@ -223,15 +224,11 @@ def _render_set(
     jobs: int = 1,
 ) -> None:
     """Render the pairs of ``names`` (of a sequence, or ``cases``: class and number) not
-    kept from an interrupted run (``resume``), write them (all, or those done when a stop
-    signal came), and exit 130/143 if stopped."""
-    from ..sim.dataset import (
-        SEQUENCE_FRAME_SECONDS,
-        kept_pairs,
-        merge_kept_pairs,
-        render_sequence,
-    )
-    from ..sources.labelled import write_labelled_folder
+    kept from an interrupted run (``resume``), writing each as it is done (its images,
+    then the listings naming it: a kill at any instant keeps the pairs finished), and
+    exit 130/143 if stopped."""
+    from ..sim.dataset import SEQUENCE_FRAME_SECONDS, kept_pairs, render_sequence
+    from ..sources.labelled import LabelledFolderWriter
 
     sequence, seed = provenance.get("sequence"), provenance["seed"]
     kept = kept_pairs(out, provenance, names) if resume else {}
@@ -250,17 +247,19 @@ def _render_set(
         from ..core.parallel import ordered_map
 
         stream = ordered_map(_render_case, [(cases[k], seed, options) for k in todo], jobs=jobs)
-    samples, stop = _rendered(stream, todo)
     index = {n: k for k, n in enumerate(names)}
-    times = [index[s.name] * SEQUENCE_FRAME_SECONDS for s in samples] if sequence else None
-    labels = f"{out}/labels.csv"
-    if samples and not resume:  # an earlier render's pairs not rendered again go first
-        _remove_earlier_pairs(out, names, bool(sequence), overwrite)
-    if samples:
-        labels = write_labelled_folder(out, samples, provenance, overwrite=overwrite, times=times)
-    if kept:
-        merge_kept_pairs(out, kept, names, frames=bool(sequence), command=provenance["command"])
-    done = len(samples) + len(kept)
+    writer = LabelledFolderWriter(out, provenance, names, frames=bool(sequence), kept=kept,
+                                  overwrite=overwrite)
+    with stop_signals() as stop, stop.ends(), progress(todo, "rendering") as bar:
+        for sample, _ in zip(stream, bar):
+            with stop.holding():  # the pair and the listings naming it
+                if not writer.written and not resume:
+                    # an earlier render's pairs not rendered again go first
+                    _remove_earlier_pairs(out, names, bool(sequence), overwrite)
+                time_s = index[sample.name] * SEQUENCE_FRAME_SECONDS if sequence else None
+                writer.add(sample, time_s)
+    labels = writer.labels
+    done = writer.written + len(kept)
     if stop.stopped:
         click.echo(
             f"interrupted: {done} of {counted(len(names), 'pair')} written to {out}"
@@ -317,13 +316,3 @@ def _render_case(task: tuple[tuple[str, int], int, dict[str, Any]]) -> Any:
     from ..sim.dataset import render_sample
 
     return render_sample(class_id, k, seed, **options)
-
-
-def _rendered(stream: Any, todo: list[int]) -> tuple[list, Stop]:
-    """The samples of ``stream`` (one per item of ``todo``) with a progress bar, until
-    all are rendered or a stop signal comes."""
-    samples = []
-    with stop_signals() as stop, stop.ends(), progress(todo, "rendering") as bar:
-        for sample, _ in zip(stream, bar):
-            samples.append(sample)
-    return samples, stop

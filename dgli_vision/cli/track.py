@@ -20,7 +20,7 @@ from .options import (
     report_option,
     run_overwrite_option,
 )
-from .output import command_line, echo, echo_json
+from .output import answer_then_report, command_line, echo, echo_json
 from .runs import (
     Journal,
     Stop,
@@ -168,9 +168,11 @@ class _TrackRun:
         )
         if stop.stopped:
             data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
-        self._print(data, timeline, len(outcomes))
-        if self.report_dir:
-            self._report(data, timeline, outcomes, labelled, overwrite)
+        answer_then_report(
+            lambda: self._print(data, timeline, len(outcomes)),
+            (lambda: self._report(data, timeline, outcomes, labelled, overwrite))
+            if self.report_dir else None,
+        )
         if stop.stopped:
             click.echo(
                 f"interrupted: {len(outcomes)} of {counted(self.recording.count, 'frame')} done"

@@ -18,6 +18,8 @@ __all__ = [
     "SIDES",
     "VARIANTS",
     "class_id_of",
+    "digits_note",
+    "foreign_digits",
 ]
 
 CLASS_NAMES: dict[str, str] = {
@@ -42,6 +44,25 @@ OUTSIDE = "none"
 #: How a class may be written, for messages.
 CLASS_HINT = "a class: 01-12 (or 1-12), a name such as corner-over, or both (02_corner-over)"
 
+
+def _ascii_digits(text: str) -> bool:
+    """Whether ``text`` is one or more of the ASCII digits 0-9 (``str.isdigit`` is also
+    true of other scripts' digits and of superscripts)."""
+    return text.isascii() and text.isdigit()
+
+
+def foreign_digits(text: str) -> bool:
+    """Whether ``text`` holds a digit that is not one of the ASCII digits 0-9 (Arabic-
+    Indic ``٠٢``, full-width digits, a superscript ``²``): a class id written so is
+    refused, with this said."""
+    return any(c.isdigit() and not c.isascii() for c in text)
+
+
+def digits_note(text: str) -> str:
+    """For a message refusing ``text`` as a class: ``" (its digits are not ASCII 0-9)"``
+    when :func:`foreign_digits`, else ``""``."""
+    return " (its digits are not the ASCII digits 0-9)" if foreign_digits(text) else ""
+
 _BY_NAME = {name: cid for cid, name in CLASS_NAMES.items()}
 
 
@@ -51,14 +72,17 @@ def class_id_of(text: str) -> str | None:
     Accepted everywhere a class is read (labels files, ``--goal``, ``--from``): the id
     (``02``), the id without its zero (``2``), the name (``corner-over``, any case, with
     ``_`` or a space for ``-``), or id and name (``02_corner-over``, ``02 corner-over``,
-    as the class folders are named); they must agree.
+    as the class folders are named); they must agree. An id is ASCII digits ``0``-``9``
+    only: other scripts' digits (Arabic-Indic ``٠٢``, full-width ones), which Python's
+    ``int`` would read, name no class (:func:`foreign_digits` tells them apart for
+    messages).
     """
     t = text.strip().lower()
-    if t.isdigit():
+    if _ascii_digits(t):
         cid = f"{int(t):02d}"
         return cid if cid in CLASS_NAMES else None
     head, sep, rest = t.replace("_", " ", 1).partition(" ")
-    if sep and head.isdigit():
+    if sep and _ascii_digits(head):
         cid = class_id_of(head)
         return cid if cid and class_id_of(rest) == cid else None
     return _BY_NAME.get(t.replace("_", "-").replace(" ", "-"))

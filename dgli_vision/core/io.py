@@ -36,6 +36,7 @@ __all__ = [
     "failed_part_way",
     "file_sha256",
     "guard_outputs",
+    "image_bytes",
     "mesh_ply_bytes",
     "read_json",
     "read_jsonl",
@@ -47,6 +48,7 @@ __all__ = [
     "write_mesh_ply",
     "write_outputs",
     "write_png",
+    "write_recorded",
     "write_text",
 ]
 
@@ -258,6 +260,16 @@ MANIFEST_NAME = ".dgli-outputs.json"
 MANIFEST_FORMAT = "dgli-outputs"
 
 
+def _ours(entry: Any, path: Path) -> bool:
+    """Whether a record's entry vouches for the file at ``path`` as it is now: its
+    checksum, or the one it had when the entry was written just before replacing it
+    (``"before"``: a process killed between the record and the rename)."""
+    if not isinstance(entry, dict):
+        return False
+    sha = file_sha256(path)
+    return entry.get("sha256") == sha or entry.get("before") == sha
+
+
 def _manifest(folder: Path) -> dict[str, Any]:
     path = folder / MANIFEST_NAME
     try:
@@ -303,8 +315,7 @@ def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> No
         folder = p.parent
         if folder not in manifests:
             manifests[folder] = _manifest(folder)
-        entry = manifests[folder].get(p.name)
-        if isinstance(entry, dict) and entry.get("sha256") == file_sha256(p):
+        if _ours(manifests[folder].get(p.name), p):
             continue
         raise OverwriteError(
             f"refusing to replace '{p}': dgli did not write it (or it was changed since); "
@@ -339,6 +350,42 @@ def record_outputs(paths: Iterable[str | Path], command: str) -> None:
             folder / MANIFEST_NAME,
             {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
         )
+
+
+def write_recorded(files: Sequence[tuple[Path, bytes]], command: str) -> None:
+    """Write files whole (each renamed into place once complete), recording each in its
+    folder's record (:func:`record_outputs`) *before* it is written, with the checksum
+    it is to have and, under ``"before"``, the one it has: a process killed at any
+    instant leaves each file old or new, and the record vouching for it either way (so
+    that ``--resume`` replaces it without ``--overwrite``). The caller has checked the
+    files with :func:`guard_outputs`.
+
+    Raises
+    ------
+    OutputError
+        Naming the file that could not be written (or its folder's record).
+    """
+    by_folder: dict[Path, list[tuple[Path, bytes]]] = {}
+    for path, data in files:
+        by_folder.setdefault(Path(path).parent, []).append((Path(path), data))
+    for folder, items in by_folder.items():
+        listed = _manifest(folder)
+        for p, data in items:
+            entry: dict[str, Any] = {"sha256": hashlib.sha256(data).hexdigest(),
+                                     "command": command}
+            try:
+                now = file_sha256(p) if p.is_file() else None
+            except OSError:
+                now = None
+            if now is not None and now != entry["sha256"]:
+                entry["before"] = now
+            listed[p.name] = entry
+        write_json(
+            folder / MANIFEST_NAME,
+            {"format": MANIFEST_FORMAT, "version": 1, "files": dict(sorted(listed.items()))},
+        )
+    for path, data in files:
+        _write_bytes(Path(path), data)
 
 
 def remove_earlier_outputs(
@@ -381,9 +428,7 @@ def remove_earlier_outputs(
         listed = _manifest(sub)
         gone = []
         for p in files:
-            entry = listed.get(p.name)
-            ours = isinstance(entry, dict) and entry.get("sha256") == file_sha256(p)
-            if not (ours or overwrite):
+            if not (_ours(listed.get(p.name), p) or overwrite):
                 continue
             try:
                 p.unlink()
@@ -498,14 +543,19 @@ def read_jsonl(path: str | Path) -> list[Any]:
 
 
 class JsonLinesWriter:
-    """Appends one JSON object per line and flushes each, so that whatever stops the
-    process (Ctrl-C, a kill, a full disk) keeps every line written before it."""
+    """Appends one JSON object per line, each line whole or not at all, so that whatever
+    stops the process (Ctrl-C, a kill, a full disk) keeps every line written before it
+    and no torn one: a line goes to the file in one ``os.write`` of all its bytes
+    (nothing of it is buffered in the process), and a write that fails or takes only
+    part of them is cut back off the file (the file's length before it is restored)."""
 
     def __init__(self, path: str | Path, *, append: bool) -> None:
         p = Path(path)
+        flags = os.O_WRONLY | os.O_CREAT | (os.O_APPEND if append else os.O_TRUNC)
         try:
             p.parent.mkdir(parents=True, exist_ok=True)
-            self._fh = p.open("a" if append else "w", encoding="utf-8")
+            self._fd: int | None = os.open(p, flags, 0o666)
+            self._size = os.fstat(self._fd).st_size
         except OSError as exc:
             raise _unwritable(p, exc.strerror or str(exc)) from None
         self.path = p
@@ -513,30 +563,50 @@ class JsonLinesWriter:
         self._failed = False
 
     def write(self, obj: Any) -> None:
-        """Append ``obj`` as one line and flush it to the operating system.
+        """Append ``obj`` as one line, whole, to the operating system's copy of the file.
 
         Raises
         ------
         OutputError
-            Naming the file, the reason and how many lines before it are kept.
+            Naming the file, the reason and how many lines before it are kept (the
+            line that failed is not left in part).
         """
+        data = (json.dumps(obj) + "\n").encode("utf-8")
         try:
-            self._fh.write(json.dumps(obj) + "\n")
-            self._fh.flush()
+            if self._fd is None:
+                raise OSError(9, "the file is closed")
+            n = os.write(self._fd, data)
+            if n != len(data):  # a filling disk took part of it
+                raise OSError(28, os.strerror(28))
         except OSError as exc:
             self._failed = True
+            self._cut_back()
             if self.lines == 0:
                 kept = "no line was written before it"
             else:
                 lines = "1 line" if self.lines == 1 else f"{self.lines} lines"
                 kept = f"the {lines} written before it are kept"
             raise _unwritable(self.path, f"{exc.strerror or exc}; {kept}") from None
+        self._size += len(data)
         self.lines += 1
+
+    def _cut_back(self) -> None:
+        """Restore the file's length before the failed line (best effort: a file that
+        cannot be truncated keeps the part, which :func:`read_jsonl` leaves out)."""
+        if self._fd is None:
+            return
+        try:
+            os.ftruncate(self._fd, self._size)
+        except OSError:
+            pass
 
     def close(self) -> None:
         """Close the file (after a failed write, quietly: that failure was reported)."""
+        fd, self._fd = self._fd, None
+        if fd is None:
+            return
         try:
-            self._fh.close()
+            os.close(fd)
         except OSError as exc:
             if not self._failed:
                 raise _unwritable(self.path, exc.strerror or str(exc)) from None
@@ -552,6 +622,18 @@ def write_png(path: str | Path, image_bgr: NDArray[np.uint8]) -> None:
         An extension OpenCV has no writer for, an image it cannot encode, or a file that
         cannot be written (with the operating system's reason).
     """
+    _write_bytes(Path(path), image_bytes(path, image_bgr))
+
+
+def image_bytes(path: str | Path, image_bgr: NDArray[np.uint8]) -> bytes:
+    """A BGR (or single-channel) image encoded as the file ``path`` would hold it (PNG
+    or JPEG by its extension); see :func:`write_png`.
+
+    Raises
+    ------
+    OutputError
+        An extension OpenCV has no writer for, or an image it cannot encode.
+    """
     import cv2
 
     p = Path(path)
@@ -566,7 +648,7 @@ def write_png(path: str | Path, image_bgr: NDArray[np.uint8]) -> None:
         raise _unwritable(p, f"OpenCV cannot encode the image ({exc.err})") from None
     if not ok:
         raise _unwritable(p, "OpenCV cannot encode the image")
-    _write_bytes(p, encoded.tobytes())
+    return encoded.tobytes()
 
 
 def csv_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:

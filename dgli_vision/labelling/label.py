@@ -130,7 +130,7 @@ def label_part(
         refs = cached_references(references_path)
         episode = read_episode(path, options)
         rest = read_rest(options)
-        material = cloth_material(episode, rest, options.size_mm)
+        material = cloth_material(episode, rest, options.size_mm, units=options.units)
     except DgliError as exc:
         return PartResult(str(path), part, error=str(exc))
     try:
@@ -142,12 +142,7 @@ def label_part(
     start, stop = _blocks(episode.n_frames, part, n_parts)
     rest = episode.frames(0, 1)[0] if rest is None else rest
     table = float(rest[:, 2].min()) * material.scale
-    if material.rest_turned:  # the flat cloth's outline: its material rectangle
-        w, h = material.size_mm
-        corners = np.array([[[0.0, 0.0], [w, 0.0], [w, h], [0.0, h]]]) * 1e-3
-        area, diagonal = hull_area_diagonal(corners)
-    else:
-        area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
+    area, diagonal = hull_area_diagonal(rest[None, material.coarse_ids, :2] * material.scale)
     flat = (float(area[0]), float(diagonal[0]))
     dist, n_unknown, n_known, og, below, front = [], [], [], [], [], []
     xyz, seen, standing, heights = [], [], [], []
@@ -179,12 +174,6 @@ def label_part(
         "grid": list(episode.grid) if episode.grid else None,
         "size_mm": list(material.size_mm),
     }
-    if material.rest_turned:
-        info["note"] = (
-            f"the rest frame is folded ({material.rest_turned:.0%} of the cloth lies turned "
-            "over): its front is taken to be the face most of it shows; give the flat cloth "
-            "with --rest FILE"
-        )
 
     last = None
     if stop == episode.n_frames and stop > start:

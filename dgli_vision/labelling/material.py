@@ -25,7 +25,8 @@ __all__ = [
     "MAX_SIDE_MM",
     "RECTANGLE_TOLERANCE",
     "REST_FRONT_SHARE",
-    "REST_ORIENTED_SHARE",
+    "REST_OUTLINE_SHARE",
+    "SIZE_TOLERANCE",
     "VISIBILITY_VERTICES",
     "ClothMaterial",
     "cloth_material",
@@ -48,9 +49,16 @@ MAX_SIDE_MM = 10_000.0
 #: area of its triangles seen from above over their area (a flap folded over counts
 #: against it twice; wrinkles of a few mm leave it above 0.99).
 REST_FRONT_SHARE = 0.95
-#: A grid's rest frame folded so that less than this share shows one face (a half
-#: fold, four corners to the centre) cannot say which face is the front.
-REST_ORIENTED_SHARE = 0.5
+#: A flat rest frame's outline (the convex hull of its points on its best plane) covers
+#: this share of the cloth's own area (its triangles' area) at least: a corner folded
+#: over leaves about 0.9, a strip 0.66, a half fold 0.5; wrinkles of a few mm, 0.998.
+REST_OUTLINE_SHARE = 0.95
+#: ``--size`` may differ from the size the rest frame measures in ``--units`` by this
+#: share when that size is a napkin's (each side :func:`~dgli_vision.core.layout.
+#: smallest_side_mm` to :data:`LARGEST_NAPKIN_MM`): beyond it one of the two is wrong.
+SIZE_TOLERANCE = 0.05
+#: The longest napkin side ``--size`` takes, mm (as ``dgli render --size``).
+LARGEST_NAPKIN_MM = 1000.0
 #: About this many vertices make the coarse mesh that is raycast for visibility: about
 #: 15 mm apart on a 400 mm napkin, half a sticker, and 0.3 ms a frame.
 VISIBILITY_VERTICES = 700
@@ -79,9 +87,6 @@ class ClothMaterial:
         Its triangles, indices into ``coarse_ids``.
     spacing_mm : float
         The coarse mesh's vertex spacing, mm.
-    rest_turned : float
-        Share of the rest frame's area lying turned over (0 for a flat rest frame; a
-        grid's rest frame may be folded, its front being the face most of it shows).
     """
 
     uv: NDArray[np.float64]
@@ -92,7 +97,6 @@ class ClothMaterial:
     coarse_ids: NDArray[np.int64]
     coarse_faces: NDArray[np.int64]
     spacing_mm: float
-    rest_turned: float = 0.0
 
 
 def locate(
@@ -267,14 +271,57 @@ def _oriented(faces: NDArray[np.int64]) -> NDArray[np.int64] | None:
     return out
 
 
-def _rest_turned(path: str, rest: NDArray, faces: NDArray) -> float:
-    """Share of the rest frame's area that lies turned over (a fold), from its
-    triangles' winding made consistent (0 when it cannot be made so)."""
+def _rest_layers(rest: NDArray, faces: NDArray) -> tuple[float, float]:
+    """How far the rest frame is from lying flat in one layer: the share of its area
+    turned over (from its triangles' winding made consistent; 0 when it cannot be made
+    so) and the share of its own area its outline covers on its best plane."""
+    from scipy.spatial import ConvexHull, QhullError
+
     oriented = _oriented(faces)
-    if oriented is None:
-        return 0.0
-    share = abs(float(front_share(rest, oriented)))
-    return (1.0 - share) / 2.0
+    turned = 0.0 if oriented is None else (1.0 - abs(float(front_share(rest, oriented)))) / 2
+    a, b, c = (rest[faces[:, i]] for i in range(3))
+    area = 0.5 * float(np.linalg.norm(np.cross(b - a, c - a), axis=1).sum())
+    centred = rest - rest.mean(axis=0)
+    vt = np.linalg.svd(centred, full_matrices=False)[2]
+    try:  # (2D: the hull's "volume" is its area)
+        outline = float(ConvexHull(centred @ vt[:2].T).volume)
+    except QhullError:  # all on one line: _check_spread has refused it before
+        outline = 0.0
+    return turned, (outline / area if area > 0 else 1.0)
+
+
+def _check_rest_flat(path: str, rest: NDArray, faces: NDArray) -> None:
+    """Refuse a rest frame that is not the cloth lying flat in one layer: a part of it
+    turned over (a fold settled on the table lies as flat as the cloth), or an outline
+    smaller than the cloth (a fold, a flap held up, a crumple)."""
+    turned, outline = _rest_layers(rest, faces)
+    if 1.0 - 2.0 * turned < REST_FRONT_SHARE or outline < REST_OUTLINE_SHARE:
+        raise InvalidInputError(
+            f"'{path}': the rest frame is folded ({turned:.0%} of the cloth lies turned "
+            f"over; its outline covers {outline:.0%} of the cloth's area, a flat cloth's "
+            f"{REST_OUTLINE_SHARE:.0%} or more), and every state is measured from the flat "
+            "cloth: give it with --rest FILE"
+        )
+
+
+def _check_size(path: str, size: tuple[float, float], given: tuple[float, float],
+                units: str) -> None:
+    """Refuse a ``--size`` that a napkin-sized rest frame contradicts (see
+    :data:`SIZE_TOLERANCE`); a rest frame of no napkin's size in ``units`` is in other
+    units, and ``--size`` scales it."""
+    from ..core.layout import smallest_side_mm
+
+    lo = smallest_side_mm() * (1 - SIZE_TOLERANCE)
+    if not all(lo <= s <= LARGEST_NAPKIN_MM * (1 + SIZE_TOLERANCE) for s in size):
+        return
+    off = max(abs(g / s - 1.0) for g, s in zip(given, size))
+    if off > SIZE_TOLERANCE:
+        raise InvalidInputError(
+            f"'{path}': --size {given[0]:g}x{given[1]:g} mm, but the cloth measures "
+            f"{size[0]:.0f} x {size[1]:.0f} mm at rest in --units {units} "
+            f"({off:.0%} apart, more than {SIZE_TOLERANCE:.0%}): leave --size out, or give "
+            "the unit the positions are in with --units"
+        )
 
 
 def _border_loop(path: str, faces: NDArray, border: NDArray | None, n: int) -> NDArray:
@@ -379,7 +426,8 @@ def _check_rectangle(path: str, p2: NDArray, loop: NDArray, at: NDArray) -> tupl
         raise InvalidInputError(
             f"'{path}': the cloth is not rectangular (sides "
             f"{', '.join(f'{s * 1e3:.0f}' for s in sides)} mm; its border leaves the "
-            f"corners' quadrilateral by {worst * 1e3:.0f} mm)"
+            f"corners' quadrilateral by {worst * 1e3:.0f} mm; the rest frame must be the "
+            "flat cloth: give it with --rest FILE)"
         )
     return float(w), float(h)
 
@@ -439,6 +487,8 @@ def cloth_material(
     episode: ClothEpisode,
     rest: NDArray[np.float64] | None = None,
     size_mm: tuple[float, float] | None = None,
+    *,
+    units: str = "m",
 ) -> ClothMaterial:
     """Material coordinates of an episode's cloth.
 
@@ -450,12 +500,17 @@ def cloth_material(
     size_mm : tuple of float, optional
         The cloth's real size (W, H); default as measured on the rest frame. When given,
         the positions are to be scaled by :attr:`ClothMaterial.scale`.
+    units : str, keyword-only
+        The unit the positions were read in (named in the message refusing a
+        ``size_mm`` the rest frame contradicts).
 
     Raises
     ------
     InvalidInputError
-        The rest frame does not match the mesh, is not flat, the mesh is open or
-        non-manifold, or the cloth is not rectangular.
+        The rest frame does not match the mesh, is not flat or lies folded (in layers,
+        or with an outline smaller than the cloth), the mesh is open or non-manifold,
+        the cloth is not rectangular, or ``size_mm`` differs by more than
+        :data:`SIZE_TOLERANCE` from a napkin-sized rest frame's size.
     """
     rest = episode.frames(0, 1)[0] if rest is None else np.asarray(rest, dtype=np.float64)
     if rest.shape != (episode.n_vertices, 3):
@@ -470,23 +525,13 @@ def cloth_material(
             f"'{episode.path}': --size {size_mm[0]:g} x {size_mm[1]:g} mm: a side must be "
             f"above 0 and at most {MAX_SIDE_MM / 1000:.0f} m"
         )
-    turned = _rest_turned(episode.path, rest, episode.faces) if len(episode.faces) else 0.0
+    _plane(episode.path, rest)  # within FLAT_TOLERANCE of its plane, then in one layer
+    if len(episode.faces):
+        _check_rest_flat(episode.path, rest, episode.faces)
     if episode.grid is not None:
-        _plane(episode.path, rest)
-        if 1.0 - 2.0 * turned < REST_ORIENTED_SHARE:
-            raise InvalidInputError(
-                f"'{episode.path}': the rest frame is folded ({turned:.0%} of the cloth lies "
-                "turned over): cannot tell its front from its back; give the flat cloth "
-                "with --rest FILE"
-            )
         uv, corners, size = _grid_material(episode, rest)
         faces = episode.faces
     else:
-        if 1.0 - 2.0 * turned < REST_FRONT_SHARE:
-            raise InvalidInputError(
-                f"'{episode.path}': the rest frame is folded ({turned:.0%} of the cloth lies "
-                "turned over); give the flat cloth with --rest FILE"
-            )
         uv, corners, size, faces = _mesh_material(episode, rest)
     if size_mm is None and max(size) > MAX_SIDE_MM:
         raise InvalidInputError(
@@ -495,6 +540,7 @@ def cloth_material(
         )
     scale = 1.0
     if size_mm is not None:
+        _check_size(episode.path, size, size_mm, units)
         scale = float(np.mean([size_mm[0] / size[0], size_mm[1] / size[1]]))
         uv = uv * np.array([size_mm[0] / size[0], size_mm[1] / size[1]])
         size = (float(size_mm[0]), float(size_mm[1]))
@@ -508,5 +554,4 @@ def cloth_material(
         coarse_ids=ids,
         coarse_faces=_ccw(uv[ids], tri),
         spacing_mm=step,
-        rest_turned=round(turned, 4) if 1.0 - 2.0 * turned < REST_FRONT_SHARE else 0.0,
     )

@@ -25,7 +25,7 @@ from ..classifier.affordances import (
     bisector_through,
     fold_line_3d,
 )
-from ..core.classes import CLASS_HINT, CORNERS, VARIANTS, class_id_of
+from ..core.classes import CLASS_HINT, CORNERS, VARIANTS, class_id_of, digits_note
 from ..core.errors import DgliError, InvalidValueError
 from ..core.fold_graph import StateKey, fold_edges, folds_of
 from ..core.fold_lines import NominalFold, fold_for_word, reflect_uv
@@ -67,7 +67,8 @@ def parse_state(text: str, *, need_variant: bool = True) -> StateKey:
     written, _, variant = text.strip().partition("/")
     cls = class_id_of(written)
     if cls is None:
-        raise InvalidValueError(f"unknown class {written!r}; expected {CLASS_HINT}")
+        raise InvalidValueError(f"unknown class {written!r}{digits_note(written)}; "
+                                f"expected {CLASS_HINT}")
     options = VARIANTS[cls]
     if not variant:
         if options == (None,) or not need_variant:

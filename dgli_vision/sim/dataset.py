@@ -24,7 +24,6 @@ __all__ = [
     "KeptPair",
     "RenderedSample",
     "kept_pairs",
-    "merge_kept_pairs",
     "random_camera",
     "render_sample",
     "render_samples",
@@ -524,55 +523,6 @@ def kept_pairs(
         ):
             kept[name] = KeptPair(name, label_of[color], frame_of.get(color), entry)
     return kept
-
-
-def merge_kept_pairs(
-    out: str | Path,
-    kept: dict[str, KeptPair],
-    names: Sequence[str],
-    *,
-    frames: bool,
-    command: str,
-) -> None:
-    """List the ``kept`` pairs of an earlier render in the ``labels.csv``, ``truth.json``
-    (and ``frames.csv``) that :func:`~dgli_vision.sources.labelled.write_labelled_folder` wrote
-    for this run's pairs, all in the order of ``names``, and record the files."""
-    from ..core.io import csv_table, read_json, record_outputs, write_json, write_text
-
-    root = Path(out)
-    truth_path = root / "truth.json"
-    truth = read_json(truth_path, what="truth file") if truth_path.is_file() else {}
-    header, labels = _csv_rows(root / "labels.csv")
-    frame_header, frame_rows = _csv_rows(root / "frames.csv")
-    label_of = {r[0]: r for r in labels if r}
-    frame_of = {r[0]: r for r in frame_rows if r}
-    images = dict(truth.get("images") or {})
-    for pair in kept.values():
-        color = f"{pair.name}_color.png"
-        label_of.setdefault(color, pair.label_row)
-        if pair.frame_row is not None:
-            frame_of.setdefault(color, pair.frame_row)
-        images.setdefault(pair.name, pair.truth)
-    order = [n for n in names if n in images]
-    write_text(
-        root / "labels.csv",
-        csv_table(
-            header or ["color", "depth", "label", "variant"],
-            [label_of[f"{n}_color.png"] for n in order],
-        ),
-    )
-    written = [root / "labels.csv", truth_path]
-    if frames:
-        write_text(
-            root / "frames.csv",
-            csv_table(
-                frame_header or ["color", "depth", "time"],
-                [frame_of[f"{n}_color.png"] for n in order],
-            ),
-        )
-        written.append(root / "frames.csv")
-    write_json(truth_path, {**truth, "images": {n: images[n] for n in order}})
-    record_outputs(written, command)
 
 
 def render_plan(

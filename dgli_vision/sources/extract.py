@@ -27,7 +27,7 @@ from .frames import RGBDFrame, write_color, write_depth
 from .labelled import LabelledPair, listed_files
 from .recording import Recording, select_frames
 
-__all__ = ["ExtractResult", "extract_recording"]
+__all__ = ["ExtractResult", "extract_recording", "listing_files"]
 
 
 @dataclass
@@ -47,6 +47,13 @@ class ExtractResult:
     written: int = 0
     skipped: list[str] = field(default_factory=list)
     frames_csv: Path | None = None
+
+
+def listing_files(out: str | Path) -> list[Path]:
+    """The files :func:`extract_recording` lists its frames in (``frames.csv``,
+    ``intrinsics.json``, ``labels.csv``)."""
+    root = Path(out)
+    return [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
 
 
 def extract_recording(
@@ -92,8 +99,8 @@ def extract_recording(
         kept, recorded and named in the message.
     """
     root = Path(out)
-    listing = [root / "frames.csv", root / "intrinsics.json", root / "labels.csv"]
-    guard_outputs(listing, overwrite=overwrite)  # and makes OUT: an impossible OUT fails here
+    # (and makes OUT: an impossible OUT fails here)
+    guard_outputs(listing_files(root), overwrite=overwrite)
     # an earlier extract's frames and lists go first: none is left beside the new list
     remove_earlier_outputs(root, listed_files(root), overwrite=overwrite)
     result = ExtractResult()

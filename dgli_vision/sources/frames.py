@@ -306,7 +306,12 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
     CalibrationError
         Naming ``source`` and what is wrong.
     """
-    from .intrinsics_files import check_size_and_focal, make_intrinsics, parse_distortion
+    from .intrinsics_files import (
+        check_numbers,
+        check_size_and_focal,
+        make_intrinsics,
+        parse_distortion,
+    )
 
     if not isinstance(data, dict):
         raise CalibrationError(f"intrinsics '{source}' must be a JSON object")
@@ -314,6 +319,14 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
     if missing:
         raise CalibrationError(f"intrinsics '{source}' lack {', '.join(missing)}")
     m = data["intrinsic_matrix"]
+    for key in ("width", "height", "intrinsic_matrix"):  # JSON numbers, as documented
+        check_numbers(data[key], key, source)
+    for key in ("width", "height"):
+        if data[key] != int(data[key]):
+            raise CalibrationError(
+                f"intrinsics '{source}': {key} is {data[key]!r}; expected a whole number "
+                "of pixels"
+            )
     try:
         width, height = int(data["width"]), int(data["height"])
         k = np.asarray(m, dtype=np.float64).reshape(-1)

@@ -31,6 +31,7 @@ from ..core.errors import CalibrationError
 __all__ = [
     "MATRIX_KEYS",
     "SUPPORTED_DISTORTION_MODELS",
+    "check_numbers",
     "check_size_and_focal",
     "intrinsics_text",
     "load_calibration_text",
@@ -57,12 +58,62 @@ _DISTORTION_KEYS = (
 _SIZE_KEYS = (("image_width", "image_height"), ("width", "height"))
 
 
+def _not_a_number(value: Any, where: str) -> tuple[str, Any] | None:
+    """The first value in ``value`` (a number or nested lists of them) that is not a
+    number, with where it is (``"[0]"``), or None: a string (``"605.0"``) or a bool
+    (``true``) is not a number, though Python's ``float()`` would make one of it."""
+    if isinstance(value, (list, tuple)):
+        for k, item in enumerate(value):
+            found = _not_a_number(item, f"{where}[{k}]")
+            if found is not None:
+                return found
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return where, value
+    return None
+
+
+def check_numbers(value: Any, what: str, source: str) -> None:
+    """Refuse a value that should be numbers (a number, or lists of numbers) and holds
+    something else: the documented types, exactly (JSON numbers; never a string that
+    looks like one, nor true/false).
+
+    Raises
+    ------
+    CalibrationError
+        Naming ``source``, the entry (``intrinsic_matrix[0]``) and what it holds.
+    """
+    found = _not_a_number(value, what)
+    if found is None:
+        return
+    where, bad = found
+    kind = {str: "a string", bool: "a boolean", type(None): "null"}.get(
+        type(bad), f"a {type(bad).__name__}"
+    )
+    raise CalibrationError(
+        f"intrinsics '{source}': {where} is {kind} ({_json_text(bad)}); expected a number "
+        "(a JSON number, written without quotes)"
+    )
+
+
+def _json_text(value: Any) -> str:
+    """``value`` as JSON would write it (``"605.0"``, ``true``), shortened."""
+    import json
+
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def _numbers(value: Any, what: str, source: str) -> NDArray[np.float64]:
     """The numbers of a matrix given as ``{rows, cols, data}`` (OpenCV, ROS) or as a flat
     or nested list, flattened row by row."""
     data = value.get("data") if isinstance(value, Mapping) else value
     if isinstance(value, Mapping) and data is None:
         raise CalibrationError(f"intrinsics '{source}': {what} has no 'data'")
+    check_numbers(data, what, source)
     try:
         out = np.asarray(data, dtype=np.float64).reshape(-1)
     except (TypeError, ValueError):
@@ -153,6 +204,8 @@ def _first(data: Mapping[str, Any], keys: tuple[str, ...]) -> tuple[str, Any] | 
 def _image_size(data: Mapping[str, Any], source: str) -> tuple[int, int]:
     for wkey, hkey in _SIZE_KEYS:
         if wkey in data and hkey in data:
+            check_numbers(data[wkey], wkey, source)
+            check_numbers(data[hkey], hkey, source)
             try:
                 return int(data[wkey]), int(data[hkey])
             except (TypeError, ValueError):

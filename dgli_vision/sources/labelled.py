@@ -3,6 +3,7 @@ finding the pairs and their labels."""
 
 from __future__ import annotations
 
+import json
 import os
 from collections.abc import Iterable
 from dataclasses import dataclass, field
@@ -13,18 +14,12 @@ import numpy as np
 
 from ..core.classes import class_id_of
 from ..core.errors import InvalidInputError, InvalidValueError, OutputError, UnreadableInputError
-from ..core.io import (
-    check_input_file,
-    failed_part_way,
-    guard_outputs,
-    record_outputs,
-    write_json,
-    write_text,
-)
-from .frames import RGBDFrame, read_frame, write_color, write_depth
+from ..core.io import check_input_file, guard_outputs
+from .frames import RGBDFrame, read_frame
 
 __all__ = [
     "LabelProblem",
+    "LabelledFolderWriter",
     "LabelledPair",
     "find_labelled_pairs",
     "find_pairs",
@@ -86,18 +81,21 @@ def write_labelled_folder(
     folder use for the pairs in it. With ``times`` (seconds, one
     per sample) also ``frames.csv`` (``color,depth,time``: the frames of a recording in
     order). Existing files are replaced only if dgli wrote them or with ``overwrite``
-    (:func:`guard_outputs`). Returns the labels file.
+    (:func:`guard_outputs`). The pairs are written one by one
+    (:class:`LabelledFolderWriter`). Returns the labels file.
 
     Raises
     ------
     OverwriteError
     OutputError
         An image that cannot be written (a full disk...): the pairs written before it
-        are kept, recorded and named.
+        are kept, listed, recorded and named.
     """
     root = Path(out)
     if not samples:
         raise InvalidValueError("no samples to write")
+    if times is not None and len(times) != len(samples):
+        raise InvalidValueError(f"{len(times)} times for {len(samples)} samples")
     cameras: list = []
     for s in samples:
         if s.result.intrinsics not in cameras:
@@ -110,54 +108,170 @@ def write_labelled_folder(
     ]
     planned += [root / _camera_folder(k) / "intrinsics.json" for k in range(1, len(cameras))]
     guard_outputs(planned, overwrite=overwrite)
-    if times is not None and len(times) != len(samples):
-        raise InvalidValueError(f"{len(times)} times for {len(samples)} samples")
-    rows = []
-    truth = {}
-    written: list[Path] = []
-    for k, intr in enumerate(cameras):
-        write_json(root / _camera_folder(k) / "intrinsics.json", intr.to_open3d_dict())
-    for s, sub in zip(samples, where):
-        color, depth = f"{sub}{s.name}_color.png", f"{sub}{s.name}_depth.png"
+    writer = LabelledFolderWriter(root, provenance, [s.name for s in samples],
+                                  frames=times is not None, overwrite=overwrite)
+    for k, s in enumerate(samples):
+        writer.add(s, None if times is None else times[k])
+    return writer.labels
+
+
+class LabelledFolderWriter:
+    """Writes rendered samples into a labelled folder one at a time, as they come: each
+    pair's colour and depth, then ``labels.csv``, ``truth.json`` (and ``frames.csv``)
+    listing every pair written so far, in the order of ``names``, with the pairs
+    ``kept`` from an interrupted run. Every file is written whole and recorded before it
+    is renamed into place (:func:`~dgli_vision.core.io.write_recorded`), and the
+    listings after the images: a process killed at any instant (SIGKILL too) leaves a
+    folder whose listings name exactly its complete pairs, which ``--resume`` keeps.
+
+    The caller has checked the files with :func:`guard_outputs`.
+
+    Parameters
+    ----------
+    out : str or Path
+    provenance : dict
+        ``truth.json``'s ``"provenance"`` (its ``"command"`` goes to the record).
+    names : sequence of str
+        Every pair of the set, in the order the listings give them.
+    frames : bool, keyword-only
+        Write ``frames.csv`` (a recording's frames and their times).
+    kept : dict, keyword-only, optional
+        Name -> a pair an earlier run left (``label_row``, ``frame_row`` and ``truth``,
+        :class:`~dgli_vision.sim.dataset.KeptPair`), listed with the new ones.
+    overwrite : bool, keyword-only
+        Replace a user's file where a pair goes (each pair's files are checked with
+        :func:`guard_outputs` before they are written: a camera's subfolder is known
+        only when its first pair comes).
+    """
+
+    def __init__(
+        self,
+        out: str | Path,
+        provenance: dict[str, Any],
+        names: Iterable[str],
+        *,
+        frames: bool = False,
+        kept: dict[str, Any] | None = None,
+        overwrite: bool = False,
+    ) -> None:
+        self.root = Path(out)
+        self.overwrite = overwrite
+        self.labels = self.root / "labels.csv"
+        self.provenance = provenance
+        self.command = str(provenance.get("command", ""))
+        self.names = list(names)
+        self.frames = frames
+        self._label_rows: dict[str, tuple[str, ...]] = {}
+        self._frame_rows: dict[str, tuple[str, ...]] = {}
+        self._truth: dict[str, Any] = {}
+        self._truth_text: dict[str, str] = {}  # each entry's JSON, as truth.json nests it
+        for name, pair in (kept or {}).items():
+            self._label_rows[name] = tuple(pair.label_row)
+            if pair.frame_row is not None:
+                self._frame_rows[name] = tuple(pair.frame_row)
+            self._truth[name] = pair.truth
+        self._cameras: list = []
+        self.written = 0
+
+    def add(self, sample: Any, time_s: float | None = None) -> None:
+        """Write one :class:`~dgli_vision.sim.dataset.RenderedSample` (``time_s``: its
+        time in the recording, for ``frames.csv``) and list it.
+
+        Raises
+        ------
+        OutputError
+            The pair, or a listing, could not be written: naming it, and the pairs
+            written before it, which are kept and listed.
+        """
+        import cv2
+
+        from ..core.io import csv_table, image_bytes, write_recorded
+
+        files: list[tuple[Path, bytes]] = []
+        intr = sample.result.intrinsics
+        if intr not in self._cameras:
+            self._cameras.append(intr)
+            k = len(self._cameras) - 1
+            text = json.dumps(intr.to_open3d_dict(), indent=1) + "\n"
+            files.append((self.root / _camera_folder(k) / "intrinsics.json", text.encode()))
+        sub = _camera_folder(self._cameras.index(intr))
+        color, depth = f"{sub}{sample.name}_color.png", f"{sub}{sample.name}_depth.png"
+        depth_mm = sample.result.depth_mm
+        if depth_mm.dtype != np.uint16:
+            raise InvalidValueError(f"depth must be uint16, got {depth_mm.dtype}")
         try:
-            write_color(root / color, s.result.color)
-            written.append(root / color)
-            write_depth(root / depth, s.result.depth_mm)
-            written.append(root / depth)
+            files.append((self.root / color, image_bytes(
+                self.root / color, cv2.cvtColor(sample.result.color, cv2.COLOR_RGB2BGR))))
+            files.append((self.root / depth, image_bytes(self.root / depth, depth_mm)))
         except OutputError as exc:
-            raise failed_part_way(exc, written, str(provenance.get("command", ""))) from None
-        rows.append((color, depth, s.state.class_id, s.state.variant or ""))
-        truth[s.name] = {
+            raise self._failed(exc) from None
+        guard_outputs([path for path, _ in files], overwrite=self.overwrite)
+        state = sample.state
+        self._label_rows[sample.name] = (color, depth, state.class_id, state.variant or "")
+        if self.frames:
+            self._frame_rows[sample.name] = (color, depth, f"{time_s or 0.0:.3f}")
+        self._truth[sample.name] = {
             "color": color,
             "depth": depth,
-            "class": s.state.class_id,
-            "name": s.state.name,
-            "variant": s.state.variant,
-            "camera": {**s.camera, **s.result.pose.to_json()},
-            "sticker_points_cam_m": np.round(s.result.sticker_points_cam, 6).tolist(),
-            "visible": s.result.visible.tolist(),
-            "visible_fraction": np.round(s.result.visible_fraction, 3).tolist(),
-            "state_params": s.state.params,
+            "class": state.class_id,
+            "name": state.name,
+            "variant": state.variant,
+            "camera": {**sample.camera, **sample.result.pose.to_json()},
+            "sticker_points_cam_m": np.round(sample.result.sticker_points_cam, 6).tolist(),
+            "visible": sample.result.visible.tolist(),
+            "visible_fraction": np.round(sample.result.visible_fraction, 3).tolist(),
+            "state_params": state.params,
             # a path-traced pair: its lights, materials and camera pipeline's draws
-            **({"render": s.result.info} if s.result.info.get("engine") else {}),
+            **({"render": sample.result.info} if sample.result.info.get("engine") else {}),
         }
-    from ..core.io import csv_table
+        order = [n for n in self.names if n in self._truth]
+        files.append((self.root / "truth.json", self._truth_json(order).encode()))
+        if self.frames:
+            files.append((self.root / "frames.csv", csv_table(
+                ["color", "depth", "time"], [self._frame_rows[n] for n in order]
+            ).encode()))
+        files.append((self.labels, csv_table(
+            ["color", "depth", "label", "variant"], [self._label_rows[n] for n in order]
+        ).encode()))
+        # the images first, then the listings that name them, labels.csv last: a pair it
+        # lists has its truth (and frame) entry, which --resume needs to keep it
+        try:
+            write_recorded(files, self.command)
+        except OutputError as exc:  # not listed: the listings on disk do not name it
+            for rows in (self._label_rows, self._frame_rows, self._truth, self._truth_text):
+                rows.pop(sample.name, None)
+            raise self._failed(exc) from None
+        self.written += 1
 
-    labels = root / "labels.csv"
-    write_text(labels, csv_table(["color", "depth", "label", "variant"], rows))
-    if times is not None:
-        write_text(
-            root / "frames.csv",
-            csv_table(
-                ["color", "depth", "time"],
-                [(c, d, f"{t:.3f}") for (c, d, *_), t in zip(rows, times)],
-            ),
+    def _truth_json(self, order: list[str]) -> str:
+        """``truth.json``'s text, ``{"provenance", "images"}`` with ``order``'s entries,
+        exactly as ``json.dumps(..., indent=1)`` writes it, from each entry's text made
+        once (rewritten after every pair, the whole file would cost a set of N pairs
+        N^2 / 2 entries' encoding)."""
+        for name in order:
+            if name not in self._truth_text:
+                self._truth_text[name] = _indented(json.dumps(self._truth[name], indent=1), 2)
+        provenance = _indented(json.dumps(self.provenance, indent=1), 1)
+        images = ",\n".join(f"  {json.dumps(n)}: {self._truth_text[n]}" for n in order)
+        images = f"{{\n{images}\n }}" if order else "{}"
+        return f'{{\n "provenance": {provenance},\n "images": {images}\n}}\n'
+
+    def _failed(self, exc: OutputError) -> OutputError:
+        """``exc`` naming the pairs kept (those listed before the failed one)."""
+        kept = len(self._truth)
+        if not kept:
+            return OutputError(f"{exc}; no pair was written before it")
+        pairs = "the pair" if kept == 1 else f"the {kept} pairs"
+        return OutputError(
+            f"{exc}; {pairs} written before it are kept and listed in '{self.labels}'"
         )
-    write_json(root / "truth.json", {"provenance": provenance, "images": truth})
-    record_outputs(
-        [p for p in planned if p.exists()], str(provenance.get("command", ""))
-    )
-    return labels
+
+
+def _indented(text: str, depth: int) -> str:
+    """JSON ``text`` written with ``indent=1`` as it reads nested ``depth`` levels deep
+    (its lines after the first moved right by ``depth`` spaces; a JSON string holds no
+    raw newline, so every newline is one of the layout's)."""
+    return text.replace("\n", "\n" + " " * depth)
 
 
 def _camera_folder(k: int) -> str:
@@ -228,10 +342,16 @@ def folder_intrinsics(root: str | Path, color: str | Path) -> str | None:
     return str(shared)
 
 
-def _real_path(path: str) -> str:
-    """The path with symbolic links resolved as far as they go (a link loop does not
-    raise: reading the file reports it)."""
-    return os.path.realpath(path)
+def _file_identity(path: str) -> tuple[int, int] | str:
+    """The file ``path`` names, by its identity on disk, ``(st_dev, st_ino)``: the same
+    for two names of one file, whether a symbolic link or a hard link joins them. A path
+    that cannot be looked up (missing, a link loop: reading it reports why) is its path
+    with symbolic links resolved as far as they go."""
+    try:
+        st = os.stat(path)
+    except (OSError, ValueError):
+        return os.path.realpath(path)
+    return st.st_dev, st.st_ino
 
 
 def _unreadable(kind: str, path: str) -> str | None:
@@ -261,10 +381,10 @@ def _check_labels(
     """Split pairs into usable ones and problems (unknown class or variant, duplicates,
     missing files). Pairs with missing files stay usable: reading them fails and is
     reported with the batch."""
-    from ..core.classes import CLASS_HINT, CLASS_NAMES, OUTSIDE, VARIANTS
+    from ..core.classes import CLASS_HINT, CLASS_NAMES, OUTSIDE, VARIANTS, digits_note
 
     keep, problems = [], []
-    seen: dict[tuple[str, str], str] = {}
+    seen: dict[tuple[Any, Any], str] = {}  # by the files' identity: links are the same pair
     for pair, at in zip(pairs, where):
         if pair.label == OUTSIDE and pair.variant is not None:
             problems.append(
@@ -280,7 +400,8 @@ def _check_labels(
                 LabelProblem(
                     at,
                     "unknown class",
-                    f"{at}: class {pair.label!r} is not {CLASS_HINT}",
+                    f"{at}: class {pair.label!r}{digits_note(pair.label)} is not "
+                    f"{CLASS_HINT}",
                 )
             )
             continue
@@ -295,7 +416,7 @@ def _check_labels(
                 )
             )
             continue
-        key = (_real_path(pair.color), _real_path(pair.depth))
+        key = (_file_identity(pair.color), _file_identity(pair.depth))
         if key in seen:
             problems.append(LabelProblem(at, "duplicate", f"{at}: the same pair as {seen[key]}"))
             continue

@@ -232,7 +232,7 @@ def is_recording_file(path: str | Path) -> bool:
 def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], list]:
     """A recording's labels: ``frame`` (index from 0) or ``time`` (seconds from the
     start), ``label`` and optionally ``variant``."""
-    from ..core.classes import CLASS_IDS, VARIANTS, class_id_of
+    from ..core.classes import CLASS_IDS, VARIANTS, class_id_of, digits_note
 
     by_frame: dict[int, tuple[str, str | None, int]] = {}
     by_time: list[tuple[float, str, str | None, int]] = []
@@ -252,13 +252,16 @@ def _labels_file(path: Path) -> tuple[dict[int, tuple[str, str | None, int]], li
                 if label not in CLASS_IDS or (variant and variant not in VARIANTS.get(label, ())):
                     raise InvalidInputError(
                         f"labels file '{path}' line {k}: unknown class or variant "
-                        f"{label!r} {variant or ''}".rstrip()
+                        f"{label!r} {variant or ''}".rstrip() + digits_note(label)
                     )
-                try:
-                    if (row.get("frame") or "").strip():
-                        by_frame[int(row["frame"])] = (label, variant, k)
+                try:  # ASCII digits only (int() and float() read other scripts' too)
+                    frame, time_s = (row.get("frame") or "").strip(), row.get("time") or ""
+                    if not (frame.isascii() and time_s.isascii()):
+                        raise ValueError(frame)
+                    if frame:
+                        by_frame[int(frame)] = (label, variant, k)
                     else:
-                        by_time.append((float(row["time"]), label, variant, k))
+                        by_time.append((float(time_s), label, variant, k))
                 except ValueError:
                     raise InvalidInputError(
                         f"labels file '{path}' line {k}: frame or time is not a number"
