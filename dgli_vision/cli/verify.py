@@ -99,12 +99,13 @@ def verify_cmd(
     from ..classifier.references import load_references
     from ..core.extrinsics import read_extrinsics
     from ..core.layout import layout_of_size
-    from ..planning.verify import verify_fold
+    from ..planning.verify import check_request, verify_fold
     from ..sources.frames import read_frame
 
     given = [n for n, v in (("--legs", legs), ("--inset", inset), ("--tip", tip)) if v is not None]
     if len(given) > 1:
         raise click.UsageError(f"give one of --legs, --inset, --tip, not {' and '.join(given)}")
+    check_request(expect, legs=legs, inset_mm=inset, tip_mm=tip)  # a mistake: exit 2
     extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     refs = load_references(references_path)
     layout = layout_of_size(refs.napkin_mm)
