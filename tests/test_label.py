@@ -155,7 +155,7 @@ def test_batched_distances_and_verdicts_equal_the_classifiers():
 
 
 def test_dask_cluster_and_local_processes_give_the_results_of_one_process(finished):
-    import distributed  # the 'dask' extra, installed by scripts/setup.sh
+    import distributed  # the 'dask' extra, installed by scripts/setup.sh --test
     episodes, _, _ = finished
     paths = (episodes[0][0], episodes[5][0])  # both y up, in cm
     options = ReadOptions(up_axis="y", units="cm")
