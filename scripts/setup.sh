@@ -6,7 +6,8 @@
 #                             the package (editable)
 #   scripts/setup.sh --test   that, and what the tests need: the test extras, the
 #                             recordings extra (ROS bags), the dask extra (dgli label
-#                             --dask), the realsense extra (the RealSense SDK), Debian's
+#                             --dask), the realsense extra (the RealSense SDK), the docs
+#                             extra (Sphinx: the site's build is a test), Debian's
 #                             chromium (the HTML report tests) and, in .venv-photoreal/,
 #                             Blender as a Python module (the photoreal extra)
 set -euo pipefail
@@ -65,7 +66,7 @@ stamp=.venv/.dgli-setup-stamp
 extras=""
 if [ "$mode" = test ]; then
     stamp=.venv/.dgli-test-stamp
-    extras="[test,recordings,dask,realsense]"
+    extras="[test,recordings,dask,realsense,docs]"
 fi
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip

@@ -180,7 +180,7 @@ def test_the_test_set_up_adds_the_extras_the_browser_and_blender(tmp_path):
     assert run.returncode == 0, run.stderr
     assert "chromium" in (tmp_path / "apt.log").read_text()
     assert (repo / ".venv-photoreal" / "bin" / "python").is_file()
-    assert log.read_text().splitlines()[-1].endswith("-e .[test,recordings,dask,realsense]")
+    assert log.read_text().splitlines()[-1].endswith("-e .[test,recordings,dask,realsense,docs]")
     first = log.read_text()
     plain = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
                            capture_output=True, text=True, timeout=60)
