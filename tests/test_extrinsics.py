@@ -145,3 +145,38 @@ def test_in_frame_moves_only_3d_points_and_leaves_its_input_as_it_was():
     assert out["steps"][0]["crease_mm"] == [[0, 1], [2, 3]]
     assert out["up"] == [0.0, 0.0, -1.0] and out["frame"] == "base"
     assert data["corners"]["A"]["point"] == [0.0, 0.0, 0.5] and "frame" not in data
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory) -> Path:
+    import shutil
+
+    folder = tmp_path_factory.mktemp("recording")
+    for name in ("01_000", "05_000"):
+        for kind in ("color", "depth"):
+            shutil.copy(SAMPLES / f"{name}_{kind}.png", folder / f"{name}_{kind}.png")
+    shutil.copy(SAMPLES / "intrinsics.json", folder / "intrinsics.json")
+    return folder
+
+
+def _lines(*args: str) -> list[dict]:
+    res = CliRunner().invoke(main, ["watch", *args, "--jsonl"])
+    assert res.exit_code == 0, res.output
+    assert "Traceback" not in res.output
+    return [json.loads(t) for t in res.stdout.splitlines()][:-1]  # the summary left out
+
+
+@pytest.mark.parametrize("jobs", ["1", "2"])  # in this process, and in worker processes
+def test_watch_gives_each_frames_corners_in_the_base_frame(files, recording, jobs):
+    camera = _lines("--bag", str(recording), "-j", jobs, "--fast")
+    base = _lines("--bag", str(recording), "-j", jobs, "--fast", "--extrinsics", str(files["tf"]))
+    assert len(camera) == len(base) == 2
+    for cam, rob in zip(camera, base):
+        assert (cam["points_frame"], rob["points_frame"]) == ("camera", "base_link")
+        assert cam["frame"] == rob["frame"]  # the frame's number stays
+        placed = [n for n, c in cam["corners"].items() if c["point"] is not None]
+        assert placed
+        for n in placed:
+            assert np.allclose(rob["corners"][n]["point"], _moved(cam["corners"][n]["point"]),
+                               atol=1e-4)
+        assert np.allclose(rob["up"], np.array(MATRIX, float)[:3, :3] @ cam["up"], atol=1e-5)

@@ -284,20 +284,27 @@ def _is_point(v: Any) -> bool:
     )
 
 
-def in_frame(data: Any, extrinsics: Extrinsics | None = None, *, digits: int = 5) -> Any:
+def in_frame(
+    data: Any,
+    extrinsics: Extrinsics | None = None,
+    *,
+    digits: int = 5,
+    frame_key: str = "frame",
+) -> Any:
     """A JSON answer (the ``to_json()`` of a verdict, a plan, a fold check) with every
     3D point in the frame of ``extrinsics`` and ``"frame"`` naming it.
 
     Points are the values of :data:`POINT_KEYS` (one point), :data:`LINE_KEYS` (a list of
     points) and :data:`DIRECTION_KEYS` (a direction, turned only), at any depth; pixels
     and sizes on the napkin (``pixel``, ``*_mm``) are not 3D points and stay. The top
-    object gains ``"frame"`` (``"camera"`` without extrinsics). A new object is returned;
-    ``data`` is not changed.
+    object gains ``frame_key`` (``"frame"``; ``dgli watch``'s lines, whose ``"frame"``
+    is the frame's number, say ``"points_frame"``) naming it, ``"camera"`` without
+    extrinsics. A new object is returned; ``data`` is not changed.
     """
     ext = extrinsics or CAMERA
     moved = _walk(data, ext, digits) if ext is not CAMERA else data
     if isinstance(moved, dict):
-        moved = {**moved, "frame": ext.frame}
+        moved = {**moved, frame_key: ext.frame}
     return moved
 
 
