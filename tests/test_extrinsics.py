@@ -180,3 +180,24 @@ def test_watch_gives_each_frames_corners_in_the_base_frame(files, recording, job
             assert np.allclose(rob["corners"][n]["point"], _moved(cam["corners"][n]["point"]),
                                atol=1e-4)
         assert np.allclose(rob["up"], np.array(MATRIX, float)[:3, :3] @ cam["up"], atol=1e-5)
+
+
+def test_the_api_takes_extrinsics_as_the_commands_do(files):
+    import dgli_vision
+
+    camera = dgli_vision.classify_pair(*FOLDED)
+    base = dgli_vision.classify_pair(*FOLDED, extrinsics=files["tf"])
+    same = dgli_vision.classify_pair(*FOLDED, extrinsics=np.array(MATRIX, float))
+    assert base.class_id == same.class_id == camera.class_id == "05"
+    assert np.allclose(base.corners["A"].point, same.corners["A"].point, atol=1e-12)
+    for name, c in camera.corners.items():
+        if c.point is not None:
+            assert np.allclose(base.corners[name].point, _moved(c.point), atol=1e-9)
+            assert base.corners[name].pixel == c.pixel
+    assert np.allclose(base.folds[0].line, [_moved(q) for q in camera.folds[0].line])
+    step = dgli_vision.plan(*FLAT, goal="02/A", extrinsics=files["matrix"]).steps[0]
+    cam_step = dgli_vision.plan(*FLAT, goal="02/A").steps[0]
+    assert np.allclose(step.grasp_point, _moved(cam_step.grasp_point), atol=1e-9)
+    assert np.allclose(step.place_point, _moved(cam_step.place_point), atol=1e-9)
+    with pytest.raises(InvalidInputError, match="is not a rotation"):
+        dgli_vision.classify_pair(*FOLDED, extrinsics=np.diag([2.0, 1.0, 1.0, 1.0]))

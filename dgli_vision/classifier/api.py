@@ -69,6 +69,7 @@ def classify_pair(
     references: ReferenceSet | str | Path | None = None,
     *,
     colours: dict[str, tuple[int, int, int]] | None = None,
+    extrinsics: object = None,
 ) -> Prediction:
     """Classify one registered colour + depth pair.
 
@@ -86,6 +87,10 @@ def classify_pair(
         Default: the shipped reference set (loaded once and kept).
     colours : dict, keyword-only, optional
         Calibrated sticker colours (``dgli calibrate``).
+    extrinsics : Extrinsics, path or (4, 4) array, keyword-only, optional
+        The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the corners'
+        points and the folds' lines are then in the robot's base frame (as with
+        ``--extrinsics``); default the camera frame.
 
     Returns
     -------
@@ -111,6 +116,30 @@ def classify_pair(
         wrong shape or type, bad intrinsics, references or colours (one line naming the
         file or array and the problem).
     """
+    from ..core.extrinsics import extrinsics_of
+
+    ext = extrinsics_of(extrinsics)
+    p = _classified(color, depth, intrinsics, references, colours)
+    return p if ext is None else _in_frame(p, ext)
+
+
+def _in_frame(p: Prediction, ext: object) -> Prediction:
+    """``p`` with its corners' points and its folds' lines in the frame of ``ext``."""
+    from ..core.extrinsics import moved_point
+    from .affordances import CornerMap
+
+    corners = CornerMap(replace(c, point=moved_point(ext, c.point)) for c in p.corners.values())
+    folds = tuple(
+        f if f.line is None else replace(f, line=tuple(moved_point(ext, q) for q in f.line))
+        for f in p.folds
+    )
+    return replace(p, corners=corners, folds=folds)
+
+
+def _classified(
+    color: object, depth: object, intrinsics: object, references: object, colours: object
+) -> Prediction:
+    """:func:`classify_pair`'s verdict in the camera frame."""
     from .pipeline import WHY_KINDS, classify_frame
 
     frame = frame_from(color, depth, intrinsics)

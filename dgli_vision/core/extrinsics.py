@@ -41,7 +41,9 @@ __all__ = [
     "POINT_KEYS",
     "RIGID_TOLERANCE",
     "Extrinsics",
+    "extrinsics_of",
     "in_frame",
+    "moved_point",
     "parse_extrinsics",
     "read_extrinsics",
 ]
@@ -275,6 +277,36 @@ def read_extrinsics(path: str | Path) -> Extrinsics:
             ) from None
         data = _yaml(text, source)
     return parse_extrinsics(data, source)
+
+
+def extrinsics_of(value: Any) -> Extrinsics | None:
+    """The transform an API's ``extrinsics=`` argument names: an :class:`Extrinsics`, a
+    file path (:func:`read_extrinsics`), a 4 x 4 array or nested list (camera to base,
+    row-major; the frame is then ``"base"``), or None (the camera frame).
+
+    Raises
+    ------
+    InvalidInputError
+        Not one of these, or not rigid.
+    """
+    if value is None or isinstance(value, Extrinsics):
+        return value
+    if isinstance(value, (str, Path)):
+        return read_extrinsics(value)
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return parse_extrinsics(np.asarray(value, dtype=np.float64).tolist(), "<array>")
+    raise InvalidInputError(
+        "extrinsics must be an Extrinsics, a file path or a 4 x 4 camera-to-base matrix; "
+        f"got {type(value).__name__}"
+    )
+
+
+def moved_point(ext: Extrinsics, p: Any) -> tuple[float, float, float] | None:
+    """One camera-frame point (or None) in the frame of ``ext``, as a tuple."""
+    if p is None:
+        return None
+    x, y, z = ext.points(np.asarray(p, dtype=np.float64))
+    return float(x), float(y), float(z)
 
 
 def _is_point(v: Any) -> bool:

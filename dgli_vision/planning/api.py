@@ -51,6 +51,7 @@ def plan(
     start: str | StateKey | None = None,
     intrinsics: Any = None,
     references: Any = None,
+    extrinsics: Any = None,
 ) -> Plan:
     """The next folds towards ``goal``: from a colour + depth pair (classified first),
     or from a known state ``start`` (then the steps carry no points).
@@ -66,11 +67,16 @@ def plan(
         Plan without an image, from this state.
     intrinsics, references : optional
         As for :func:`~dgli_vision.classifier.api.classify_pair`.
+    extrinsics : Extrinsics, path or (4, 4) array, optional
+        The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the steps'
+        grasp and place points and fold lines are then in the robot's base frame (as
+        with ``--extrinsics``); default the camera frame.
 
     Returns
     -------
     Plan
-        ``plan.to_json()`` is the object ``dgli plan --json`` prints.
+        ``plan.to_json()`` is the object ``dgli plan --json`` prints (without its
+        ``"frame"``).
 
     Raises
     ------
@@ -78,7 +84,9 @@ def plan(
         No plan (the message says why); other ``DgliError`` for unreadable input.
     """
     from ..classifier.api import frame_from, reference_set_of
+    from ..core.extrinsics import extrinsics_of
 
+    ext = extrinsics_of(extrinsics)
     target = _key(goal, need_variant=False)
     if start is not None:
         return plan_geometry(_key(start, need_variant=True), target, layout_of_size(None),
@@ -89,7 +97,22 @@ def plan(
     refs = reference_set_of(references)
     layout = layout_of_size(refs.napkin_mm)
     result = classify_frame(frame, refs, layout=layout)
-    return plan_frame(result, frame, target, layout)
+    made = plan_frame(result, frame, target, layout)
+    return made if ext is None else _in_frame(made, ext)
+
+
+def _in_frame(made: Plan, ext: Any) -> Plan:
+    """``made`` with its steps' 3D points in the frame of ``ext``."""
+    from dataclasses import replace
+
+    from ..core.extrinsics import moved_point
+
+    def step(s: PlanStep) -> PlanStep:
+        line = None if s.fold_line is None else tuple(moved_point(ext, q) for q in s.fold_line)
+        return replace(s, grasp_point=moved_point(ext, s.grasp_point),
+                       place_point=moved_point(ext, s.place_point), fold_line=line)
+
+    return replace(made, steps=tuple(step(s) for s in made.steps))
 
 
 def _expected(expect: str | StateKey) -> StateKey:
