@@ -1,10 +1,24 @@
 #!/usr/bin/env bash
-# Idempotent set-up: system library for Open3D, a virtual environment in .venv/, the
-# package (editable) with its test extras, the recordings extra (ROS bags), the dask
-# extra (dgli label --dask) and the realsense extra (the RealSense SDK).
-# Safe to run again; fast when nothing changed.
+# Idempotent set-up. Safe to run again; fast when nothing changed.
+#
+#   scripts/setup.sh          what classifying needs: the system library Open3D links
+#                             against (libusb-1.0), a virtual environment in .venv/ and
+#                             the package (editable)
+#   scripts/setup.sh --test   that, and what the tests need: the test extras, the
+#                             recordings extra (ROS bags), the dask extra (dgli label
+#                             --dask), the realsense extra (the RealSense SDK), the docs
+#                             extra (Sphinx: the site's build is a test), Debian's
+#                             chromium (the HTML report tests) and, in .venv-photoreal/,
+#                             Blender as a Python module (the photoreal extra)
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+mode=classify
+case "${1:-}" in
+    "") ;;
+    --test) mode=test ;;
+    *) echo "usage: scripts/setup.sh [--test]" >&2; exit 2 ;;
+esac
 
 SUDO=""
 [ "$(id -u)" -ne 0 ] && SUDO="sudo"
@@ -29,7 +43,7 @@ if ! grep -q 'libusb-1\.0\.so' <<<"$libs"; then
 fi
 
 # Headless Chromium: tests/test_html_pages.py opens every HTML report in it.
-if ! command -v chromium >/dev/null 2>&1; then
+if [ "$mode" = test ] && ! command -v chromium >/dev/null 2>&1; then
     echo "setup: installing chromium (the HTML report tests open pages in it)" >&2
     apt_install chromium || echo "setup: chromium not installed; the browser tests skip" >&2
 fi
@@ -45,23 +59,31 @@ if [ ! -x .venv/bin/python ]; then
     fi
 fi
 
-stamp=.venv/.dgli-setup-stamp
+# .dgli-setup-stamp: the package installed for this pyproject.toml; .dgli-test-stamp:
+# the test extras too (a --test set-up writes both, so the plain one then does nothing)
 want=$(cat pyproject.toml | sha256sum | cut -d' ' -f1)
+stamp=.venv/.dgli-setup-stamp
+extras=""
+if [ "$mode" = test ]; then
+    stamp=.venv/.dgli-test-stamp
+    extras="[test,recordings,dask,realsense,docs]"
+fi
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
     # setuptools warns "Editable installation" (a dozen lines) on every editable install
     # (here and in .venv-photoreal/ below); only that warning is silenced, errors show
     PYTHONWARNINGS="ignore:Editable installation" \
         .venv/bin/python -m pip install -q --disable-pip-version-check \
-        -e '.[test,recordings,dask,realsense]'
+        -e ".$extras"
     echo "$want" > "$stamp"
+    echo "$want" > .venv/.dgli-setup-stamp
 fi
 
-# photoreal: Blender as a Python module, for `dgli render --engine cycles`. Its bpy needs
-# numpy < 2 (and so OpenCV 4.11), which the main environment is not moved to: the extra
+# photoreal (--test): Blender as a Python module, for `dgli render --engine cycles`. Its
+# bpy needs numpy < 2 (and so OpenCV 4.11), which the main environment is not moved to: the extra
 # gets a virtual environment of its own, .venv-photoreal/ (Python 3.11 only, as bpy;
 # about 20 s from a package cache, 1.5 GB). DGLI_NO_PHOTOREAL=1 skips it.
-if [ "${DGLI_NO_PHOTOREAL:-0}" != "1" ] \
+if [ "$mode" = test ] && [ "${DGLI_NO_PHOTOREAL:-0}" != "1" ] \
     && "$PY" -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' 2>/dev/null; then
     if [ ! -x .venv-photoreal/bin/python ]; then
         "$PY" -m venv .venv-photoreal

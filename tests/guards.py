@@ -43,7 +43,7 @@ def require_extra(module: str, extra: str | None = None) -> ModuleType:
         missing = str(exc)
     reason = (
         f"{module} is missing ({missing}): the '{extra}' extra, "
-        f"pip install '.[{extra}]' (scripts/setup.sh installs it)"
+        f"pip install '.[{extra}]' (scripts/setup.sh --test installs it)"
     )
     if os.environ.get("CI") == "true":
         pytest.fail(f"{reason}; CI must install every extra", pytrace=False)

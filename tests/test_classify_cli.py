@@ -60,6 +60,8 @@ def test_json_has_the_designed_fields(tmp_path):
         "coordinates",
         "corners",
         "folds",
+        "up",
+        "frame",
     }
     assert 0.0 <= data["confidence"] <= 1.0
     assert set(data["stickers"]) == {"found", "missing", "unknown"}

@@ -2,7 +2,7 @@
 depth model (plain numpy, always run), the one-line error without Blender, and a small
 Cycles render whose sticker pixels and depth must agree with the simulator's geometry
 through intrinsics.json (run where ``bpy`` is: in this Python, or in the
-``.venv-photoreal/`` that scripts/setup.sh makes, since bpy needs numpy < 2)."""
+``.venv-photoreal/`` that scripts/setup.sh --test makes, since bpy needs numpy < 2)."""
 
 from __future__ import annotations
 
@@ -127,7 +127,7 @@ def small_render(tmp_path_factory):
     if python is None:
         pytest.skip(
             "bpy (Blender as a Python module) is not installed: pip install "
-            "dgli_vision[photoreal] (scripts/setup.sh makes .venv-photoreal/ with it)"
+            "dgli_vision[photoreal] (scripts/setup.sh --test makes .venv-photoreal/ with it)"
         )
     out = tmp_path_factory.mktemp("cycles") / "render.npz"
     run = subprocess.run(

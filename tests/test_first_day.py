@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+from functools import lru_cache
 from pathlib import Path
 
 import cv2
@@ -113,15 +115,89 @@ def test_the_readme_example_is_what_the_command_prints():
 
 
 def test_a_bgr_array_is_named_as_the_likely_cause():
-    """OpenCV reads BGR; classify_pair takes RGB: when the swapped array reads, say so."""
-    from dgli_vision.core.errors import DetectionError
-
+    """OpenCV reads BGR; classify_pair takes RGB: when the swapped array reads, say so
+    (a "cannot tell", not an exception)."""
     samples = Path(__file__).resolve().parents[1] / "sample_images"
     bgr = cv2.imread(str(samples / "05_000_color.png"))
     depth = cv2.imread(str(samples / "05_000_depth.png"), cv2.IMREAD_UNCHANGED)
-    with pytest.raises(DetectionError, match=r"is the colour array BGR.*color\[\.\.\., ::-1\]"):
-        dgli_vision.classify_pair(bgr, depth)
+    p = dgli_vision.classify_pair(bgr, depth)
+    assert p.class_id is None and p.why == "colour channels"
+    assert re.search(r"^cannot tell: .*is the colour array BGR.*color\[\.\.\., ::-1\]",
+                     p.reason)
     assert dgli_vision.classify_pair(bgr[..., ::-1].copy(), depth).class_id == "05"
+
+
+@lru_cache(maxsize=1)
+def _flat_napkin() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Sample 01 (RGB, depth) and its 16 sticker centres (16, 2) in pixels."""
+    from dgli_vision.classifier.api import frame_from, reference_set_of
+    from dgli_vision.classifier.pipeline import classify_frame
+
+    rgb = cv2.cvtColor(cv2.imread(str(SAMPLES / "01_000_color.png")), cv2.COLOR_BGR2RGB)
+    depth = cv2.imread(str(SAMPLES / "01_000_depth.png"), cv2.IMREAD_UNCHANGED)
+    result = classify_frame(frame_from(rgb, depth), reference_set_of(None))
+    assert result.detections.found.all()
+    return rgb, depth, result.detections.centroids
+
+
+def _with_stickers(keep: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Sample 01 with its colour washed to grey but around the stickers ``keep``."""
+    rgb, depth, centres = _flat_napkin()
+    out = cv2.cvtColor(cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY), cv2.COLOR_GRAY2RGB)
+    for k in keep:
+        u, v = np.round(centres[k]).astype(int)
+        out[v - 25:v + 26, u - 25:u + 26] = rgb[v - 25:v + 26, u - 25:u + 26]
+    return out, depth
+
+
+def test_a_frame_with_three_stickers_in_view_is_a_cannot_tell_not_an_exception():
+    rgb, depth = _with_stickers([0, 1, 2])
+    p = dgli_vision.classify_pair(rgb, depth)
+    assert p.class_id is None and p.name is None and p.variant is None
+    assert p.why == "too few stickers"
+    assert p.reason.startswith("cannot tell: 3 of 16 stickers located")
+    assert p.stickers.found == (0, 1, 2) and p.confidence == 0.0 and p.candidates == ()
+
+
+def test_a_frame_with_no_depth_reading_is_a_cannot_tell():
+    rgb, depth = _flat_napkin()[:2]
+    p = dgli_vision.classify_pair(rgb, np.zeros_like(depth))
+    assert p.class_id is None and p.why == "too few stickers"
+    assert p.reason.startswith("cannot tell:") and "depth" in p.reason
+
+
+def test_the_readme_capture_loop_runs_as_written():
+    """The README's loop, executed as it is printed, on frames with 0 to 16 stickers in
+    view: no exception; each "cannot tell" carries its reason, the full view a class."""
+    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    code = text.split("In a capture loop:", 1)[1].split("```python\n", 1)[1].split("```")[0]
+    frames = [_with_stickers(list(range(n))) for n in range(16)]  # 0 to 15 in view
+    frames.append(_flat_napkin()[:2])  # and all 16
+
+    class Camera:
+        def read(self):
+            return frames.pop(0)
+
+    class Robot:
+        def __init__(self):
+            self.seen: list[tuple] = []
+
+        @property
+        def running(self) -> bool:
+            return bool(frames)
+
+        def look_again(self, reason):
+            self.seen.append(("look again", reason))
+            assert reason.startswith("cannot tell:")
+
+        def on_state(self, class_id, variant):
+            self.seen.append((class_id, variant))
+
+    robot = Robot()
+    exec(compile(code, "README.md", "exec"), {"robot": robot, "camera": Camera()})
+    assert len(robot.seen) == 17
+    assert all(what == "look again" for what, _ in robot.seen[:3])  # 0-2 stickers
+    assert robot.seen[-1] == ("01", None)
 
 
 def test_a_bgr_array_that_reads_mirrored_says_its_channels_are_swapped():
@@ -134,7 +210,7 @@ def test_a_bgr_array_that_reads_mirrored_says_its_channels_are_swapped():
         "cannot tell: colour channels swapped (BGR?): with red and blue swapped it reads as 07"
     )
     assert p.class_id is None and p.name is None and p.variant is None
-    assert p.candidates and p.confidence < 0.25
+    assert p.confidence < 0.25  # (candidates: those of the reading as given, if any)
 
 
 def test_a_cannot_tell_names_no_class_and_keeps_the_nearest_in_candidates():

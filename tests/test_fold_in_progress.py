@@ -88,3 +88,27 @@ def test_label_abstains_between_04_and_05_while_the_second_flap_is_held_up(tmp_p
     landing = [f for f in ep.frames if f.note and "differ only in where it lands" in f.note]
     assert all(truth[f.index] in ("02", "04") for f in landing)
     assert sum(a is not None for a in said) >= 0.85 * len(said)  # (36 of 40)
+
+
+def test_a_fold_in_progress_is_named_by_its_states_fold_and_angle():
+    """`dgli simulate` names each mesh by what it is (``m55_1_00.ply`` said nothing):
+    the state made, the one it is made from, the fold, the angle bin, the draw; so do
+    the shipped references' sources."""
+    import re
+
+    from dgli_vision.classifier.references import load_references
+    from dgli_vision.sim.database import progress_id
+
+    assert progress_id(("06", "BD"), ("07", "C"), "A over", (50, 90), 0) == (
+        "07-C_from_06-BD_A-over_050-090deg_00")
+    assert progress_id(("04", "AB"), ("05", "AB/B"), "B over crossing A", (10, 50), 2) == (
+        "05-AB-B_from_04-AB_B-over-crossing-A_010-050deg_02")
+    staged = [r for r in load_references(None).references if r.stage]
+    assert len(staged) == 260
+    for r in staged:
+        fold, lo, hi = re.fullmatch(r"(?:rising|settling) (.+), (\d+)-(\d+) deg", r.stage).groups()
+        here = r.class_id + (f"-{r.variant.replace('/', '-')}" if r.variant else "")
+        # below 90 degrees the state keeps its class: the one the fold is made from
+        named = re.fullmatch(rf"(.+)_from_(.+)_{re.escape(fold.replace(' ', '-'))}_"
+                             rf"{int(lo):03d}-{int(hi):03d}deg_\d\d", r.source)
+        assert named and here in named.groups(), (r.source, r.stage)

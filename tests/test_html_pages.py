@@ -2,7 +2,7 @@
 in headless Chromium: it loads with no missing picture, no failed load and no console error, its
 summary is on the first screen (1200 x 900), and its charts are Matplotlib's with axes.
 
-Skips where no browser is installed (scripts/setup.sh installs Debian's ``chromium``),
+Skips where no browser is installed (``scripts/setup.sh --test`` installs Debian's ``chromium``),
 except under CI=true, where that is a failure. ``DGLI_SCREENSHOTS=docs/screenshots``
 writes each page's first screen there, 600 pixels wide (the pictures of docs/reports.md).
 """
@@ -82,8 +82,8 @@ def browser():
     path = find_browser()
     if path is None:
         if os.environ.get("CI") == "true":
-            pytest.fail("CI=true and no chromium installed: scripts/setup.sh installs it")
-        pytest.skip("no headless browser installed (scripts/setup.sh installs Debian's "
+            pytest.fail("CI=true and no chromium installed: scripts/setup.sh --test installs it")
+        pytest.skip("no headless browser installed (scripts/setup.sh --test installs Debian's "
                     "chromium); the HTML pages were not opened")
     b = Browser(path)
     yield b

@@ -155,7 +155,7 @@ def test_batched_distances_and_verdicts_equal_the_classifiers():
 
 
 def test_dask_cluster_and_local_processes_give_the_results_of_one_process(finished):
-    import distributed  # the 'dask' extra, installed by scripts/setup.sh
+    import distributed  # the 'dask' extra, installed by scripts/setup.sh --test
     episodes, _, _ = finished
     paths = (episodes[0][0], episodes[5][0])  # both y up, in cm
     options = ReadOptions(up_axis="y", units="cm")
@@ -275,3 +275,28 @@ def test_rest_file_and_size_for_a_remeshed_cloth_in_unknown_units(tmp_path):
     (ep,) = json.loads(res.stdout)["episodes"]
     assert ep["size_mm"] == [400.0, 400.0]
     assert (ep["frames"][0]["class"], ep["frames"][0]["variant"]) == ("09", "CD")
+
+
+def test_simulate_writes_episodes_that_label_reads_and_gets_right(tmp_path):
+    """`dgli simulate OUT --episodes`: a command writes what `dgli label` reads, so that
+    label can be tried from the docs alone; its truth.json scores the labels."""
+    out = tmp_path / "episodes"
+    run = CliRunner().invoke(main, ["simulate", str(out), "--episodes", "--frames", "6"])
+    assert run.exit_code == 0, run.output
+    names = sorted(p.name for p in out.glob("*.npz"))
+    assert names == ["sequence_I.npz", "sequence_II.npz", "sequence_III.npz"]
+    truth = json.loads((out / "truth.json").read_text())["episodes"]
+    res = CliRunner().invoke(main, ["label", *map(str, sorted(out.glob("*.npz"))), "--json"])
+    assert res.exit_code == 0, res.output
+    frames = wrong = right = 0
+    for ep in json.loads(res.stdout)["episodes"]:
+        for got, want in zip(ep["frames"], truth[Path(ep["path"]).name], strict=True):
+            frames += 1
+            right += got["class"] == want["class"]
+            wrong += got["class"] is not None and got["class"] != want["class"]
+    assert frames == 18 and wrong == 0 and right >= 16
+    again = CliRunner().invoke(main, ["simulate", str(out), "--episodes", "--frames", "6"])
+    assert again.exit_code == 0  # its own files are replaced without --overwrite
+    mixed = CliRunner().invoke(main, ["simulate", str(out), "--episodes", "--per-class", "3"])
+    assert mixed.exit_code == 2 and "drop --per-class" in mixed.output
+    assert "Traceback" not in mixed.output

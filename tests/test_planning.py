@@ -86,6 +86,15 @@ def test_shortest_path_follows_the_fold_graph():
         parse_state("02")
 
 
+def test_a_state_with_a_variant_it_cannot_have_is_named_plainly():
+    res = CliRunner().invoke(main, ["plan", "--from", "08/A", "--goal", "01"])
+    assert res.exit_code == 2 and "Traceback" not in res.output
+    assert "class 08 has no variant; write it as 08 (not 08/A)" in res.output
+    assert "None" not in res.output
+    with pytest.raises(ValueError, match=r"class 02 has no variant 'E'; it has 02/A, 02/B, "):
+        parse_state("02/E")
+
+
 def test_plan_from_a_state_without_an_image():
     runner = CliRunner()
     result = runner.invoke(main, ["plan", "--from", "02/A", "--goal", "05/AB/B", "--json"])

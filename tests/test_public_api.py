@@ -9,6 +9,8 @@ import pytest
 
 PUBLIC = [
     ("dgli_vision", "classify_pair"),
+    ("dgli_vision", "plan"),
+    ("dgli_vision", "verify"),
     ("dgli_vision.dgli", "gli"),
     ("dgli_vision.dgli", "dgli"),
     ("dgli_vision.dgli", "cloth_coordinates"),

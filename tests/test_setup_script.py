@@ -1,6 +1,8 @@
 """scripts/setup.sh, run in a scratch copy of the repository with stand-ins for ldconfig,
-apt-get and the virtual environment's python: it decides from what is installed, and it
-keeps setuptools' "Editable installation" warning off the screen."""
+apt-get and the virtual environment's python: it decides from what is installed, it
+keeps setuptools' "Editable installation" warning off the screen, and the plain set-up
+(the README's first command) installs what classifying needs and nothing more: the
+browser, the test extras and Blender come with ``--test``."""
 
 from __future__ import annotations
 
@@ -81,10 +83,10 @@ def test_a_missing_library_is_installed_quietly(tmp_path):
     assert log.count("update") == 1
 
 
-def test_a_missing_browser_is_installed(tmp_path):
+def test_a_missing_browser_is_installed_for_the_tests(tmp_path):
     repo, env = _scratch(tmp_path, stamp_matches=True)
     (tmp_path / "bin" / "chromium").unlink()
-    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+    run = subprocess.run([BASH, "scripts/setup.sh", "--test"], cwd=repo, env=env,
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stderr
     log = (tmp_path / "apt.log").read_text()
@@ -116,9 +118,86 @@ exit 1
 """)
     for tool in ("mkdir", "cp"):
         (tmp_path / "bin" / tool).symlink_to(shutil.which(tool))
-    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+    run = subprocess.run([BASH, "scripts/setup.sh", "--test"], cwd=repo, env=env,
                          capture_output=True, text=True, timeout=60)
     assert run.returncode == 0, run.stderr
     assert (repo / ".venv-photoreal" / "bin" / "python").is_file()
     assert "Editable installation" not in run.stderr
     assert "ERROR: a real pip error" in run.stderr  # the stub's error still shows
+
+
+def _logging_python(tmp_path: Path, repo: Path) -> Path:
+    """The virtual environment's python as a stand-in that logs each pip install."""
+    log = tmp_path / "pip.log"
+    _executable(repo / ".venv" / "bin" / "python", f"""#!{sys.executable}
+import sys
+if "install" in sys.argv:
+    with open({str(log)!r}, "a") as f:
+        f.write(" ".join(sys.argv[1:]) + "\\n")
+""")
+    return log
+
+
+def _python3_311(tmp_path: Path) -> None:
+    """A python3 of version 3.11 (so the photoreal environment could be made) whose
+    venv makes a stand-in python."""
+    _executable(tmp_path / "bin" / "python3", """#!/bin/sh
+[ "$1" = "-c" ] && exit 0
+if [ "$1" = "-m" ] && [ "$2" = "venv" ]; then
+    mkdir -p "$3/bin" && printf '#!/bin/sh\\nexit 0\\n' > "$3/bin/python" \\
+        && chmod +x "$3/bin/python"; exit 0
+fi
+exit 1
+""")
+    for tool in ("mkdir", "chmod"):
+        (tmp_path / "bin" / tool).symlink_to(shutil.which(tool))
+
+
+def test_the_first_command_sets_up_what_classifying_needs_and_nothing_more(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=False)
+    (tmp_path / "bin" / "chromium").unlink()
+    _python3_311(tmp_path)
+    log = _logging_python(tmp_path, repo)
+    run = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert not (tmp_path / "apt.log").exists()  # no browser (libusb is there)
+    assert not (repo / ".venv-photoreal").exists()  # no Blender
+    installs = log.read_text().splitlines()
+    assert installs[-1].endswith("-e .")  # the package alone, no extras
+    again = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                           capture_output=True, text=True, timeout=60)
+    assert again.returncode == 0 and log.read_text().splitlines() == installs
+
+
+def test_the_test_set_up_adds_the_extras_the_browser_and_blender(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=True)  # the first command has run
+    (tmp_path / "bin" / "chromium").unlink()
+    _python3_311(tmp_path)
+    log = _logging_python(tmp_path, repo)
+    run = subprocess.run([BASH, "scripts/setup.sh", "--test"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    assert "chromium" in (tmp_path / "apt.log").read_text()
+    assert (repo / ".venv-photoreal" / "bin" / "python").is_file()
+    assert log.read_text().splitlines()[-1].endswith("-e .[test,recordings,dask,realsense,docs]")
+    first = log.read_text()
+    plain = subprocess.run([BASH, "scripts/setup.sh"], cwd=repo, env=env,
+                           capture_output=True, text=True, timeout=60)
+    assert plain.returncode == 0 and log.read_text() == first  # nothing more to do
+
+
+def test_an_unknown_option_is_a_usage_error(tmp_path):
+    repo, env = _scratch(tmp_path, stamp_matches=True)
+    run = subprocess.run([BASH, "scripts/setup.sh", "--tests"], cwd=repo, env=env,
+                         capture_output=True, text=True, timeout=60)
+    assert run.returncode == 2 and run.stderr == "usage: scripts/setup.sh [--test]\n"
+
+
+def test_ci_runs_exactly_the_readmes_test_command():
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    block = readme.split("```bash\n", 1)[1].split("```", 1)[0].strip().splitlines()
+    assert len(block) == 2 and block[0].startswith("bash scripts/setup.sh && ")
+    assert "dgli-classify sample_images/" in block[0]
+    ci = (ROOT / ".ci" / "run").read_text().strip().splitlines()
+    assert ci[-1] == block[1] == "bash scripts/setup.sh --test && .venv/bin/python -m pytest"

@@ -16,7 +16,7 @@ from dgli_vision.sources.recording import open_recording
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_images"
 
-pytest.importorskip("rosbags")  # the 'recordings' extra; scripts/setup.sh installs it
+pytest.importorskip("rosbags")  # the 'recordings' extra; scripts/setup.sh --test installs it
 
 
 @pytest.fixture(scope="module")

@@ -53,6 +53,7 @@ __all__ = [
     "LiveUpdate",
     "OnlineSmoother",
     "classify_live",
+    "frame_points",
     "watch",
 ]
 
@@ -205,6 +206,11 @@ class LiveUpdate:
         From the frame's arrival to its answer.
     note : str or None
         Why there is no state (cannot tell, or the error that made the frame unreadable).
+    corners : dict or None
+        The corners ``"A"``-``"D"`` as ``dgli classify --json`` gives them (point in the
+        camera frame, pixel, state, graspable, placed_by); None for an unreadable frame.
+    up : (float, float, float) or None
+        The table's normal, camera frame.
     """
 
     frame: int
@@ -216,6 +222,8 @@ class LiveUpdate:
     dropped: int
     latency_ms: float
     note: str | None = None
+    corners: dict[str, Any] | None = None
+    up: tuple[float, float, float] | None = None
 
     def to_json(self) -> dict[str, Any]:
         """The JSON line of the frame (docs/live.md)."""
@@ -235,6 +243,8 @@ class LiveUpdate:
             "dropped": self.dropped,
             "latency_ms": round(self.latency_ms, 2),
             "note": self.note,
+            "corners": self.corners,
+            "up": None if self.up is None else [round(v, 6) for v in self.up],
         })
 
 
@@ -371,6 +381,17 @@ def classify_live(
     return frame, result, state, confidence, distances, result.reason if p is None else None
 
 
+def frame_points(result: Any) -> tuple[dict[str, Any] | None, tuple[float, ...] | None]:
+    """A classified frame's corners (their JSON, as ``dgli classify --json`` has them)
+    and the table's normal, for its live update; (None, None) without a result."""
+    if result is None:
+        return None, None
+    aff = getattr(result, "affordances", None)
+    corners = aff.to_json()["corners"] if aff is not None else None
+    up = tuple(float(v) for v in result.observation.up)
+    return corners, up
+
+
 def _capture(
     frames: Iterable[Any],
     slot: LatestFrame,
@@ -445,17 +466,20 @@ class _Worker:
         frame, result, state, conf, dist, note = classify_live(
             arrival.pair, self.references, self.colours
         )
-        return self.record(arrival, dropped, (state, conf, dist, note)), frame, result
+        answer = (state, conf, dist, note, frame_points(result))
+        return self.record(arrival, dropped, answer), frame, result
 
     def record(
         self,
         arrival: _Arrival,
         dropped: int,
-        answer: tuple[StateKey | None, float | None, tuple[float, ...], str | None],
+        answer: tuple[Any, ...],
     ) -> LiveUpdate:
-        """Smooth one frame's answer (state, confidence, distances, note), classified
-        here or by a worker process, now: its update, latency measured to now."""
-        state, conf, dist, note = answer
+        """Smooth one frame's answer (state, confidence, distances, note and, when
+        known, its corners and table normal: :func:`frame_points`), classified here or
+        by a worker process, now: its update, latency measured to now."""
+        state, conf, dist, note = answer[:4]
+        corners, up = answer[4] if len(answer) > 4 else (None, None)
         smoothed = self.smoother.update(dist)
         if state is not None and state[0] == OUTSIDE:  # a "no known state" span, as it is
             smoothed = (OUTSIDE, None)
@@ -471,7 +495,8 @@ class _Worker:
         self.latencies.append(latency)
         self.max_latency = max(self.max_latency, latency)
         t = getattr(arrival.pair, "time", None)
-        return LiveUpdate(arrival.index, t, state, smoothed, conf, change, dropped, latency, note)
+        return LiveUpdate(arrival.index, t, state, smoothed, conf, change, dropped, latency, note,
+                          corners, up)
 
     def summary(self, counts: dict[str, Any], dropped: int, stopped: bool) -> LiveSummary:
         """What the run did."""
@@ -689,8 +714,8 @@ def _serve(conn: Any, references: ReferenceSet, colours: dict | None) -> None:
         if pair is None:
             return
         try:
-            _, _, state, conf, dist, note = classify_live(pair, references, colours)
-            conn.send(((state, conf, dist, note), None))
+            _, result, state, conf, dist, note = classify_live(pair, references, colours)
+            conn.send(((state, conf, dist, note, frame_points(result)), None))
         except Exception as exc:  # not a frame's problem (those are notes): raised there
             conn.send((None, exc))
 

@@ -3,6 +3,7 @@ verdict."""
 
 from __future__ import annotations
 
+import math
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
@@ -68,6 +69,7 @@ def classify_pair(
     references: ReferenceSet | str | Path | None = None,
     *,
     colours: dict[str, tuple[int, int, int]] | None = None,
+    extrinsics: object = None,
 ) -> Prediction:
     """Classify one registered colour + depth pair.
 
@@ -85,33 +87,68 @@ def classify_pair(
         Default: the shipped reference set (loaded once and kept).
     colours : dict, keyword-only, optional
         Calibrated sticker colours (``dgli calibrate``).
+    extrinsics : Extrinsics, path or (4, 4) array, keyword-only, optional
+        The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the corners'
+        points and the folds' lines are then in the robot's base frame (as with
+        ``--extrinsics``); default the camera frame.
 
     Returns
     -------
     Prediction
-        The nearest state with its ``confidence``. Below
-        :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` (0.25), or when a check
-        of the frame fails, the command line says "cannot tell", and so does this: its
-        ``class_id``, ``name`` and ``variant`` are then None (``"class": null`` in
-        ``--json``), ``reason`` says why (``why``: its kind) and ``candidates`` keeps the
-        nearest states; ``reason`` is None otherwise. A colour array that reads with its
-        red and blue channels swapped gets the reason "colour channels swapped (BGR?)"
-        (kind ``colour channels``). ``stickers`` lists the stickers found, hidden by cloth and
-        unknown (with why).
+        A verdict for every frame that could be read. A class (``class_id``, ``name``,
+        ``variant``) with its ``confidence`` and ``reason`` None; or "cannot tell", as
+        the command line says it: ``class_id``, ``name`` and ``variant`` None
+        (``"class": null`` in ``--json``), ``reason`` one line starting ``cannot
+        tell:`` and ``why`` its kind (:data:`~dgli_vision.classifier.pipeline.WHY_KINDS`:
+        too few stickers seen, the confidence below
+        :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE` (0.25), a check of the
+        frame that failed; ``colour channels`` for an array that reads with its red and
+        blue channels swapped, "BGR?"). A "cannot tell" keeps the nearest states in
+        ``candidates`` (empty, with ``distance`` NaN and ``confidence`` 0, when too
+        little was seen to rank any). ``stickers`` lists the stickers found, hidden by
+        cloth and unknown (with why) in both cases. So ``p.class_id is None`` is the one
+        test for "cannot tell".
 
     Raises
     ------
     DgliError
-        Unreadable or invalid input (one line naming the file or array and the
-        problem), or too few stickers seen to rank the references
-        (:class:`~dgli_vision.core.errors.DetectionError`).
+        Only for input that is not an RGB-D frame: an unreadable file, an array of the
+        wrong shape or type, bad intrinsics, references or colours (one line naming the
+        file or array and the problem).
     """
+    from ..core.extrinsics import extrinsics_of
+
+    ext = extrinsics_of(extrinsics)
+    p = _classified(color, depth, intrinsics, references, colours)
+    return p if ext is None else _in_frame(p, ext)
+
+
+def _in_frame(p: Prediction, ext: object) -> Prediction:
+    """``p`` with its corners' points and its folds' lines in the frame of ``ext``."""
+    from ..core.extrinsics import moved_point
+    from .affordances import CornerMap
+
+    corners = CornerMap(replace(c, point=moved_point(ext, c.point)) for c in p.corners.values())
+    folds = tuple(
+        f if f.line is None else replace(f, line=tuple(moved_point(ext, q) for q in f.line))
+        for f in p.folds
+    )
+    return replace(p, corners=corners, folds=folds)
+
+
+def _classified(
+    color: object, depth: object, intrinsics: object, references: object, colours: object
+) -> Prediction:
+    """:func:`classify_pair`'s verdict in the camera frame."""
     from .pipeline import WHY_KINDS, classify_frame
 
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)
     colours = _check_colours(colours)
-    result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+    try:
+        result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+    except DetectionError as exc:  # no table in the depth: read, but nothing to rank
+        return _cannot_tell(str(exc), WHY_KINDS[1])
     swapped = _bgr_reading(color, frame, refs, colours, result)
     if swapped is not None:
         reason = (
@@ -121,18 +158,20 @@ def classify_pair(
             "classify_pair takes RGB (pass color[..., ::-1])"
         )
         if result.best_guess is None:
-            raise DetectionError(f"{frame.color_path}: {reason}; as given: {result.reason}")
+            return _cannot_tell(
+                f"{reason}; as given: {result.reason}", WHY_KINDS[4], result
+            )
         # the reading as given means nothing: no confidence in it
         guess = replace(result.best_guess, confidence=0.0)
         result = replace(
             result, prediction=None, best_guess=guess, reason=reason, why=WHY_KINDS[4]
         )
-    if result.best_guess is None:
-        raise DetectionError(f"{frame.color_path}: {result.reason}")
+    if result.best_guess is None:  # too few stickers to rank the references
+        return _cannot_tell(result.reason or "", result.why or WHY_KINDS[1], result)
     told = result.prediction is None
     p = replace(
         result.best_guess,
-        reason=result.reason if told else None,
+        reason=_told(result.reason) if told else None,
         why=result.why if told else None,
         stickers=_sticker_ids(result),
         candidates=result.candidates,
@@ -140,6 +179,27 @@ def classify_pair(
     if told:  # the nearest states stay in candidates; no class contradicts the reason
         p = replace(p, class_id=None, name=None, variant=None)
     return p
+
+
+def _told(reason: str | None) -> str:
+    """A reason as the API gives it: one line starting ``cannot tell:``."""
+    reason = reason or "no class"
+    return reason if reason.startswith("cannot tell") else f"cannot tell: {reason}"
+
+
+def _cannot_tell(reason: str, why: str, result: object | None = None) -> Prediction:
+    """A "cannot tell" with no state ranked (too little seen): no class, no candidates,
+    distance NaN, confidence 0; the stickers and corners of ``result`` when there is one
+    (a ``FrameResult``)."""
+    from .affordances import CornerMap
+
+    stickers = _sticker_ids(result) if result is not None else StickerIds(())
+    aff = getattr(result, "affordances", None)
+    return Prediction(
+        class_id=None, name=None, variant=None, distance=math.nan, runner_up=None,
+        margin=math.nan, confidence=0.0, reason=_told(reason), why=why,
+        stickers=stickers, corners=aff.corners if aff is not None else CornerMap(),
+    )
 
 
 #: Stickers whose disc is yellow (corner B): with red and blue swapped a yellow disc

@@ -9,13 +9,14 @@ import click
 from .errors import handle_errors
 from .options import (
     colours_option,
+    extrinsics_option,
     image_output,
     intrinsics_option,
     json_option,
     overwrite_option,
     references_option,
 )
-from .output import command_line, echo, echo_json
+from .output import command_line, echo, echo_json, verdict_json
 
 
 @click.command("classify")
@@ -24,6 +25,7 @@ from .output import command_line, echo, echo_json
 @intrinsics_option
 @references_option
 @colours_option
+@extrinsics_option
 @json_option("Print one JSON object.")
 @click.option(
     "--overlay",
@@ -39,6 +41,7 @@ def classify_cmd(
     intrinsics: str | None,
     references_path: str | None,
     colours_path: str | None,
+    extrinsics_path: str | None,
     as_json: bool,
     overlay: str | None,
     overwrite: bool,
@@ -46,17 +49,21 @@ def classify_cmd(
     """Classify the cloth state in one colour + depth pair.
 
     Exit 1 when no class can be given: too few stickers seen, or a confidence below
-    the documented threshold ("cannot tell", with the reason).
+    the documented threshold ("cannot tell", with the reason). With --extrinsics the
+    JSON's 3D points (corners, folds, the table's normal "up") are in the robot's base
+    frame.
     """
     from pathlib import Path
 
     from ..analysis.overlay import frame_overlay, verdict_line
     from ..classifier.pipeline import classify_frame
     from ..classifier.references import load_references
+    from ..core.extrinsics import read_extrinsics
     from ..core.io import guard_outputs, write_outputs
     from ..sources.colours_file import read_colours
     from ..sources.frames import read_frame
 
+    extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     if overlay:
         guard_outputs([overlay], overwrite=overwrite)
     frame = read_frame(color, depth, intrinsics)
@@ -69,7 +76,7 @@ def classify_cmd(
             command=command_line(),
         )
     if as_json:
-        echo_json(result.to_json(color, depth))
+        echo_json(verdict_json(result, color, depth, extrinsics))
     else:
         echo(verdict_line(result))
     if result.prediction is None:  # said once, on stdout: an answer, not an error

@@ -23,6 +23,18 @@ intrinsics_option = click.option(
 )
 
 
+#: ``--extrinsics FILE``: every 3D point of the answer in the robot's base frame
+#: (:mod:`dgli_vision.core.extrinsics`), read in the command (errors: one line, exit 2).
+extrinsics_option = click.option(
+    "--extrinsics",
+    "extrinsics_path",
+    type=click.Path(),
+    help="Camera-to-base transform: a JSON 4x4 matrix (row-major, metres) or a ROS "
+    "TransformStamped YAML; every 3D point of the answer is then in the robot's base "
+    'frame, named by "frame" in the JSON [default: the camera frame].',
+)
+
+
 colours_option = click.option(
     "--colours",
     "colours_path",

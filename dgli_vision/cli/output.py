@@ -101,6 +101,19 @@ def echo_json(data: Any) -> None:
     echo(json.dumps(data))
 
 
+def verdict_json(result: Any, color: str, depth: str, extrinsics: Any = None) -> Any:
+    """The JSON object of ``dgli classify --json`` for a
+    :class:`~dgli_vision.classifier.pipeline.FrameResult`: its ``to_json()`` with the
+    table's normal ``"up"`` and ``"frame"``, every 3D point in the frame of
+    ``extrinsics`` (an :class:`~dgli_vision.core.extrinsics.Extrinsics`; None: the
+    camera's)."""
+    from ..core.extrinsics import in_frame
+
+    data = result.to_json(color, depth)
+    data["up"] = [round(float(v), 6) for v in result.observation.up]
+    return in_frame(data, extrinsics)
+
+
 def command_line() -> str:
     """The current command, rebuilt from its parsed parameters, for provenance records."""
     import shlex

@@ -11,6 +11,7 @@ import click
 from ..core.words import counted
 from .errors import handle_errors
 from .options import (
+    extrinsics_option,
     image_output,
     intrinsics_option,
     json_option,
@@ -31,7 +32,10 @@ def _state(ctx: click.Context, param: click.Parameter, value: str | None):
         raise click.BadParameter(str(exc)) from None
 
 
-def _plan_line(plan) -> str:
+def _plan_line(plan, extrinsics=None) -> str:
+    """The plan in words; the next step's points in the frame of ``extrinsics`` (an
+    :class:`~dgli_vision.core.extrinsics.Extrinsics`, None: the camera's)."""
+
     def name(k) -> str:
         return f"{k[0]}/{k[1]}" if k[1] else k[0]
 
@@ -42,10 +46,24 @@ def _plan_line(plan) -> str:
     text = f"{name(plan.start)} to {name(plan.goal)} in {steps}: " + "; ".join(words)
     first = plan.steps[0]
     if first.grasp_point is not None:
-        g = ", ".join(f"{v:.3f}" for v in first.grasp_point)
-        p = ", ".join(f"{v:.3f}" for v in first.place_point)
-        text += f"\nnext: grasp at ({g}) m, place at ({p}) m, lift {first.lift_height:.3f} m"
+        grasp, place = first.grasp_point, first.place_point
+        where = ""
+        if extrinsics is not None:
+            grasp, place = extrinsics.points([grasp, place])
+            where = f" ({extrinsics.frame} frame)"
+        g = ", ".join(f"{v:.3f}" for v in grasp)
+        p = ", ".join(f"{v:.3f}" for v in place)
+        text += (f"\nnext: grasp at ({g}) m, place at ({p}) m, lift {first.lift_height:.3f} m"
+                 + where)
     return text
+
+
+def plan_json(plan, extrinsics=None) -> dict:
+    """``dgli plan --json``'s object: the plan's, every 3D point in the frame of
+    ``extrinsics`` (None: the camera's), with ``"frame"`` naming it."""
+    from ..core.extrinsics import in_frame
+
+    return in_frame(plan.to_json(), extrinsics)
 
 
 def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> None:
@@ -123,6 +141,7 @@ def _geometry_lines(g: dict) -> None:
               show_default=True, help="--verify: how far (mm) the planned sizes may be missed.")
 @intrinsics_option
 @references_option
+@extrinsics_option
 @json_option("Print the plan (or the check's table) as one JSON object.")
 @click.option("--overlay", type=click.Path(dir_okay=False), callback=image_output,
               help="Draw the next step (grasp, place, fold line) on the image.")
@@ -141,22 +160,25 @@ def plan_cmd(
     tolerance: float,
     intrinsics: str | None,
     references_path: str | None,
+    extrinsics_path: str | None,
     as_json: bool,
     overlay: str | None,
     overwrite: bool,
 ) -> None:
     """The shortest sequence of folds and unfolds from the state in COLOR DEPTH (or
     --from STATE) to --goal STATE, with the next step as a pick-and-place in the camera
-    frame. Exit 1 with the reason when there is no plan (the state cannot be told, or
-    no sequence of folds leads there).
+    frame (with --extrinsics, in the robot's base frame). Exit 1 with the reason when
+    there is no plan (the state cannot be told, or no sequence of folds leads there).
     """
     from pathlib import Path
 
     from ..classifier.references import load_references
+    from ..core.extrinsics import read_extrinsics
     from ..core.layout import layout_of_size
     from ..planning.api import plan_frame
     from ..planning.plan import PlanRefused, plan_geometry
 
+    extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     refs = load_references(references_path)
     if check:
         _check(per_pair, seed, as_json, refs, every)
@@ -201,15 +223,17 @@ def plan_cmd(
             echo(f"no plan: {exc}" if not str(exc).startswith("no plan") else str(exc))
         sys.exit(1)
     if verify_pair:
-        _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json)
+        _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json, extrinsics)
         return
-    echo(json.dumps(plan.to_json()) if as_json else _plan_line(plan))
+    echo(json.dumps(plan_json(plan, extrinsics)) if as_json else _plan_line(plan, extrinsics))
 
 
-def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: bool) -> None:
+def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: bool,
+            extrinsics=None) -> None:
     """``--verify``: the frame after the plan's first step against its expected state
     and planned crease; exit 1 unless the step succeeded."""
     from ..classifier.pipeline import classify_frame
+    from ..core.extrinsics import in_frame
     from ..core.fold_measure import Crease
     from ..planning.verify import verify_fold
     from ..sources.frames import read_frame
@@ -224,11 +248,12 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
     check = verify_fold(result, step.expect, layout, fold=step.fold if crease else None,
                         crease=crease, tolerance_mm=tolerance)
     if as_json:
-        echo_json({"plan": plan.to_json(), "verify": check.to_json()})
+        echo_json({"plan": plan_json(plan, extrinsics),
+                   "verify": in_frame(check.to_json(), extrinsics)})
         if not check.success:
             sys.exit(1)
         return
-    echo(_plan_line(plan))
+    echo(_plan_line(plan, extrinsics))
     report(check, False)
 
 

@@ -46,6 +46,20 @@ def _check_simulation_size(per_class: int, in_progress: int, layout: Any) -> Non
     type=click.IntRange(0, 20),
     help="States with a fold in progress, per fold and angle bin (0: none; at most 20).",
 )
+@click.option(
+    "--episodes",
+    is_flag=True,
+    help="Write the folding sequences I, II and III as cloth episodes that 'dgli label' "
+    "reads (OUT/sequence_I.npz..., each frame's true state in OUT/truth.json) instead of "
+    "the database.",
+)
+@click.option(
+    "--frames",
+    default=24,
+    show_default=True,
+    type=click.IntRange(2, 1000),
+    help="--episodes: frames per sequence, spread evenly over its folds.",
+)
 @size_option
 @make_jobs_option
 @overwrite_option
@@ -56,6 +70,8 @@ def simulate(
     seed: int,
     no_wrinkles: bool,
     in_progress: int,
+    episodes: bool,
+    frames: int,
     size_mm: tuple[float, float] | None,
     jobs: int,
     overwrite: bool,
@@ -66,6 +82,10 @@ def simulate(
     states with one fold in progress (every fold a robot can make, turned 10-170
     degrees), labelled by the 90-degree rule; `dgli compare` leaves them out. -j spreads
     the classes over processes (the same database as one).
+
+    With --episodes, OUT gets instead the folding sequences I, II and III as episodes of
+    another simulator's cloth (NPZ: the particle grid's positions per frame, metres, z
+    up), which `dgli label OUT/*.npz` labels, and truth.json, each frame's true state.
     """
 
     from ..core.layout import layout_of_size
@@ -74,6 +94,12 @@ def simulate(
     from ..sim.database_files import write_database
 
     layout = layout_of_size(size_mm)
+    if episodes:
+        _write_episodes(out, frames, seed, layout, overwrite)
+        return
+    ctx = click.get_current_context()
+    if ctx.get_parameter_source("frames") == click.core.ParameterSource.COMMANDLINE:
+        raise click.UsageError("--frames is for --episodes")
     _check_simulation_size(per_class, in_progress, layout)
     kw = {"wrinkles": not no_wrinkles, "layout": layout}
     tasks = [(per_class, seed, c, kw) for c in CLASS_IDS]
@@ -106,3 +132,39 @@ def _simulate_part(task: tuple[int, int, str | None, dict[str, Any]]) -> list:
     if class_id is None:
         return simulate_folds_in_progress(count, seed, **kw)
     return simulate_states(count, seed, classes=(class_id,), **kw)
+
+
+#: The folding sequences ``--episodes`` writes.
+EPISODE_SEQUENCES = ("I", "II", "III")
+
+
+def _write_episodes(out: str, frames: int, seed: int, layout: Any, overwrite: bool) -> None:
+    """``--episodes``: the folding sequences as NPZ episodes, and their truth."""
+    from pathlib import Path
+
+    import numpy as np
+
+    from ..core.io import write_outputs
+    from ..labelling.export import npz_bytes, sequence_episode
+
+    ctx = click.get_current_context()
+    given = [f"--{n.replace('_', '-')}" for n in ("per_class", "in_progress", "no_wrinkles")
+             if ctx.get_parameter_source(n) == click.core.ParameterSource.COMMANDLINE]
+    if given:
+        raise click.UsageError(f"--episodes writes sequences, not a database: drop "
+                               f"{' and '.join(given)}")
+    root = Path(out)
+    files: dict[Path, Any] = {}
+    truth: dict[str, Any] = {}
+    for k, name in enumerate(EPISODE_SEQUENCES):
+        ep = sequence_episode(name, frames, np.random.default_rng([seed, k]), layout)
+        files[root / f"sequence_{name}.npz"] = npz_bytes(ep.positions, ep.grid)
+        truth[f"sequence_{name}.npz"] = ep.truth
+    files[root / "truth.json"] = {
+        "format": "dgli-episode-truth", "version": 1, "command": command_line(),
+        "seed": seed, "frames": frames, **napkin_provenance(layout),
+        "package_version": package_version(), "episodes": truth,
+    }
+    write_outputs(files, overwrite=overwrite, command=command_line())
+    echo(f"wrote {counted(len(EPISODE_SEQUENCES), 'episode')} of {frames} frames to {root} "
+         f"(dgli label {root}/*.npz -o {root}/labels)")

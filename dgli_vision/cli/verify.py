@@ -9,7 +9,7 @@ import sys
 import click
 
 from .errors import handle_errors
-from .options import intrinsics_option, json_option, references_option
+from .options import extrinsics_option, intrinsics_option, json_option, references_option
 from .output import echo
 
 
@@ -48,10 +48,13 @@ def _tip(ctx: click.Context, param: click.Parameter, value: str | None):
     return tip
 
 
-def report(check, as_json: bool) -> None:
-    """Print a :class:`~dgli_vision.planning.verify.FoldCheck` and exit 1 unless it
+def report(check, as_json: bool, extrinsics=None) -> None:
+    """Print a :class:`~dgli_vision.planning.verify.FoldCheck` (its JSON's 3D points, if
+    any, in the frame of ``extrinsics``, named by ``"frame"``) and exit 1 unless it
     succeeded."""
-    echo(json.dumps(check.to_json()) if as_json else check.line())
+    from ..core.extrinsics import in_frame
+
+    echo(json.dumps(in_frame(check.to_json(), extrinsics)) if as_json else check.line())
     if not check.success:
         sys.exit(1)
 
@@ -71,6 +74,7 @@ def report(check, as_json: bool) -> None:
               show_default=True, help="How far (mm) a planned size may be missed.")
 @intrinsics_option
 @references_option
+@extrinsics_option
 @json_option("Print the verdict, with every error, as one JSON object.")
 @handle_errors
 def verify_cmd(
@@ -83,6 +87,7 @@ def verify_cmd(
     tolerance: float,
     intrinsics: str | None,
     references_path: str | None,
+    extrinsics_path: str | None,
     as_json: bool,
 ) -> None:
     """Did the fold work? Classify COLOR DEPTH (taken after the fold) and check it is
@@ -92,17 +97,20 @@ def verify_cmd(
     """
     from ..classifier.pipeline import classify_frame
     from ..classifier.references import load_references
+    from ..core.extrinsics import read_extrinsics
     from ..core.layout import layout_of_size
-    from ..planning.verify import verify_fold
+    from ..planning.verify import check_request, verify_fold
     from ..sources.frames import read_frame
 
     given = [n for n, v in (("--legs", legs), ("--inset", inset), ("--tip", tip)) if v is not None]
     if len(given) > 1:
         raise click.UsageError(f"give one of --legs, --inset, --tip, not {' and '.join(given)}")
+    check_request(expect, legs=legs, inset_mm=inset, tip_mm=tip)  # a mistake: exit 2
+    extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     refs = load_references(references_path)
     layout = layout_of_size(refs.napkin_mm)
     frame = read_frame(color, depth, intrinsics)
     result = classify_frame(frame, refs, layout=layout)
     check = verify_fold(result, expect, layout, legs=legs, inset_mm=inset, tip_mm=tip,
                         tolerance_mm=tolerance)
-    report(check, as_json)
+    report(check, as_json, extrinsics)

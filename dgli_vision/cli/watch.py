@@ -13,7 +13,7 @@ from typing import TYPE_CHECKING
 import click
 
 from .errors import handle_errors
-from .options import colours_option, overwrite_option, references_option
+from .options import colours_option, extrinsics_option, overwrite_option, references_option
 from .output import echo, echo_json
 
 if TYPE_CHECKING:
@@ -79,6 +79,7 @@ if TYPE_CHECKING:
 )
 @references_option
 @colours_option
+@extrinsics_option
 @overwrite_option
 @handle_errors
 def watch(
@@ -92,6 +93,7 @@ def watch(
     jobs: int | None,
     references_path: str | None,
     colours_path: str | None,
+    extrinsics_path: str | None,
     overwrite: bool,
 ) -> None:
     """Classify the frames of a live camera as they come, smoothed over time.
@@ -99,17 +101,20 @@ def watch(
     The newest frame is classified as soon as the one before is done; frames that come
     meanwhile are dropped (counted, never queued), so the answer is never late by more
     than a frame. With --jsonl, one JSON object per frame on stdout: frame, time,
-    state, smoothed, confidence, change, dropped, latency_ms, note (docs/live.md); then a
-    last line {"summary": ...}. Otherwise the state changes, and on a terminal a live
-    status line. Ctrl-C (or SIGTERM) stops after the frame being classified, prints the
-    summary and exits 0.
+    state, smoothed, confidence, change, dropped, latency_ms, note, corners, up and
+    points_frame (docs/live.md; with --extrinsics the corners and up in the robot's base
+    frame); then a last line {"summary": ...}. Otherwise the state changes, and on a
+    terminal a live status line. Ctrl-C (or SIGTERM) stops after the frame being
+    classified, prints the summary and exits 0.
     """
     from ..core.errors import InvalidInputError
+    from ..core.extrinsics import read_extrinsics
     from ..sources.colours_file import read_colours
     from .runs import references_of
 
     if (serial is None) == (bag is None):
         raise InvalidInputError("dgli watch needs one source: --realsense [SERIAL] or --bag FILE")
+    extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     refs, _ = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
     if jobs is None:
@@ -120,7 +125,7 @@ def watch(
     frames, notes = _source(serial, bag, camera_mode)
     for note in notes:
         click.echo(f"{bag}: {note}", err=True)
-    out = _Printer(jsonl, overlays)
+    out = _Printer(jsonl, overlays, extrinsics)
     summary = _run(
         frames, refs, colours, every, realtime and bag is not None, out, bool(bag), jobs
     )
@@ -228,8 +233,8 @@ def _state_text(key: StateKey | None) -> str:
 class _Printer:
     """Writes each frame's answer: a JSON line, or the changes and a status line."""
 
-    def __init__(self, jsonl: bool, overlays: Path | None) -> None:
-        self.jsonl, self.overlays = jsonl, overlays
+    def __init__(self, jsonl: bool, overlays: Path | None, extrinsics=None) -> None:
+        self.jsonl, self.overlays, self.extrinsics = jsonl, overlays, extrinsics
         self.tty = sys.stderr.isatty()
         self.answered = False  # some frame got a state
         self.status_shown = False
@@ -246,8 +251,10 @@ class _Printer:
 
             name = self.overlays / f"frame_{update.frame:06d}.png"
             write_png(name, frame_overlay(frame, result))
-        if self.jsonl:
-            echo_json(update.to_json())
+        if self.jsonl:  # "frame" is the frame's number: the points' frame is points_frame
+            from ..core.extrinsics import in_frame
+
+            echo_json(in_frame(update.to_json(), self.extrinsics, frame_key="points_frame"))
         elif update.change is not None:
             self._clear()
             t = "" if update.time is None else f" ({update.time:.2f} s)"

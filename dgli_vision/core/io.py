@@ -463,9 +463,9 @@ def _kept(written: list[Path]) -> str:
 
 
 def write_files(
-    files: Iterable[tuple[Path, str | dict | NDArray[np.uint8]]], *, command: str
+    files: Iterable[tuple[Path, str | dict | bytes | NDArray[np.uint8]]], *, command: str
 ) -> list[Path]:
-    """Write files (text, JSON or a BGR image each) in order and record them
+    """Write files (text, JSON, bytes or a BGR image each) in order and record them
     (:func:`record_outputs`); the caller has checked them with :func:`guard_outputs`.
 
     Raises
@@ -483,6 +483,8 @@ def write_files(
                 write_text(p, content)
             elif isinstance(content, dict):
                 write_json(p, content)
+            elif isinstance(content, bytes):
+                _write_bytes(p, content)
             else:
                 write_png(p, content)
             written.append(p)
@@ -510,9 +512,10 @@ def failed_part_way(exc: OutputError, written: list[Path], command: str) -> Outp
 
 
 def write_outputs(
-    files: dict[Path, str | dict | NDArray[np.uint8]], *, overwrite: bool, command: str
+    files: dict[Path, str | dict | bytes | NDArray[np.uint8]], *, overwrite: bool,
+    command: str,
 ) -> None:
-    """Write a set of report files (text, JSON or a BGR image each), after checking with
+    """Write a set of report files (text, JSON, bytes or a BGR image each), after checking with
     :func:`guard_outputs` that none replaces a user's file, and record them.
 
     Raises

@@ -7,7 +7,10 @@ grid or a remeshed cloth without one, in each input format.
 
 from __future__ import annotations
 
+import io
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,8 +21,11 @@ from .episodes import UNITS, parse_up_axis, up_rotation
 
 __all__ = [
     "Remesh",
+    "SequenceEpisode",
+    "npz_bytes",
     "remesh",
     "rigid_motion",
+    "sequence_episode",
     "to_simulator",
     "write_mat",
     "write_meshes",
@@ -136,3 +142,65 @@ def write_meshes(
             o3d.utility.Vector3iVector(np.asarray(faces, dtype=np.int32)),
         )
         o3d.io.write_triangle_mesh(str(out / f"frame_{t:05d}{suffix}"), mesh, write_ascii=False)
+
+
+@dataclass(frozen=True)
+class SequenceEpisode:
+    """A folding sequence of the simulator as another simulator's episode.
+
+    Attributes
+    ----------
+    name : str
+        ``"I"``, ``"II"`` or ``"III"``.
+    positions : ndarray, shape (T, N, 3)
+        The cloth's particles, metres, z up, the table at z = 0.
+    grid : (int, int)
+        The particle grid's (rows, cols), row-major: what ``dgli label`` needs to know
+        where each particle is on the napkin.
+    truth : list of dict
+        Each frame's state by SPEC's 90-degree rule: ``{"frame", "class", "variant",
+        "progress"}``.
+    """
+
+    name: str
+    positions: NDArray[np.float64]
+    grid: tuple[int, int]
+    truth: list[dict[str, Any]]
+
+
+def sequence_episode(
+    name: str, n_frames: int, rng: np.random.Generator, layout: Any = None
+) -> SequenceEpisode:
+    """The frames of folding sequence ``name`` (its fold sizes and placement drawn from
+    ``rng``), spread evenly from flat to its last fold laid flat.
+
+    Raises
+    ------
+    InvalidValueError
+        An unknown sequence, or fewer than 2 frames.
+    """
+    from ..core.layout import default_layout
+    from ..sim.cloth.sequences import sequence_progress, sequence_state, sequence_steps
+
+    layout = layout or default_layout()
+    steps = sequence_steps(name, layout, rng=rng)
+    yaw = float(rng.uniform(0, 2 * np.pi))
+    states = [
+        sequence_state(name, t, steps=steps, layout=layout, yaw=yaw)
+        for t in sequence_progress(name, n_frames)
+    ]
+    rows, cols = states[0].mesh.shape
+    truth = [
+        {"frame": k, "class": s.class_id, "variant": s.variant,
+         "progress": s.params["progress"]}
+        for k, s in enumerate(states)
+    ]
+    return SequenceEpisode(name, np.stack([s.mesh.xyz for s in states]), (rows, cols), truth)
+
+
+def npz_bytes(positions: NDArray[np.float64], grid: tuple[int, int]) -> bytes:
+    """The bytes of an NPZ episode as :func:`write_npz` writes it (``positions`` as
+    float32 and ``grid``), for a writer that writes files whole."""
+    buf = io.BytesIO()
+    np.savez_compressed(buf, positions=np.asarray(positions, np.float32), grid=np.array(grid))
+    return buf.getvalue()

@@ -76,8 +76,12 @@ def parse_state(text: str, *, need_variant: bool = True) -> StateKey:
         raise InvalidValueError(
             f"class {cls} needs a variant: one of {', '.join(f'{cls}/{v}' for v in options)}"
         )
+    if options == (None,):
+        raise InvalidValueError(
+            f"class {cls} has no variant; write it as {cls} (not {cls}/{variant})"
+        )
     if variant not in options:
-        shown = ", ".join(str(v) for v in options)
+        shown = ", ".join(f"{cls}/{v}" for v in options)
         raise InvalidValueError(f"class {cls} has no variant {variant!r}; it has {shown}")
     return cls, variant
 

@@ -32,7 +32,7 @@ from ..core.fold_measure import (
 from ..core.layout import NapkinLayout
 from ..core.why import OUTSIDE_KINDS
 
-__all__ = ["DEFAULT_TOLERANCE_MM", "FoldCheck", "parse_legs", "verify_fold"]
+__all__ = ["DEFAULT_TOLERANCE_MM", "FoldCheck", "check_request", "parse_legs", "verify_fold"]
 
 #: How far (mm) a planned size may be missed.
 DEFAULT_TOLERANCE_MM = 20.0
@@ -174,6 +174,68 @@ def parse_legs(text: str) -> dict[str, float]:
 def _corner_of_legs(legs: dict[str, float]) -> str:
     a, b = list(legs)
     return (set(a) & set(b)).pop()
+
+
+def check_request(
+    expect: StateKey,
+    *,
+    legs: dict[str, float] | None = None,
+    inset_mm: float | None = None,
+    tip_mm: tuple[float, float] | None = None,
+) -> None:
+    """Refuse a request that no frame could satisfy, before any is looked at: planned
+    sizes of a fold the expected state does not have (a corner's legs for a strip,
+    corner A's legs for 04/CD), or sizes of one corner for a class whose variant is not
+    given (``--expect 04 --legs AB=180,DA=180``: 04/AB or 04/DA?).
+
+    Raises
+    ------
+    InvalidValueError
+        One line naming the mistake and what would be right.
+    """
+    from ..core.classes import VARIANTS
+
+    given = [n for n, v in (("legs", legs), ("inset", inset_mm), ("tip", tip_mm)) if v]
+    if len(given) > 1:
+        raise InvalidValueError(f"give one of legs, inset, tip, not {' and '.join(given)}")
+    if not given:
+        return
+    cid, variant = expect
+    variants = (variant,) if variant is not None else VARIANTS[cid]
+    if legs:
+        corner = _corner_of_legs(legs)
+        what, wanted = f"legs {','.join(f'{e}={v:g}' for e, v in legs.items())}", corner
+        kind = "corner"
+    elif inset_mm is not None:
+        what, wanted, kind = f"an inset of {inset_mm:g} mm", None, "side"
+    else:
+        what, wanted, kind = "a tip target", None, "corner"
+
+    def fits(v: str | None) -> bool:
+        kinds = [fold_kind(w) for w in folds_of(cid, v)]
+        return any(k == kind and (wanted is None or name == wanted) for k, name in kinds)
+
+    fitting = [v for v in variants if fits(v)]
+    shown = _name(expect)
+    if not fitting:
+        words = sorted({w for v in variants for w in folds_of(cid, v)})
+        corners = sorted({n for w in words for k, n in [fold_kind(w)] if k == "corner"})
+        if not words:
+            has = "has no fold"
+        elif wanted and corners:
+            listed = ", ".join(corners[:-1]) + " and " + corners[-1] if len(corners) > 1 \
+                else corners[0]
+            has = f"folds corner{'s' if len(corners) > 1 else ''} {listed}"
+            has += f", not corner {wanted}"
+        else:
+            has = f"has no {'corner' if kind == 'corner' else 'strip or half'} fold"
+        raise InvalidValueError(f"--expect {shown} {has}: {what} cannot be checked against it")
+    if variant is None and legs and len(VARIANTS[cid]) > 1:
+        states = " or ".join(f"{cid}/{v}" for v in fitting)
+        raise InvalidValueError(
+            f"--expect {cid} names no variant, and {what} are corner {wanted}'s: give "
+            f"--expect {states} (the states of {cid} that fold corner {wanted})"
+        )
 
 
 def verify_fold(

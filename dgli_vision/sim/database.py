@@ -23,6 +23,7 @@ __all__ = [
     "FOLD_BINS_DEG",
     "LIFTED_MM",
     "StateRecords",
+    "progress_id",
     "records_from_states",
     "simulate_folds_in_progress",
     "simulate_states",
@@ -40,6 +41,25 @@ FOLD_BINS_DEG: tuple[tuple[float, float], ...] = (
 def state_id(class_id: str, k: int) -> str:
     """Identifier of the k-th state of a class in a database, e.g. ``"02_007"``."""
     return f"{class_id}_{k:03d}"
+
+
+def progress_id(
+    before: tuple[str, str | None],
+    after: tuple[str, str | None],
+    fold: str,
+    bin_deg: tuple[float, float],
+    k: int,
+) -> str:
+    """Identifier (and file name) of a fold in progress: the state made, the one it is
+    made from, the fold, the angle bin and the draw, e.g.
+    ``"07-C_from_06-BD_A-over_050-090deg_00"``."""
+
+    def key(state: tuple[str, str | None]) -> str:
+        return state[0] + (f"-{state[1].replace('/', '-')}" if state[1] else "")
+
+    lo, hi = bin_deg
+    return (f"{key(after)}_from_{key(before)}_{fold.replace(' ', '-')}_"
+            f"{lo:03.0f}-{hi:03.0f}deg_{k:02d}")
 
 
 def simulate_states(
@@ -90,12 +110,15 @@ def simulate_folds_in_progress(
     Returns
     -------
     list of (str, ClothState)
-        ``(id, state)``, ids ``"m<edge>_<bin>_<k>"``.
+        ``(id, state)``, ids naming the state made, the one it is made from, the fold,
+        the bin and the draw: ``"07-C_from_06-BD_A-over_050-090deg_00"``
+        (:func:`progress_id`).
     """
     if per_group < 1:
         raise InvalidValueError(f"per_group must be at least 1, got {per_group}")
     out = []
-    for e, (_, (class_id, variant), fold) in enumerate(fold_edges()):
+    for e, (before, after, fold) in enumerate(fold_edges()):
+        class_id, variant = after
         if "under" in fold:
             continue
         for b, (lo, hi) in enumerate(FOLD_BINS_DEG):
@@ -106,7 +129,7 @@ def simulate_folds_in_progress(
                     class_id, variant, rng, last_fold=fold, last_fold_deg=angle, **kwargs
                 )
                 state.params["stage"] += f", {lo:g}-{hi:g} deg"
-                out.append((f"m{e:02d}_{b}_{k:02d}", state))
+                out.append((progress_id(before, after, fold, (lo, hi), k), state))
     return out
 
 
