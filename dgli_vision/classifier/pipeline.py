@@ -545,8 +545,8 @@ def _landing(
         return Doubt(factor)
     lean = float(np.nanmedian(obs.flap_deg))
     return Doubt(factor, (
-        f"a flap held up at about {lean:.0f} degrees: {a} {CLASS_NAMES[a]} ({va}, {da:.3f}) "
-        f"and {b} {CLASS_NAMES[b]} ({vb}, {db:.3f}) differ only in where it lands"
+        f"a flap held up at about {lean:.0f} degrees: {_named(a, va, da)} "
+        f"and {_named(b, vb, db)} differ only in where it lands"
     ))
 
 
@@ -578,9 +578,16 @@ def _near_vertical(
     (a, va, da), (b, vb, db) = near[0], near[1]
     return Doubt(factor, (
         f"a flap held up at about {lean:.0f} degrees, within {VERTICAL_RULED_OUT_DEG:.0f} "
-        f"of vertical: {a} {CLASS_NAMES[a]} ({va}, {da:.3f}) before or after it passes "
-        f"90 degrees, or {b} {CLASS_NAMES[b]} ({vb}, {db:.3f})"
+        f"of vertical: {_named(a, va, da)} before or after it passes "
+        f"90 degrees, or {_named(b, vb, db)}"
     ))
+
+
+def _named(class_id: str, variant: str | None, distance: float) -> str:
+    """``"04 two-adjacent-corners (AB, 0.016)"``; ``"01 flat (0.040)"`` for a state
+    without a variant."""
+    told = f"{variant}, {distance:.3f}" if variant else f"{distance:.3f}"
+    return f"{class_id} {CLASS_NAMES[class_id]} ({told})"
 
 
 def _too_small(
