@@ -222,6 +222,9 @@ def folded_apart_problem(obs: object, layout: NapkinLayout, *, lens_possible: bo
     """
     from .consistency import RIGIDITY_TOLERANCE
 
+    ruler = getattr(obs, "ruler", None)
+    if ruler is None or ruler.worst_against_scale <= RIGIDITY_TOLERANCE:
+        return None  # every corner keeps its distances (the ruler measured them)
     stretch, diagonal = _corner_stretch(obs, layout)
     limit = FOLDED_APART if lens_possible else RIGIDITY_TOLERANCE
     apart = np.flatnonzero(np.nan_to_num(stretch) > limit)
