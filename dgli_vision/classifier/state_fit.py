@@ -197,6 +197,14 @@ def _sticker_parts(folds: tuple[NominalFold, ...], uv: NDArray[np.float64]) -> N
 
 
 @lru_cache(maxsize=128)
+def _parts_of_state(class_id: str, variant: str | None, layout: NapkinLayout) -> NDArray[np.intp]:
+    """:func:`_sticker_parts` of a state's nominal folds, worked out once (read-only)."""
+    part = _sticker_parts(nominal_folds(class_id, variant, layout), layout.sticker_uv)
+    part.setflags(write=False)
+    return part
+
+
+@lru_cache(maxsize=128)
 def moving_flaps(
     class_id: str, variant: str | None, layout: NapkinLayout
 ) -> tuple[tuple[frozenset[int], frozenset[int]], ...]:
@@ -252,7 +260,7 @@ def fit_state(
     lying = seen & ~raised
     held = raised & ~seen  # out of sight, on cloth held up (the evidence's say)
     folds = nominal_folds(class_id, variant, layout)
-    part = _sticker_parts(folds, uv)
+    part = _parts_of_state(class_id, variant, layout)
     under = np.array([f.under for f in folds] + [False], dtype=bool)  # [-1]: stays
     hidden_under = seen & under[part]
     airborne = np.array([bool(np.any(raised & (part == j))) for j in range(len(folds))])
@@ -267,7 +275,7 @@ def fit_state(
         depth = _covered_depth(uv, part, folds, creases, layout, airborne)
         depth = np.where(seen & ~hidden_under, depth, -np.inf)
         covered = tuple(int(i) for i in np.flatnonzero(depth > COVERED_MARGIN_MM))
-        cover = min([_ramp(float(d), COVERED_MARGIN_MM) for d in depth])
+        cover = _ramp(float(np.max(depth)), COVERED_MARGIN_MM)  # (the ramp falls with depth)
         # a crease is measured where the napkin under it is placed by two stickers of
         # its own (or three flaps), and two stickers of the flap fix it
         stay = np.count_nonzero(lying & ~hidden_under & (part < 0))
