@@ -65,7 +65,8 @@ from .output import command_line
     "--rest",
     type=click.Path(),
     help="A file (or mesh folder) whose first frame is the flat cloth at rest "
-    "[default: each episode's first frame].",
+    "[default: each episode's first frame, which must then be flat: an episode that "
+    "starts folded is refused].",
 )
 @make_jobs_option
 @click.option(
