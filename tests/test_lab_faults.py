@@ -295,7 +295,7 @@ def test_size_100000_is_refused_at_once(tmp_path):
 
 def test_per_class_1e20_is_refused_at_once(tmp_path):
     line = one_error_line(run(["render", tmp_path / "r", "--per-class", str(10**20)]))
-    assert "'--per-class'" in line and "1<=x<=50" in line
+    assert "'--per-class'" in line and "0<=x<=50" in line
     line = one_error_line(
         run(["simulate", tmp_path / "db", "--per-class", "150", "--size", "900"])
     )

@@ -44,9 +44,15 @@ from functools import lru_cache
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.classes import CLASS_NAMES
+from ..core.classes import CLASS_NAMES, CORNERS
 from ..core.fold_graph import fold_edges
-from ..core.fold_lines import CORNER_LEG_RANGES, SIDE_INSET_RANGES, NominalFold, nominal_folds
+from ..core.fold_lines import (
+    CORNER_LEG_RANGES,
+    SIDE_INSET_RANGES,
+    NominalFold,
+    along_scale,
+    nominal_folds,
+)
 from ..core.fold_measure import Crease, fold_kind, fold_measures
 from ..core.layout import NapkinLayout
 from .fold_geometry import initial_flaps, plane_basis, rigid_fit_2d, rotation_2d, solve_flaps
@@ -343,15 +349,16 @@ def _size_factor(
     offset)) against the class's (see the module's description), and the folds beyond
     the slacks."""
     factor, out = 1.0, []
-    scale = min(layout.fold_scale)
+    scale = min(layout.fold_scale)  # (a diagonal's)
     for j, (a, c) in creases.items():
         word = folds[j].word
         sizes = fold_measures(word, Crease.from_normal(a, c), layout)
-        kind, _ = fold_kind(word)
+        kind, name = fold_kind(word)
         if kind == "corner":
             for edge, leg in sizes["legs_mm"].items():
                 lo, hi = _CORNER_LEGS
-                mid, half = 0.5 * (lo + hi) * scale, (0.5 * (hi - lo) + SIZE_SLACK_MM) * scale
+                along = along_scale(layout, edge[0], edge[1])  # a leg scales with its edge
+                mid, half = 0.5 * (lo + hi) * along, (0.5 * (hi - lo) + SIZE_SLACK_MM) * along
                 off = math.inf if leg is None else abs(leg - mid)
                 f = _ramp(off, half)
                 factor = min(factor, f)
@@ -364,7 +371,9 @@ def _size_factor(
         elif kind == "side":
             inset, skew = sizes["inset_mm"], abs(sizes["skew_deg"])
             lo, hi = SIDE_INSET_RANGES["11" if class_id == "11" else "09"]
-            mid, half = 0.5 * (lo + hi) * scale, (0.5 * (hi - lo) + SIZE_SLACK_MM) * scale
+            k = CORNERS.index(name[1])
+            across = along_scale(layout, name[1], CORNERS[(k + 1) % 4])  # an inset, across it
+            mid, half = 0.5 * (lo + hi) * across, (0.5 * (hi - lo) + SIZE_SLACK_MM) * across
             f_skew = _ramp(skew, SKEW_SLACK_DEG)
             f_in = _ramp(math.inf if inset is None else abs(inset - mid), half)
             factor = min(factor, f_skew, f_in)

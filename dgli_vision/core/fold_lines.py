@@ -19,7 +19,7 @@ from .classes import CORNERS
 from .fold_graph import folds_of
 from .layout import NapkinLayout
 
-__all__ = ["NominalFold", "fold_for_word", "nominal_folds", "reflect_uv"]
+__all__ = ["NominalFold", "along_scale", "fold_for_word", "nominal_folds", "reflect_uv"]
 
 #: Middle of each corner class's leg ranges (mm on the 400 mm napkin): one leg size, or
 #: (along the shared edge, along the other edge) for the two corners of one side.
@@ -114,7 +114,7 @@ def reflect_uv(uv: NDArray[np.float64], f: NominalFold) -> NDArray[np.float64]:
     return np.atleast_2d(uv) - 2.0 * (rel @ n)[:, None] * n
 
 
-def _along(layout: NapkinLayout, a: str, b: str) -> float:
+def along_scale(layout: NapkinLayout, a: str, b: str) -> float:
     """Scale of a fold size measured from corner a towards corner b."""
     c = layout.corner_uv
     d = np.abs(c[CORNERS.index(b)] - c[CORNERS.index(a)])
@@ -127,8 +127,8 @@ def _corner(layout: NapkinLayout, name: str, legs: tuple[float, float], word: st
     k = CORNERS.index(name)
     c = layout.corner_uv
     here, nxt, prev = c[k], c[(k + 1) % 4], c[(k - 1) % 4]
-    out = legs[0] * _along(layout, name, CORNERS[(k + 1) % 4])
-    inn = legs[1] * _along(layout, name, CORNERS[k - 1])
+    out = legs[0] * along_scale(layout, name, CORNERS[(k + 1) % 4])
+    inn = legs[1] * along_scale(layout, name, CORNERS[k - 1])
     p0 = here + out * (nxt - here) / np.linalg.norm(nxt - here)
     p1 = here + inn * (prev - here) / np.linalg.norm(prev - here)
     return NominalFold(
@@ -142,7 +142,7 @@ def _side(layout: NapkinLayout, side: str, inset_mm: float, word: str) -> Nomina
     e = (y - x) / np.linalg.norm(y - x)
     inward = np.array([-e[1], e[0]])
     k = CORNERS.index(side[1])
-    inset = inset_mm * _along(layout, side[1], CORNERS[(k + 1) % 4])
+    inset = inset_mm * along_scale(layout, side[1], CORNERS[(k + 1) % 4])
     return NominalFold(
         word, _pt(x + inset * inward), _pt(y + inset * inward), _pt((x + y) / 2),
         under=" under" in word, side=side,
