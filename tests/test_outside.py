@@ -247,3 +247,22 @@ def test_label_says_cannot_tell_for_a_mesh_outside_the_twelve(tmp_path):
     frames = json.loads(r.stdout)["episodes"][0]["frames"]
     assert [f["class"] for f in frames] == ["01", "09", None, None]
     assert all("no known state fits" in f["note"] for f in frames[2:])
+
+
+def test_watch_shows_a_frame_in_no_known_state_as_none_and_keeps_smoothing():
+    """dgli watch's online smoother: a frame in none of the twelve is shown as none (its
+    own answer and the smoothed state), then the state comes back with the evidence."""
+    import time
+
+    from dgli_vision.analysis.live import _Arrival, _Worker
+
+    owners = [(r.class_id, r.variant) for r in REFS.references]
+    d02 = tuple(float(v) for v in np.where([o == ("02", "A") for o in owners], 0.01, 1.0))
+    worker = _Worker(REFS, None, keep_path=False)
+    answers = [(("02", "A"), 1.0, d02, None)] * 3 + [((OUTSIDE, None), 0.0, (), "cannot tell")]
+    answers += [(("02", "A"), 1.0, d02, None)] * 2
+    shown = [
+        worker.record(_Arrival(t, SimpleNamespace(time=None), time.perf_counter()), 0, a).smoothed
+        for t, a in enumerate(answers)
+    ]
+    assert shown == [("02", "A")] * 3 + [(OUTSIDE, None)] + [("02", "A")] * 2
