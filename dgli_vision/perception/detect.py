@@ -12,7 +12,7 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    dot inside its disc belongs to it, even where blur leaves an unsaturated ring
    between them), judged by :func:`.blobs.judge_blobs` (depth, foreshortening,
    highlight repair, size, shape, fill, surround, disc and dot colours): a candidate or
-   a :class:`Rejection` with the reason;
+   a :class:`Rejection` with the check failed and its values;
 3. identities (:func:`identify`): the (disc, dot) pair names the sticker; an identity
    is never given twice (the better-scoring candidate keeps it), and a disc whose dot a
    highlight washed out takes the one sticker of its colour left;
@@ -43,7 +43,7 @@ from ..core.colour import srgb_lut, srgb_to_linear
 from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
-from .detections import DetectorParams, Rejection, StickerDetections
+from .detections import DetectorParams, Rejection, RejectionKind, StickerDetections
 from .footprint import ClothRegions, FootprintParams, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
@@ -58,6 +58,7 @@ from .washed import (
 __all__ = [
     "DetectorParams",
     "Rejection",
+    "RejectionKind",
     "StickerDetections",
     "detect_all_stickers",
     "detect_stickers",
@@ -611,8 +612,8 @@ class FullResolution:
             return Rejection(
                 ((where[0] - 0.5) / 2, (where[1] - 0.5) / 2),
                 area / 4,
-                f"too small for a sticker at {c.z_mm:.0f} mm "
-                f"({area / expected:.2f} of a disc at full resolution)",
+                RejectionKind.TOO_SMALL,
+                {"z_mm": float(c.z_mm), "ratio": float(area / expected), "full_resolution": True},
             )
         return where, area
 
@@ -644,11 +645,11 @@ class Identities:
         disc, dot = self.names[c.disc - 1], self.names[c.dot - 1]
         sid = self.layout.sticker_id(disc, dot)
         if sid is None:
-            why = f"no sticker is {disc} with a {dot} dot"
-            self.rejected.append(Rejection(c.where, c.area, why))
+            named = {"disc": disc, "dot": dot}
+            self.rejected.append(Rejection(c.where, c.area, RejectionKind.NO_SUCH_STICKER, named))
         elif self.scores[sid] > 0:
-            why = f"second blob for sticker {sid} (lower score)"
-            self.rejected.append(Rejection(c.where, c.area, why))
+            held = {"sticker": sid}
+            self.rejected.append(Rejection(c.where, c.area, RejectionKind.SECOND_BLOB, held))
         else:
             self.take(sid, c, c.score)
 
@@ -664,8 +665,8 @@ class Identities:
         if len(free) == 1:
             self.take(free[0], c, 0.5 * c.score)
         else:
-            why = f"{disc_name} disc with its dot washed out; {len(free)} stickers possible"
-            self.rejected.append(Rejection(c.where, c.area, why))
+            left = {"disc": disc_name, "possible": len(free)}
+            self.rejected.append(Rejection(c.where, c.area, RejectionKind.DOT_WASHED_OUT, left))
 
     def take(self, sid: int, c: Candidate, score: float) -> None:
         """Give sticker ``sid`` to ``c`` (unless too small at full resolution). A
@@ -712,7 +713,9 @@ def identify(
 
 def _at_full_resolution(r: Rejection) -> Rejection:
     """A rejection of the halved search, in full-resolution pixels."""
-    return Rejection((2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), 4 * r.area_px, r.reason)
+    return replace(
+        r, centroid=(2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), area_px=4 * r.area_px
+    )
 
 
 def _refine_all(
