@@ -44,9 +44,9 @@ from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, RejectionKind, StickerDetections
-from .footprint import ClothRegions, FootprintParams, cloth_regions
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
+from .regions import ClothRegions, RegionParams, cloth_regions
 from .washed import (
     PastelLooks,
     merge_second_search,
@@ -878,7 +878,7 @@ def find_washed_out(
     found : StickerDetections
         The first search's result.
     regions : ClothRegions, keyword-only, optional
-        The frame's white regions (:func:`.footprint.cloth_regions`), when already
+        The frame's white regions (:func:`.regions.cloth_regions`), when already
         found. The second search looks on the napkin's cells and
         ``washed_margin_cells`` around them only (the table, balanced to the low level,
         is pastel too), or everywhere when the napkin is not told from the table.
@@ -895,7 +895,7 @@ def find_washed_out(
     lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
     import cv2
 
-    cells = FootprintParams(cell_px=lower.stride)
+    cells = RegionParams(cell_px=lower.stride)
     if regions is None or regions.cell_px != cells.cell_px:
         regions = cloth_regions(color, napkin.white_rgb, cells)
     looks = PastelLooks(color, lower, regions)  # (shared by the looks below)

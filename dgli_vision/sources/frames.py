@@ -17,9 +17,12 @@ from ..core.errors import (
     InvalidValueError,
     UnreadableInputError,
 )
+from ..core.frame import RGBDFrame
 from ..core.io import check_input_file, read_json, write_png
 from .png_decode import PNG_SIGNATURE, PngFile, inflate_rows, stored_png, unfilter, walk_png
 
+# RGBDFrame lives in core (:mod:`dgli_vision.core.frame`: every folder may use it); it
+# is named here too, where it was first
 __all__ = [
     "MAX_IMAGE_BYTES",
     "MAX_IMAGE_PIXELS",
@@ -34,31 +37,6 @@ __all__ = [
     "write_color",
     "write_depth",
 ]
-
-
-@dataclass(frozen=True, eq=False)
-class RGBDFrame:
-    """A registered colour + depth pair, validated.
-
-    Attributes
-    ----------
-    color : ndarray of uint8, shape (H, W, 3)
-        RGB.
-    depth_mm : ndarray of uint16, shape (H, W)
-        z-depth in mm, 0 = no reading.
-    intrinsics : Intrinsics
-    color_path, depth_path : str
-        Where they came from (for messages and reports).
-    intrinsics_source : str
-        The intrinsics file, or ``"default"``.
-    """
-
-    color: NDArray[np.uint8]
-    depth_mm: NDArray[np.uint16]
-    intrinsics: Intrinsics
-    color_path: str = ""
-    depth_path: str = ""
-    intrinsics_source: str = "default"
 
 
 #: The largest image decoded, in pixels (an 8K frame has 33 million): checked from the

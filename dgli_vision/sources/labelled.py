@@ -13,6 +13,7 @@ import numpy as np
 
 from ..core.classes import class_id_of
 from ..core.errors import InvalidInputError, InvalidValueError, OutputError, UnreadableInputError
+from ..core.frame import RGBDFrame
 from ..core.io import (
     check_input_file,
     failed_part_way,
@@ -21,7 +22,7 @@ from ..core.io import (
     write_json,
     write_text,
 )
-from .frames import RGBDFrame, read_frame, write_color, write_depth
+from .frames import read_frame, write_color, write_depth
 
 __all__ = [
     "LabelProblem",
