@@ -28,7 +28,6 @@ __all__ = [
     "MAX_IMAGE_PIXELS",
     "RGBDFrame",
     "check_intrinsics",
-    "image_size",
     "parse_intrinsics",
     "read_color",
     "read_depth",
@@ -92,20 +91,9 @@ def _jpeg_size(buf: bytes, where: str) -> tuple[int, int] | None:
     raise UnreadableInputError(f"{where} is a damaged or truncated JPEG (no frame header)")
 
 
-def image_size(data: bytes, where: str = "image") -> tuple[int, int] | None:
-    """The (width, height) a PNG or JPEG file's header gives, without decoding it.
-
-    Parameters
-    ----------
-    data : bytes
-        The file's bytes.
-    where : str
-        How messages name the file (``"colour image 'x.png'"``).
-
-    Returns
-    -------
-    (width, height) or None
-        None for another format (OpenCV's own limits then apply).
+def _header(data: bytes, where: str) -> tuple[tuple[int, int] | None, PngFile | None]:
+    """The (width, height) a PNG or JPEG file's header gives, without decoding it (None
+    for another format: OpenCV's own limits then apply), and a PNG's walked chunks.
 
     Raises
     ------
@@ -114,11 +102,6 @@ def image_size(data: bytes, where: str = "image") -> tuple[int, int] | None:
     InvalidInputError
         A header that gives no pixels, or more than :data:`MAX_IMAGE_PIXELS`.
     """
-    return _header(data, where)[0]
-
-
-def _header(data: bytes, where: str) -> tuple[tuple[int, int] | None, PngFile | None]:
-    """:func:`image_size`, and a PNG's walked chunks."""
     png = None
     if data.startswith(PNG_SIGNATURE):
         png = walk_png(data, where)
