@@ -13,10 +13,10 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    between them), judged by :func:`.blobs.judge_blobs` (depth, foreshortening,
    highlight repair, size, shape, fill, surround, disc and dot colours): a candidate or
    a :class:`Rejection` with the check failed and its values;
-3. identities (:func:`identify`): the (disc, dot) pair names the sticker; an identity
+3. identities (:func:`_identify`): the (disc, dot) pair names the sticker; an identity
    is never given twice (the better-scoring candidate keeps it), and a disc whose dot a
    highlight washed out takes the one sticker of its colour left;
-4. centres at full resolution (:class:`FullResolution`) when the search was halved,
+4. centres at full resolution (:class:`_FullResolution`) when the search was halved,
    measured for every candidate at once (:func:`_refine_all`).
 
 The work is in proportion to the blobs, not to the pixels, wherever it can be: the
@@ -127,11 +127,11 @@ def detect_stickers(
     full = None
     if image.halved:
         measured = candidates if report is None else _to_measure(candidates, layout, names, report)
-        full = FullResolution(
+        full = _FullResolution(
             _refine_all(color, napkin.lut, lut, params, measured), params, intrinsics.fx,
             image.disc_radius_mm,
         )
-    ids = identify(candidates, layout, names, full, taken=taken)
+    ids = _identify(candidates, layout, names, full, taken=taken)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
         rejected = [_at_full_resolution(r) for r in rejected]
@@ -155,7 +155,7 @@ def _to_measure(
     report: NDArray[np.bool_],
 ) -> list[Candidate]:
     """The candidates whose centres at full resolution can change the stickers
-    ``report`` wants (:func:`identify`): those named for a wanted sticker; every one
+    ``report`` wants (:func:`_identify`): those named for a wanted sticker; every one
     whose dot is washed out (it takes the one sticker of its disc colour left); and
     those named for any sticker of such a disc colour (whether they keep it, or are too
     small at full resolution and leave it free, decides what is left). The others only
@@ -172,7 +172,7 @@ def _to_measure(
     return out
 
 
-def _reported(ids: Identities, report: NDArray[np.bool_]) -> StickerDetections:
+def _reported(ids: _Identities, report: NDArray[np.bool_]) -> StickerDetections:
     """The stickers ``report`` wants of ``ids``; the others as not found."""
     centroids, areas, depths, fores = (
         np.where(report[:, None] if v.ndim == 2 else report, v, np.nan)
@@ -589,7 +589,7 @@ def _not_covering(
 
 
 @dataclass(frozen=True, eq=False)
-class FullResolution:
+class _FullResolution:
     """What measuring a candidate's centre at full resolution needs, after a search of
     the frame halved: every candidate's centre and area measured there
     (:func:`_refine_all`), and the focal length and disc radius that give the disc size
@@ -603,7 +603,7 @@ class FullResolution:
     def measure(self, c: Candidate) -> tuple[tuple[float, float], float] | Rejection:
         """Centre (u, v) and area of ``c`` at full resolution, or its rejection
         (search-image pixels) as too small there."""
-        where, area = self.refined[c]  # (KeyError: not measured, see Identities.take)
+        where, area = self.refined[c]  # (KeyError: not measured, see _Identities.take)
         # a threshold cuts a blurred rim of about a pixel off the disc (see
         # DetectorParams.full_rim_px): the disc expected is that much smaller
         radius = max(self.disc_radius_mm * self.fx / c.z_mm - self.params.full_rim_px, 1.0)
@@ -618,15 +618,15 @@ class FullResolution:
         return where, area
 
 
-class Identities:
+class _Identities:
     """The sticker ids given so far, and the candidates refused one.
 
-    An id is never given twice: candidates come best score first (:func:`identify`).
+    An id is never given twice: candidates come best score first (:func:`_identify`).
     With ``full``, centres and areas are measured at full resolution as ids are given.
     """
 
     def __init__(
-        self, layout: NapkinLayout, names: list[str], full: FullResolution | None,
+        self, layout: NapkinLayout, names: list[str], full: _FullResolution | None,
         taken: NDArray[np.bool_] | None = None,
     ) -> None:
         n = layout.n_stickers
@@ -688,18 +688,18 @@ class Identities:
         self.fores[sid] = c.foreshortening
 
 
-def identify(
+def _identify(
     candidates: list[Candidate],
     layout: NapkinLayout,
     names: list[str],
-    full: FullResolution | None,
+    full: _FullResolution | None,
     *,
     taken: NDArray[np.bool_] | None = None,
-) -> Identities:
+) -> _Identities:
     """Sticker ids of the candidates, best score first; those whose dot is washed out
     come last and take what is left of their disc colour. ``taken`` (16,): ids given
     before (a search before found them), which no candidate is given."""
-    ids = Identities(layout, names, full, taken)
+    ids = _Identities(layout, names, full, taken)
     pending = []
     for c in sorted(candidates, key=lambda c: -c.score):
         if c.dot is None:

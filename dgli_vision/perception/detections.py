@@ -290,7 +290,7 @@ class Rejection:
     @property
     def reason(self) -> str:
         """The rejection in words, made from :attr:`kind` and :attr:`values`."""
-        return rejection_message(self.kind, self.values)
+        return _rejection_message(self.kind, self.values)
 
     @property
     def size_ratio(self) -> float | None:
@@ -301,7 +301,7 @@ class Rejection:
         return None
 
 
-def rejection_message(kind: RejectionKind, values: Mapping[str, float | int | str]) -> str:
+def _rejection_message(kind: RejectionKind, values: Mapping[str, float | int | str]) -> str:
     """A rejection's words, from its kind and measured values (see
     :class:`RejectionKind` for the keys of each)."""
     v = values
