@@ -233,16 +233,16 @@ def test_a_sticker_left_pastel_by_a_sheen_is_unknown_never_hidden(monkeypatch):
     # that stickers of that colour are there, unread
     from dgli_vision.perception import detect
 
-    real = detect.detect_stickers
+    real = detect._search  # (each search of the detection's steps)
 
-    def first_search_only(color, depth, intr, layout, params=None, **kw):
-        if params is not None and params.min_saturation == params.washed_saturation:
-            n = layout.n_stickers
+    def first_search_only(frame, params, balance, **kw):
+        if params.min_saturation == params.washed_saturation:  # the washed-out search
+            n = frame.layout.n_stickers
             nan = np.full(n, np.nan)
             return detect.StickerDetections(np.full((n, 2), np.nan), nan, np.zeros(n), nan)
-        return real(color, depth, intr, layout, params, **kw)
+        return real(frame, params, balance, **kw)
 
-    monkeypatch.setattr(detect, "detect_stickers", first_search_only)
+    monkeypatch.setattr(detect, "_search", first_search_only)
     s = small("08", 0, 11, ("sheen",))
     _, _, obs = observe(frame(s), LAYOUT)
     washed = [r for r in obs.evidence.reasons if r and "washed out" in r]

@@ -112,3 +112,26 @@ def test_a_fold_in_progress_is_named_by_its_states_fold_and_angle():
         named = re.fullmatch(rf"(.+)_from_(.+)_{re.escape(fold.replace(' ', '-'))}_"
                              rf"{int(lo):03d}-{int(hi):03d}deg_\d\d", r.source)
         assert named and here in named.groups(), (r.source, r.stage)
+
+
+def test_edge_on_heights_are_read_at_the_blobs_rejected_as_seen_too_obliquely():
+    from dgli_vision.perception.agreement import edge_on_heights
+    from dgli_vision.perception.detections import Rejection, RejectionKind, StickerDetections
+
+    class Masks:  # heights read where asked: the u of each centre, mm
+        def height_at(self, centres):
+            return centres[:, 0].copy()
+
+    rejected = (
+        Rejection((40.0, 1.0), 30.0, RejectionKind.OBLIQUE, {"foreshortening": 0.2}),
+        # a message that would read the same words is not what is asked: its kind is
+        Rejection((99.0, 1.0), 30.0, RejectionKind.TOO_SMALL, {"z_mm": 600.0, "ratio": 0.3}),
+        Rejection((55.0, 1.0), 30.0, RejectionKind.OBLIQUE, {"foreshortening": 0.1}),
+    )
+    n = 16
+    det = StickerDetections(
+        np.full((n, 2), np.nan), np.full(n, np.nan), np.zeros(n), np.full(n, np.nan), rejected
+    )
+    np.testing.assert_array_equal(edge_on_heights(det, Masks()), [40.0, 55.0])
+    none = StickerDetections(det.centroids, det.areas, det.scores, det.depth_mm, rejected[1:2])
+    assert edge_on_heights(none, Masks()).shape == (0,)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from dgli_vision.perception.footprint import _cell_means
+from dgli_vision.perception.regions import _cell_means
 
 
 def _area(color: np.ndarray, c: int) -> np.ndarray:

@@ -10,6 +10,7 @@ from dgli_vision.classifier.pipeline import observe
 from dgli_vision.core.camera import DEFAULT_INTRINSICS, look_at_table
 from dgli_vision.core.layout import default_layout
 from dgli_vision.perception import detect_stickers, estimate_table_normal, lift_stickers
+from dgli_vision.perception.detections import Rejection, RejectionKind
 from dgli_vision.sim.cloth import sample_state
 from dgli_vision.sim.render import Lighting, render
 from dgli_vision.sources.frames import RGBDFrame
@@ -80,6 +81,32 @@ def test_blobs_that_cannot_be_stickers_are_rejected_with_a_reason():
     assert det.found.sum() == 1 and det.found[5]
     reasons = " ".join(r.reason for r in det.rejected)
     assert "too large" in reasons and "not disc-shaped" in reasons
+    by_kind = {r.kind: r for r in det.rejected}
+    large = by_kind[RejectionKind.TOO_LARGE]
+    # the values measured, not only words: a disc of 120 px radius covers many discs
+    # of the size expected at the synthetic depth (500 mm)
+    assert large.size_ratio == large.values["ratio"] and large.size_ratio > 10
+    assert large.values["z_mm"] == pytest.approx(500, abs=1)
+    strip = by_kind[RejectionKind.NOT_DISC_SHAPED]
+    assert strip.size_ratio is None and strip.values["elongation"] > 2.5
+
+
+def test_a_rejection_message_is_made_from_its_kind_and_values():
+    k = RejectionKind
+    cases = [
+        (k.OBLIQUE, {"foreshortening": 0.123}, "seen too obliquely (foreshortened 0.12)"),
+        (k.TOO_SMALL, {"z_mm": 612.4, "ratio": 0.456}, "too small for a sticker at 612 mm "
+         "(0.46 of a disc)"),
+        (k.TOO_SMALL, {"z_mm": 612.4, "ratio": 0.456, "full_resolution": True},
+         "too small for a sticker at 612 mm (0.46 of a disc at full resolution)"),
+        (k.TOO_LARGE, {"z_mm": 600.0, "ratio": 31.5}, "too large for a sticker at 600 mm "
+         "(31.50 discs)"),
+        (k.NO_SUCH_STICKER, {"disc": "red", "dot": "red"}, "no sticker is red with a red dot"),
+        (k.SECOND_BLOB, {"sticker": 3}, "second blob for sticker 3 (lower score)"),
+        (k.NO_DOT_COLOUR, {}, "no dot colour inside"),
+    ]
+    for kind, values, words in cases:
+        assert Rejection((1.0, 2.0), 30.0, kind, values).reason == words
 
 
 def test_nothing_found_on_an_empty_table():

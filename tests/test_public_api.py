@@ -63,3 +63,19 @@ def test_no_folder_imports_from_a_folder_above_it() -> None:
     assert climbs == []
     assert floor["core"] == 0 and floor["cli"] == max(floor.values())
 
+
+
+def test_moved_names_are_still_found_where_they_were():
+    """RGBDFrame lives in core and the cloth regions in stage 1 of perception; their old
+    import paths name the same objects."""
+    from dgli_vision.core.frame import RGBDFrame
+    from dgli_vision.perception import footprint, regions
+    from dgli_vision.sources.frames import RGBDFrame as old_frame
+
+    assert old_frame is RGBDFrame
+    for name in ("ClothRegions", "cloth_cells", "cloth_regions"):
+        assert getattr(footprint, name) is getattr(regions, name)
+    # the footprint's parameters are the regions' and its own: the same fields as before
+    fields = footprint.FootprintParams(cell_px=4)
+    assert (fields.cell_px, fields.close_cells, fields.table_margin) == (4, 7, 0.15)
+    assert isinstance(fields, regions.RegionParams) and fields.max_fraction == 1.06

@@ -186,7 +186,7 @@ def test_a_search_near_the_napkin_judges_its_blobs_as_a_search_of_the_whole_imag
 
 
 def test_pastel_cells_from_the_cloth_regions_cells_are_those_averaged_again():
-    from dgli_vision.perception.footprint import cloth_regions
+    from dgli_vision.perception.regions import cloth_regions
     from dgli_vision.perception.washed import PastelLooks, pale_cells
 
     img, depth = _scene()

@@ -29,7 +29,6 @@ __all__ = [
     "compare_database",
     "dataset_matrices",
     "davies_bouldin_table",
-    "distance_matrices",
     "matrix_count",
     "paper_columns",
     "sequence_outcomes",
@@ -68,13 +67,6 @@ REPRESENTATIONS: dict[str, Callable[[StateRecords], NDArray[np.float64]]] = {
     "frechet": lambda r: pairwise_curve_distances(r.boundary, "frechet"),
     "hausdorff": lambda r: pairwise_curve_distances(r.boundary, "hausdorff"),
 }
-
-
-def distance_matrices(
-    records: StateRecords, names: tuple[str, ...] = tuple(REPRESENTATIONS)
-) -> dict[str, NDArray[np.float64]]:
-    """Distance matrix (n, n) of ``records`` under each representation."""
-    return {name: REPRESENTATIONS[name](records) for name in names}
 
 
 #: The paper's Davies-Bouldin indices (its Table 1) that the documentation records, by

@@ -7,7 +7,6 @@ recorded as a failure with its one-line error and the run goes on.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
@@ -41,7 +40,6 @@ __all__ = [
     "outcome_from_dict",
     "outcomes_text",
     "summarise",
-    "timed_evaluation",
 ]
 
 
@@ -620,22 +618,6 @@ def failure_text(outcome: PairOutcome) -> str:
     if outcome.predicted is not None and not outcome.correct:
         return f"wrong: labelled {outcome.pair.label}, answered {outcome.predicted}"
     return ""
-
-
-def timed_evaluation(
-    pairs: list[LabelledPair],
-    references: ReferenceSet,
-    *,
-    jobs: int = 1,
-    on_progress: Callable[[int], None] | None = None,
-    colours: dict | None = None,
-) -> EvaluationResult:
-    """:func:`evaluate_pairs` and :func:`summarise`, timed."""
-    t0 = time.perf_counter()
-    outcomes = list(
-        evaluate_pairs(pairs, references, jobs=jobs, on_progress=on_progress, colours=colours)
-    )
-    return summarise(outcomes, time.perf_counter() - t0)
 
 
 def coordinate_matrix(outcomes: list[PairOutcome]) -> NDArray[np.float64]:

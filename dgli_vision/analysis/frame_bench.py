@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 
 from ..classifier.references import ReferenceSet
 from ..core.classes import CLASS_IDS
+from ..core.frame import RGBDFrame
 from ..sim.condition_names import CONDITION_NAMES
-from ..sources.frames import RGBDFrame
 
 __all__ = [
     "AnchorBench",

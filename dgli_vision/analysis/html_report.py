@@ -5,7 +5,7 @@ Every page is one file: the style is inline, pictures are referenced by a path r
 to the report folder (they sit in it); charts are SVG files (Matplotlib's) linking to
 the same chart as PNG; nothing is fetched.
 :func:`html_page` wraps the body; :func:`html_table`, :func:`html_list`,
-:func:`html_image`, :func:`html_gallery` and :func:`outcomes_html` build its parts.
+:func:`html_chart`, :func:`html_gallery` and :func:`outcomes_html` build its parts.
 Text is escaped here; the pieces return HTML.
 """
 
@@ -22,7 +22,6 @@ __all__ = [
     "evaluation_html",
     "html_chart",
     "html_gallery",
-    "html_image",
     "html_list",
     "html_page",
     "html_table",
@@ -78,12 +77,6 @@ def html_table(header: Sequence[object], rows: Sequence[Sequence[object]]) -> st
     head = "".join(f"<th>{cell(h)}</th>" for h in header)
     body = "".join("<tr>" + "".join(f"<td>{cell(v)}</td>" for v in r) + "</tr>" for r in rows)
     return f"<table><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>"
-
-
-def html_image(src: str, alt: str, caption: str = "") -> str:
-    """A picture of the report folder at full width, with a caption under it."""
-    note = f'<p class="note">{escape(caption)}</p>' if caption else ""
-    return f'<p><img class="wide" src="{escape(src)}" alt="{escape(alt)}"></p>{note}'
 
 
 def html_chart(stem: str, alt: str, caption: str = "") -> str:

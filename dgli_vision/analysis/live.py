@@ -670,7 +670,7 @@ class _SlotFrame:
     names: tuple[str, str, str]
 
     def load(self) -> Any:
-        from ..sources.frames import RGBDFrame
+        from ..core.frame import RGBDFrame
 
         h, w = self.shape
         color = np.frombuffer(self.color.view(), np.uint8).reshape(h, w, 3)

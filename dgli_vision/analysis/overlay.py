@@ -17,7 +17,7 @@ from .report import _outlined_text
 
 if TYPE_CHECKING:
     from ..classifier.pipeline import FrameResult
-    from ..sources.frames import RGBDFrame
+    from ..core.frame import RGBDFrame
 
 __all__ = [
     "OverlayEvidence",

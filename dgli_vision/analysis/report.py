@@ -9,11 +9,9 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    "confusion_image",
     "markdown_table",
 ]
 
@@ -44,27 +42,3 @@ def _outlined_text(
                     cv2.LINE_AA)
     cv2.putText(img, text, org, font, scale, (255, 255, 255), weight, cv2.LINE_AA)
 
-
-def confusion_image(
-    confusion: NDArray,
-    labels: Sequence[str],
-    *,
-    names: dict[str, str] | None = None,
-    title: str = "",
-) -> NDArray[np.uint8]:
-    """Two confusion-matrix panels, counts and row-normalised, as one BGR image
-    (:func:`~dgli_vision.analysis.charts.confusion_figure`, drawn by Matplotlib).
-
-    Parameters
-    ----------
-    confusion : array, shape (k, k + 1)
-        Rows true class, columns predicted class, the last column "none".
-    labels : sequence of str
-        The k class ids.
-    names : dict, optional, keyword-only
-        Class id -> name, shown on the row axis.
-    title : str, keyword-only
-    """
-    from .charts import confusion_figure, figure_bgr
-
-    return figure_bgr(confusion_figure(confusion, labels, names=names, title=title))

@@ -218,8 +218,8 @@ def _one(args: tuple[str, int, int, str]) -> tuple:
     drawn, and the best guess's class and confidence (None: no guess); when the worker
     keeps overlays, a seventh item: :func:`_shown_extra`."""
     from ..classifier.pipeline import classify_frame
+    from ..core.frame import RGBDFrame
     from ..sim.dataset import render_sample
-    from ..sources.frames import RGBDFrame
 
     condition, seed, k, class_id = args
     names = () if condition == "clean" else (condition,)

@@ -23,7 +23,6 @@ napkin looks the same under both): it says what it saw and how to fix it.
 
 from __future__ import annotations
 
-import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -301,12 +300,8 @@ def depth_scale_hint(
                 f"the depth image reads 65535 at {100 * stuck:.0f}% of its pixels (depth "
                 "units? a depth scale setting?)"
             )
-    ratios = [
-        float(m.group(1))
-        for r in detections.rejected
-        if (m := re.search(r"\(([\d.]+) (?:discs|of a disc)", r.reason))
-        and r.reason.startswith(("too large", "too small"))
-    ]
+    # (each rejected blob's area against a disc's, as data: rounded as its message shows it)
+    ratios = [round(r.size_ratio, 2) for r in detections.rejected if r.size_ratio is not None]
     if len(ratios) >= 4:
         factor = float(np.median(ratios))
         size = f"{factor:.0f} times" if factor >= 1 else f"1/{1 / max(factor, 1e-6):.0f} of"

@@ -24,8 +24,9 @@ from ..perception.agreement import edge_on_heights, edge_on_problem
 from ..perception.detect import (
     DetectorParams,
     StickerDetections,
-    detect_stickers,
-    find_washed_out,
+    first_search,
+    search_frame,
+    washed_out_search,
 )
 from ..perception.evidence import StickerEvidence, assess_stickers, drop_inconsistent
 from ..perception.flaps import flap_angles
@@ -361,17 +362,14 @@ def observe(
     clock.lap("table plane")
     napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
     clock.lap("napkin")
-    detections = detect_stickers(
-        frame.color, frame.depth_mm, frame.intrinsics, layout, params, napkin=napkin,
-        colours=colours,
+    search = search_frame(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, napkin, params, colours=colours
     )
+    detections = first_search(search)
     clock.lap("search")
     regions = cloth_regions(frame.color, napkin.white_rgb)
     clock.lap("cloth regions")
-    detections = find_washed_out(
-        frame.color, frame.depth_mm, frame.intrinsics, layout, detections, params,
-        napkin=napkin, colours=colours, regions=regions,
-    )
+    detections = washed_out_search(search, detections, regions=regions)
     clock.lap("second search")
     lifted = lift_stickers(detections, frame.intrinsics)
     markers, dropped = drop_inconsistent(lifted, layout)

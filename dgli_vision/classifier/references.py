@@ -170,10 +170,6 @@ class ReferenceSet:
         """Sticker visibility rates of all references, shape (k, 16)."""
         return self._stacked("visible_rate")
 
-    def lifted_rates(self) -> NDArray[np.float64]:
-        """Rates of each sticker standing above the table, shape (k, 16)."""
-        return self._stacked("lifted_rate")
-
     def past_rates(self) -> NDArray[np.float64]:
         """Rates of each sticker standing on a flap past vertical, shape (k, 16)."""
         return self._stacked("past_rate")

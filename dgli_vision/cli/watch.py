@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from ..classifier.pipeline import FrameResult
     from ..classifier.references import ReferenceSet
     from ..core.fold_graph import StateKey
-    from ..sources.frames import RGBDFrame
+    from ..core.frame import RGBDFrame
     from ..sources.recording import RecordedPair
 
 

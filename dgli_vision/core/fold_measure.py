@@ -69,16 +69,6 @@ class Crease:
         q = np.atleast_2d(np.asarray(uv, dtype=float))
         return q - 2.0 * ((q - p) @ n)[:, None] * n
 
-    def meet(self, a: NDArray, d: NDArray) -> float | None:
-        """The parameter s of the line ``a + s d`` where it crosses this crease (None
-        when the two are parallel)."""
-        p, t = np.asarray(self.point), np.asarray(self.direction)
-        n = np.array([-t[1], t[0]])
-        den = float(d @ n)
-        if abs(den) < 1e-9:
-            return None
-        return float((p - a) @ n) / den
-
     def ends_in(self, layout: NapkinLayout) -> list[list[float]] | None:
         """The two points ``[[u, v], [u, v]]`` where the line crosses the napkin's
         outline, or None when it misses the napkin."""

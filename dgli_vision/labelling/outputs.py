@@ -11,14 +11,13 @@ from typing import Any
 
 from ..core.classes import CLASS_IDS, CLASS_NAMES
 from ..core.io import csv_table
-from .label import EpisodeFailure, EpisodeLabels
+from .label import EpisodeLabels
 
 __all__ = [
     "CSV_COLUMNS",
     "episode_files",
     "episode_names",
     "label_html",
-    "summary_of",
     "summary_of_entries",
     "timeline_files",
 ]
@@ -174,22 +173,11 @@ def label_html(entries: Sequence[dict[str, Any]], summary: dict[str, Any], title
     return html_page(title, body)
 
 
-def summary_of(results: Sequence[EpisodeLabels | EpisodeFailure]) -> dict[str, Any]:
-    """Over all episodes: frames, frames with a verdict, the smoothed states' frame
-    counts, state changes and the episodes that failed."""
-    entries = [
-        {"path": r.path, "error": r.error}
-        if isinstance(r, EpisodeFailure)
-        else {"path": r.path, "result": r.to_json()}
-        for r in results
-    ]
-    return summary_of_entries(entries)
-
-
 def summary_of_entries(entries: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """:func:`summary_of` from the episodes' records as ``dgli label -o`` keeps them in
-    results.jsonl: ``{"path", "result": the episode's JSON object}`` or ``{"path",
-    "error"}``."""
+    """Over all episodes: frames, frames with a verdict, the smoothed states' frame
+    counts, state changes and the episodes that failed, from the episodes' records as
+    ``dgli label -o`` keeps them in results.jsonl: ``{"path", "result": the episode's
+    JSON object}`` or ``{"path", "error"}``."""
     done = [e["result"] for e in entries if "result" in e]
     states: Counter[str] = Counter()
     for ep in done:

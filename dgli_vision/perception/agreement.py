@@ -15,13 +15,11 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from .detections import StickerDetections
+from .detections import RejectionKind, StickerDetections
 from .napkin import NapkinMasks
 
-__all__ = ["EDGE_ON_MIN_MM", "EDGE_ON_REASON", "edge_on_heights", "edge_on_problem"]
+__all__ = ["EDGE_ON_MIN_MM", "edge_on_heights", "edge_on_problem"]
 
-#: How a rejection of a sticker seen edge-on begins (see :mod:`.blobs`).
-EDGE_ON_REASON = "seen too obliquely"
 #: Least height above the table (mm) of a sticker seen edge-on: a flap turned 60-120
 #: degrees holds stickers 50 mm or more from its crease at 43 mm or more; a sliver of a
 #: sticker cut by a flap's edge on flat cloth is not edge-on in its depth.
@@ -30,8 +28,9 @@ EDGE_ON_MIN_MM = 30.0
 
 def edge_on_heights(detections: StickerDetections, masks: NapkinMasks) -> NDArray[np.float64]:
     """Heights above the table (mm, NaN without a reading) of the blobs the detector
-    rejected as seen edge-on, at their centres; shape (n,)."""
-    centres = [r.centroid for r in detections.rejected if r.reason.startswith(EDGE_ON_REASON)]
+    rejected as seen edge-on (:attr:`.RejectionKind.OBLIQUE`), at their centres; shape
+    (n,)."""
+    centres = [r.centroid for r in detections.rejected if r.kind is RejectionKind.OBLIQUE]
     if not centres:
         return np.zeros(0)
     return masks.height_at(np.asarray(centres, dtype=np.float64))

@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.order_stats import median, quantile
-from .detections import DetectorParams, Rejection
+from .detections import DetectorParams, Rejection, RejectionKind
 
 __all__ = [
     "Candidate", "SearchImage", "judge_blob", "judge_blobs", "least_area", "window_pad",
@@ -43,6 +43,9 @@ __all__ = [
 #: A 3 x 3 square: erosion by one pixel.
 _SQUARE3 = np.ones((3, 3), np.uint8)
 _SQUARE3.flags.writeable = False
+
+#: A failed check: its kind and the values it measured (a :class:`Rejection` less where).
+_Problem = tuple[RejectionKind, dict[str, float]]
 
 #: The ring around a blob whose whiteness says it lies on the napkin, in disc radii.
 _RING_INNER, _RING_OUTER = 1.3, 1.8
@@ -282,18 +285,18 @@ def _judge_shape(contour: NDArray, image: SearchImage) -> _Shaped | Rejection | 
         blob = _grown_to_its_rim(blob, image)
     fore, minor_angle = _tilt(blob, image)
     if fore < image.params.min_foreshortening:
-        why = f"seen too obliquely (foreshortened {fore:.2f})"
-        return Rejection(blob.where, blob.area, why)
+        oblique = {"foreshortening": float(fore)}
+        return Rejection(blob.where, blob.area, RejectionKind.OBLIQUE, oblique)
     blob = _repair_highlight(blob, image)
     p = image.params
     ratio = _area_ratio(blob, fore, image.halved)
     why = _size_problem(ratio, blob.z_mm, p)
     if why:
-        return Rejection(blob.where, blob.area, why)
+        return Rejection(blob.where, blob.area, *why)
     solidity, elongation = _shape_of(blob)
     why = _shape_problem(solidity, elongation, fore, p)
     if why:
-        return Rejection(blob.where, blob.area, why)
+        return Rejection(blob.where, blob.area, *why)
     return _Shaped(blob, fore, minor_angle, ratio, solidity, _radius(blob, fore))
 
 
@@ -305,10 +308,10 @@ def _judge_disc(
     blob, p = s.blob, image.params
     why = _fill_problem(discs, k, s, p) or _surround_problem(discs, k, p)
     if why:
-        return Rejection(blob.where, blob.area, why)
+        return Rejection(blob.where, blob.area, *why)
     colours = _read_colours(s, k, discs, image)
-    if isinstance(colours, str):
-        return Rejection(blob.where, blob.area, colours)
+    if not isinstance(colours, _Colours):
+        return Rejection(blob.where, blob.area, *colours)
     score = float(colours.purity * min(s.ratio, 1 / s.ratio) * s.solidity)
     score *= 0.8 if blob.recovered else 1.0
     x0, y0 = blob.window[:2]
@@ -335,7 +338,7 @@ def _measure_blob(contour: NDArray, image: SearchImage) -> _Blob | Rejection | N
     cv2.drawContours(roi, [contour], -1, 1, thickness=-1, offset=(-x, -y))
     z_mm = _blob_depth(image.depth_mm[y : y + h, x : x + w], roi, image.median_depth_mm)
     if not (z_mm > 0):
-        return Rejection(where, area, "no depth to judge its size")
+        return Rejection(where, area, RejectionKind.NO_DEPTH)
     r_exp = image.disc_radius_mm * image.intrinsics.fx / z_mm
     pad = window_pad(r_exp)
     h_img, w_img = image.labels.shape
@@ -503,11 +506,11 @@ def _area_ratio(blob: _Blob, fore: float, halved: bool) -> float:
     return blob.area / (np.pi * max(blob.r_exp - rim, 1.0) * max(fore * blob.r_exp - rim, 1.0))
 
 
-def _size_problem(ratio: float, z_mm: float, p: DetectorParams) -> str | None:
+def _size_problem(ratio: float, z_mm: float, p: DetectorParams) -> _Problem | None:
     if ratio < p.min_area_ratio:
-        return f"too small for a sticker at {z_mm:.0f} mm ({ratio:.2f} of a disc)"
+        return RejectionKind.TOO_SMALL, {"z_mm": float(z_mm), "ratio": float(ratio)}
     if ratio > p.max_area_ratio:
-        return f"too large for a sticker at {z_mm:.0f} mm ({ratio:.2f} discs)"
+        return RejectionKind.TOO_LARGE, {"z_mm": float(z_mm), "ratio": float(ratio)}
     return None
 
 
@@ -525,9 +528,10 @@ def _shape_of(blob: _Blob) -> tuple[float, float]:
 
 def _shape_problem(
     solidity: float, elongation: float, fore: float, p: DetectorParams
-) -> str | None:
+) -> _Problem | None:
     if solidity < p.min_solidity or elongation * fore > p.max_elongation:
-        return f"not disc-shaped (solidity {solidity:.2f}, elongation {elongation:.2f})"
+        shape = {"solidity": float(solidity), "elongation": float(elongation)}
+        return RejectionKind.NOT_DISC_SHAPED, shape
     return None
 
 
@@ -770,15 +774,17 @@ def _disc_box(s: _Shaped) -> tuple[int, int, int, int]:
     )
 
 
-def _fill_problem(discs: _DiscPixels, k: int, s: _Shaped, p: DetectorParams) -> str | None:
+def _fill_problem(
+    discs: _DiscPixels, k: int, s: _Shaped, p: DetectorParams
+) -> _Problem | None:
     """Rejects crescents and slivers: too little of the equivalent disc covered."""
     fill = discs.covered[k] / (np.pi * s.radius**2 * s.fore)
     if fill < p.min_fill:
-        return f"not a whole disc (covers {fill:.2f} of one)"
+        return RejectionKind.NOT_WHOLE_DISC, {"fill": float(fill)}
     return None
 
 
-def _surround_problem(discs: _DiscPixels, k: int, p: DetectorParams) -> str | None:
+def _surround_problem(discs: _DiscPixels, k: int, p: DetectorParams) -> _Problem | None:
     """A sticker lies on white cloth, an object on a table does not: the whiteness of a
     ring around the blob (1.3-1.8 radii) against the blob's own brightness."""
     white, own = discs.surround_levels
@@ -787,21 +793,18 @@ def _surround_problem(discs: _DiscPixels, k: int, p: DetectorParams) -> str | No
     lin = srgb_lut()
     white_k, own_k = float(lin[white[k]]), float(lin[own[k]])
     if white_k < p.min_surround * own_k:
-        return (
-            f"not on the napkin (surround {white_k / max(own_k, 1e-6):.2f} as bright as "
-            "the blob)"
-        )
+        return RejectionKind.NOT_ON_NAPKIN, {"surround": white_k / max(own_k, 1e-6)}
     return None
 
 
-def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | str:
+def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | _Problem:
     """Disc and dot colours of the ``k``-th blob: majority labels of an outer band and
     of the inner part of the equivalent disc; or why they cannot be read."""
     outer_counts, inner_counts, inner_area, washed_inner = discs.disc_and_dot
     disc_counts = outer_counts[k]
     outer = sum(disc_counts)
     if outer == 0:
-        return "no disc colour inside"
+        return RejectionKind.NO_DISC_COLOUR, {}
     disc = _first_largest(disc_counts)
     purity = disc_counts[disc] / outer
     dot: int | None = None
@@ -811,15 +814,15 @@ def _disc_and_dot(discs: _DiscPixels, k: int, p: DetectorParams) -> _Colours | s
         dot = _first_largest(dot_counts)
         purity = min(purity, dot_counts[dot] / inner)
     elif not washed_inner[k]:
-        return "no dot colour inside"
+        return RejectionKind.NO_DOT_COLOUR, {}
     if purity < p.min_purity:
-        return f"mixed colours (purity {purity:.2f})"
+        return RejectionKind.MIXED_COLOURS, {"purity": float(purity)}
     return _Colours(disc, dot, purity)
 
 
 def _read_colours(
     s: _Shaped, k: int, discs: _DiscPixels, image: SearchImage
-) -> _Colours | str:
+) -> _Colours | _Problem:
     """Disc and dot colours of the ``k``-th shaped blob, or why they cannot be read.
 
     Large stickers are read by their labels (:func:`_disc_and_dot`). A small one (disc
@@ -835,7 +838,7 @@ def _read_colours(
     unmixed = discs.dots[k]  # (every blob's, read at once: _dots_by_difference)
     if unmixed is None:
         return colours
-    if not image.halved or isinstance(colours, str):
+    if not image.halved or not isinstance(colours, _Colours):
         return unmixed
     if unmixed.dot is not None and unmixed.disc == colours.disc and unmixed.dot != colours.dot:
         return unmixed

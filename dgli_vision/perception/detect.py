@@ -12,11 +12,11 @@ separate from how to find it (:class:`DetectorParams`) and from the detector.
    dot inside its disc belongs to it, even where blur leaves an unsaturated ring
    between them), judged by :func:`.blobs.judge_blobs` (depth, foreshortening,
    highlight repair, size, shape, fill, surround, disc and dot colours): a candidate or
-   a :class:`Rejection` with the reason;
-3. identities (:func:`identify`): the (disc, dot) pair names the sticker; an identity
+   a :class:`Rejection` with the check failed and its values;
+3. identities (:func:`_identify`): the (disc, dot) pair names the sticker; an identity
    is never given twice (the better-scoring candidate keeps it), and a disc whose dot a
    highlight washed out takes the one sticker of its colour left;
-4. centres at full resolution (:class:`FullResolution`) when the search was halved,
+4. centres at full resolution (:class:`_FullResolution`) when the search was halved,
    measured for every candidate at once (:func:`_refine_all`).
 
 The work is in proportion to the blobs, not to the pixels, wherever it can be: the
@@ -25,9 +25,15 @@ image is converted once (balance, HSV, labels, one contour search) near the napk
 are things on the table, neither judged nor reported), and the checks of the blobs and
 their centres run on small windows, batched across blobs.
 
-:func:`find_washed_out` searches again for the stickers a broad sheen left pastel
-(:mod:`.washed`). The parameters and results live in :mod:`.detections` and are
-re-exported here.
+A frame's detection is steps on one :class:`SearchFrame` (:func:`search_frame`: the
+napkin found in stage 1, the halving, the depth and camera searched, the hue table and
+palette, worked out once): :func:`first_search`, then :func:`washed_out_search`, which
+searches again for the stickers a broad sheen left pastel (:mod:`.washed`) on the same
+search frame and the frame's white regions (:mod:`.regions`), without a second pass
+through :func:`detect_stickers`. :func:`detect_stickers` and :func:`find_washed_out`
+are the same steps for a caller with the images alone (``detect_stickers`` finds the
+napkin itself when not given it). The parameters and results live in
+:mod:`.detections` and are re-exported here.
 """
 
 from __future__ import annotations
@@ -43,10 +49,10 @@ from ..core.colour import srgb_lut, srgb_to_linear
 from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout
 from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
-from .detections import DetectorParams, Rejection, StickerDetections
-from .footprint import ClothRegions, FootprintParams, cloth_regions
+from .detections import DetectorParams, Rejection, RejectionKind, StickerDetections
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
+from .regions import ClothRegions, RegionParams, cloth_regions
 from .washed import (
     PastelLooks,
     merge_second_search,
@@ -58,11 +64,16 @@ from .washed import (
 __all__ = [
     "DetectorParams",
     "Rejection",
+    "RejectionKind",
+    "SearchFrame",
     "StickerDetections",
     "detect_all_stickers",
     "detect_stickers",
     "find_washed_out",
+    "first_search",
     "hue_of",
+    "search_frame",
+    "washed_out_search",
 ]
 
 
@@ -113,24 +124,125 @@ def detect_stickers(
     """
     params = params or DetectorParams()
     _check_images(color, depth_mm)
-    if napkin is None:
+    if napkin is None:  # (a caller with the napkin found passes it: :func:`search_frame`)
         napkin = find_napkin(color, depth_mm, intrinsics)
+    frame = search_frame(color, depth_mm, intrinsics, layout, napkin, params, colours=colours)
+    return _search(frame, params, napkin.lut, roi=roi, report=report, known=known)
+
+
+@dataclass(frozen=True, eq=False)
+class SearchFrame:
+    """The frame as each sticker search of it sees it, worked out once
+    (:func:`search_frame`) and read by every step of the detection: the first search
+    (:func:`first_search`) and the search for stickers washed out by a sheen
+    (:func:`washed_out_search`).
+
+    Attributes
+    ----------
+    color, depth_mm, intrinsics
+        The frame: RGB (H, W, 3) uint8, depth (H, W) uint16 mm, its camera.
+    layout : NapkinLayout
+    napkin : NapkinView
+        The napkin found (stage 1): its white, the box around its cloth, highlights.
+    params : DetectorParams
+        How the first search looks (a later step derives its own from them).
+    colours : dict or None
+        Calibrated sticker colours.
+    lut : ndarray of uint8, shape (180,)
+        Hue -> colour label (:func:`.labels.hue_lut`); ``names`` the colours in label
+        order and ``palette`` their linear RGB (n, 3).
+    median_depth_mm : float
+        The frame's median depth reading (NaN without any), from every 8th pixel.
+    halved : bool
+        Whether stickers are searched in the frame halved (see
+        ``DetectorParams.search_radius_px``); ``search_depth_mm`` and
+        ``search_intrinsics`` are the depth and camera of the image searched.
+    """
+
+    color: NDArray[np.uint8]
+    depth_mm: NDArray[np.uint16]
+    intrinsics: Intrinsics
+    layout: NapkinLayout
+    napkin: NapkinView
+    params: DetectorParams
+    colours: dict[str, tuple[int, int, int]] | None
+    lut: NDArray[np.uint8]
+    names: list[str]
+    palette: NDArray[np.float64]
+    median_depth_mm: float
+    halved: bool
+    search_depth_mm: NDArray[np.uint16]
+    search_intrinsics: Intrinsics
+
+
+def search_frame(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    napkin: NapkinView,
+    params: DetectorParams | None = None,
+    *,
+    colours: dict[str, tuple[int, int, int]] | None = None,
+) -> SearchFrame:
+    """The :class:`SearchFrame` of a frame whose napkin is found (stage 1), for its
+    sticker searches. ``color`` and ``depth_mm`` as for :func:`detect_stickers`."""
+    params = params or DetectorParams()
+    _check_images(color, depth_mm)
     lut, names = hue_lut(layout, params, colours)
+    coarse = depth_mm[::8, ::8]
+    read = coarse[coarse > 0]
+    med_depth = _median_of(read) if read.size else np.nan  # (as np.median)
+    disc_r_mm = layout.disc_diameter_mm / 2
+    halve = (
+        bool(med_depth > 0)
+        and (disc_r_mm * intrinsics.fx / med_depth >= 2 * params.search_radius_px)
+        and min(color.shape[:2]) >= 200
+    )
+    search_depth, search_intrinsics = depth_mm, intrinsics
+    if halve:
+        h2, w2 = color.shape[0] // 2, color.shape[1] // 2
+        search_depth = depth_mm[: 2 * h2 : 2, : 2 * w2 : 2]
+        search_intrinsics = _halved(intrinsics)
+    return SearchFrame(
+        color, depth_mm, intrinsics, layout, napkin, params, colours, lut, names,
+        _palette(layout, names, colours), med_depth, bool(halve), search_depth,
+        search_intrinsics,
+    )
+
+
+def first_search(frame: SearchFrame) -> StickerDetections:
+    """The stickers of ``frame`` as :func:`detect_stickers` finds them with the frame's
+    parameters, on the napkin the frame carries."""
+    return _search(frame, frame.params, frame.napkin.lut)
+
+
+def _search(
+    frame: SearchFrame,
+    params: DetectorParams,
+    balance: NDArray[np.uint8],
+    *,
+    roi: NDArray[np.bool_] | None = None,
+    report: NDArray[np.bool_] | None = None,
+    known: NDArray[np.float64] | None = None,
+) -> StickerDetections:
+    """One search of ``frame`` with ``params``, the image balanced by ``balance`` (a
+    :meth:`.napkin.balance_lut` table); ``roi``, ``report`` and ``known`` as for
+    :func:`detect_stickers`."""
+    layout, names, lut = frame.layout, frame.names, frame.lut
     taken = None if known is None else np.isfinite(known).all(axis=1)
-    image = search_image(
-        color, depth_mm, intrinsics, layout, params, napkin, lut, len(names), roi,
-        palette=_palette(layout, names, colours),
-        known=None if known is None else known[taken],
+    image = _search_image(
+        frame, params, balance, roi, known=None if known is None else known[taken]
     )
     candidates, rejected = candidate_blobs(image)
     full = None
     if image.halved:
         measured = candidates if report is None else _to_measure(candidates, layout, names, report)
-        full = FullResolution(
-            _refine_all(color, napkin.lut, lut, params, measured), params, intrinsics.fx,
-            image.disc_radius_mm,
+        full = _FullResolution(
+            _refine_all(frame.color, balance, lut, params, measured), params,
+            frame.intrinsics.fx, image.disc_radius_mm,
         )
-    ids = identify(candidates, layout, names, full, taken=taken)
+    ids = _identify(candidates, layout, names, full, taken=taken)
     rejected += ids.rejected
     if image.halved:  # report rejections in full-resolution pixels
         rejected = [_at_full_resolution(r) for r in rejected]
@@ -154,7 +266,7 @@ def _to_measure(
     report: NDArray[np.bool_],
 ) -> list[Candidate]:
     """The candidates whose centres at full resolution can change the stickers
-    ``report`` wants (:func:`identify`): those named for a wanted sticker; every one
+    ``report`` wants (:func:`_identify`): those named for a wanted sticker; every one
     whose dot is washed out (it takes the one sticker of its disc colour left); and
     those named for any sticker of such a disc colour (whether they keep it, or are too
     small at full resolution and leave it free, decides what is left). The others only
@@ -171,7 +283,7 @@ def _to_measure(
     return out
 
 
-def _reported(ids: Identities, report: NDArray[np.bool_]) -> StickerDetections:
+def _reported(ids: _Identities, report: NDArray[np.bool_]) -> StickerDetections:
     """The stickers ``report`` wants of ``ids``; the others as not found."""
     centroids, areas, depths, fores = (
         np.where(report[:, None] if v.ndim == 2 else report, v, np.nan)
@@ -208,30 +320,35 @@ def search_image(
 
     It is the frame halved (pixel-area averaging) while a sticker at the median depth
     keeps ``search_radius_px`` there, balanced to the napkin's white by ``napkin.lut``;
-    ``lut`` is :func:`.labels.hue_lut`'s table; ``palette`` the sticker colours (linear
-    RGB, in label order) that the dots of small stickers are read against (see
-    :func:`.blobs.judge_blobs`). Outside ``roi`` (scaled to the search
-    image) no pixel is labelled, and the images are computed only where judging the
-    blobs within it reads them (elsewhere they are 0). Without ``roi``, stickers are
+    ``lut`` is :func:`.labels.hue_lut`'s table (of ``n_colours`` colours); ``palette``
+    the sticker colours (linear RGB, in label order) that the dots of small stickers
+    are read against (see :func:`.blobs.judge_blobs`). Outside ``roi`` (scaled to the
+    search image) no pixel is labelled, and the images are computed only where judging
+    the blobs within it reads them (elsewhere they are 0). Without ``roi``, stickers are
     searched near the napkin (:func:`_napkin_box`, ``SearchImage.within``): the images
     are computed only where judging the blobs within that box reads them.
     """
+    frame = search_frame(color, depth_mm, intrinsics, layout, napkin, params)
+    frame = replace(frame, lut=lut, names=frame.names[:n_colours], palette=palette)
+    return _search_image(frame, params, napkin.lut, roi, known=known)
+
+
+def _search_image(
+    frame: SearchFrame,
+    params: DetectorParams,
+    balance: NDArray[np.uint8],
+    roi: NDArray[np.bool_] | None = None,
+    *,
+    known: NDArray[np.float64] | None = None,
+) -> SearchImage:
+    """:func:`search_image` of a :class:`SearchFrame`: its halving, depth and camera
+    as worked out once, the image balanced by ``balance``, labelled with ``params``."""
     import cv2
 
-    coarse = depth_mm[::8, ::8]
-    read = coarse[coarse > 0]
-    med_depth = _median_of(read) if read.size else np.nan  # (as np.median)
-    disc_r_mm = layout.disc_diameter_mm / 2
-    halve = (
-        bool(med_depth > 0)
-        and (disc_r_mm * intrinsics.fx / med_depth >= 2 * params.search_radius_px)
-        and min(color.shape[:2]) >= 200
-    )
-    shape = color.shape[:2]
-    if halve:
-        shape = (color.shape[0] // 2, color.shape[1] // 2)
-        depth_mm = depth_mm[: 2 * shape[0] : 2, : 2 * shape[1] : 2]
-        intrinsics = _halved(intrinsics)
+    color, napkin, med_depth = frame.color, frame.napkin, frame.median_depth_mm
+    depth_mm, intrinsics, halve = frame.search_depth_mm, frame.search_intrinsics, frame.halved
+    disc_r_mm = frame.layout.disc_diameter_mm / 2
+    shape = depth_mm.shape
     disc_mm_px = disc_r_mm * intrinsics.fx
     inside, near = None, None
     if roi is not None:
@@ -244,7 +361,7 @@ def search_image(
     # A sticker cannot be smaller than the smallest accepted area at the farthest depth.
     min_px = 0.3 * np.pi * (disc_mm_px / (2.0 * max(med_depth, 1.0))) ** 2
     label_params = _label_params(params, disc_mm_px, med_depth, halve)
-    planes = _Planes(color, halve, napkin.lut, lut, label_params, box)
+    planes = _Planes(color, halve, balance, frame.lut, label_params, box)
     labels = planes.labels if inside is None else planes.labels * inside
     least = least_area(min_px)  # (smaller blobs are specks: not judged, no window read)
     outer = [c for c in _judged_contours(labels, near, box) if cv2.contourArea(c) >= least]
@@ -256,8 +373,8 @@ def search_image(
     return SearchImage(
         planes.color, planes.norm, planes.hsv, labels, depth_mm, intrinsics, med_depth,
         disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
-        bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]), n_colours,
-        params, near, (labels, outer), palette,
+        bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]),
+        len(frame.names), params, near, (labels, outer), frame.palette,
     )
 
 
@@ -588,7 +705,7 @@ def _not_covering(
 
 
 @dataclass(frozen=True, eq=False)
-class FullResolution:
+class _FullResolution:
     """What measuring a candidate's centre at full resolution needs, after a search of
     the frame halved: every candidate's centre and area measured there
     (:func:`_refine_all`), and the focal length and disc radius that give the disc size
@@ -602,7 +719,7 @@ class FullResolution:
     def measure(self, c: Candidate) -> tuple[tuple[float, float], float] | Rejection:
         """Centre (u, v) and area of ``c`` at full resolution, or its rejection
         (search-image pixels) as too small there."""
-        where, area = self.refined[c]  # (KeyError: not measured, see Identities.take)
+        where, area = self.refined[c]  # (KeyError: not measured, see _Identities.take)
         # a threshold cuts a blurred rim of about a pixel off the disc (see
         # DetectorParams.full_rim_px): the disc expected is that much smaller
         radius = max(self.disc_radius_mm * self.fx / c.z_mm - self.params.full_rim_px, 1.0)
@@ -611,21 +728,21 @@ class FullResolution:
             return Rejection(
                 ((where[0] - 0.5) / 2, (where[1] - 0.5) / 2),
                 area / 4,
-                f"too small for a sticker at {c.z_mm:.0f} mm "
-                f"({area / expected:.2f} of a disc at full resolution)",
+                RejectionKind.TOO_SMALL,
+                {"z_mm": float(c.z_mm), "ratio": float(area / expected), "full_resolution": True},
             )
         return where, area
 
 
-class Identities:
+class _Identities:
     """The sticker ids given so far, and the candidates refused one.
 
-    An id is never given twice: candidates come best score first (:func:`identify`).
+    An id is never given twice: candidates come best score first (:func:`_identify`).
     With ``full``, centres and areas are measured at full resolution as ids are given.
     """
 
     def __init__(
-        self, layout: NapkinLayout, names: list[str], full: FullResolution | None,
+        self, layout: NapkinLayout, names: list[str], full: _FullResolution | None,
         taken: NDArray[np.bool_] | None = None,
     ) -> None:
         n = layout.n_stickers
@@ -644,11 +761,11 @@ class Identities:
         disc, dot = self.names[c.disc - 1], self.names[c.dot - 1]
         sid = self.layout.sticker_id(disc, dot)
         if sid is None:
-            why = f"no sticker is {disc} with a {dot} dot"
-            self.rejected.append(Rejection(c.where, c.area, why))
+            named = {"disc": disc, "dot": dot}
+            self.rejected.append(Rejection(c.where, c.area, RejectionKind.NO_SUCH_STICKER, named))
         elif self.scores[sid] > 0:
-            why = f"second blob for sticker {sid} (lower score)"
-            self.rejected.append(Rejection(c.where, c.area, why))
+            held = {"sticker": sid}
+            self.rejected.append(Rejection(c.where, c.area, RejectionKind.SECOND_BLOB, held))
         else:
             self.take(sid, c, c.score)
 
@@ -664,8 +781,8 @@ class Identities:
         if len(free) == 1:
             self.take(free[0], c, 0.5 * c.score)
         else:
-            why = f"{disc_name} disc with its dot washed out; {len(free)} stickers possible"
-            self.rejected.append(Rejection(c.where, c.area, why))
+            left = {"disc": disc_name, "possible": len(free)}
+            self.rejected.append(Rejection(c.where, c.area, RejectionKind.DOT_WASHED_OUT, left))
 
     def take(self, sid: int, c: Candidate, score: float) -> None:
         """Give sticker ``sid`` to ``c`` (unless too small at full resolution). A
@@ -687,18 +804,18 @@ class Identities:
         self.fores[sid] = c.foreshortening
 
 
-def identify(
+def _identify(
     candidates: list[Candidate],
     layout: NapkinLayout,
     names: list[str],
-    full: FullResolution | None,
+    full: _FullResolution | None,
     *,
     taken: NDArray[np.bool_] | None = None,
-) -> Identities:
+) -> _Identities:
     """Sticker ids of the candidates, best score first; those whose dot is washed out
     come last and take what is left of their disc colour. ``taken`` (16,): ids given
     before (a search before found them), which no candidate is given."""
-    ids = Identities(layout, names, full, taken)
+    ids = _Identities(layout, names, full, taken)
     pending = []
     for c in sorted(candidates, key=lambda c: -c.score):
         if c.dot is None:
@@ -712,7 +829,9 @@ def identify(
 
 def _at_full_resolution(r: Rejection) -> Rejection:
     """A rejection of the halved search, in full-resolution pixels."""
-    return Rejection((2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), 4 * r.area_px, r.reason)
+    return replace(
+        r, centroid=(2 * r.centroid[0] + 0.5, 2 * r.centroid[1] + 0.5), area_px=4 * r.area_px
+    )
 
 
 def _refine_all(
@@ -875,7 +994,7 @@ def find_washed_out(
     found : StickerDetections
         The first search's result.
     regions : ClothRegions, keyword-only, optional
-        The frame's white regions (:func:`.footprint.cloth_regions`), when already
+        The frame's white regions (:func:`.regions.cloth_regions`), when already
         found. The second search looks on the napkin's cells and
         ``washed_margin_cells`` around them only (the table, balanced to the low level,
         is pastel too), or everywhere when the napkin is not told from the table.
@@ -889,10 +1008,27 @@ def find_washed_out(
     params = params or DetectorParams()
     if found.found.all():
         return found
-    lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
+    frame = search_frame(color, depth_mm, intrinsics, layout, napkin, params, colours=colours)
+    return washed_out_search(frame, found, regions=regions)
+
+
+def washed_out_search(
+    frame: SearchFrame, found: StickerDetections, *, regions: ClothRegions | None
+) -> StickerDetections:
+    """The step of the detection after :func:`first_search`: the stickers ``found``
+    lacks, searched again as a broad sheen leaves them (:func:`find_washed_out`), on
+    the same :class:`SearchFrame` (its napkin, halving, depth, hue table and palette)
+    and the frame's white regions (:func:`.regions.cloth_regions`; None: found here,
+    as when their cells are not the napkin's sampling stride)."""
     import cv2
 
-    cells = FootprintParams(cell_px=lower.stride)
+    params, napkin, color, layout, colours = (
+        frame.params, frame.napkin, frame.color, frame.layout, frame.colours
+    )
+    if found.found.all():
+        return found
+    lower = replace(napkin, lut=balance_lut(napkin.white_rgb, params.washed_level))
+    cells = RegionParams(cell_px=lower.stride)
     if regions is None or regions.cell_px != cells.cell_px:
         regions = cloth_regions(color, napkin.white_rgb, cells)
     looks = PastelLooks(color, lower, regions)  # (shared by the looks below)
@@ -903,9 +1039,9 @@ def find_washed_out(
     if found.found.any() and cloth is not None:
         m = 2 * params.washed_margin_cells + 1
         roi = cv2.dilate(cloth.astype(np.uint8), np.ones((m, m), np.uint8)).astype(bool)
-    again = detect_stickers(  # (only the stickers not found yet can be merged)
-        color, depth_mm, intrinsics, layout, pastel_params(params), napkin=lower,
-        colours=colours, roi=roi, report=~found.found, known=found.centroids,
+    again = _search(  # (only the stickers not found yet can be merged)
+        frame, pastel_params(params), lower.lut, roi=roi, report=~found.found,
+        known=found.centroids,
     )
     merged = merge_second_search(found, again)
     return with_unread(color, merged, layout, params, lower, colours, looks=looks)

@@ -24,7 +24,7 @@ from ..core.layout import NapkinLayout
 from ..core.order_stats import nanmedian
 from .lift import Markers3D
 from .napkin import NapkinMasks, NapkinView
-from .rigid import rigid_prediction
+from .rigid import fit_rigid, flat_points_m
 
 __all__ = [
     "HELD_UP",
@@ -282,7 +282,7 @@ def _predict_missing(
     """
     n = len(markers.points)
     seen = markers.found
-    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(n)])
+    uv_m = flat_points_m(layout)
     pts = markers.points
     tol = p.fit_tolerance_mm * 1e-3
     corner_of = layout.sticker_corners
@@ -292,17 +292,17 @@ def _predict_missing(
         group = corner_of == corner
         group_support[group] = int((group & seen).sum())
         if (group & ~seen).any():  # only where something is missing
-            fit = rigid_prediction(uv_m, pts, group & seen, tol)
+            fit = fit_rigid(uv_m, pts, group & seen, tol)
             if fit is not None:
-                pred3[group] = fit[0][group]
+                pred3[group] = fit.predicted[group]
     todo = np.isnan(pred3[:, 0]) & ~seen
     if todo.any():
         # a corner showing its back face lies on a flap: it says nothing of where the
         # napkin's other corners lie flat
         base = seen if turns is None else seen & (np.asarray(turns)[corner_of] >= 0)
-        overall = rigid_prediction(uv_m, pts, base, tol)
-        if overall is not None and len(set(corner_of[overall[1]])) >= 2:
-            pred3[todo] = overall[0][todo]
+        overall = fit_rigid(uv_m, pts, base, tol)
+        if overall is not None and overall.corners_spanned(corner_of) >= 2:
+            pred3[todo] = overall.predicted[todo]
     return pred3, group_support
 
 

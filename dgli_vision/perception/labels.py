@@ -64,7 +64,7 @@ def colour_labels(
     its HSV. Shapes (h, w) and (h, w, 3). ``lut`` is :func:`hue_lut`'s table; ``out``:
     the arrays (labels, HSV) to write them in (views of larger images may be given).
 
-    A pixel is coloured when its saturation S reaches :func:`least_saturation` of its
+    A pixel is coloured when its saturation S reaches :func:`_least_saturation` of its
     value V (which holds every threshold: saturation, value, chroma): one table lookup
     and one comparison per pixel on the HSV planes."""
     import cv2
@@ -74,7 +74,7 @@ def colour_labels(
     # planes of their own (each is overwritten below); three extractChannel calls cost
     # a fraction of one cv2.split of the same image
     h, s, v = (cv2.extractChannel(hsv, k) for k in range(3))
-    needed, v_least = least_saturation(
+    needed, v_least = _least_saturation(
         params.min_saturation, params.min_value, params.min_chroma
     )
     coloured = cv2.compare(s, cv2.LUT(v, needed), cv2.CMP_GE, dst=s)
@@ -92,7 +92,7 @@ def _hue_table(lut: NDArray[np.uint8]) -> NDArray[np.uint8]:
 
 
 @lru_cache(maxsize=16)
-def least_saturation(
+def _least_saturation(
     min_saturation: int, min_value: int, min_chroma: float
 ) -> tuple[NDArray[np.uint8], int]:
     """The least HSV saturation (8-bit) a pixel of each value V (0-255) needs to be

@@ -27,7 +27,7 @@ from ..core.errors import CalibrationError
 from ..core.layout import NapkinLayout
 from .detect import DetectorParams, detect_all_stickers
 
-__all__ = ["LensEstimate", "estimate_lens", "fit_lens", "sticker_depths"]
+__all__ = ["LensEstimate", "estimate_lens", "fit_lens"]
 
 #: Standard deviation of a detected sticker centre assumed at least (pixels): a floor
 #: under the fit's own residual, so that a lucky near-perfect fit does not claim more
@@ -347,13 +347,13 @@ def estimate_lens(
         color, depth_mm, pinhole, layout, params, source=source, purpose="lens calibration"
     )
     radii = np.sqrt(det.areas / np.pi)
-    z = sticker_depths(depth_mm, det.centroids, radii) * 1e-3
+    z = _sticker_depths(depth_mm, det.centroids, radii) * 1e-3
     return fit_lens(
         intrinsics, layout.sticker_uv, det.centroids, z, fit_k2=fit_k2, fit_focal=fit_focal
     )
 
 
-def sticker_depths(
+def _sticker_depths(
     depth_mm: NDArray[np.uint16],
     centres: NDArray[np.float64],
     radii_px: NDArray[np.float64],

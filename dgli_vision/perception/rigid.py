@@ -1,15 +1,26 @@
 """Rigid maps from the flat napkin to the stickers seen: where a missing sticker would
-lie if its part of the cloth lay like the rest (folding is isometric)."""
+lie if its part of the cloth lay like the rest (folding is isometric), and the pose of
+the napkin that lies flat.
+
+One fit, :func:`fit_rigid` (every triple of the stickers asked tried at once,
+RANSAC-style, then a least-squares fit of the inliers), serves every user of a rigid
+map in perception: the evidence's predicted places (:mod:`.evidence`) and the pose of
+the napkin that stays for the corners' tips (:mod:`.tips`). Its result,
+:class:`RigidFit`, keeps the map itself, so no caller fits its inliers again.
+"""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from functools import lru_cache
 from itertools import combinations
 
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ["kabsch", "rigid_prediction"]
+from ..core.layout import NapkinLayout
+
+__all__ = ["RigidFit", "fit_rigid", "flat_points_m", "kabsch"]
 
 
 def kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
@@ -31,7 +42,7 @@ def kabsch(src: NDArray, dst: NDArray) -> tuple[NDArray, NDArray]:
     return r, t
 
 
-#: Triples tried before the rest (see :func:`rigid_prediction`).
+#: Triples tried before the rest (see :func:`fit_rigid`).
 _FIRST_TRIPLES = 8
 
 
@@ -43,12 +54,55 @@ def _triples(n: int) -> NDArray[np.intp]:
     return out
 
 
-def rigid_prediction(
+@lru_cache(maxsize=32)
+def flat_points_m(layout: NapkinLayout) -> NDArray[np.float64]:
+    """The stickers' material points on the flat napkin, (u, v, 0) in metres, shape
+    (16, 3); read-only, once per layout."""
+    uv = layout.sticker_uv
+    out = np.column_stack([uv * 1e-3, np.zeros(len(uv))])
+    out.flags.writeable = False
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class RigidFit:
+    """A rigid map of the flat napkin onto the stickers seen, ``x = R m + t``.
+
+    Attributes
+    ----------
+    rotation : ndarray, shape (3, 3)
+        R, from material (u, v, 0) metres to the camera frame.
+    translation : ndarray, shape (3,)
+        t, metres.
+    inliers : ndarray of bool, shape (n,)
+        The stickers it was fitted to (within the tolerance of the best triple's map).
+    predicted : ndarray, shape (n, 3)
+        Where it puts every sticker's material point, camera frame, metres.
+    """
+
+    rotation: NDArray[np.float64]
+    translation: NDArray[np.float64]
+    inliers: NDArray[np.bool_]
+    predicted: NDArray[np.float64]
+
+    def corners_spanned(self, corner_of: NDArray[np.intp]) -> int:
+        """How many corners (``corner_of``: each sticker's corner) its inliers hold."""
+        return len(set(corner_of[self.inliers].tolist()))
+
+    def face_cos(self, up: NDArray[np.float64]) -> float:
+        """The cosine between the napkin's front-face normal as mapped and ``up``: near
+        1 for a napkin lying front face up."""
+        return float(self.rotation[:, 2] @ up)
+
+
+def fit_rigid(
     uv_m: NDArray, pts: NDArray, use: NDArray[np.bool_], tol_m: float
-) -> tuple[NDArray, NDArray[np.bool_]] | None:
-    """Best rigid map of the material points of ``use`` onto their 3D points (all
-    triples tried at once, RANSAC-style); returns (predicted 3D points of every sticker,
-    inliers) or None."""
+) -> RigidFit | None:
+    """Best rigid map of the material points ``uv_m`` (n, 3) of the stickers ``use``
+    (n,) onto their 3D points ``pts`` (n, 3): every triple not nearly collinear tried
+    at once, RANSAC-style, the triple's map with the most inliers within ``tol_m``
+    (metres) kept, and the least-squares map of those inliers returned; None with
+    fewer than three stickers or inliers."""
     ids = np.flatnonzero(use)
     if ids.size < 3:
         return None
@@ -78,4 +132,4 @@ def rigid_prediction(
     r1, t1 = kabsch(uv_m[ids[best]], pts[ids[best]])
     mask = np.zeros(len(pts), dtype=bool)
     mask[ids[best]] = True
-    return uv_m @ r1.T + t1, mask
+    return RigidFit(r1, t1, mask, uv_m @ r1.T + t1)

@@ -75,14 +75,14 @@ class ShadeParams:
 
 #: Levels of the log-luminance image per unit of natural log: 8-bit sRGB spans about
 #: 8.1 units of log light, mapped onto 0-255.
-LEVELS_PER_LOG = 31.0
+_LEVELS_PER_LOG = 31.0
 
 
 @lru_cache(maxsize=1)
 def _log_lut() -> NDArray[np.uint8]:
     """8-bit sRGB level -> quantised log of its linear light (255 at white)."""
     lin = np.maximum(srgb_lut(), srgb_lut()[1] / 2)
-    return np.clip(np.rint(255 + LEVELS_PER_LOG * np.log(lin)), 0, 255).astype(np.uint8)
+    return np.clip(np.rint(255 + _LEVELS_PER_LOG * np.log(lin)), 0, 255).astype(np.uint8)
 
 
 def shadow_suspected(
@@ -190,7 +190,7 @@ def _fill_counts(
     crop = color[y0 * cell_px : y1 * cell_px, x0 * cell_px : x1 * cell_px]
     level = cv2.LUT(cv2.resize(crop, (ww, hh), interpolation=cv2.INTER_AREA), _log_lut())
     spread = cv2.morphologyEx(level, cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8))
-    limit = LEVELS_PER_LOG * float(np.log(p.step))
+    limit = _LEVELS_PER_LOG * float(np.log(p.step))
     _, over = cv2.threshold(spread, limit, 255, cv2.THRESH_BINARY)
     barrier = cv2.cvtColor(over, cv2.COLOR_RGB2GRAY)  # not 0 where any channel is over
     mask = np.zeros((hh + 2, ww + 2), np.uint8)

@@ -30,7 +30,7 @@ from ..core.camera import Intrinsics
 from ..core.classes import LIFTED_MM
 from ..core.fold_lines import fold_for_word, nominal_folds, reflect_uv
 from ..core.layout import NapkinLayout
-from .rigid import kabsch, rigid_prediction
+from .rigid import RigidFit, fit_rigid, flat_points_m
 
 __all__ = [
     "TipParams", "corner_tips", "expected_tip_clear", "settled_stickers", "stage_tip_clear"
@@ -149,27 +149,39 @@ def _moved_corners(word: str, class_id: str, layout: NapkinLayout) -> tuple[str,
     return fold_for_word(word, class_id, layout).moved_corners
 
 
+def _lying(
+    points: NDArray[np.float64],
+    heights_mm: NDArray[np.float64],
+    turns: NDArray[np.float64] | None,
+    layout: NapkinLayout,
+) -> NDArray[np.bool_]:
+    """The located stickers lying on the table (below ``LIFTED_MM``), leaving out the
+    corners whose ``turns`` say they show their back face (on a flap), shape (16,)."""
+    found = np.isfinite(points).all(axis=1)
+    lying = found & (np.asarray(heights_mm) < LIFTED_MM)  # (NaN: not lying)
+    if turns is not None:
+        lying &= np.asarray(turns)[layout.sticker_corners] >= 0
+    return lying
+
+
 def _stay_fit(
     points: NDArray[np.float64],
     lying: NDArray[np.bool_],
     layout: NapkinLayout,
     up: NDArray[np.float64],
     p: TipParams,
-) -> tuple[NDArray, NDArray] | None:
-    """The rigid map (R, t) of the napkin that stays, fitted to the ``lying`` stickers:
-    at least three, spanning two corners (a far corner's place is then interpolated,
-    not extrapolated from one corner's stickers 80 mm apart), front face up (every flap
-    folded over lies face down, and a flap folded under is out of sight); None
-    otherwise."""
-    corner_of = layout.sticker_corners
-    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(len(points))])
-    fit = rigid_prediction(uv_m, points, lying, p.fit_tolerance_mm * 1e-3)
-    if fit is None or len(set(corner_of[fit[1]].tolist())) < 2:
+) -> RigidFit | None:
+    """The rigid map of the napkin that stays, fitted to the ``lying`` stickers
+    (:func:`.rigid.fit_rigid`): at least three, spanning two corners (a far corner's
+    place is then interpolated, not extrapolated from one corner's stickers 80 mm
+    apart), front face up (every flap folded over lies face down, and a flap folded
+    under is out of sight); None otherwise."""
+    fit = fit_rigid(flat_points_m(layout), points, lying, p.fit_tolerance_mm * 1e-3)
+    if fit is None or fit.corners_spanned(layout.sticker_corners) < 2:
         return None
-    r, t = kabsch(uv_m[fit[1]], points[fit[1]])
-    if float(r[:, 2] @ up) < p.min_face_cos:
+    if fit.face_cos(up) < p.min_face_cos:
         return None
-    return r, t
+    return fit
 
 
 def settled_stickers(
@@ -197,19 +209,13 @@ def settled_stickers(
     """
     p = params or TipParams()
     corner_of = layout.sticker_corners
-    found = np.isfinite(points).all(axis=1)
-    lying = found & (np.asarray(heights_mm) < LIFTED_MM)  # (NaN: not lying)
-    if turns is not None:
-        lying &= np.asarray(turns)[corner_of] >= 0
-    uv_m = np.column_stack([layout.sticker_uv * 1e-3, np.zeros(len(points))])
-    fit = rigid_prediction(uv_m, points, lying, p.fit_tolerance_mm * 1e-3)
+    # (a fit whose inliers span fewer than two corners settles none: each inlier needs
+    # two other corners' inliers beside it)
+    fit = _stay_fit(points, _lying(points, heights_mm, turns, layout), layout, up, p)
     out = np.zeros(len(points), dtype=bool)
     if fit is None:
         return out
-    inliers = fit[1]
-    r, _ = kabsch(uv_m[inliers], points[inliers])
-    if float(r[:, 2] @ up) < p.min_face_cos:
-        return out
+    inliers = fit.inliers
     pair = _edge_pairs(layout)
     for k in np.flatnonzero(inliers):
         others = set(corner_of[inliers & (corner_of != corner_of[k])].tolist())
@@ -288,14 +294,12 @@ def corner_tips(
     if cloth is None:
         return out
     found = np.isfinite(points).all(axis=1)
-    lying = found & (np.asarray(heights_mm) < LIFTED_MM)  # (NaN: not lying)
-    if turns is not None:
-        lying &= np.asarray(turns)[layout.sticker_corners] >= 0
+    lying = _lying(points, heights_mm, turns, layout)
     todo = _corners_to_tell(layout.sticker_corners, found, lying, unknown, held_up, len(out))
     fit = _stay_fit(points, lying, layout, up, p) if todo else None
     if fit is None:
         return out
-    r, t = fit
+    r, t = fit.rotation, fit.translation
     near_objects = None
     if objects is not None and objects.any():
         near_objects = cv2.dilate(objects.view(np.uint8), np.ones((5, 5), np.uint8)).view(bool)

@@ -17,9 +17,9 @@ from numpy.typing import NDArray
 
 from ..core.layout import NapkinLayout
 from .detections import DetectorParams, StickerDetections
-from .footprint import ClothRegions, FootprintParams, cloth_cells
 from .labels import hue_lut
 from .napkin import NapkinView
+from .regions import ClothRegions, RegionParams, cloth_cells
 
 __all__ = [
     "PastelLooks",
@@ -63,7 +63,7 @@ def pale_samples(
     pale too); anywhere when the napkin is not told from the table. The rims of the
     stickers found are pastel too (their pixels mix with the cloth), so samples within
     two disc radii of them do not count. ``regions``: the frame's white regions
-    (:func:`.footprint.cloth_regions`), when already found; ``looks``: what earlier
+    (:func:`.regions.cloth_regions`), when already found; ``looks``: what earlier
     looks at the same frame found (:class:`PastelLooks`, of the same ``lower``).
     """
     import cv2
@@ -161,7 +161,7 @@ class PastelLooks:
     """What the looks for pastel patches at one frame (:func:`pale_samples`) share:
     the napkin's cells for each set of stickers found, and the pastel cells computed
     so far (a box of them; a later look within it reads them, as computing them again
-    gives the same cells). The cells are averaged once, by :func:`.footprint.cloth_regions`
+    gives the same cells). The cells are averaged once, by :func:`.regions.cloth_regions`
     (``ClothRegions.cells``), when ``regions`` keeps them.
 
     Parameters
@@ -181,10 +181,10 @@ class PastelLooks:
         self._cells: tuple[tuple, tuple[int, int, int, int], NDArray, NDArray] | None = None
 
     def cloth(self, sticker_px: NDArray[np.float64]) -> NDArray[np.bool_] | None:
-        """:func:`.footprint.cloth_cells` of the stickers at ``sticker_px`` (n, 2)."""
+        """:func:`.regions.cloth_cells` of the stickers at ``sticker_px`` (n, 2)."""
         key = np.ascontiguousarray(sticker_px, dtype=np.float64).tobytes()
         if key not in self._cloth:
-            grid = FootprintParams(cell_px=self.lower.stride)
+            grid = RegionParams(cell_px=self.lower.stride)
             self._cloth[key] = cloth_cells(
                 self.color, self.lower, sticker_px, grid, regions=self.regions
             )

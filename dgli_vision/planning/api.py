@@ -7,8 +7,8 @@ from typing import Any
 from ..classifier.affordances import napkin_maps
 from ..classifier.pipeline import FrameResult, classify_frame
 from ..core.fold_graph import StateKey
+from ..core.frame import RGBDFrame
 from ..core.layout import NapkinLayout, layout_of_size
-from ..sources.frames import RGBDFrame
 from .plan import Plan, PlanRefused, PlanStep, parse_state, plan_geometry
 from .verify import DEFAULT_TOLERANCE_MM, FoldCheck
 

@@ -34,11 +34,11 @@ from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.classes import CORNERS
 from ..core.fold_graph import StateKey, state_keys
 from ..core.fold_measure import Crease, crease_distance_mm, fold_kind, fold_measures
+from ..core.frame import RGBDFrame
 from ..core.layout import NapkinLayout, default_layout
 from ..sim.cloth.states import FoldStep, draw_fold_steps, make_state
 from ..sim.dataset import random_camera
 from ..sim.render import Lighting, SensorModel, render
-from ..sources.frames import RGBDFrame
 from .api import plan_frame
 from .plan import PlanRefused, PlanStep, shortest_path
 

@@ -154,11 +154,6 @@ class Conditions:
     tilt_range_deg: tuple[float, float] = (0.0, 12.0)
 
     @property
-    def distortion_k1(self) -> float:
-        """The lens's first radial coefficient (0 for an ideal lens)."""
-        return float(self.distortion[0]) if self.distortion else 0.0
-
-    @property
     def label(self) -> str:
         """``"clean"`` or the names joined by ``+``."""
         return "+".join(self.names) or "clean"

@@ -15,6 +15,7 @@ from typing import Any
 
 from ..core.camera import Intrinsics
 from ..core.errors import DgliError, InvalidInputError, OutputError, UnreadableInputError
+from ..core.frame import RGBDFrame
 from ..core.io import (
     csv_table,
     guard_outputs,
@@ -23,7 +24,7 @@ from ..core.io import (
     write_json,
     write_text,
 )
-from .frames import RGBDFrame, write_color, write_depth
+from .frames import write_color, write_depth
 from .labelled import LabelledPair, listed_files
 from .recording import Recording, select_frames
 

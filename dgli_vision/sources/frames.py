@@ -17,15 +17,17 @@ from ..core.errors import (
     InvalidValueError,
     UnreadableInputError,
 )
+from ..core.frame import RGBDFrame
 from ..core.io import check_input_file, read_json, write_png
 from .png_decode import PNG_SIGNATURE, PngFile, inflate_rows, stored_png, unfilter, walk_png
 
+# RGBDFrame lives in core (:mod:`dgli_vision.core.frame`: every folder may use it); it
+# is named here too, where it was first
 __all__ = [
     "MAX_IMAGE_BYTES",
     "MAX_IMAGE_PIXELS",
     "RGBDFrame",
     "check_intrinsics",
-    "image_size",
     "parse_intrinsics",
     "read_color",
     "read_depth",
@@ -34,31 +36,6 @@ __all__ = [
     "write_color",
     "write_depth",
 ]
-
-
-@dataclass(frozen=True, eq=False)
-class RGBDFrame:
-    """A registered colour + depth pair, validated.
-
-    Attributes
-    ----------
-    color : ndarray of uint8, shape (H, W, 3)
-        RGB.
-    depth_mm : ndarray of uint16, shape (H, W)
-        z-depth in mm, 0 = no reading.
-    intrinsics : Intrinsics
-    color_path, depth_path : str
-        Where they came from (for messages and reports).
-    intrinsics_source : str
-        The intrinsics file, or ``"default"``.
-    """
-
-    color: NDArray[np.uint8]
-    depth_mm: NDArray[np.uint16]
-    intrinsics: Intrinsics
-    color_path: str = ""
-    depth_path: str = ""
-    intrinsics_source: str = "default"
 
 
 #: The largest image decoded, in pixels (an 8K frame has 33 million): checked from the
@@ -114,20 +91,9 @@ def _jpeg_size(buf: bytes, where: str) -> tuple[int, int] | None:
     raise UnreadableInputError(f"{where} is a damaged or truncated JPEG (no frame header)")
 
 
-def image_size(data: bytes, where: str = "image") -> tuple[int, int] | None:
-    """The (width, height) a PNG or JPEG file's header gives, without decoding it.
-
-    Parameters
-    ----------
-    data : bytes
-        The file's bytes.
-    where : str
-        How messages name the file (``"colour image 'x.png'"``).
-
-    Returns
-    -------
-    (width, height) or None
-        None for another format (OpenCV's own limits then apply).
+def _header(data: bytes, where: str) -> tuple[tuple[int, int] | None, PngFile | None]:
+    """The (width, height) a PNG or JPEG file's header gives, without decoding it (None
+    for another format: OpenCV's own limits then apply), and a PNG's walked chunks.
 
     Raises
     ------
@@ -136,11 +102,6 @@ def image_size(data: bytes, where: str = "image") -> tuple[int, int] | None:
     InvalidInputError
         A header that gives no pixels, or more than :data:`MAX_IMAGE_PIXELS`.
     """
-    return _header(data, where)[0]
-
-
-def _header(data: bytes, where: str) -> tuple[tuple[int, int] | None, PngFile | None]:
-    """:func:`image_size`, and a PNG's walked chunks."""
     png = None
     if data.startswith(PNG_SIGNATURE):
         png = walk_png(data, where)

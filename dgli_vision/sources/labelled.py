@@ -14,8 +14,9 @@ import numpy as np
 
 from ..core.classes import class_id_of
 from ..core.errors import InvalidInputError, InvalidValueError, OutputError, UnreadableInputError
+from ..core.frame import RGBDFrame
 from ..core.io import check_input_file, guard_outputs
-from .frames import RGBDFrame, read_frame
+from .frames import read_frame
 
 __all__ = [
     "LabelProblem",

@@ -30,9 +30,9 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from ..core.errors import InvalidInputError, UnreadableInputError
+from ..core.frame import RGBDFrame
 from ..core.parallel import SharedSlots
 from .depth_align import DepthToColour, StreamCamera
-from .frames import RGBDFrame
 from .labelled import LabelledPair
 
 __all__ = [

@@ -19,8 +19,8 @@ from pathlib import Path
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, InvalidInputError, UnreadableInputError
+from ..core.frame import RGBDFrame
 from ..core.parallel import FileSpan, SharedSlots, SlotRef
-from .frames import RGBDFrame
 from .labelled import LabelledPair, find_labelled_pairs, folder_intrinsics
 from .realsense import LivePair
 from .ros_images import ImagePayload, decode_color, decode_depth
