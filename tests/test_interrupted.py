@@ -224,11 +224,14 @@ def listed_pairs(folder: Path) -> list[str]:
         return [row["color"] for row in csv.DictReader(fh)]
 
 
-#: A recording's frames (rendered in one process), and a set of classes over workers;
-#: VGA: a quarter of the pixels to render
+#: A recording's frames (rendered in one process), and a set of single pairs over workers
+#: (six states outside the twelve: the path of a class set, half its pairs); VGA: a
+#: quarter of the pixels to render
 RENDERS = {
     "sequence": ["--sequence", "III", "--frames", "6", "--conditions", "vga", "--seed", "4"],
-    "classes-j2": ["--per-class", "1", "--conditions", "vga", "--seed", "4", "-j", "2"],
+    "pairs-j2": [
+        "--per-class", "0", "--outside", "6", "--conditions", "vga", "--seed", "4", "-j", "2",
+    ],
 }
 
 
@@ -249,7 +252,7 @@ def test_a_killed_render_keeps_its_finished_pairs_and_resumes(tmp_path, kind):
     proc.communicate(timeout=60)
     assert proc.returncode == -signal.SIGKILL
     kept = listed_pairs(out)
-    n = 6 if kind == "sequence" else 12
+    n = 6
     assert 2 <= len(kept) < n
     assert in_process(["render", str(whole), *args]).exit_code == 0
     for color in kept:  # each listed pair complete, as the whole render wrote it
