@@ -640,7 +640,6 @@ def _judge(
     seen_as = {
         "detections": detections, "markers": markers, "observation": obs, "coordinates": coords,
     }
-    n = int(obs.visible.sum())
     napkin_mm = _napkin_depth(detections, frame.depth_mm)
     border = border_factor(
         detections.centroids,
@@ -654,38 +653,116 @@ def _judge(
             **seen_as, prediction=None, reason=f"cannot tell: {problem}", why=kind
         )
     evidence = obs.classifier_evidence()
-    area = layout.width_mm * layout.height_mm
     try:
         terms = reference_terms(coords, references, evidence)
     except DetectionError as exc:
-        reason = f"{n} of {len(obs.visible)} stickers located; {exc}"
-        below = footprint_problem_below(obs.footprint, references, area)
-        if below is not None:
-            return FrameResult(
-                **seen_as, prediction=None, why=WhyKind.NO_STATE_FITS,
-                reason=f"cannot tell: no known state fits: {below}; {reason}",
-            )
-        unknown = _unknown_summary(obs)
-        if unknown:
-            reason += f" ({unknown})"
-        depth_hint = depth_scale_hint(
-            detections, frame.depth_mm, frame.intrinsics,
-            nominal=frame.intrinsics_source == "default",
-        )
-        if depth_hint:
-            reason += f"; {depth_hint}"
-        return FrameResult(**seen_as, prediction=None, reason=reason, why=WhyKind.TOO_FEW)
+        return _too_few(frame, references, layout, seen_as, exc)
     front = terms.total()
-    near = _candidates(front, references)
     guess = _guess(coords, references, evidence, front, obs, layout, min_confidence)
     if border < 1.0:  # an uncorrected lens may have moved the stickers near the border
         guess = replace(guess, confidence=round(guess.confidence * border, 4))
     clock.lap("classify")
+    checks = _checks(obs, coords, references, evidence, terms, guess, layout)
+    clock.lap("checks")
+    # each check lowers the confidence continuously; where one rules the verdict out the
+    # nearest reference stays for reports, with the confidence left to it
+    unchecked = guess.confidence
+    if checks.factor < 1.0:
+        guess = replace(guess, confidence=round(guess.confidence * checks.factor, 4))
+    if guess.class_id in MIRROR_TWINS and guess.confidence > MIRROR_TWIN_CONFIDENCE:
+        guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
+    told = {"best_guess": guess, "candidates": checks.near, "distances": front, "fit": checks.fit}
+    why, reason = _ruled_out(obs, references, layout, terms, checks, guess, stretched)
+    if reason is None and checks.told is not None and unchecked >= min_confidence:
+        why, reason = WhyKind.TOO_CLOSE, f"cannot tell: {checks.told}"
+    if reason is None and guess.confidence < min_confidence:
+        why = WhyKind.TOO_CLOSE
+        reason = _low_confidence_reason(guess, obs, min_confidence, border, checks.lowering())
+    if reason is not None:
+        return FrameResult(**seen_as, **told, prediction=None, reason=reason, why=why)
+    return FrameResult(**seen_as, **told, prediction=guess)
+
+
+def _too_few(
+    frame: RGBDFrame,
+    references: ReferenceSet,
+    layout: NapkinLayout,
+    seen_as: dict[str, Any],
+    exc: DetectionError,
+) -> FrameResult:
+    """The "cannot tell" of a frame with too few stickers to rank the states: too little
+    cloth for any state (no state fits), or what was seen and what may be wrong."""
+    detections, obs = seen_as["detections"], seen_as["observation"]
+    reason = f"{int(obs.visible.sum())} of {len(obs.visible)} stickers located; {exc}"
+    below = footprint_problem_below(obs.footprint, references, layout.width_mm * layout.height_mm)
+    if below is not None:
+        return FrameResult(
+            **seen_as, prediction=None, why=WhyKind.NO_STATE_FITS,
+            reason=f"cannot tell: no known state fits: {below}; {reason}",
+        )
+    unknown = _unknown_summary(obs)
+    if unknown:
+        reason += f" ({unknown})"
+    depth_hint = depth_scale_hint(
+        detections, frame.depth_mm, frame.intrinsics,
+        nominal=frame.intrinsics_source == "default",
+    )
+    if depth_hint:
+        reason += f"; {depth_hint}"
+    return FrameResult(**seen_as, prediction=None, reason=reason, why=WhyKind.TOO_FEW)
+
+
+@dataclass(frozen=True)
+class _Checks:
+    """What the checks of a verdict say: each a factor on its confidence, and a reason
+    where one rules it out (see :func:`_checks`)."""
+
+    near: tuple[tuple[str, str | None, float], ...]
+    mirror: Doubt
+    foot: Doubt
+    landing: Doubt
+    vertical: Doubt
+    fit: StateFit
+
+    @property
+    def factor(self) -> float:
+        """The checks' factors together."""
+        return (
+            self.mirror.factor * self.foot.factor * self.landing.factor
+            * self.vertical.factor * self.fit.factor
+        )
+
+    @property
+    def told(self) -> str | None:
+        """Why a flap held up leaves the state not yet told, if it does."""
+        return self.landing.reason or self.vertical.reason
+
+    def lowering(self) -> tuple[tuple[str, float], ...]:
+        """Each check's factor with what it says, for a low confidence's reason."""
+        return (("the mirrored reading nearly as close", self.mirror.factor),
+                ("the footprint larger than the state allows", self.foot.factor),
+                ("a flap held up, where it lands not yet seen", self.landing.factor),
+                ("a flap held up near vertical", self.vertical.factor),
+                ("the state's folds explain the stickers only in part", self.fit.factor))
+
+
+def _checks(
+    obs: ClothObservation,
+    coords: NDArray[np.float64],
+    references: ReferenceSet,
+    evidence: Evidence,
+    terms: Any,
+    guess: Prediction,
+    layout: NapkinLayout,
+) -> _Checks:
+    """The checks of the verdict ``guess``: the mirrored reading, the footprint, a flap
+    held up (where it lands, near vertical) and the state's own folds."""
+    front = terms.total()
+    area = layout.width_mm * layout.height_mm
+    near = _candidates(front, references)
     mirror = mirror_problem(
         coords, references, evidence, obs.footprint, area, front=front, terms=terms
     )
-    landing = _landing(obs, front, references)
-    vertical = _near_vertical(obs, near)
     fit = fit_state(obs, guess.class_id, guess.variant, layout)
     # a flap in the air, one the state can be folding, stands over the table the camera
     # sees past it: the footprint measured then says nothing of the state's
@@ -693,51 +770,35 @@ def _judge(
         Doubt() if _flap_in_the_air(obs) and fit.factor == 1.0
         else footprint_problem(obs.footprint, references, front, area)
     )
-    clock.lap("checks")
-    # each check lowers the confidence continuously; where one rules the verdict out the
-    # nearest reference stays for reports, with the confidence left to it
-    factor = mirror.factor * foot.factor * landing.factor * vertical.factor * fit.factor
-    unchecked = guess.confidence
-    if factor < 1.0:
-        guess = replace(guess, confidence=round(guess.confidence * factor, 4))
-    if guess.class_id in MIRROR_TWINS and guess.confidence > MIRROR_TWIN_CONFIDENCE:
-        guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
-    told = {"best_guess": guess, "candidates": near, "distances": front, "fit": fit}
-    doubt = mirror.reason or foot.reason
+    return _Checks(
+        near, mirror, foot, _landing(obs, front, references), _near_vertical(obs, near), fit
+    )
+
+
+def _ruled_out(
+    obs: ClothObservation,
+    references: ReferenceSet,
+    layout: NapkinLayout,
+    terms: Any,
+    checks: _Checks,
+    guess: Prediction,
+    stretched: str | None,
+) -> tuple[WhyKind | None, str | None]:
+    """The kind and reason of a check that rules the verdict out, in their order: the
+    state's folds (unless the mirrored reading's state explains what the mirror check
+    doubts), a corner stretched as only a diagonal fold's crease stretches one, the
+    mirror or footprint; ``(None, None)`` when none does."""
+    doubt = checks.mirror.reason or checks.foot.reason
+    fit = checks.fit
     if not fit.fits and not (doubt and _mirrored_state_fits(obs, terms, references, layout)):
-        return FrameResult(
-            **seen_as, **told, prediction=None, why=WhyKind.NO_STATE_FITS,
-            reason=f"cannot tell: no known state fits: {fit.describe()}",
-        )
+        return WhyKind.NO_STATE_FITS, f"cannot tell: no known state fits: {fit.describe()}"
     if stretched is not None and guess.class_id != "12":
         # a corner's stickers cut as a diagonal fold's crease cuts them, but the state
         # nearest is no diagonal fold: a lens may bend the napkin
-        return FrameResult(
-            **seen_as, **told, prediction=None, reason=f"cannot tell: {stretched}",
-            why=WhyKind.GEOMETRY,
-        )
+        return WhyKind.GEOMETRY, f"cannot tell: {stretched}"
     if doubt is not None:
-        return FrameResult(
-            **seen_as, **told, prediction=None, reason=f"cannot tell: {doubt}",
-            why=WhyKind.MIRROR,
-        )
-    told_reason = landing.reason or vertical.reason
-    if told_reason is not None and unchecked >= min_confidence:
-        return FrameResult(
-            **seen_as, **told, prediction=None, reason=f"cannot tell: {told_reason}",
-            why=WhyKind.TOO_CLOSE,
-        )
-    if guess.confidence >= min_confidence:
-        return FrameResult(**seen_as, **told, prediction=guess)
-    checks = (("the mirrored reading nearly as close", mirror.factor),
-              ("the footprint larger than the state allows", foot.factor),
-              ("a flap held up, where it lands not yet seen", landing.factor),
-              ("a flap held up near vertical", vertical.factor),
-              ("the state's folds explain the stickers only in part", fit.factor))
-    reason = _low_confidence_reason(guess, obs, min_confidence, border, checks)
-    return FrameResult(
-        **seen_as, **told, prediction=None, reason=reason, why=WhyKind.TOO_CLOSE
-    )
+        return WhyKind.MIRROR, f"cannot tell: {doubt}"
+    return None, None
 
 
 def _flap_in_the_air(obs: ClothObservation) -> bool:
