@@ -58,6 +58,104 @@ def test_edge_on_stickers_high_enough_agree():
     assert f"{EDGE_ON_MIN_MM:.0f} mm up or more" in why
 
 
+
+@lru_cache(maxsize=1)
+def _behind() -> dict[int, object]:
+    """Frames 16, 18, 19, 21, 23 and 26 of sequence II, seed 1, 30 frames: corner C's
+    flap at about 30, 87, 112 and 162 degrees (04 -> 07), then D's at about 30 and 105
+    (07 -> 08)."""
+    want = {16, 18, 19, 21, 23, 26}
+    return {int(s.name.split("_")[1]): s for s in render_sequence("II", 30, 1,
+            skip=set(range(30)) - want)}
+
+
+@pytest.mark.parametrize(("color_frame", "depth_frame", "truth"), [(19, 16, "07"), (26, 23, "08")])
+def test_depth_three_frames_behind_colour_is_not_answered(color_frame, depth_frame, truth):
+    """The depth image still holds the flap up where the colour image already shows the
+    bare table it has left: "cannot tell", colour and depth of different instants (was
+    the depth's state at confidence 1.00: 04 for 07, 07 for 08); in step, the same
+    frames are answered right."""
+    frames = _behind()
+    c, d = frames[color_frame].result, frames[depth_frame].result
+    apart = classify_frame(RGBDFrame(c.color, d.depth_mm, c.intrinsics, "c.png", "d.png"), REFS)
+    assert apart.prediction is None
+    assert "bare table" in apart.reason and "same instant" in apart.reason, apart.reason
+    assert apart.why == "geometry"
+    in_step = classify_frame(RGBDFrame(c.color, c.depth_mm, c.intrinsics, "c.png", "d.png"), REFS)
+    assert in_step.prediction is not None and in_step.prediction.class_id == truth
+
+
+
+def test_depth_three_frames_ahead_of_colour_at_a_folds_90_degrees_is_not_answered():
+    """Colour at 87 degrees (truth 04) shows the flap's four stickers as slivers; the
+    depth of 162 degrees lays them flat on the napkin: "cannot tell", colour and depth
+    disagree (was 07 at confidence 1.00)."""
+    frames = _behind()
+    c, d = frames[18].result, frames[21].result
+    result = classify_frame(RGBDFrame(c.color, d.depth_mm, c.intrinsics, "c.png", "d.png"), REFS)
+    assert result.prediction is None
+    assert result.reason.startswith("cannot tell: colour and depth disagree"), result.reason
+
+
+def test_slivers_count_as_edge_on_only_as_one_flaps_group_of_three():
+    """Blobs rejected as too small with an area ratio of 0.3-0.55 are a flap's stickers
+    seen nearly edge-on when three or more lie within one corner's reach; two (a sticker
+    cut by a crease and its neighbour), specks, or three far apart are not."""
+    from dgli_vision.perception.agreement import edge_on_heights
+    from dgli_vision.perception.detections import Rejection, RejectionKind, StickerDetections
+
+    class Masks:
+        def height_at(self, centres):
+            return np.asarray(centres)[:, 1].copy()  # (the height is the v coordinate)
+
+    def sliver(u, v, ratio=0.4):
+        return Rejection((u, v), 30.0, RejectionKind.TOO_SMALL, {"z_mm": 600.0, "ratio": ratio})
+
+    def heights(*rejected):
+        n = 16
+        det = StickerDetections(np.full((n, 2), np.nan), np.full(n, np.nan), np.zeros(n),
+                                np.full(n, np.nan), tuple(rejected))
+        return sorted(edge_on_heights(det, Masks(), fx=600.0).tolist())
+
+    # 150 mm at 600 mm with fx 600 px: 150 px
+    assert heights(sliver(0, 1), sliver(40, 2), sliver(80, 3)) == [1.0, 2.0, 3.0]
+    assert heights(sliver(0, 1), sliver(40, 2)) == []
+    assert heights(sliver(0, 1), sliver(40, 2), sliver(80, 3, ratio=0.1)) == []
+    assert heights(sliver(0, 1), sliver(400, 2), sliver(800, 3)) == []
+    assert heights(sliver(0, 1), sliver(40, 2), sliver(80, 3), sliver(900, 4)) == [1.0, 2.0, 3.0]
+
+
+def test_cloth_held_up_over_bare_table_is_told_from_a_flap_seen_as_cloth():
+    """The raised samples' colour decides: the table's (a flap that has left) or the
+    napkin's (a flap in step); a few of the table's at a flap's steep sides are not
+    enough."""
+    from dgli_vision.perception.agreement import bare_raised_problem, bare_table_raised
+    from dgli_vision.perception.napkin import NapkinMasks
+
+    rng = np.random.default_rng(5)
+    shape = (60, 80)
+    color = np.empty((shape[0] * 8, shape[1] * 8, 3), np.uint8)
+    color[:] = (120, 122, 130)
+    color = np.clip(color + rng.normal(0, 3, color.shape), 0, 255).astype(np.uint8)
+    cloth = np.zeros(shape, bool)
+    cloth[15:45, 20:50] = True
+    color[15 * 8:45 * 8, 20 * 8:50 * 8] = 235
+    height = rng.normal(0, 1.5, shape).astype(np.float32)
+    height[20:40, 50:62] = 60.0  # a flap beside the napkin, in depth
+    none = np.zeros(shape, bool)
+
+    def seen(cloth_mask):
+        return bare_table_raised(color, NapkinMasks(8, none, none, cloth_mask, None, height))
+
+    apart = seen(cloth)  # the colour shows the table there
+    assert apart.apart and apart.bare == 20 * 12
+    assert "same instant" in bare_raised_problem(apart)
+    colour_too = cloth.copy()
+    colour_too[20:40, 50:62] = True  # the colour shows the flap there too
+    color[20 * 8:40 * 8, 50 * 8:62 * 8] = 235
+    assert not seen(colour_too).apart and bare_raised_problem(seen(colour_too)) is None
+
+
 def test_label_abstains_between_04_and_05_while_the_second_flap_is_held_up(tmp_path):
     """dgli label on sequence II (02 -> 04 -> 07 -> 08): while corner B turns over A's
     finished flap, no frame is 05 (crossing); those that the references cannot tell from

@@ -20,7 +20,13 @@ from ..core.json_ready import json_ready
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
 from ..core.order_stats import median
 from ..core.why import WhyKind
-from ..perception.agreement import edge_on_heights, edge_on_problem
+from ..perception.agreement import (
+    BareRaised,
+    bare_raised_problem,
+    bare_table_raised,
+    edge_on_heights,
+    edge_on_problem,
+)
 from ..perception.detect import (
     DetectorParams,
     StickerDetections,
@@ -110,6 +116,10 @@ class ClothObservation:
     edge_on_mm : ndarray, shape (n,), optional
         Heights above the table (mm) of the blobs seen edge-on in colour
         (:func:`~dgli_vision.perception.agreement.edge_on_heights`).
+    bare_raised : BareRaised, optional
+        Cloth held up in depth over what colour shows as bare table
+        (:func:`~dgli_vision.perception.agreement.bare_table_raised`): colour and depth
+        of different instants.
     """
 
     segments: NDArray[np.float64]
@@ -127,6 +137,7 @@ class ClothObservation:
     objects_stride: int = 8
     tips: NDArray[np.float64] | None = None
     edge_on_mm: NDArray[np.float64] | None = None
+    bare_raised: BareRaised | None = None
 
     @property
     def spread_mm(self) -> NDArray[np.float64] | None:
@@ -414,7 +425,8 @@ def observe(
         flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
         turns=turns, points_m=markers.points, objects=napkin.occluder,
         objects_stride=napkin.stride, tips=tips,
-        edge_on_mm=edge_on_heights(detections, napkin.masks()),
+        edge_on_mm=edge_on_heights(detections, napkin.masks(), frame.intrinsics.fx),
+        bare_raised=bare_table_raised(frame.color, napkin.masks()),
     )
 
 
@@ -848,6 +860,7 @@ def _image_problem(
     problem = (
         _too_small(detections, frame, napkin_mm, layout)
         or (edge_on_problem(obs.edge_on_mm) if obs.edge_on_mm is not None else None)
+        or bare_raised_problem(obs.bare_raised)
         or scale_problem(
             obs.ruler, layout, frame.intrinsics, nominal=frame.intrinsics_source == "default"
         )

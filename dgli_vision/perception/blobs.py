@@ -290,7 +290,7 @@ def _judge_shape(contour: NDArray, image: SearchImage) -> _Shaped | Rejection | 
     blob = _repair_highlight(blob, image)
     p = image.params
     ratio = _area_ratio(blob, fore, image.halved)
-    why = _size_problem(ratio, blob.z_mm, p)
+    why = _size_problem(ratio, blob.z_mm, fore, p)
     if why:
         return Rejection(blob.where, blob.area, *why)
     solidity, elongation = _shape_of(blob)
@@ -506,11 +506,12 @@ def _area_ratio(blob: _Blob, fore: float, halved: bool) -> float:
     return blob.area / (np.pi * max(blob.r_exp - rim, 1.0) * max(fore * blob.r_exp - rim, 1.0))
 
 
-def _size_problem(ratio: float, z_mm: float, p: DetectorParams) -> _Problem | None:
+def _size_problem(ratio: float, z_mm: float, fore: float, p: DetectorParams) -> _Problem | None:
+    values = {"z_mm": float(z_mm), "ratio": float(ratio), "foreshortening": float(fore)}
     if ratio < p.min_area_ratio:
-        return RejectionKind.TOO_SMALL, {"z_mm": float(z_mm), "ratio": float(ratio)}
+        return RejectionKind.TOO_SMALL, values
     if ratio > p.max_area_ratio:
-        return RejectionKind.TOO_LARGE, {"z_mm": float(z_mm), "ratio": float(ratio)}
+        return RejectionKind.TOO_LARGE, values
     return None
 
 

@@ -238,8 +238,10 @@ class RejectionKind(Enum):
     - ``OBLIQUE``: ``foreshortening`` (minor / major axis, below
       ``DetectorParams.min_foreshortening``);
     - ``TOO_SMALL``, ``TOO_LARGE``: ``z_mm`` (the blob's depth), ``ratio`` (its area over
-      a disc's expected there) and, for a centre measured again at full resolution after
-      a halved search, ``full_resolution`` (True);
+      a disc's expected there), ``foreshortening`` (minor / major axis, as for
+      ``OBLIQUE``; not for a blob judged again at full resolution) and, for a centre
+      measured again at full resolution after a halved search, ``full_resolution``
+      (True);
     - ``NOT_DISC_SHAPED``: ``solidity``, ``elongation``;
     - ``NOT_WHOLE_DISC``: ``fill`` (the share of the expected disc covered);
     - ``NOT_ON_NAPKIN``: ``surround`` (the whiteness around over the blob's brightness);
