@@ -220,13 +220,11 @@ def frame_overlay(frame: RGBDFrame, result: FrameResult) -> NDArray[np.uint8]:
     """The overlay picture of a classified frame (BGR, ready to write): the stickers
     found, where the missing ones would be (hidden or unknown, and why), the objects over
     the napkin, the corners and folds (:mod:`dgli_vision.planning.overlay`), the
-    verdict. A frame the pipeline un-mirrored (a camera declared mirrored) is drawn
-    un-mirrored, as its result's pixels are."""
-    from ..core.handedness import unmirrored
+    verdict. ``frame`` is the frame as the pipeline read it
+    (:meth:`~dgli_vision.classifier.pipeline.FrameResult.frame_as_read`: un-mirrored for a
+    camera declared mirrored), whose pixels the result's are."""
     from ..planning.overlay import draw_corners, draw_folds
 
-    if getattr(result, "unmirrored", False):
-        frame = unmirrored(frame)
     obs = result.observation
     evidence = overlay_evidence(result)
     detail = f"{int(obs.visible.sum())}/16 stickers found"

@@ -264,6 +264,12 @@ class FrameResult:
     mirroring: str = "no"
     unmirrored: bool = False
 
+    def frame_as_read(self, frame: RGBDFrame) -> RGBDFrame:
+        """``frame`` (the one classified) as the pipeline read it: flipped left to right
+        when it was un-mirrored (``unmirrored``), so that the result's pixels are its own
+        (for overlays and for placing a plan in the camera)."""
+        return unmirrored(frame) if self.unmirrored else frame
+
     def to_json(self, color: str, depth: str) -> dict[str, Any]:
         """The JSON object of ``dgli classify --json``, naming the pair as ``color`` and
         ``depth`` (docs/json.md)."""
