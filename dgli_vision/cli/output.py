@@ -10,12 +10,7 @@ from typing import Any
 
 import click
 
-from ..core.errors import OutputError
-
-
-class StdoutClosed(Exception):
-    """Standard output is a pipe whose reader has gone (``dgli ... | head -1``): the
-    command ends quietly, as Unix tools do (:func:`~dgli_vision.cli.errors.handle_errors`)."""
+from ..core.errors import OutputError, StdoutClosed
 
 
 def stdout_name() -> str:
