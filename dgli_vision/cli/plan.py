@@ -59,12 +59,17 @@ def _plan_line(plan, extrinsics=None) -> str:
     return text
 
 
-def plan_json(plan, extrinsics=None) -> dict:
-    """``dgli plan --json``'s object: the plan's, every 3D point in the frame of
-    ``extrinsics`` (None: the camera's), with ``"frame"`` naming it."""
+def plan_json(plan, extrinsics=None, up=None) -> dict:
+    """``dgli plan --json``'s object: the plan's, with the table's normal ``up`` (the
+    direction a grasped corner is lifted along) for a plan made from an image, every 3D
+    point in the frame of ``extrinsics`` (None: the camera's), with ``"frame"`` naming
+    it."""
     from ..core.extrinsics import in_frame
 
-    return in_frame(plan.to_json(), extrinsics)
+    data = plan.to_json()
+    if up is not None:
+        data["up"] = [round(float(v), 6) for v in up]
+    return in_frame(data, extrinsics)
 
 
 def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> None:
@@ -197,6 +202,7 @@ def plan_cmd(
     if start is not None and (color is not None or overlay):
         raise click.UsageError("--from plans without an image: give no COLOR, DEPTH or --overlay")
     layout = layout_of_size(refs.napkin_mm)
+    up = None  # the table's normal, for a plan made from an image
     try:
         if start is not None:
             plan = plan_geometry(start, goal, layout, None, None, None)
@@ -210,6 +216,7 @@ def plan_cmd(
             frame = read_frame(color, depth, intrinsics)
             result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
             frame = result.frame_as_read(frame)  # the pixels the plan is placed in
+            up = result.observation.up
             try:
                 plan = plan_frame(result, frame, goal, layout)
             except PlanRefused as exc:  # the overlay still shows the frame, and why
@@ -228,13 +235,14 @@ def plan_cmd(
         sys.exit(1)
     if verify_pair:
         _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json, extrinsics,
-                mirroring)
+                mirroring, up)
         return
-    echo(json.dumps(plan_json(plan, extrinsics)) if as_json else _plan_line(plan, extrinsics))
+    echo(json.dumps(plan_json(plan, extrinsics, up)) if as_json
+         else _plan_line(plan, extrinsics))
 
 
 def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: bool,
-            extrinsics=None, mirroring: str | None = None) -> None:
+            extrinsics=None, mirroring: str | None = None, up=None) -> None:
     """``--verify``: the frame after the plan's first step against its expected state
     and planned crease; exit 1 unless the step succeeded."""
     from ..classifier.pipeline import classify_frame
@@ -253,7 +261,7 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
     check = verify_fold(result, step.expect, layout, fold=step.fold if crease else None,
                         crease=crease, tolerance_mm=tolerance)
     if as_json:
-        echo_json({"plan": plan_json(plan, extrinsics),
+        echo_json({"plan": plan_json(plan, extrinsics, up),
                    "verify": in_frame(check.to_json(), extrinsics)})
         if not check.success:
             sys.exit(1)
