@@ -951,7 +951,9 @@ def _low_confidence_reason(
             f"{guess.class_id} {guess.name} and {ru.class_id} {ru.name} are nearly as close "
             f"({guess.distance:.3f} vs {ru.distance:.3f})"
         )
-    if obs.evidence is not None and obs.evidence.occluded:
+    raised = obs.flap_deg is not None and bool(np.isfinite(obs.flap_deg).any())
+    occluded = obs.evidence is not None and obs.evidence.occluded
+    if occluded and not raised:  # (a flap raised is itself cloth above the napkin)
         why.append("the napkin is partly covered by an object above it")
     why.extend(f"{what} (confidence x{f:.2f})" for what, f in checks if f < 1.0)
     if border < 1.0:
@@ -962,7 +964,10 @@ def _low_confidence_reason(
     unknown = _unknown_summary(obs)
     if unknown:
         why.append(unknown)
-    if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():
-        why.append(f"a flap held up at about {np.nanmedian(obs.flap_deg):.0f} degrees")
+    if raised:
+        why.append(
+            f"a flap is raised, at about {np.nanmedian(obs.flap_deg):.0f} degrees"
+            + (" (it, or an object holding it, stands above the napkin)" if occluded else "")
+        )
     why.append(f"{n} of {len(obs.visible)} stickers located")
     return "cannot tell: " + "; ".join(why)
