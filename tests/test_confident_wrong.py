@@ -68,22 +68,73 @@ def test_a_napkin_lying_back_face_up_is_never_given_a_front_up_state(class_id):
 
 
 @pytest.mark.parametrize("class_id", ["02", "03", "05", "06", "09", "10"])
-def test_back_face_up_under_a_mirroring_camera_is_never_a_confident_wrong_state(class_id):
+def test_back_face_up_under_a_camera_of_unknown_handedness_is_never_a_confident_wrong_state(
+    class_id,
+):
     # two mirrors cancel in the corners' order: a corner over turned over lies under, and
     # reads as 03 front up in every way the stickers, their faces and the depth can tell
     sample = small(class_id, conditions=("backface", "mirror"))
-    guess = classify_frame(frame(sample), REFS).best_guess
+    guess = classify_frame(frame(sample), REFS, mirroring="unknown").best_guess
     assert guess is None or guess.class_id == class_id or guess.confidence < 0.5
 
 
 @pytest.mark.parametrize("class_id", ["02", "03", "09", "10"])
-def test_a_state_with_a_mirror_twin_is_answered_but_never_confidently(class_id):
+def test_back_face_up_under_a_camera_declared_mirrored_is_caught_as_back_face_up(class_id):
+    # declared, the camera's mirror is undone: what is left is the napkin back face up
+    sample = small(class_id, conditions=("backface", "mirror"))
+    res = classify_frame(frame(sample), REFS, mirroring="yes")
+    assert res.unmirrored and res.mirroring == "yes"
+    assert res.prediction is None and "back face up" in res.reason, res.prediction
+    g = res.best_guess
+    assert g is None or g.class_id == class_id or g.confidence < 0.5
+
+
+@pytest.mark.parametrize("class_id", ["02", "03", "09", "10"])
+def test_a_state_with_a_mirror_twin_is_answered_but_never_confidently_by_a_camera_of_unknown_handedness(  # noqa: E501
+    class_id,
+):
     from dgli_vision.classifier.classify import MIN_CONFIDENCE
     from dgli_vision.classifier.consistency import MIRROR_TWIN_CONFIDENCE
 
-    p = classify_frame(frame(small(class_id)), REFS).prediction
+    p = classify_frame(frame(small(class_id)), REFS, mirroring="unknown").prediction
     assert p is not None and p.class_id == class_id
     assert MIN_CONFIDENCE <= p.confidence <= MIRROR_TWIN_CONFIDENCE < 0.5
+
+
+@pytest.mark.parametrize("class_id", ["02", "03", "09", "10"])
+def test_a_state_with_a_mirror_twin_reaches_full_confidence_under_a_camera_that_does_not_mirror(
+    class_id,
+):
+    # a camera not declared mirrored is taken as not mirrored: the double fault cannot be
+    res = classify_frame(frame(small(class_id)), REFS)
+    assert res.mirroring == "no" and not res.unmirrored
+    assert res.prediction is not None and res.prediction.class_id == class_id
+    assert res.prediction.confidence >= 0.9
+
+
+@pytest.mark.parametrize("class_id", ["02", "10"])
+def test_a_front_up_napkin_under_an_undeclared_mirroring_camera_is_still_caught(class_id):
+    res = classify_frame(frame(small(class_id), mirror=True), REFS, mirroring="no")
+    assert res.prediction is None and "stickers run clockwise" in res.reason
+    assert "--mirroring yes" in res.reason
+
+
+@pytest.mark.parametrize("class_id", ["02", "09"])
+def test_a_camera_declared_mirrored_in_its_intrinsics_is_read_unmirrored(class_id):
+    from dataclasses import replace
+
+    mirrored = frame(small(class_id), mirror=True)
+    mirrored = replace(mirrored, intrinsics=replace(mirrored.intrinsics, mirrored=True))
+    res = classify_frame(mirrored, REFS)  # as the intrinsics declare: un-mirrored first
+    assert res.unmirrored
+    assert res.prediction is not None and res.prediction.class_id == class_id
+    assert res.prediction.confidence >= 0.9
+    # its 3D points are the scene's own: those of the same scene seen unmirrored
+    plain = classify_frame(frame(small(class_id)), REFS)
+    seen = plain.observation.visible & res.observation.visible
+    assert seen.sum() >= 12
+    gap = np.abs(plain.observation.points_m[seen] - res.observation.points_m[seen])
+    assert gap.max() < 0.004
 
 
 @pytest.mark.parametrize("class_id", ["01", "08", "10", "11"])

@@ -66,6 +66,8 @@ def test_a_plans_grasp_and_place_are_the_camera_points_transformed(files, which,
         for a, b in zip(cam["fold_line"], rob["fold_line"]):
             assert np.allclose(b, _moved(a), atol=1e-4)
         assert rob["lift_height"] == cam["lift_height"]
+    # the direction of the lift, the table's normal, turned (not moved) into the frame
+    assert np.allclose(base["up"], np.array(MATRIX, float)[:3, :3] @ camera["up"], atol=1e-5)
 
 
 def test_a_verdicts_corners_folds_and_table_normal_are_in_the_base_frame(files):

@@ -220,7 +220,9 @@ def frame_overlay(frame: RGBDFrame, result: FrameResult) -> NDArray[np.uint8]:
     """The overlay picture of a classified frame (BGR, ready to write): the stickers
     found, where the missing ones would be (hidden or unknown, and why), the objects over
     the napkin, the corners and folds (:mod:`dgli_vision.planning.overlay`), the
-    verdict."""
+    verdict. ``frame`` is the frame as the pipeline read it
+    (:meth:`~dgli_vision.classifier.pipeline.FrameResult.frame_as_read`: un-mirrored for a
+    camera declared mirrored), whose pixels the result's are."""
     from ..planning.overlay import draw_corners, draw_folds
 
     obs = result.observation

@@ -70,6 +70,7 @@ def classify_pair(
     *,
     colours: dict[str, tuple[int, int, int]] | None = None,
     extrinsics: object = None,
+    mirroring: str | None = None,
 ) -> Prediction:
     """Classify one registered colour + depth pair.
 
@@ -91,6 +92,12 @@ def classify_pair(
         The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the corners'
         points and the folds' lines are then in the robot's base frame (as with
         ``--extrinsics``); default the camera frame.
+    mirroring : {"no", "yes", "unknown"}, keyword-only, optional
+        Whether the camera mirrors its image left to right (as ``--mirroring``): default
+        as the intrinsics declare (``"mirrored"``, written by ``dgli calibrate``), else
+        ``"no"``. ``"yes"`` reads the frame un-mirrored; ``"unknown"`` keeps 02, 03, 09
+        and 10 below confidence 0.5 (a napkin back face up under a mirroring camera shows
+        their twin: docs/robustness.md).
 
     Returns
     -------
@@ -117,9 +124,12 @@ def classify_pair(
         file or array and the problem).
     """
     from ..core.extrinsics import extrinsics_of
+    from ..core.handedness import camera_mirroring
 
     ext = extrinsics_of(extrinsics)
-    p = _classified(color, depth, intrinsics, references, colours)
+    if mirroring is not None:
+        camera_mirroring(mirroring)  # a bad value: one line, before any reading
+    p = _classified(color, depth, intrinsics, references, colours, mirroring)
     return p if ext is None else _in_frame(p, ext)
 
 
@@ -137,7 +147,12 @@ def _in_frame(p: Prediction, ext: object) -> Prediction:
 
 
 def _classified(
-    color: object, depth: object, intrinsics: object, references: object, colours: object
+    color: object,
+    depth: object,
+    intrinsics: object,
+    references: object,
+    colours: object,
+    mirroring: str | None = None,
 ) -> Prediction:
     """:func:`classify_pair`'s verdict in the camera frame."""
     from .pipeline import WHY_KINDS, classify_frame
@@ -146,7 +161,9 @@ def _classified(
     refs = reference_set_of(references)
     colours = _check_colours(colours)
     try:
-        result = classify_frame(frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+        result = classify_frame(
+            frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE, mirroring=mirroring
+        )
     except DetectionError as exc:  # no table in the depth: read, but nothing to rank
         return _cannot_tell(str(exc), WHY_KINDS[1])
     swapped = _bgr_reading(color, frame, refs, colours, result)
@@ -229,7 +246,10 @@ def _bgr_reading(
         return None
     swapped = replace(frame, color=np.ascontiguousarray(frame.color[..., ::-1]))
     try:
-        again = classify_frame(swapped, refs, colours=colours, min_confidence=MIN_CONFIDENCE)
+        again = classify_frame(
+            swapped, refs, colours=colours, min_confidence=MIN_CONFIDENCE,
+            mirroring=result.mirroring,  # type: ignore[attr-defined]
+        )
     except DgliError:
         return None
     more = int(again.detections.found.sum()) - int(found.sum())

@@ -419,6 +419,7 @@ def mirror_problem(
     *,
     front: NDArray[np.float64] | None = None,
     terms: DistanceTerms | None = None,
+    mirroring: str = "unknown",
 ) -> Doubt:
     """Whether the observation may be a mirrored napkin.
 
@@ -446,6 +447,9 @@ def mirror_problem(
     terms : DistanceTerms, keyword-only, optional
         The front-up reading's :func:`~dgli_vision.classifier.classify.reference_terms`,
         when already computed: the mirrored reading is derived from them.
+    mirroring : {"no", "yes", "unknown"}, keyword-only
+        The camera's handedness the frame was read with (``"yes"``: already
+        un-mirrored): the reason's fix names what may be wrong with it.
 
     Returns
     -------
@@ -473,7 +477,7 @@ def mirror_problem(
     factor = doubt_factor(measure, MIRROR_MARGIN, CLEAR_MARGIN, -MIRROR_MARGIN)
     if measure >= MIRROR_MARGIN:
         return Doubt(factor)
-    fix = "turn the napkin front face up, or switch off the camera's mirroring"
+    fix = _MIRROR_FIX.get(mirroring, _MIRROR_FIX["unknown"])
     if better >= CLEAR_MARGIN:  # the footprint, not the stickers, speaks for the mirror
         lo = footprint.fraction(napkin_area_mm2)[0] if footprint else np.nan
         return Doubt(factor, (
@@ -492,6 +496,16 @@ def mirror_problem(
         f"{front[i]:.3f}) and mirrored ({_describe(references, j)}, {mirrored[j]:.3f}) "
         f"nearly alike: the napkin may lie back face up, or the image be mirrored; {fix}"
     ))
+
+
+#: The fix a mirrored layout's reason names, by the camera's handedness it was read with.
+_MIRROR_FIX = {
+    "unknown": "turn the napkin front face up, or switch off the camera's mirroring",
+    "no": "turn the napkin front face up, or switch off the camera's mirroring (or "
+    "declare it: --mirroring yes)",
+    "yes": "turn the napkin front face up, or check that the camera mirrors its image "
+    "(it is declared mirrored: --mirroring, or \"mirrored\" in the intrinsics)",
+}
 
 
 def _fits(penalty: float) -> float:

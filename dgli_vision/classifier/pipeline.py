@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from ..core.classes import CLASS_NAMES, LANDING_PAIRS, LIFTED_MM, PAST_BAND_DEG
 from ..core.dgli import cloth_coordinates
 from ..core.errors import DetectionError
+from ..core.handedness import camera_mirroring, unmirrored
 from ..core.json_ready import json_ready
 from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
 from ..core.order_stats import median
@@ -247,7 +248,14 @@ class FrameResult:
     the folds seen (:mod:`~dgli_vision.classifier.affordances`). ``distances`` keeps the
     frame's distance to every reference (what
     :func:`~dgli_vision.classifier.classify.reference_distances` gives for its
-    evidence) whenever they were ranked: ``best_guess`` is then set.
+    evidence) whenever they were ranked: ``best_guess`` is then set. ``doubts`` gives each
+    factor that the checks put on the best guess's confidence, as (what it says, factor),
+    1.0 where the check is clear (empty when no state was ranked). ``mirroring`` is the
+    camera's handedness it was classified with (``"no"``, ``"yes"``, ``"unknown"``:
+    :func:`~dgli_vision.core.handedness.camera_mirroring`); ``unmirrored`` is True when the
+    frame was flipped left to right first (a camera declared mirrored), so that every
+    pixel position in the result is one of the flipped image
+    (:func:`~dgli_vision.core.handedness.unmirrored`) and every 3D point the scene's own.
     """
 
     detections: StickerDetections
@@ -263,6 +271,15 @@ class FrameResult:
     affordances: Affordances | None = None
     distances: NDArray[np.float64] | None = None
     fit: StateFit | None = None
+    doubts: tuple[tuple[str, float], ...] = ()
+    mirroring: str = "no"
+    unmirrored: bool = False
+
+    def frame_as_read(self, frame: RGBDFrame) -> RGBDFrame:
+        """``frame`` (the one classified) as the pipeline read it: flipped left to right
+        when it was un-mirrored (``unmirrored``), so that the result's pixels are its own
+        (for overlays and for placing a plan in the camera)."""
+        return unmirrored(frame) if self.unmirrored else frame
 
     def to_json(self, color: str, depth: str) -> dict[str, Any]:
         """The JSON object of ``dgli classify --json``, naming the pair as ``color`` and
@@ -475,6 +492,7 @@ def classify_frame(
     params: DetectorParams | None = None,
     min_confidence: float = MIN_CONFIDENCE,
     colours: dict[str, tuple[int, int, int]] | None = None,
+    mirroring: str | None = None,
 ) -> FrameResult:
     """Classify one RGB-D frame.
 
@@ -490,6 +508,12 @@ def classify_frame(
         :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE`).
     colours : dict, keyword-only, optional
         Calibrated sticker colours (``dgli calibrate``); default: the nominal ones.
+    mirroring : {"no", "yes", "unknown"}, keyword-only, optional
+        Whether the camera mirrors its image (default: as the frame's intrinsics declare,
+        ``"mirrored"``, else ``"no"``: :func:`~dgli_vision.core.handedness.camera_mirroring`).
+        ``"yes"`` flips the frame left to right before reading it
+        (:func:`~dgli_vision.core.handedness.unmirrored`); ``"unknown"`` never gives 02,
+        03, 09 or 10 a confidence above 0.45 (docs/robustness.md).
 
     Returns
     -------
@@ -497,15 +521,20 @@ def classify_frame(
         With ``prediction`` None and a ``reason`` when too few stickers were seen or
         the confidence is below ``min_confidence``.
     """
+    mode = camera_mirroring(mirroring, frame.intrinsics)
+    if mode == "yes":
+        frame = unmirrored(frame)
     layout = layout or layout_of_size(references.napkin_mm)
     clock = StageClock()
     detections, markers, obs = observe(frame, layout, params, colours=colours, clock=clock)
     result = _judge(
-        frame, references, layout, (detections, markers, obs), min_confidence, clock
+        frame, references, layout, (detections, markers, obs), min_confidence, clock, mode
     )
     result = _with_affordances(result, layout, frame)
     clock.lap("affordances")
-    return replace(result, timings_ms=dict(clock.ms))
+    return replace(
+        result, timings_ms=dict(clock.ms), mirroring=mode, unmirrored=mode == "yes"
+    )
 
 
 def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFrame) -> FrameResult:
@@ -522,6 +551,10 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     p = replace(p, corners=aff.corners, folds=aff.folds)
     guess = p if result.best_guess is result.prediction else result.best_guess
     return replace(result, prediction=p, best_guess=guess, affordances=aff)
+
+
+#: What the border factor (:func:`~.capture_limits.border_factor`) says in ``doubts``.
+BORDER_DOUBT_NAME = "stickers near the image border, lens distortion unknown"
 
 
 #: The landing check's measure (:func:`_landing`): how much farther the landing partner
@@ -643,10 +676,14 @@ def _judge(
     seen: tuple[StickerDetections, Markers3D, ClothObservation],
     min_confidence: float,
     clock: StageClock,
+    mirroring: str = "unknown",
 ) -> FrameResult:
     """The verdict on an observed frame: the fault checks, the nearest reference and
     its confidence, whether its state's folds explain what was seen, or "cannot tell"
-    and why."""
+    and why. With the camera's handedness ``"unknown"``, a state of
+    :data:`~.consistency.MIRROR_TWINS` is never confident (its twin, back face up under
+    a mirroring camera, looks the same); a camera known not to mirror (``"no"``, or one
+    un-mirrored first) leaves it its confidence."""
     detections, markers, obs = seen
     coords = cloth_coordinates(obs.segments, obs.up)
     seen_as = {
@@ -674,16 +711,22 @@ def _judge(
     if border < 1.0:  # an uncorrected lens may have moved the stickers near the border
         guess = replace(guess, confidence=round(guess.confidence * border, 4))
     clock.lap("classify")
-    checks = _checks(obs, coords, references, evidence, terms, guess, layout)
+    checks = _checks(obs, coords, references, evidence, terms, guess, layout, mirroring)
     clock.lap("checks")
     # each check lowers the confidence continuously; where one rules the verdict out the
     # nearest reference stays for reports, with the confidence left to it
     unchecked = guess.confidence
     if checks.factor < 1.0:
         guess = replace(guess, confidence=round(guess.confidence * checks.factor, 4))
-    if guess.class_id in MIRROR_TWINS and guess.confidence > MIRROR_TWIN_CONFIDENCE:
+    if (
+        mirroring == "unknown" and guess.class_id in MIRROR_TWINS
+        and guess.confidence > MIRROR_TWIN_CONFIDENCE
+    ):
         guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
-    told = {"best_guess": guess, "candidates": checks.near, "distances": front, "fit": checks.fit}
+    told = {
+        "best_guess": guess, "candidates": checks.near, "distances": front, "fit": checks.fit,
+        "doubts": (*checks.lowering(), (BORDER_DOUBT_NAME, border)),
+    }
     why, reason = _ruled_out(obs, references, layout, terms, checks, guess, stretched)
     if reason is None and checks.told is not None and unchecked >= min_confidence:
         why, reason = WhyKind.TOO_CLOSE, f"cannot tell: {checks.told}"
@@ -766,6 +809,7 @@ def _checks(
     terms: Any,
     guess: Prediction,
     layout: NapkinLayout,
+    mirroring: str = "unknown",
 ) -> _Checks:
     """The checks of the verdict ``guess``: the mirrored reading, the footprint, a flap
     held up (where it lands, near vertical) and the state's own folds."""
@@ -773,7 +817,8 @@ def _checks(
     area = layout.width_mm * layout.height_mm
     near = _candidates(front, references)
     mirror = mirror_problem(
-        coords, references, evidence, obs.footprint, area, front=front, terms=terms
+        coords, references, evidence, obs.footprint, area, front=front, terms=terms,
+        mirroring=mirroring,
     )
     fit = fit_state(obs, guess.class_id, guess.variant, layout)
     # a flap in the air, one the state can be folding, stands over the table the camera
@@ -919,7 +964,9 @@ def _low_confidence_reason(
             f"{guess.class_id} {guess.name} and {ru.class_id} {ru.name} are nearly as close "
             f"({guess.distance:.3f} vs {ru.distance:.3f})"
         )
-    if obs.evidence is not None and obs.evidence.occluded:
+    raised = obs.flap_deg is not None and bool(np.isfinite(obs.flap_deg).any())
+    occluded = obs.evidence is not None and obs.evidence.occluded
+    if occluded and not raised:  # (a flap raised is itself cloth above the napkin)
         why.append("the napkin is partly covered by an object above it")
     why.extend(f"{what} (confidence x{f:.2f})" for what, f in checks if f < 1.0)
     if border < 1.0:
@@ -930,7 +977,10 @@ def _low_confidence_reason(
     unknown = _unknown_summary(obs)
     if unknown:
         why.append(unknown)
-    if obs.flap_deg is not None and np.isfinite(obs.flap_deg).any():
-        why.append(f"a flap held up at about {np.nanmedian(obs.flap_deg):.0f} degrees")
+    if raised:
+        why.append(
+            f"a flap is raised, at about {np.nanmedian(obs.flap_deg):.0f} degrees"
+            + (" (it, or an object holding it, stands above the napkin)" if occluded else "")
+        )
     why.append(f"{n} of {len(obs.visible)} stickers located")
     return "cannot tell: " + "; ".join(why)

@@ -1,8 +1,10 @@
-"""``dgli calibrate``: the printed sticker colours (and the lens) from one image."""
+"""``dgli calibrate``: the printed sticker colours, the camera's handedness (and the
+lens) from one image of the flat napkin."""
 
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 from typing import Any
 
 import click
@@ -28,6 +30,13 @@ from .output import command_line, echo, package_version
     'Open3D JSON with "distortion", or an OpenCV file for .yaml/.yml/.xml.',
 )
 @click.option(
+    "--intrinsics-out",
+    type=click.Path(),
+    help="Write the intrinsics (as given, or as found beside COLOR) with the camera's "
+    'handedness, "mirrored": true or false (Open3D JSON, or an OpenCV file for '
+    ".yaml/.yml/.xml). --lens-out writes it too.",
+)
+@click.option(
     "--focal",
     is_flag=True,
     help="With --lens-out, estimate the focal length too (from the stickers' depths).",
@@ -40,14 +49,20 @@ def calibrate(
     depth: str,
     output: str | None,
     lens_out: str | None,
+    intrinsics_out: str | None,
     focal: bool,
     intrinsics: str | None,
     overwrite: bool,
 ) -> None:
-    """Measure the printed sticker colours (and the lens) from one image of the flat napkin.
+    """Measure the printed sticker colours, the camera's handedness (and the lens) from
+    one image of the flat napkin, lying unfolded and front face up.
 
     All 16 stickers must be in view. Use the colours with --colours on classify and
-    evaluate when stickers print far from the nominal colours. With --lens-out, the
+    evaluate when stickers print far from the nominal colours. The handedness (does the
+    camera mirror its image?) is said, and written as "mirrored" into the intrinsics of
+    --intrinsics-out and --lens-out: put that file beside the images as intrinsics.json,
+    or give it with --intrinsics (a camera not declared mirrored is taken as not
+    mirrored). With --lens-out, the
     radial lens distortion is fitted to the 16 sticker centres as to a chessboard. It is
     determined only if the stickers reach well towards the image border (place the napkin
     off to one side, towards a corner); otherwise nothing is written and the exit code
@@ -56,17 +71,52 @@ def calibrate(
     from ..core.io import guard_outputs
     from ..sources.frames import read_frame
 
-    if output is None and lens_out is None:
-        raise click.UsageError("give -o FILE (the colours) and/or --lens-out FILE (the lens)")
+    if output is None and lens_out is None and intrinsics_out is None:
+        raise click.UsageError(
+            "give -o FILE (the colours), --intrinsics-out FILE (the camera's handedness) "
+            "and/or --lens-out FILE (the lens)"
+        )
     if focal and lens_out is None:
         raise click.UsageError("--focal needs --lens-out")
-    guard_outputs([p for p in (output, lens_out) if p], overwrite=overwrite)
+    guard_outputs([p for p in (output, lens_out, intrinsics_out) if p], overwrite=overwrite)
     frame = read_frame(color, depth, intrinsics)
     if output is not None:
         _calibrate_colours(frame, color, output, overwrite)
+    mirrored = _calibrate_handedness(frame, color)
+    if intrinsics_out is not None:
+        _write_intrinsics(replace(frame.intrinsics, mirrored=mirrored), intrinsics_out,
+                          overwrite)
     if lens_out is None:
         return
-    _calibrate_lens(frame, color, lens_out, focal, overwrite)
+    _calibrate_lens(frame, color, lens_out, focal, overwrite, mirrored)
+
+
+def _calibrate_handedness(frame: Any, color: str) -> bool:
+    """Whether the camera of ``frame`` mirrors its image, said in one line."""
+    from ..core.layout import default_layout
+    from ..perception.calibrate import calibrate_handedness
+
+    mirrored = calibrate_handedness(
+        frame.color, frame.depth_mm, frame.intrinsics, default_layout(), source=color
+    )
+    echo(
+        "handedness: the camera mirrors its image (the stickers run the other way round "
+        "than printed; or is the napkin back face up?)" if mirrored
+        else "handedness: the camera does not mirror its image (the stickers run as printed)"
+    )
+    return mirrored
+
+
+def _write_intrinsics(intr: Any, path: str, overwrite: bool) -> None:
+    """Write intrinsics ``intr`` to ``path`` (by its extension) and say so."""
+    from pathlib import Path
+
+    from ..core.io import write_outputs
+    from ..sources.intrinsics_files import intrinsics_text
+
+    write_outputs({Path(path): intrinsics_text(intr, path)}, overwrite=overwrite,
+                  command=command_line())
+    echo(f"wrote {path}")
 
 
 def _calibrate_colours(frame: Any, color: str, output: str, overwrite: bool) -> None:
@@ -90,16 +140,14 @@ def _calibrate_colours(frame: Any, color: str, output: str, overwrite: bool) -> 
     echo(f"wrote {output}")
 
 
-def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrite: bool) -> None:
+def _calibrate_lens(
+    frame: Any, color: str, lens_out: str, focal: bool, overwrite: bool, mirrored: bool
+) -> None:
     """Estimate the lens of ``frame`` (read from ``color``), say what was found, and write
-    the intrinsics with it to ``lens_out``; exit 1 without writing when the view does not
-    determine it."""
-    from pathlib import Path
-
-    from ..core.io import write_outputs
+    the intrinsics with it (and the camera's handedness ``mirrored``) to ``lens_out``;
+    exit 1 without writing when the view does not determine it."""
     from ..core.layout import default_layout
     from ..perception.lens import estimate_lens
-    from ..sources.intrinsics_files import intrinsics_text
 
     est = estimate_lens(
         frame.color,
@@ -117,9 +165,7 @@ def _calibrate_lens(frame: Any, color: str, lens_out: str, focal: bool, overwrit
             err=True,
         )
         sys.exit(1)
-    text = intrinsics_text(est.intrinsics, lens_out)
-    write_outputs({Path(lens_out): text}, overwrite=overwrite, command=command_line())
-    echo(f"wrote {lens_out}")
+    _write_intrinsics(replace(est.intrinsics, mirrored=mirrored), lens_out, overwrite)
 
 
 def _lens_lines(est: Any) -> list[str]:

@@ -13,6 +13,7 @@ from .options import (
     image_output,
     intrinsics_option,
     json_option,
+    mirroring_option,
     overwrite_option,
     references_option,
 )
@@ -26,6 +27,7 @@ from .output import command_line, echo, echo_json, verdict_json
 @references_option
 @colours_option
 @extrinsics_option
+@mirroring_option
 @json_option("Print one JSON object.")
 @click.option(
     "--overlay",
@@ -42,6 +44,7 @@ def classify_cmd(
     references_path: str | None,
     colours_path: str | None,
     extrinsics_path: str | None,
+    mirroring: str | None,
     as_json: bool,
     overlay: str | None,
     overwrite: bool,
@@ -51,7 +54,8 @@ def classify_cmd(
     Exit 1 when no class can be given: too few stickers seen, or a confidence below
     the documented threshold ("cannot tell", with the reason). With --extrinsics the
     JSON's 3D points (corners, folds, the table's normal "up") are in the robot's base
-    frame.
+    frame. With --mirroring yes (or "mirrored": true in the intrinsics) the frame is read
+    un-mirrored, and the overlay shows it so.
     """
     from pathlib import Path
 
@@ -69,11 +73,11 @@ def classify_cmd(
     frame = read_frame(color, depth, intrinsics)
     refs = load_references(references_path)
     colours = read_colours(colours_path) if colours_path else None
-    result = classify_frame(frame, refs, colours=colours)
+    result = classify_frame(frame, refs, colours=colours, mirroring=mirroring)
     if overlay:
         write_outputs(
-            {Path(overlay): frame_overlay(frame, result)}, overwrite=overwrite,
-            command=command_line(),
+            {Path(overlay): frame_overlay(result.frame_as_read(frame), result)},
+            overwrite=overwrite, command=command_line(),
         )
     if as_json:
         echo_json(verdict_json(result, color, depth, extrinsics))

@@ -35,6 +35,19 @@ extrinsics_option = click.option(
 )
 
 
+#: ``--mirroring no|yes|unknown``: the camera's handedness
+#: (:func:`dgli_vision.core.handedness.camera_mirroring`); None: as the intrinsics declare.
+mirroring_option = click.option(
+    "--mirroring",
+    type=click.Choice(["no", "yes", "unknown"]),
+    default=None,
+    help="Whether the camera mirrors its image left to right: no; yes (its frames are "
+    "read un-mirrored); unknown (02, 03, 09 and 10 then never reach confidence 0.5: a "
+    "napkin back face up under a mirroring camera shows their twin) [default: as the "
+    'intrinsics declare ("mirrored", written by dgli calibrate), else no].',
+)
+
+
 colours_option = click.option(
     "--colours",
     "colours_path",

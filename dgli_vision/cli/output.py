@@ -10,12 +10,7 @@ from typing import Any
 
 import click
 
-from ..core.errors import OutputError
-
-
-class StdoutClosed(Exception):
-    """Standard output is a pipe whose reader has gone (``dgli ... | head -1``): the
-    command ends quietly, as Unix tools do (:func:`~dgli_vision.cli.errors.handle_errors`)."""
+from ..core.errors import OutputError, StdoutClosed
 
 
 def stdout_name() -> str:
@@ -106,11 +101,12 @@ def verdict_json(result: Any, color: str, depth: str, extrinsics: Any = None) ->
     :class:`~dgli_vision.classifier.pipeline.FrameResult`: its ``to_json()`` with the
     table's normal ``"up"`` and ``"frame"``, every 3D point in the frame of
     ``extrinsics`` (an :class:`~dgli_vision.core.extrinsics.Extrinsics`; None: the
-    camera's)."""
+    camera's), and the camera's handedness it was read with, ``"mirroring"``."""
     from ..core.extrinsics import in_frame
 
     data = result.to_json(color, depth)
     data["up"] = [round(float(v), 6) for v in result.observation.up]
+    data["mirroring"] = getattr(result, "mirroring", "no")
     return in_frame(data, extrinsics)
 
 

@@ -15,6 +15,7 @@ from .options import (
     image_output,
     intrinsics_option,
     json_option,
+    mirroring_option,
     overwrite_option,
     references_option,
 )
@@ -58,12 +59,17 @@ def _plan_line(plan, extrinsics=None) -> str:
     return text
 
 
-def plan_json(plan, extrinsics=None) -> dict:
-    """``dgli plan --json``'s object: the plan's, every 3D point in the frame of
-    ``extrinsics`` (None: the camera's), with ``"frame"`` naming it."""
+def plan_json(plan, extrinsics=None, up=None) -> dict:
+    """``dgli plan --json``'s object: the plan's, with the table's normal ``up`` (the
+    direction a grasped corner is lifted along) for a plan made from an image, every 3D
+    point in the frame of ``extrinsics`` (None: the camera's), with ``"frame"`` naming
+    it."""
     from ..core.extrinsics import in_frame
 
-    return in_frame(plan.to_json(), extrinsics)
+    data = plan.to_json()
+    if up is not None:
+        data["up"] = [round(float(v), 6) for v in up]
+    return in_frame(data, extrinsics)
 
 
 def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> None:
@@ -142,6 +148,7 @@ def _geometry_lines(g: dict) -> None:
 @intrinsics_option
 @references_option
 @extrinsics_option
+@mirroring_option
 @json_option("Print the plan (or the check's table) as one JSON object.")
 @click.option("--overlay", type=click.Path(dir_okay=False), callback=image_output,
               help="Draw the next step (grasp, place, fold line) on the image.")
@@ -161,6 +168,7 @@ def plan_cmd(
     intrinsics: str | None,
     references_path: str | None,
     extrinsics_path: str | None,
+    mirroring: str | None,
     as_json: bool,
     overlay: str | None,
     overwrite: bool,
@@ -194,6 +202,7 @@ def plan_cmd(
     if start is not None and (color is not None or overlay):
         raise click.UsageError("--from plans without an image: give no COLOR, DEPTH or --overlay")
     layout = layout_of_size(refs.napkin_mm)
+    up = None  # the table's normal, for a plan made from an image
     try:
         if start is not None:
             plan = plan_geometry(start, goal, layout, None, None, None)
@@ -205,7 +214,9 @@ def plan_cmd(
             if overlay:
                 guard_outputs([overlay], overwrite=overwrite)
             frame = read_frame(color, depth, intrinsics)
-            result = classify_frame(frame, refs, layout=layout)
+            result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
+            frame = result.frame_as_read(frame)  # the pixels the plan is placed in
+            up = result.observation.up
             try:
                 plan = plan_frame(result, frame, goal, layout)
             except PlanRefused as exc:  # the overlay still shows the frame, and why
@@ -223,13 +234,15 @@ def plan_cmd(
             echo(f"no plan: {exc}" if not str(exc).startswith("no plan") else str(exc))
         sys.exit(1)
     if verify_pair:
-        _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json, extrinsics)
+        _verify(plan, verify_pair, intrinsics, refs, layout, tolerance, as_json, extrinsics,
+                mirroring, up)
         return
-    echo(json.dumps(plan_json(plan, extrinsics)) if as_json else _plan_line(plan, extrinsics))
+    echo(json.dumps(plan_json(plan, extrinsics, up)) if as_json
+         else _plan_line(plan, extrinsics))
 
 
 def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: bool,
-            extrinsics=None) -> None:
+            extrinsics=None, mirroring: str | None = None, up=None) -> None:
     """``--verify``: the frame after the plan's first step against its expected state
     and planned crease; exit 1 unless the step succeeded."""
     from ..classifier.pipeline import classify_frame
@@ -243,12 +256,12 @@ def _verify(plan, pair, intrinsics, refs, layout, tolerance: float, as_json: boo
         raise click.UsageError("--verify: the plan has no step (already at the goal)")
     step = plan.steps[0]
     frame = read_frame(pair[0], pair[1], intrinsics)
-    result = classify_frame(frame, refs, layout=layout)
+    result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
     crease = Crease.through(*step.crease_mm) if step.crease_mm is not None else None
     check = verify_fold(result, step.expect, layout, fold=step.fold if crease else None,
                         crease=crease, tolerance_mm=tolerance)
     if as_json:
-        echo_json({"plan": plan_json(plan, extrinsics),
+        echo_json({"plan": plan_json(plan, extrinsics, up),
                    "verify": in_frame(check.to_json(), extrinsics)})
         if not check.success:
             sys.exit(1)

@@ -9,7 +9,13 @@ import sys
 import click
 
 from .errors import handle_errors
-from .options import extrinsics_option, intrinsics_option, json_option, references_option
+from .options import (
+    extrinsics_option,
+    intrinsics_option,
+    json_option,
+    mirroring_option,
+    references_option,
+)
 from .output import echo
 
 
@@ -75,6 +81,7 @@ def report(check, as_json: bool, extrinsics=None) -> None:
 @intrinsics_option
 @references_option
 @extrinsics_option
+@mirroring_option
 @json_option("Print the verdict, with every error, as one JSON object.")
 @handle_errors
 def verify_cmd(
@@ -88,6 +95,7 @@ def verify_cmd(
     intrinsics: str | None,
     references_path: str | None,
     extrinsics_path: str | None,
+    mirroring: str | None,
     as_json: bool,
 ) -> None:
     """Did the fold work? Classify COLOR DEPTH (taken after the fold) and check it is
@@ -110,7 +118,7 @@ def verify_cmd(
     refs = load_references(references_path)
     layout = layout_of_size(refs.napkin_mm)
     frame = read_frame(color, depth, intrinsics)
-    result = classify_frame(frame, refs, layout=layout)
+    result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
     check = verify_fold(result, expect, layout, legs=legs, inset_mm=inset, tip_mm=tip,
                         tolerance_mm=tolerance)
     report(check, as_json, extrinsics)

@@ -250,7 +250,7 @@ class _Printer:
             from ..core.io import write_png
 
             name = self.overlays / f"frame_{update.frame:06d}.png"
-            write_png(name, frame_overlay(frame, result))
+            write_png(name, frame_overlay(result.frame_as_read(frame), result))
         if self.jsonl:  # "frame" is the frame's number: the points' frame is points_frame
             from ..core.extrinsics import in_frame
 

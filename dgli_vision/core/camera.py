@@ -51,6 +51,11 @@ class Intrinsics:
     distortion : tuple of float
         OpenCV's distortion coefficients ``(k1, k2, p1, p2[, k3[, k4, k5, k6]])``;
         empty (the default) or all zero for an ideal pinhole.
+    mirrored : bool or None
+        The camera's declared handedness (``"mirrored"`` in an intrinsics file, written
+        by ``dgli calibrate``): True for a camera that mirrors its image left to right,
+        False for one that does not, None when not declared (then taken as not mirrored:
+        :func:`dgli_vision.core.handedness.camera_mirroring`).
     """
 
     width: int
@@ -60,6 +65,7 @@ class Intrinsics:
     cx: float
     cy: float
     distortion: tuple[float, ...] = ()
+    mirrored: bool | None = None
 
     @property
     def distorted(self) -> bool:
@@ -73,8 +79,9 @@ class Intrinsics:
     def to_open3d_dict(self) -> dict[str, object]:
         """Open3D ``PinholeCameraIntrinsic`` JSON (matrix stored column-major).
 
-        A lens with distortion adds ``"distortion": [k1, k2, p1, p2, k3...]``, a key
-        Open3D ignores (the file stays loadable there)."""
+        A lens with distortion adds ``"distortion": [k1, k2, p1, p2, k3...]``, and a
+        declared handedness ``"mirrored": true|false``: keys Open3D ignores (the file
+        stays loadable there)."""
         out: dict[str, object] = {
             "width": self.width,
             "height": self.height,
@@ -82,6 +89,8 @@ class Intrinsics:
         }
         if self.distorted:
             out["distortion"] = [float(c) for c in self.distortion]
+        if self.mirrored is not None:
+            out["mirrored"] = bool(self.mirrored)
         return out
 
     def ray_directions(self) -> NDArray[np.float64]:

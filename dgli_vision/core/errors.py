@@ -1,7 +1,11 @@
 """The error hierarchy: every failure the library reports is a :class:`DgliError`.
 
 The CLI turns these into a one-line message and an exit code in one handler; library
-code raises them and never prints or exits.
+code raises them and never prints or exits. Every exception class of the package lives
+here, also the two that are not a :class:`DgliError` (:class:`StdoutClosed`, the quiet
+end of a closed pipe, and :class:`McapError`, which the recording readers turn into one
+that names the file); the modules that raise them import them from here under the same
+names (``dgli_vision.planning.plan.PlanRefused`` and the others still work).
 """
 
 from __future__ import annotations
@@ -12,12 +16,15 @@ __all__ = [
     "DgliError",
     "InvalidInputError",
     "InvalidValueError",
+    "McapError",
     "MissingExtraError",
     "OutputError",
     "OverwriteError",
+    "PlanRefused",
     "ReferenceSetError",
     "ResumeMismatchError",
     "RunBusyError",
+    "StdoutClosed",
     "UnreadableInputError",
 ]
 
@@ -84,6 +91,24 @@ class RunBusyError(DgliError):
 
 class ResumeMismatchError(DgliError):
     """``--resume`` was asked of a journal written by a different run (exit code 2)."""
+
+
+class PlanRefused(DgliError):
+    """No plan: the goal is not reachable by single folds, or the state cannot be told,
+    or the step's corner cannot be placed. The message is the reason (raised by
+    :mod:`dgli_vision.planning`)."""
+
+
+class StdoutClosed(Exception):
+    """Standard output is a pipe whose reader has gone (``dgli ... | head -1``): the
+    command ends quietly, as Unix tools do (:func:`~dgli_vision.cli.errors.handle_errors`).
+    Not a :class:`DgliError`: it is no failure to report."""
+
+
+class McapError(ValueError):
+    """A record of an MCAP file that does not fit the file or its chunk (truncated or
+    corrupt), raised by :mod:`dgli_vision.sources.mcap_file`; the recording readers turn
+    it into an :class:`UnreadableInputError` naming the file."""
 
 
 def __getattr__(name: str) -> type[DgliError]:

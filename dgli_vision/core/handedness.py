@@ -6,19 +6,48 @@ corner on a flap folded over, or the napkin lying back face up) or in a mirror, 
 other way. This is napkin geometry, shared by the simulator (each reference's back-face
 rate, from states seen from above) and by perception (the turn in an image:
 :mod:`dgli_vision.perception.handedness`).
+
+The camera's own handedness (:data:`MIRRORING`) says which of the two a clockwise turn
+can be. A camera that does not mirror (the default: a camera not declared mirrored is
+taken as not mirrored, as the RealSense, Azure Kinect and ZED drivers never mirror) leaves
+one cause of a mirrored layout, the napkin lying back face up, and rules out the double
+fault (back face up under a mirroring camera) that shows a front-up state's twin. A
+camera declared mirrored is un-mirrored before its frames are read
+(:func:`unmirrored`), and is then one that does not mirror. ``"unknown"`` keeps both
+causes, and the caution of the double fault.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 from itertools import combinations
+from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from .camera import Intrinsics
+from .errors import InvalidValueError
+from .frame import RGBDFrame
 from .layout import CORNER_STICKERS, NapkinLayout
 
-__all__ = ["MIN_SHAPE", "back_face_up", "corner_turns"]
+__all__ = [
+    "MIN_SHAPE",
+    "MIRRORING",
+    "Mirroring",
+    "back_face_up",
+    "camera_mirroring",
+    "corner_turns",
+    "unmirrored",
+    "unmirrored_intrinsics",
+]
+
+#: The camera's handedness as a command or the API is told it (``--mirroring``,
+#: ``mirroring=``): ``"no"`` the camera does not mirror its image, ``"yes"`` it mirrors
+#: it left to right, ``"unknown"`` either.
+Mirroring = Literal["no", "yes", "unknown"]
+MIRRORING: tuple[str, ...] = ("no", "yes", "unknown")
 
 #: Smallest twice-signed area of a corner's sticker triangle, as a share of the squared
 #: longest side, that counts: below it the triangle is seen nearly edge on (a flap near
@@ -104,3 +133,54 @@ def back_face_up(turns: NDArray[np.float64]) -> NDArray[np.float64]:
     +1, NaN where not told (0)."""
     t = np.asarray(turns, dtype=float)
     return np.where(t == 0, np.nan, (t < 0).astype(float))
+
+
+def camera_mirroring(mirroring: str | None, intrinsics: Intrinsics | None = None) -> str:
+    """The camera's handedness to classify with: ``mirroring`` when given, else as the
+    intrinsics declare it (``"mirrored"`` in the intrinsics file, written by ``dgli
+    calibrate``), else ``"no"``.
+
+    Parameters
+    ----------
+    mirroring : {"no", "yes", "unknown"} or None
+    intrinsics : Intrinsics, optional
+
+    Raises
+    ------
+    InvalidValueError
+        ``mirroring`` is none of :data:`MIRRORING`.
+    """
+    if mirroring is None:
+        declared = None if intrinsics is None else intrinsics.mirrored
+        return "yes" if declared else "no"
+    if mirroring not in MIRRORING:
+        raise InvalidValueError(
+            f"mirroring must be one of {', '.join(MIRRORING)}, got {mirroring!r}"
+        )
+    return mirroring
+
+
+def unmirrored_intrinsics(intrinsics: Intrinsics) -> Intrinsics:
+    """The intrinsics of an image flipped left to right: the principal point mirrored
+    (``cx`` to ``width - 1 - cx``, pixel centres), the tangential ``p2`` negated (the
+    lens model's only term odd in x), declared not mirrored."""
+    d = tuple(intrinsics.distortion)
+    if len(d) >= 4:
+        d = (*d[:3], -d[3], *d[4:])
+    return replace(
+        intrinsics, cx=intrinsics.width - 1 - intrinsics.cx, distortion=d, mirrored=False
+    )
+
+
+def unmirrored(frame: RGBDFrame) -> RGBDFrame:
+    """A mirroring camera's frame as a camera that does not mirror sees the scene:
+    colour and depth flipped left to right together, the intrinsics with them
+    (:func:`unmirrored_intrinsics`). Its points lift to the scene's own places in the
+    camera frame (x right, y down, z forward), and pixels are those of the flipped image.
+    """
+    return replace(
+        frame,
+        color=np.ascontiguousarray(frame.color[:, ::-1]),
+        depth_mm=np.ascontiguousarray(frame.depth_mm[:, ::-1]),
+        intrinsics=unmirrored_intrinsics(frame.intrinsics),
+    )

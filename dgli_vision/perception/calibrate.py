@@ -17,7 +17,7 @@ from ..core.camera import Intrinsics
 from ..core.layout import NapkinLayout
 from .detect import DetectorParams, detect_all_stickers
 
-__all__ = ["calibrate_colours"]
+__all__ = ["calibrate_colours", "calibrate_handedness"]
 
 
 def calibrate_colours(
@@ -76,3 +76,63 @@ def calibrate_colours(
         px = np.concatenate(parts).astype(np.float64)
         out[name] = tuple(int(v) for v in np.rint(np.median(px, axis=0)))
     return out
+
+
+def calibrate_handedness(
+    color: NDArray[np.uint8],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    *,
+    params: DetectorParams | None = None,
+    source: str = "image",
+) -> bool:
+    """Whether the camera mirrors its image, from one image of the flat napkin lying front
+    face up (all 16 stickers in view).
+
+    Seen from the front, the stickers around every corner run as printed
+    (:func:`~dgli_vision.perception.handedness.image_turns`): a camera that mirrors its
+    image shows all four corners the other way round. A perspective view of the flat
+    napkin keeps the turn, whatever the camera's tilt.
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+    depth_mm : ndarray of uint16, shape (H, W)
+    intrinsics : Intrinsics
+    layout : NapkinLayout
+    params : DetectorParams, keyword-only, optional
+        Default: as :func:`calibrate_colours` finds the stickers.
+    source : str, keyword-only
+        Name of the image, for messages.
+
+    Returns
+    -------
+    bool
+        True: the camera mirrors its image (or the napkin lies back face up: the image
+        alone cannot tell those apart, so lay it front face up).
+
+    Raises
+    ------
+    CalibrationError
+        Fewer than 16 stickers found, or corners that do not all turn one way (the napkin
+        not flat, or stickers misplaced).
+    """
+    from ..core.errors import CalibrationError
+    from .handedness import image_turns
+
+    params = params or DetectorParams(max_hue_distance=40)
+    det, _ = detect_all_stickers(
+        color, depth_mm, intrinsics, layout, params, source=source, purpose="calibration"
+    )
+    turns = image_turns(det.centroids, layout)
+    if (turns == 1).all():
+        return False
+    if (turns == -1).all():
+        return True
+    ways = {1: "as printed", -1: "the other way", 0: "neither way clearly"}
+    told = ", ".join(f"{c} {ways[int(t)]}" for c, t in zip("ABCD", turns))
+    raise CalibrationError(
+        f"'{source}': the stickers of the corners do not all run one way round ({told}): "
+        "lay the napkin flat, unfolded, front face up"
+    )

@@ -52,6 +52,7 @@ def plan(
     intrinsics: Any = None,
     references: Any = None,
     extrinsics: Any = None,
+    mirroring: str | None = None,
 ) -> Plan:
     """The next folds towards ``goal``: from a colour + depth pair (classified first),
     or from a known state ``start`` (then the steps carry no points).
@@ -71,6 +72,9 @@ def plan(
         The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the steps'
         grasp and place points and fold lines are then in the robot's base frame (as
         with ``--extrinsics``); default the camera frame.
+    mirroring : {"no", "yes", "unknown"}, optional
+        The camera's handedness, as for
+        :func:`~dgli_vision.classifier.api.classify_pair`.
 
     Returns
     -------
@@ -96,8 +100,8 @@ def plan(
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)
     layout = layout_of_size(refs.napkin_mm)
-    result = classify_frame(frame, refs, layout=layout)
-    made = plan_frame(result, frame, target, layout)
+    result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
+    made = plan_frame(result, result.frame_as_read(frame), target, layout)
     return made if ext is None else _in_frame(made, ext)
 
 
@@ -159,6 +163,7 @@ def verify(
     tolerance: float = DEFAULT_TOLERANCE_MM,
     intrinsics: Any = None,
     references: Any = None,
+    mirroring: str | None = None,
 ) -> FoldCheck:
     """Did the fold work? The frame taken after a fold against the state it should
     have made and, optionally, the fold's planned sizes (what ``dgli verify`` does).
@@ -183,7 +188,7 @@ def verify(
         (in place of ``expect`` and the sizes).
     tolerance : float
         How far (mm) a planned size may be missed (20).
-    intrinsics, references : optional
+    intrinsics, references, mirroring : optional
         As for :func:`~dgli_vision.classifier.api.classify_pair`.
 
     Returns
@@ -238,5 +243,5 @@ def verify(
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)
     layout = layout_of_size(refs.napkin_mm)
-    result = classify_frame(frame, refs, layout=layout)
+    result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
     return verify_fold(result, key, layout, tolerance_mm=float(tolerance), **sizes)

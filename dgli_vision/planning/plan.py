@@ -26,7 +26,7 @@ from ..classifier.affordances import (
     fold_line_3d,
 )
 from ..core.classes import CLASS_HINT, CORNERS, VARIANTS, class_id_of, digits_note
-from ..core.errors import DgliError, InvalidValueError
+from ..core.errors import InvalidValueError, PlanRefused
 from ..core.fold_graph import StateKey, fold_edges, folds_of
 from ..core.fold_lines import NominalFold, fold_for_word, reflect_uv
 from ..core.layout import NapkinLayout
@@ -45,11 +45,6 @@ __all__ = [
 #: Added to the height a grasped point reaches when its flap stands vertical (its
 #: distance from the fold line), m: the gripper's lift clears the cloth by this much.
 LIFT_CLEARANCE_M = 0.02
-
-
-class PlanRefused(DgliError):
-    """No plan: the goal is not reachable by single folds, or the state cannot be told,
-    or the step's corner cannot be placed. The message is the reason."""
 
 
 def parse_state(text: str, *, need_variant: bool = True) -> StateKey:

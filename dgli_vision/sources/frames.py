@@ -259,8 +259,10 @@ def _depth_of(image: NDArray, p: Path) -> NDArray[np.uint16]:
 
 def parse_intrinsics(data: Any, source: str) -> Intrinsics:
     """Validate Open3D ``PinholeCameraIntrinsic`` JSON (matrix column-major), with an
-    optional ``"distortion": [k1, k2, p1, p2[, k3...]]`` (OpenCV's order; Open3D itself
-    ignores the key).
+    optional ``"distortion": [k1, k2, p1, p2[, k3...]]`` (OpenCV's order) and
+    ``"mirrored": true|false``, the camera's declared handedness
+    (:func:`~dgli_vision.sources.intrinsics_files.parse_mirrored`); Open3D itself ignores
+    both keys.
 
     Raises
     ------
@@ -272,6 +274,7 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
         check_size_and_focal,
         make_intrinsics,
         parse_distortion,
+        parse_mirrored,
     )
 
     if not isinstance(data, dict):
@@ -307,7 +310,8 @@ def parse_intrinsics(data: Any, source: str) -> Intrinsics:
     distortion: tuple[float, ...] = ()
     if data.get("distortion") is not None:
         distortion = parse_distortion(data["distortion"], source)
-    return make_intrinsics(width, height, fx, fy, cx, cy, distortion, source)
+    mirrored = parse_mirrored(data, source)
+    return make_intrinsics(width, height, fx, fy, cx, cy, distortion, source, mirrored)
 
 
 def _looks_like_json(p: Path) -> bool:

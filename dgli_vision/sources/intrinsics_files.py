@@ -13,6 +13,13 @@
 
 Matrices in these files are row-major (unlike Open3D's column-major JSON). YAML and XML
 are parsed with OpenCV's own ``FileStorage`` (no YAML library is needed).
+
+Every format may carry the camera's handedness, ``"mirrored"`` (:func:`parse_mirrored`):
+``true`` for a camera that mirrors its image left to right (a webcam's "mirror" setting,
+a driver's flip), ``false`` for one that does not. ``dgli calibrate`` writes it from an
+image of the flat napkin lying front face up. Without the key the camera is taken as not
+mirrored (the RealSense, Azure Kinect and ZED drivers never mirror); ``--mirroring``
+overrides it (:func:`dgli_vision.core.handedness.camera_mirroring`).
 """
 
 from __future__ import annotations
@@ -38,6 +45,7 @@ __all__ = [
     "make_intrinsics",
     "parse_calibration",
     "parse_distortion",
+    "parse_mirrored",
     "read_calibration_file",
 ]
 
@@ -154,6 +162,27 @@ def parse_distortion(value: Any, source: str, what: str = "distortion") -> tuple
     return tuple(float(c) for c in d) if d.any() else ()
 
 
+def parse_mirrored(data: Mapping[str, Any], source: str) -> bool | None:
+    """The camera's declared handedness, ``data["mirrored"]``: True, False, or None
+    when the key is absent (or null). YAML and XML give 0 and 1 (OpenCV writes no
+    booleans), taken as False and True.
+
+    Raises
+    ------
+    CalibrationError
+        A value that is neither a boolean nor 0 or 1.
+    """
+    value = data.get("mirrored")
+    if value is None:
+        return None
+    if isinstance(value, bool) or (isinstance(value, int) and value in (0, 1)):
+        return bool(value)
+    raise CalibrationError(
+        f"intrinsics '{source}': mirrored is {value!r}; expected true or false (does the "
+        "camera mirror its image left to right?)"
+    )
+
+
 def check_size_and_focal(width: int, height: int, fx: float, fy: float, source: str) -> None:
     """Raise :class:`CalibrationError` unless the image size and focal lengths are
     positive."""
@@ -176,8 +205,10 @@ def make_intrinsics(
     cy: float,
     distortion: tuple[float, ...],
     source: str,
+    mirrored: bool | None = None,
 ) -> Intrinsics:
-    """Validated :class:`~dgli_vision.core.camera.Intrinsics`.
+    """Validated :class:`~dgli_vision.core.camera.Intrinsics` (``mirrored``: the
+    camera's declared handedness, :func:`parse_mirrored`).
 
     Raises
     ------
@@ -191,7 +222,9 @@ def make_intrinsics(
             f"intrinsics '{source}': principal point ({cx}, {cy}) lies outside the "
             f"{width}x{height} image"
         )
-    return Intrinsics(width, height, float(fx), float(fy), float(cx), float(cy), distortion)
+    return Intrinsics(
+        width, height, float(fx), float(fy), float(cx), float(cy), distortion, mirrored
+    )
 
 
 def _first(data: Mapping[str, Any], keys: tuple[str, ...]) -> tuple[str, Any] | None:
@@ -261,7 +294,10 @@ def parse_calibration(data: Any, source: str) -> Intrinsics:
             f"(expected {' or '.join(SUPPORTED_DISTORTION_MODELS)})"
         )
     width, height = _image_size(data, source)
-    return make_intrinsics(width, height, k[0, 0], k[1, 1], k[0, 2], k[1, 2], distortion, source)
+    return make_intrinsics(
+        width, height, k[0, 0], k[1, 1], k[0, 2], k[1, 2], distortion, source,
+        parse_mirrored(data, source),
+    )
 
 
 def _node_value(node: Any) -> Any:
@@ -335,8 +371,9 @@ def read_calibration_file(path: Path, source: str) -> Intrinsics:
 def intrinsics_text(intrinsics: Intrinsics, path: str | Path) -> str:
     """The file :func:`dgli_vision.sources.frames.read_intrinsics` reads back, by the extension
     of ``path``: an OpenCV calibration file for ``.yaml``, ``.yml`` and ``.xml``
-    (``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``),
-    else Open3D's intrinsics JSON with ``"distortion"`` (Open3D ignores that key)."""
+    (``image_width``, ``image_height``, ``camera_matrix``, ``distortion_coefficients``,
+    and ``mirrored`` 0 or 1 when declared), else Open3D's intrinsics JSON with
+    ``"distortion"`` and ``"mirrored"`` (Open3D ignores those keys)."""
     import json
 
     suffix = Path(path).suffix.lower()
@@ -350,4 +387,6 @@ def intrinsics_text(intrinsics: Intrinsics, path: str | Path) -> str:
     storage.write("camera_matrix", intrinsics.matrix())
     d = np.array([intrinsics.distortion or (0.0, 0.0, 0.0, 0.0, 0.0)], dtype=np.float64)
     storage.write("distortion_coefficients", d)
+    if intrinsics.mirrored is not None:
+        storage.write("mirrored", int(intrinsics.mirrored))
     return storage.releaseAndGetString()

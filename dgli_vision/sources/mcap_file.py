@@ -24,7 +24,9 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-__all__ = ["McapMessage", "McapPlan", "plan"]
+from ..core.errors import McapError
+
+__all__ = ["McapError", "McapMessage", "McapPlan", "plan"]
 
 MAGIC = b"\x89MCAP0\r\n"
 _FOOTER = 0x02
@@ -34,10 +36,6 @@ _U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
 _RECORD = struct.Struct("<BQ")  # opcode, length
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, length, channel, sequence, log, publish
 _CHUNK_HEAD = struct.Struct("<BQQQQI")  # opcode, length, start, end, size, crc
-
-
-class McapError(ValueError):
-    """A record that does not fit the file or its chunk (truncated or corrupt)."""
 
 
 @dataclass(frozen=True)
