@@ -1,4 +1,4 @@
-"""The live viewer: each classified frame logged to `Rerun <https://rerun.io>`_ (``dgli
+"""The live viewer: each classified frame logged to Rerun (``dgli
 watch --rerun``, ``dgli track --rerun``), to an ``.rrd`` file or to a viewer it spawns.
 
 What is logged, by entity path (docs/live.md has the table):
