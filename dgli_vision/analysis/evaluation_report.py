@@ -219,7 +219,7 @@ def overlay_name(outcome: Any) -> str:
 
 
 def pair_overlays(
-    outcomes: list[Any], read_color: Any, *, classify: Any = None
+    outcomes: list[Any], read_color: Any, *, classify: Any = None, on_drawn: Any = None
 ) -> dict[str, NDArray[np.uint8]]:
     """The overlay image of every pair given (a wrong class: the verdict and the
     runner-up; "cannot tell": the reason), by report file name (:func:`overlay_name`).
@@ -229,7 +229,8 @@ def pair_overlays(
     missing sticker would be, hidden by cloth or unknown with its reason, and the
     objects over the napkin. A pair that cannot be read again that way (a frame of a
     bag) is drawn from its colour image and its stickers found; one whose colour image
-    cannot be read either (a file gone since) gets none.
+    cannot be read either (a file gone since) gets none. ``on_drawn(outcome, colour,
+    evidence)`` is called for each pair drawn (a report's thumbnails).
     """
 
     files = {}
@@ -237,6 +238,8 @@ def pair_overlays(
         color, evidence = _colour_and_evidence(o.pair, read_color, classify)
         if color is None:
             continue
+        if on_drawn is not None:
+            on_drawn(o, color, evidence)
         if o.predicted is None:
             files[overlay_name(o)] = overlay_image(
                 color, np.array(o.centroids), o.reason or "no class",

@@ -289,6 +289,8 @@ class _TrackRun:
         labelled: bool,
         overwrite: bool,
     ) -> None:
+        from ..classifier.pipeline import classify_frame
+
         write_timeline_report(
             self.report_dir,
             timeline,
@@ -298,6 +300,7 @@ class _TrackRun:
             labelled=labelled,
             overwrite=overwrite,
             journal=True,
+            classify=lambda frame: classify_frame(frame, self.refs, colours=self.colours),
         )
 
 
@@ -311,10 +314,13 @@ def write_timeline_report(
     labelled: bool,
     overwrite: bool,
     journal: bool = False,
+    classify: Any = None,
 ) -> None:
     """The report of a timeline (:func:`~dgli_vision.analysis.track_report.track_report`)
     written into ``report_dir``, with the provenance of the command (and of the run's
-    results.jsonl when ``journal``); ``dgli sequence --report`` writes the same."""
+    results.jsonl when ``journal``); ``dgli sequence --report`` writes the same. With
+    ``classify`` (``classify(frame) -> FrameResult``) each frame drawn is classified again
+    for its overlay's evidence (:func:`~dgli_vision.analysis.track_report.track_report`)."""
     from ..analysis.track_report import track_report
     from ..core.io import record_outputs, write_outputs
     from ..sources.frames import read_color
@@ -328,6 +334,7 @@ def write_timeline_report(
         title=title,
         labelled=labelled,
         read_color=read_color,
+        classify=classify,
     )
     write_outputs({out / k: v for k, v in files.items()}, overwrite=overwrite, command=command)
     if journal:
