@@ -112,3 +112,33 @@ def test_the_track_gallery_shows_readable_thumbnails_linking_to_the_overlays(tmp
         # whole overlay at a gallery figure's 340 px: three times as many of its pixels
         cloth = lambda img: (cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) > 200).sum()  # noqa: E731
         assert cloth(small) > 3 * cloth(whole) * (340 / 1280) ** 2
+
+
+def test_the_distance_heatmap_names_its_axes_and_says_what_grey_is():
+    from dgli_vision.analysis.charts import heatmap_figure
+
+    m = np.array([[0.0, np.nan, 1.0], [np.nan, 0.0, 0.5], [1.0, 0.5, 0.0]])
+    fig = heatmap_figure(m, title="t", groups=["01", "01", "02"], group_label="true class",
+                         missing="no distance: too few coordinates in both")
+    ax = fig.axes[0]
+    assert ax.get_ylabel().startswith("true class") and ax.get_xlabel().startswith("true class")
+    assert "group (in order)" not in ax.get_ylabel()
+    notes = [t.get_text() for t in ax.texts]
+    assert "grey (2 of 9 cells): no distance: too few coordinates in both" in notes
+    full = heatmap_figure(np.zeros((2, 2)), title="t", groups=["01", "02"])
+    assert not full.axes[0].texts  # nothing grey, nothing said
+
+
+def test_the_risk_coverage_curve_has_a_point_per_answer_when_confidences_tie():
+    from dgli_vision.analysis.charts import risk_coverage_figure
+
+    # 24 pairs read, 20 answered at two confidences only: 1.0 (16, one wrong), 0.45 (4)
+    ranked = [(1.0, 0.5 - k / 100, k != 3) for k in range(16)] + [(0.45, 0.2, True)] * 4
+    points = [(1.0, 16 / 24, 15 / 16), (0.45, 20 / 24, 19 / 20)]
+    fig = risk_coverage_figure(points, ranked, 24)
+    lines = fig.axes[0].get_lines()
+    per_answer = max(lines, key=lambda ln: len(ln.get_xdata()))
+    assert len(per_answer.get_xdata()) == 20
+    assert np.allclose(per_answer.get_xdata()[[0, -1]], [1 / 24, 20 / 24])
+    acc = per_answer.get_ydata()
+    assert acc[2] == 1.0 and acc[3] == 0.75  # the wrong one comes fourth (its margin)

@@ -204,6 +204,9 @@ def _distance_heatmap(result: EvaluationResult) -> _Heatmap:
         + ("" if len(shown) == len(outs) else f" ({len(shown)} of {len(outs)})"),
         groups=[outs[k].pair.label for k in shown],
         value_label="1 - rho",
+        group_label="true class",
+        missing="no distance: the two share fewer than 3 measured coordinates (stickers "
+        "hidden in both)",
     )
     return _Heatmap(chart_files("distances", fig), note)
 
@@ -256,6 +259,18 @@ def pair_overlays(
             evidence=evidence,
         )
     return files
+
+
+def _ranked_answers(outcomes: list[Any]) -> tuple[list[tuple[float, float, bool]], int]:
+    """Every answer given as (confidence, margin to the runner-up, right), and the
+    pairs read: the risk-coverage curve one answer at a time."""
+    read = [o for o in outcomes if o.error is None]
+    ranked = [
+        (float(o.confidence),
+         float((o.runner_up_distance or 0.0) - (o.distance or 0.0)), bool(o.correct))
+        for o in read if o.predicted is not None and o.confidence is not None
+    ]
+    return ranked, len(read)
 
 
 def _colour_and_evidence(pair: Any, read_color: Any, classify: Any) -> tuple[Any, Any]:
@@ -416,7 +431,8 @@ def build_report(
     )))
     curve = risk_coverage(result.outcomes)
     if curve:
-        files.update(chart_files("risk_coverage", risk_coverage_figure(curve)))
+        files.update(chart_files("risk_coverage", risk_coverage_figure(
+            curve, *_ranked_answers(result.outcomes))))
     heatmap = _distance_heatmap(result)
     if heatmap.files is not None:
         files.update(heatmap.files)

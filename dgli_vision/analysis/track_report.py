@@ -108,6 +108,8 @@ def _distances(outcomes: Sequence[Any], timeline: Timeline) -> tuple[Any, str] |
         groups=[timeline.frames[k].smoothed_class for k in shown],
         value_label="1 - rho",
         ticks=shown,
+        group_label="smoothed state",
+        missing="no distance: the two share fewer than 3 measured coordinates",
     )
     note = (
         "Spearman distance (1 - rho) between the frames' 28 dGLI coordinates alone, "
