@@ -7,7 +7,8 @@
 #   scripts/setup.sh --test   that, and what the tests need: the test extras, the
 #                             recordings extra (ROS bags), the dask extra (dgli label
 #                             --dask), the realsense extra (the RealSense SDK), the docs
-#                             extra (Sphinx: the site's build is a test), Debian's
+#                             extra (Sphinx: the site's build is a test), the viewer
+#                             extra (the Rerun SDK: dgli watch --rerun), Debian's
 #                             chromium (the HTML report tests) and, in .venv-photoreal/,
 #                             Blender as a Python module (the photoreal extra)
 set -euo pipefail
@@ -66,7 +67,16 @@ stamp=.venv/.dgli-setup-stamp
 extras=""
 if [ "$mode" = test ]; then
     stamp=.venv/.dgli-test-stamp
-    extras="[test,recordings,dask,realsense,docs]"
+    # one extra a line (pyproject.toml says what each is for)
+    test_extras=(
+        test
+        recordings
+        dask
+        realsense
+        docs
+        viewer
+    )
+    extras="[$(IFS=,; echo "${test_extras[*]}")]"
 fi
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip

@@ -28,7 +28,7 @@ def test_a_second_track_into_the_same_folder_asks_for_resume_or_overwrite(tmp_pa
            "--overwrite to start again"
     assert said in again.output
     assert CliRunner().invoke(main, [*args, "--overwrite"]).exit_code == 0
-    readme = " ".join((ROOT / "README.md").read_text().split())
+    readme = " ".join((ROOT / "docs" / "usage.md").read_text().split())  # the README's page
     assert "one exception: the `results.jsonl` that `dgli evaluate --report` and `dgli " \
            "track --report` keep of a run" in readme
     for command in ("track", "evaluate"):

@@ -164,8 +164,11 @@ def heatmap_figure(
     value_label: str = "",
     ticks: Sequence[object] | None = None,
     tick_label: str = "frame",
+    group_label: str = "group",
+    missing: str = "no value",
 ) -> Any:
-    """A matrix as a heatmap with a colour bar; NaN is grey.
+    """A matrix as a heatmap with a colour bar; NaN is grey, and said so under the
+    colour bar (``missing``) when there is any.
 
     Parameters
     ----------
@@ -180,6 +183,11 @@ def heatmap_figure(
         What every column is (e.g. its frame number): about ten of them are ticks of the
         horizontal axis, named ``tick_label``.
     tick_label : str, keyword-only
+    group_label : str, keyword-only
+        What the groups are (the axes' label: ``"true class"``).
+    missing : str, keyword-only
+        What a grey cell means (``"no distance: fewer than 3 coordinates measured in
+        both"``).
     """
     import matplotlib
 
@@ -193,6 +201,12 @@ def heatmap_figure(
                        interpolation="nearest")
         ax.set_title(title)
         fig.colorbar(im, ax=ax, label=value_label)
+        if np.isnan(m).any():  # what a grey cell is, under the title
+            grey = int(np.isnan(m).sum())
+            ax.text(0.5, 1.015, f"grey ({grey} of {m.size} cells): {missing}",
+                    transform=ax.transAxes, ha="center", va="bottom", fontsize=8,
+                    color="#555555")
+            ax.set_title(title, pad=16)
         ax.set_xticks([])
         ax.set_yticks([])
         if groups is not None:
@@ -205,9 +219,10 @@ def heatmap_figure(
             names = [lab for _, _, lab in runs]
             step = max(1, int(np.ceil(len(runs) / 30)))
             ax.set_yticks(centres[::step], names[::step])
-            ax.set_ylabel("group (in order)")
+            ax.set_ylabel(f"{group_label} (each sample a row, in order)")
             if n_rows == n_cols and ticks is None:
                 ax.set_xticks(centres[::step], names[::step], rotation=90)
+                ax.set_xlabel(f"{group_label} (each sample a column)")
         if ticks is not None:
             values = list(ticks)
             step = max(1, int(np.ceil(len(values) / 10)))
@@ -281,30 +296,53 @@ def timeline_figure(
     return fig
 
 
-def risk_coverage_figure(points: Sequence[tuple[float, float, float]]) -> Any:
+def risk_coverage_figure(
+    points: Sequence[tuple[float, float, float]],
+    ranked: Sequence[tuple[float, float, bool]] | None = None,
+    read: int | None = None,
+) -> Any:
     """The risk-coverage curve: for each confidence threshold, the share of the pairs
-    read still answered (across) and the share of those answers that are right (up).
+    read still answered (across) and the share of those answers that are right (up);
+    with ``ranked``, also the answers added one at a time, most confident first (ties
+    by their margin to the runner-up), so that a few distinct confidences still give
+    a curve, not two points.
 
     Parameters
     ----------
     points : sequence of (threshold, coverage, accuracy)
         As :func:`dgli_vision.analysis.html_report.risk_coverage` gives them.
+    ranked : sequence of (confidence, margin, right), optional
+        Every answer given (its confidence, the runner-up's distance less its own, and
+        whether it is right).
+    read : int, optional
+        The pairs read (the coverage's denominator); needed with ``ranked``.
     """
     pts = sorted(points, key=lambda p: p[1])
     with _style():
         fig = _figure(6.4, 4.2)
         ax = fig.subplots()
+        low = 1.0
+        if ranked and read:
+            order = sorted(ranked, key=lambda r: (-r[0], -r[1]))
+            right = np.cumsum([bool(r[2]) for r in order])
+            k = np.arange(1, len(order) + 1)
+            ax.plot(k / read, right / k, "-", color="#9ecae1", linewidth=1.5, marker=".",
+                    markersize=5, label="answers one at a time, most confident first")
+            low = min(low, float((right / k).min()))
         if pts:
             cov = [p[1] for p in pts]
             acc = [p[2] for p in pts]
-            ax.plot(cov, acc, "-o", color="#1f77b4", markersize=4,
+            ax.plot(cov, acc, "o", color="#1f77b4", markersize=6,
                     label="answers at or above a confidence threshold")
-            low = min(acc)
-            for t, c, a in (pts[0], pts[-1]):
-                ax.annotate(f"threshold {t:.2f}", (c, a), textcoords="offset points",
+            low = min(low, *acc)
+            shown = pts if len(pts) <= 6 else [pts[int(i)] for i in
+                                               np.linspace(0, len(pts) - 1, 6).round()]
+            for t, c, a in shown:
+                ax.annotate(f"{t:.2f}", (c, a), textcoords="offset points",
                             xytext=(0, -14), ha="center", fontsize=8)
             ax.set_ylim(max(0.0, low - 0.1) if low < 1 else 0.8, 1.02)
-            ax.legend(loc="lower left")
+            ax.legend(loc="lower left", fontsize=8, title="label: the threshold",
+                      title_fontsize=8)
         else:
             ax.text(0.5, 0.5, "no answers to draw", ha="center", va="center",
                     transform=ax.transAxes)

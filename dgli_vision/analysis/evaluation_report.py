@@ -204,6 +204,9 @@ def _distance_heatmap(result: EvaluationResult) -> _Heatmap:
         + ("" if len(shown) == len(outs) else f" ({len(shown)} of {len(outs)})"),
         groups=[outs[k].pair.label for k in shown],
         value_label="1 - rho",
+        group_label="true class",
+        missing="no distance: the two share fewer than 3 measured coordinates (stickers "
+        "hidden in both)",
     )
     return _Heatmap(chart_files("distances", fig), note)
 
@@ -219,7 +222,7 @@ def overlay_name(outcome: Any) -> str:
 
 
 def pair_overlays(
-    outcomes: list[Any], read_color: Any, *, classify: Any = None
+    outcomes: list[Any], read_color: Any, *, classify: Any = None, on_drawn: Any = None
 ) -> dict[str, NDArray[np.uint8]]:
     """The overlay image of every pair given (a wrong class: the verdict and the
     runner-up; "cannot tell": the reason), by report file name (:func:`overlay_name`).
@@ -229,7 +232,8 @@ def pair_overlays(
     missing sticker would be, hidden by cloth or unknown with its reason, and the
     objects over the napkin. A pair that cannot be read again that way (a frame of a
     bag) is drawn from its colour image and its stickers found; one whose colour image
-    cannot be read either (a file gone since) gets none.
+    cannot be read either (a file gone since) gets none. ``on_drawn(outcome, colour,
+    evidence)`` is called for each pair drawn (a report's thumbnails).
     """
 
     files = {}
@@ -237,6 +241,8 @@ def pair_overlays(
         color, evidence = _colour_and_evidence(o.pair, read_color, classify)
         if color is None:
             continue
+        if on_drawn is not None:
+            on_drawn(o, color, evidence)
         if o.predicted is None:
             files[overlay_name(o)] = overlay_image(
                 color, np.array(o.centroids), o.reason or "no class",
@@ -253,6 +259,18 @@ def pair_overlays(
             evidence=evidence,
         )
     return files
+
+
+def _ranked_answers(outcomes: list[Any]) -> tuple[list[tuple[float, float, bool]], int]:
+    """Every answer given as (confidence, margin to the runner-up, right), and the
+    pairs read: the risk-coverage curve one answer at a time."""
+    read = [o for o in outcomes if o.error is None]
+    ranked = [
+        (float(o.confidence),
+         float((o.runner_up_distance or 0.0) - (o.distance or 0.0)), bool(o.correct))
+        for o in read if o.predicted is not None and o.confidence is not None
+    ]
+    return ranked, len(read)
 
 
 def _colour_and_evidence(pair: Any, read_color: Any, classify: Any) -> tuple[Any, Any]:
@@ -413,7 +431,8 @@ def build_report(
     )))
     curve = risk_coverage(result.outcomes)
     if curve:
-        files.update(chart_files("risk_coverage", risk_coverage_figure(curve)))
+        files.update(chart_files("risk_coverage", risk_coverage_figure(
+            curve, *_ranked_answers(result.outcomes))))
     heatmap = _distance_heatmap(result)
     if heatmap.files is not None:
         files.update(heatmap.files)

@@ -6,7 +6,9 @@ The same files for both: the timeline (``timeline.json``, ``timeline.csv``, the 
 ``.png``), ``report.md`` and
 ``report.html`` (the summary, the three outcomes when the frames are labelled, the
 timeline, and a gallery of the wrong and "cannot tell" frames with their overlays and
-reasons, under ``overlays/``).
+reasons, under ``overlays/``: each gallery picture is a thumbnail of the napkin
+(``overlays/thumbs/``, cropped to the stickers and large enough to read) linking to the
+whole overlay).
 """
 
 from __future__ import annotations
@@ -25,7 +27,6 @@ from .evaluation_report import heatmap_sample, overlay_name, pair_overlays, samp
 from .html_report import (
     cannot_tell_text,
     html_chart,
-    html_gallery,
     html_list,
     html_page,
     outcomes_html,
@@ -35,7 +36,10 @@ from .track import TIMELINE_COLUMNS, Timeline, timeline_rows
 
 __all__ = [
     "GALLERY_MAX",
+    "THUMB_WIDTH",
     "TRACK_REPORT_FILES",
+    "overlay_thumbnail",
+    "thumb_name",
     "timeline_json",
     "timeline_outcome_fields",
     "track_report",
@@ -44,6 +48,8 @@ __all__ = [
 #: Most frames of each kind (wrong, "cannot tell") drawn as overlays, evenly spread in
 #: time: a long recording's report stays a bounded size (the others are listed).
 GALLERY_MAX = 48
+#: A thumbnail's width in pixels (shown at this width in the report's gallery).
+THUMB_WIDTH = 480
 
 #: The files of every timeline report (besides the overlays and a track's results.jsonl).
 TRACK_REPORT_FILES = (
@@ -102,6 +108,8 @@ def _distances(outcomes: Sequence[Any], timeline: Timeline) -> tuple[Any, str] |
         groups=[timeline.frames[k].smoothed_class for k in shown],
         value_label="1 - rho",
         ticks=shown,
+        group_label="smoothed state",
+        missing="no distance: the two share fewer than 3 measured coordinates",
     )
     note = (
         "Spearman distance (1 - rho) between the frames' 28 dGLI coordinates alone, "
@@ -194,7 +202,7 @@ def _html(
         shown = [
             (overlay_name(o), _caption(o, k)) for k, o in items if overlay_name(o) in overlays
         ]
-        body.append(html_gallery(section, shown))
+        body.append(_thumb_gallery(section, shown, overlays))
         rest = [_caption(o, k) for k, o in items if overlay_name(o) not in overlays]
         if rest:
             body.append(
@@ -207,6 +215,87 @@ def _html(
     return html_page(title, body)
 
 
+def thumb_name(name: str) -> str:
+    """The thumbnail of an overlay's report file: ``overlays/thumbs/<name>``."""
+    head, _, tail = name.rpartition("/")
+    return f"{head}/thumbs/{tail}" if head else f"thumbs/{tail}"
+
+
+def overlay_thumbnail(
+    color: NDArray[np.uint8], centroids: Any, evidence: Any = None, width: int = THUMB_WIDTH
+) -> NDArray[np.uint8]:
+    """A gallery's small picture of a frame: its colour image cropped to the napkin (the
+    stickers found, with a margin of half their spread, at least a third of the image),
+    scaled to ``width`` pixels, with the stickers, segments and missing stickers drawn
+    at that size (large enough to read; the caption is the gallery's text).
+
+    Parameters
+    ----------
+    color : ndarray of uint8, shape (H, W, 3)
+        RGB.
+    centroids : array, shape (16, 2)
+        The stickers found (NaN where not); empty: the whole image.
+    evidence : OverlayEvidence, optional
+        Where the missing stickers lie, and the objects over the napkin.
+    width : int
+
+    Returns
+    -------
+    ndarray of uint8
+        BGR, ready to write.
+    """
+    import cv2
+
+    from .overlay import overlay_image
+
+    h, w = color.shape[:2]
+    pts = np.full((16, 2), np.nan)
+    if len(centroids):
+        pts = np.asarray(centroids, dtype=np.float64).reshape(-1, 2)
+    x0, y0, x1, y1 = 0, 0, w, h
+    seen = pts[np.isfinite(pts).all(axis=1)]
+    if len(seen) >= 2:
+        lo, hi = seen.min(axis=0), seen.max(axis=0)
+        half = np.maximum((hi - lo) * 0.5 + (hi - lo).max() * 0.5, [w / 6, h / 6])
+        mid = (lo + hi) / 2
+        x0, y0 = (int(max(0, v)) for v in mid - half)
+        x1, y1 = int(min(w, mid[0] + half[0])), int(min(h, mid[1] + half[1]))
+    k = width / max(1, x1 - x0)
+    size = (width, max(1, int(round((y1 - y0) * k))))
+    crop = cv2.resize(np.ascontiguousarray(color[y0:y1, x0:x1]), size,
+                      interpolation=cv2.INTER_AREA if k < 1 else cv2.INTER_CUBIC)
+    shift = np.array([x0, y0], dtype=float)
+    if evidence is not None:
+        from dataclasses import replace
+
+        objects = evidence.objects
+        if objects is not None:
+            st = evidence.stride
+            objects = objects[y0 // st : -(-y1 // st), x0 // st : -(-x1 // st)]
+        evidence = replace(evidence, predicted_px=(evidence.predicted_px - shift) * k,
+                           objects=objects)
+    return overlay_image(crop, (pts - shift) * k, "", evidence=evidence, show_legend=False)
+
+
+def _thumb_gallery(title: str, items: list[tuple[str, str]], overlays: dict) -> str:
+    """A gallery whose pictures are the overlays' thumbnails, each linking to its whole
+    overlay (the thumbnail's own file when it has none)."""
+    from html import escape
+
+    head = f"<h2>{escape(title)} ({len(items)})</h2>"
+    if not items:
+        return head + "<p>None.</p>"
+    figures = []
+    for src, caption in items:
+        thumb = thumb_name(src) if thumb_name(src) in overlays else src
+        figures.append(
+            f'<figure style="width:{THUMB_WIDTH}px"><a href="{escape(src)}"><img '
+            f'src="{escape(thumb)}" alt="overlay"></a><figcaption>{escape(caption)}'
+            "</figcaption></figure>"
+        )
+    return head + "".join(figures)
+
+
 def track_report(
     timeline: Timeline,
     outcomes: Sequence[Any],
@@ -215,6 +304,7 @@ def track_report(
     title: str,
     labelled: bool,
     read_color: Callable[[str], NDArray[np.uint8]] | None = None,
+    classify: Callable[[Any], Any] | None = None,
 ) -> dict[str, Any]:
     """All files of a timeline report: name -> JSON-ready dict, CSV/Markdown/HTML text or
     BGR image.
@@ -232,6 +322,10 @@ def track_report(
         The frames' labels are true states.
     read_color : callable, keyword-only, optional
         ``read_color(path)`` -> RGB image, for the overlays (None: no overlays).
+    classify : callable, keyword-only, optional
+        ``classify(frame) -> FrameResult``: each frame drawn is read whole and classified
+        again, so that its overlay shows where the missing stickers lie (hidden or
+        unknown, and why) and the objects over the napkin.
     """
     files: dict[str, Any] = {
         "timeline.csv": csv_table(TIMELINE_COLUMNS, timeline_rows(timeline)),
@@ -255,7 +349,15 @@ def track_report(
     index = {id(o): k for k, o in enumerate(outcomes)}
     drawn = [group[k] for group in (wrong, told)
              for k in heatmap_sample(["frames"] * len(group), GALLERY_MAX)]
-    overlays = pair_overlays(drawn, read_color) if read_color else {}
+    thumbs: dict[str, NDArray[np.uint8]] = {}
+
+    def thumb(o: Any, color: NDArray[np.uint8], evidence: Any) -> None:
+        thumbs[thumb_name(overlay_name(o))] = overlay_thumbnail(color, o.centroids, evidence)
+
+    overlays = pair_overlays(
+        drawn, read_color, classify=classify, on_drawn=thumb
+    ) if read_color else {}
+    overlays.update(thumbs)
     files.update(overlays)
     galleries = {
         "Wrong": [(index[id(o)], o) for o in wrong],

@@ -238,8 +238,9 @@ class _EvaluationRun:
         from ..analysis.evaluate import SPLIT_COLUMNS, counts_text
         from ..analysis.report import markdown_table
 
-        echo(f"{counted(result.n, 'pair')}: {counts_text(result.outcome_counts)}")
-        echo(result.outcomes_text())
+        # the four outcomes once, then what share was answered and how well
+        answered = result.outcomes_text().split("; ", 1)[1]
+        echo(f"{counted(result.n, 'pair')}: {counts_text(result.outcome_counts)}; {answered}")
         echo(
             f"class accuracy {result.accuracy:.2%}, "
             f"variant accuracy {result.variant_accuracy_text()}, "

@@ -164,7 +164,9 @@ def progress_bar(length: int, label: str, *, quiet: bool = False):
     """A progress bar with the time left on a terminal (``bar.update(n)`` after each
     ``n`` items done); an object that ignores updates otherwise."""
     if _live(quiet):
-        return click.progressbar(length=length, label=label, file=sys.stderr, show_eta=True)
+        return _FromFirstItem(
+            click.progressbar(length=length, label=label, file=sys.stderr, show_eta=True)
+        )
     from contextlib import nullcontext
 
     class _Silent:
@@ -174,11 +176,66 @@ def progress_bar(length: int, label: str, *, quiet: bool = False):
     return nullcontext(_Silent())
 
 
-def progress(items: list, label: str, *, quiet: bool = False):
+class _FromFirstItem:
+    """A click progress bar whose time left is reckoned from the first item done: the
+    time before it (workers starting, the references loading) is no part of the rate,
+    so a 10 s job is not first said to need 48 s. No time left is shown until a rate
+    is known (two updates apart)."""
+
+    def __init__(self, bar: Any) -> None:
+        self.bar, self.t0, self.p0 = bar, None, 0
+
+    def __enter__(self) -> _FromFirstItem:
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.__exit__(*exc)
+
+    def update(self, n: int) -> None:
+        import time
+
+        now = time.time()
+        bar = self.bar
+        if self.t0 is None:
+            self.t0, self.p0 = now, bar.pos + n
+            bar.update(n)
+            bar.avg, bar.eta_known, bar.last_eta = [], False, 0.0
+            return
+        done = bar.pos + n - self.p0
+        if done > 0:  # click's rate is (now - start) / pos: from the first item on
+            bar.start = now - (now - self.t0) * (bar.pos + n) / done
+        bar.update(n)
+
+
+def progress(items: list, label: str, *, quiet: bool = False, lines: bool = False):
     """``items`` with a progress bar and the time left on a terminal; the plain list
-    otherwise."""
+    otherwise, or with ``lines`` (and not ``quiet``) the items with a line on stderr
+    every tenth of them (:func:`progress_lines`): a log or CI sees the work go on."""
     if _live(quiet):
         return click.progressbar(items, label=label, file=sys.stderr, show_eta=True)
     from contextlib import nullcontext
 
+    if lines and not quiet:
+        return nullcontext(progress_lines(items, label))
     return nullcontext(items)
+
+
+def progress_lines(items: list, label: str, every: int | None = None):
+    """``items``, one at a time, with ``LABEL: K of N done (T s, about R s left)`` on
+    stderr after every ``every``-th (default a tenth of them) and after the last."""
+    import time
+
+    n = len(items)
+    every = every or max(1, -(-n // 10))
+    start = time.monotonic()
+    for k, item in enumerate(items, 1):
+        yield item
+        if k % every == 0 or k == n:
+            spent = time.monotonic() - start
+            left = spent / k * (n - k)
+            click.echo(
+                f"{label}: {k} of {n} done ({spent:.0f} s"
+                + (f", about {left:.0f} s left)" if k < n else ")"),
+                err=True,
+            )

@@ -250,8 +250,8 @@ def _render_set(
     index = {n: k for k, n in enumerate(names)}
     writer = LabelledFolderWriter(out, provenance, names, frames=bool(sequence), kept=kept,
                                   overwrite=overwrite)
-    with stop_signals() as stop, stop.ends(), progress(todo, "rendering") as bar:
-        for sample, _ in zip(stream, bar):
+    with stop_signals() as stop, stop.ends(), progress(todo, "rendering", lines=True) as bar:
+        for _, sample in zip(bar, stream):  # the bar first: each line counts pairs written
             with stop.holding():  # the pair and the listings naming it
                 if not writer.written and not resume:
                     # an earlier render's pairs not rendered again go first

@@ -32,6 +32,7 @@ from .runs import (
     run_journalled,
     stop_signals,
 )
+from .watch import rerun_option, viewer_of
 
 if TYPE_CHECKING:
     from ..analysis.evaluate import PairOutcome
@@ -59,6 +60,7 @@ if TYPE_CHECKING:
     help="Go on with an interrupted run: keep the frames already in the report folder's "
     "results.jsonl and classify the rest (refused when the run differs).",
 )
+@rerun_option
 @run_overwrite_option
 @handle_errors
 def track(
@@ -69,6 +71,7 @@ def track(
     references_path: str | None,
     colours_path: str | None,
     resume: bool,
+    rerun: str | None,
     overwrite: bool,
     **recording_opts: Any,
 ) -> None:
@@ -99,7 +102,9 @@ def track(
 
     adopt_workers(jobs, refs, colours, references_path)
     recording = open_recording_with(folder, recording_opts)
+    viewer = viewer_of(rerun, overwrite, None, folder)
     run = _TrackRun(folder, report_dir, recording, refs, colours, jobs, as_json)
+    run.viewer, run.recording_opts = viewer, recording_opts
     header = {
         "kind": "track",
         "folder": folder,
@@ -136,6 +141,8 @@ class _TrackRun:
         self.refs, self.colours = refs, colours
         self.jobs = jobs or os.cpu_count() or 1
         self.as_json = as_json
+        self.viewer: Any = None  # --rerun's RerunLog
+        self.recording_opts: dict[str, Any] = {}
         self._keys: dict[tuple[str, str], tuple[str, str]] = {}
 
     def go(self, journal: Journal | None, *, overwrite: bool) -> None:
@@ -166,6 +173,8 @@ class _TrackRun:
         data = timeline_json(
             {"folder": self.folder, "recording": read}, timeline, outcomes, labelled
         )
+        if self.viewer is not None:
+            self._log(timeline, outcomes)
         if stop.stopped:
             data["interrupted"] = {"frames_done": len(outcomes), "frames": self.recording.count}
         answer_then_report(
@@ -182,6 +191,21 @@ class _TrackRun:
             sys.exit(stop.exit_code)
         if all(f.gap for f in timeline.frames):
             sys.exit(1)
+
+    def _log(self, timeline: Timeline, outcomes: list[PairOutcome]) -> None:
+        """The timeline logged to the viewer, each frame's image read again."""
+        from ..analysis.viewer import log_timeline
+
+        again = open_recording_with(self.folder, self.recording_opts)
+        try:
+            log_timeline(self.viewer, timeline, outcomes, again.frames)
+        finally:
+            close = getattr(again.frames, "close", None)
+            if close is not None:
+                close()
+            self.viewer.close()
+        if self.viewer.path is not None:
+            click.echo(f"viewer recording written to {self.viewer.path}", err=True)
 
     def _classify(
         self,
@@ -265,6 +289,8 @@ class _TrackRun:
         labelled: bool,
         overwrite: bool,
     ) -> None:
+        from ..classifier.pipeline import classify_frame
+
         write_timeline_report(
             self.report_dir,
             timeline,
@@ -274,6 +300,7 @@ class _TrackRun:
             labelled=labelled,
             overwrite=overwrite,
             journal=True,
+            classify=lambda frame: classify_frame(frame, self.refs, colours=self.colours),
         )
 
 
@@ -287,10 +314,13 @@ def write_timeline_report(
     labelled: bool,
     overwrite: bool,
     journal: bool = False,
+    classify: Any = None,
 ) -> None:
     """The report of a timeline (:func:`~dgli_vision.analysis.track_report.track_report`)
     written into ``report_dir``, with the provenance of the command (and of the run's
-    results.jsonl when ``journal``); ``dgli sequence --report`` writes the same."""
+    results.jsonl when ``journal``); ``dgli sequence --report`` writes the same. With
+    ``classify`` (``classify(frame) -> FrameResult``) each frame drawn is classified again
+    for its overlay's evidence (:func:`~dgli_vision.analysis.track_report.track_report`)."""
     from ..analysis.track_report import track_report
     from ..core.io import record_outputs, write_outputs
     from ..sources.frames import read_color
@@ -304,6 +334,7 @@ def write_timeline_report(
         title=title,
         labelled=labelled,
         read_color=read_color,
+        classify=classify,
     )
     write_outputs({out / k: v for k, v in files.items()}, overwrite=overwrite, command=command)
     if journal:

@@ -25,6 +25,28 @@ if TYPE_CHECKING:
     from ..sources.recording import RecordedPair
 
 
+#: ``--rerun [FILE.rrd]`` of ``dgli watch`` and ``dgli track``.
+rerun_option = click.option(
+    "--rerun",
+    "rerun",
+    is_flag=False,
+    flag_value="",
+    default=None,
+    metavar="[FILE.rrd]",
+    help="Log each frame to the Rerun viewer (the 'viewer' extra): spawn the viewer, or "
+    "with FILE.rrd write a recording it opens (rerun FILE.rrd).",
+)
+
+
+def viewer_of(rerun: str | None, overwrite: bool, extrinsics: object, name: str):
+    """The viewer log of ``--rerun`` (None without it)."""
+    if rerun is None:
+        return None
+    from ..analysis.viewer import RerunLog
+
+    return RerunLog(rerun or None, overwrite=overwrite, extrinsics=extrinsics, name=name)
+
+
 @click.command()
 @click.option(
     "--realsense",
@@ -77,6 +99,14 @@ if TYPE_CHECKING:
     help="Processes classifying frames side by side (1: in this process) [default: all "
     "cores; 1 with --overlay-dir].",
 )
+@rerun_option
+@click.option(
+    "--goal",
+    default=None,
+    metavar="STATE",
+    help="--rerun: also log the plan towards this state (08, 02/A, 05/AB/B) from each "
+    "frame: its first step's grasp, place and fold line.",
+)
 @references_option
 @colours_option
 @extrinsics_option
@@ -91,6 +121,8 @@ def watch(
     realtime: bool,
     camera_mode: str,
     jobs: int | None,
+    rerun: str | None,
+    goal: str | None,
     references_path: str | None,
     colours_path: str | None,
     extrinsics_path: str | None,
@@ -104,8 +136,12 @@ def watch(
     state, smoothed, confidence, change, dropped, latency_ms, note, corners, up and
     points_frame (docs/live.md; with --extrinsics the corners and up in the robot's base
     frame); then a last line {"summary": ...}. Otherwise the state changes, and on a
-    terminal a live status line. Ctrl-C (or SIGTERM) stops after the frame being
-    classified, prints the summary and exits 0.
+    terminal a live status line. With --rerun, each frame is logged to the Rerun
+    viewer (the 'viewer' extra): the image with the stickers found and missing, the 3D
+    stickers, segments and table, the state and confidence over time, and with --goal
+    the plan's grasp and place; --rerun FILE.rrd writes a recording instead of
+    spawning the viewer. Ctrl-C (or SIGTERM) stops after the frame being classified,
+    prints the summary and exits 0.
     """
     from ..core.errors import InvalidInputError
     from ..core.extrinsics import read_extrinsics
@@ -117,19 +153,32 @@ def watch(
     extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     refs, _ = references_of(references_path)
     colours = read_colours(colours_path) if colours_path else None
+    in_here = overlay_dir is not None or rerun is not None
     if jobs is None:
-        jobs = 1 if overlay_dir is not None else _cores()
+        jobs = 1 if in_here else _cores()
     elif jobs > 1 and overlay_dir is not None:
         raise InvalidInputError("--overlay-dir draws each frame in this process: use -j 1")
+    elif jobs > 1 and goal is not None:
+        raise InvalidInputError("--goal plans from each frame in this process: use -j 1")
+    if goal is not None and rerun is None:
+        raise InvalidInputError("--goal is logged to the viewer: add --rerun [FILE.rrd]")
+    target = _goal_of(goal, refs)
     overlays = _overlay_folder(overlay_dir, overwrite)
-    frames, notes = _source(serial, bag, camera_mode)
-    for note in notes:
-        click.echo(f"{bag}: {note}", err=True)
-    out = _Printer(jsonl, overlays, extrinsics)
-    summary = _run(
-        frames, refs, colours, every, realtime and bag is not None, out, bool(bag), jobs
-    )
+    viewer = viewer_of(rerun, overwrite, extrinsics, bag or f"realsense {serial or ''}")
+    try:
+        frames, notes = _source(serial, bag, camera_mode)
+        for note in notes:
+            click.echo(f"{bag}: {note}", err=True)
+        out = _Printer(jsonl, overlays, extrinsics, viewer=viewer, goal=target)
+        summary = _run(
+            frames, refs, colours, every, realtime and bag is not None, out, bool(bag), jobs
+        )
+    finally:
+        if viewer is not None:
+            viewer.close()
     out.done(summary)
+    if viewer is not None and viewer.path is not None:
+        click.echo(f"viewer recording written to {viewer.path}", err=True)
     if summary.classified and not summary.stopped and not out.answered:
         sys.exit(1)  # the source ended and no frame could be classified at all
 
@@ -154,6 +203,21 @@ def _source(
             f"--camera-mode {mode!r} is not WIDTHxHEIGHT@FPS (e.g. 1280x720@30)"
         ) from None
     return camera_pairs(serial or None, width=width, height=height, fps=rate), []
+
+
+def _goal_of(goal: str | None, refs: ReferenceSet) -> tuple[StateKey, object] | None:
+    """The goal state and the napkin's layout to plan with (None: no --goal)."""
+    from ..core.errors import InvalidInputError
+    from ..core.layout import layout_of_size
+    from ..planning.plan import parse_state
+
+    if goal is None:
+        return None
+    try:
+        key = parse_state(goal, need_variant=False)
+    except ValueError as exc:
+        raise InvalidInputError(f"--goal: {exc}") from None
+    return key, layout_of_size(refs.napkin_mm)
 
 
 def _overlay_folder(folder: str | None, overwrite: bool) -> Path | None:
@@ -233,8 +297,11 @@ def _state_text(key: StateKey | None) -> str:
 class _Printer:
     """Writes each frame's answer: a JSON line, or the changes and a status line."""
 
-    def __init__(self, jsonl: bool, overlays: Path | None, extrinsics=None) -> None:
+    def __init__(
+        self, jsonl: bool, overlays: Path | None, extrinsics=None, *, viewer=None, goal=None
+    ) -> None:
         self.jsonl, self.overlays, self.extrinsics = jsonl, overlays, extrinsics
+        self.viewer, self.goal = viewer, goal
         self.tty = sys.stderr.isatty()
         self.answered = False  # some frame got a state
         self.status_shown = False
@@ -251,6 +318,13 @@ class _Printer:
 
             name = self.overlays / f"frame_{update.frame:06d}.png"
             write_png(name, frame_overlay(result.frame_as_read(frame), result))
+        if self.viewer is not None:
+            self.viewer.frame(
+                update.frame, update.time, state=update.state, smoothed=update.smoothed,
+                confidence=update.confidence, note=update.note,
+                frame=result.frame_as_read(frame), result=result,
+                corners=update.corners, plan=self._plan(frame, result),
+            )
         if self.jsonl:  # "frame" is the frame's number: the points' frame is points_frame
             from ..core.extrinsics import in_frame
 
@@ -271,6 +345,18 @@ class _Printer:
             )
             click.echo("\r" + line[: self.width].ljust(self.width), nl=False, err=True)
             self.status_shown = True
+
+    def _plan(self, frame: RGBDFrame | None, result: FrameResult | None):
+        """The plan from this frame to --goal (None: no goal, or no plan from here)."""
+        if self.goal is None or result is None or result.prediction is None:
+            return None
+        from ..planning.api import plan_frame
+        from ..planning.plan import PlanRefused
+
+        try:
+            return plan_frame(result, frame, *self.goal)
+        except PlanRefused:
+            return None
 
     def _clear(self) -> None:
         if self.status_shown:
