@@ -38,7 +38,7 @@ from ..perception.partial import confirm_partly_hidden
 from ..perception.scale import NapkinRuler, measure_napkin
 from ..perception.tips import corner_tips, settled_stickers
 from ..sources.frames import RGBDFrame
-from .affordances import Affordances, affordances_of
+from .affordances import Affordances, affordances_of, deferred_affordances
 from .capture_limits import border_factor, sticker_px, sticker_size_problem
 from .classify import (
     MIN_CONFIDENCE,
@@ -497,10 +497,13 @@ def classify_frame(
 
 
 def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFrame) -> FrameResult:
-    """The result with its corners and folds, in the verdict and in the prediction."""
+    """The result with its corners and folds, in the verdict and in the prediction:
+    worked out when first read (:func:`~.affordances.deferred_affordances`)."""
     p = result.prediction
-    aff = affordances_of(
-        result.observation, p and p.class_id, p and p.variant, layout, frame.intrinsics
+    obs, intrinsics = result.observation, frame.intrinsics
+    class_id, variant = (p.class_id, p.variant) if p is not None else (None, None)
+    aff = deferred_affordances(
+        lambda: affordances_of(obs, class_id, variant, layout, intrinsics)
     )
     if p is None:
         guess = result.best_guess
