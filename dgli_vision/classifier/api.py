@@ -214,10 +214,11 @@ def _bgr_reading(
     the stickers' palette fits the swapped channels better (a BGR array, as OpenCV reads
     images); else None.
 
-    Looked at only when the array shows no yellow sticker (a BGR array never does), so a
-    frame with its yellow stickers in view is classified once: the swapped reading must
-    give a class and find more stickers (as many, when the array gave no class) at a
-    confidence at least as high.
+    Looked at only when the array shows no yellow sticker (a BGR array never does) and,
+    read swapped, shows a yellow disc (:func:`_swapped_yellow`, from the colour labels
+    alone), so a frame with its yellow stickers in view, or under a gripper, is
+    classified once: the swapped reading must give a class and find more stickers (as
+    many, when the array gave no class) at a confidence at least as high.
     """
     from .pipeline import classify_frame
 
@@ -225,7 +226,7 @@ def _bgr_reading(
         return None
     found = result.detections.found  # type: ignore[attr-defined]
     given = result.prediction  # type: ignore[attr-defined]
-    if found[list(_YELLOW)].any():
+    if found[list(_YELLOW)].any() or not _swapped_yellow(frame, refs, colours, result):
         return None
     swapped = replace(frame, color=np.ascontiguousarray(frame.color[..., ::-1]))
     try:
@@ -238,6 +239,25 @@ def _bgr_reading(
     if given is not None and again.prediction.confidence < given.confidence:
         return None
     return again.prediction
+
+
+def _swapped_yellow(frame: RGBDFrame, refs: ReferenceSet, colours: object, result: object) -> bool:
+    """Whether the frame with red and blue swapped shows a yellow disc (a BGR array's
+    cyan ones), from its colour labels alone
+    (:func:`~dgli_vision.perception.detect.swapped_discs_seen`): only then is it worth
+    classifying swapped (True when the napkin was not kept to tell)."""
+    from ..core.layout import layout_of_size
+    from ..perception.detect import search_frame, swapped_discs_seen
+
+    napkin = result.observation.napkin  # type: ignore[attr-defined]
+    if napkin is None:
+        return True
+    layout = layout_of_size(refs.napkin_mm)
+    search = search_frame(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, napkin,
+        colours=colours,  # type: ignore[arg-type]
+    )
+    return swapped_discs_seen(search, layout.sticker_disc[_YELLOW[0]])
 
 
 def _sticker_ids(result: object) -> StickerIds:

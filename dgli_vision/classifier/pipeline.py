@@ -110,6 +110,9 @@ class ClothObservation:
     edge_on_mm : ndarray, shape (n,), optional
         Heights above the table (mm) of the blobs seen edge-on in colour
         (:func:`~dgli_vision.perception.agreement.edge_on_heights`).
+    napkin : NapkinView, optional
+        The napkin as stage 1 found it (its white, the box around its cloth, its masks),
+        for a later look at the same frame (the channel-order check).
     """
 
     segments: NDArray[np.float64]
@@ -127,6 +130,7 @@ class ClothObservation:
     objects_stride: int = 8
     tips: NDArray[np.float64] | None = None
     edge_on_mm: NDArray[np.float64] | None = None
+    napkin: NapkinView | None = None
 
     @property
     def spread_mm(self) -> NDArray[np.float64] | None:
@@ -414,7 +418,7 @@ def observe(
         flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
         turns=turns, points_m=markers.points, objects=napkin.occluder,
         objects_stride=napkin.stride, tips=tips,
-        edge_on_mm=edge_on_heights(detections, napkin.masks()),
+        edge_on_mm=edge_on_heights(detections, napkin.masks()), napkin=napkin,
     )
 
 
