@@ -14,6 +14,7 @@ PERCEPTION = Path(__file__).resolve().parents[1] / "dgli_vision" / "perception"
 #: import no other perception module; 6: tools beside the frame's path (calibration).
 STAGES = {
     "rigid": 0,
+    "params": 0,
     "napkin": 1,
     "regions": 1,
     "detections": 2,

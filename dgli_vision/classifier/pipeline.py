@@ -34,6 +34,7 @@ from ..perception.footprint import ClothRegions, Footprint, cloth_regions, measu
 from ..perception.handedness import back_face_up, image_turns
 from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
 from ..perception.napkin import NapkinView, find_napkin
+from ..perception.params import PipelineParams, TipParams, params_of
 from ..perception.partial import confirm_partly_hidden
 from ..perception.scale import NapkinRuler, measure_napkin
 from ..perception.tips import corner_tips, settled_stickers
@@ -350,33 +351,37 @@ def _candidates(
 def observe(
     frame: RGBDFrame,
     layout: NapkinLayout | None = None,
-    params: DetectorParams | None = None,
+    params: PipelineParams | DetectorParams | None = None,
     *,
     colours: dict[str, tuple[int, int, int]] | None = None,
     clock: StageClock | None = None,
 ) -> tuple[StickerDetections, Markers3D, ClothObservation]:
     """Find the table and the napkin, detect the stickers, lift them to 3D, and judge
-    the missing ones (hidden by cloth or unknown). ``clock`` keeps each stage's time."""
+    the missing ones (hidden by cloth or unknown), each stage with its parameters of
+    ``params`` (:class:`~dgli_vision.perception.params.PipelineParams`; a
+    ``DetectorParams`` alone: the defaults with it). ``clock`` keeps each stage's time."""
     layout = layout or default_layout()
+    tree = params_of(params)
     clock = clock or StageClock()
     try:
         up, offset = estimate_table_plane(frame.depth_mm, frame.intrinsics)
     except ValueError as exc:
         raise DetectionError(f"'{frame.depth_path}': {exc}") from None
     clock.lap("table plane")
-    napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
+    napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset, tree.napkin)
     clock.lap("napkin")
     search = search_frame(
-        frame.color, frame.depth_mm, frame.intrinsics, layout, napkin, params, colours=colours
+        frame.color, frame.depth_mm, frame.intrinsics, layout, napkin, tree.detector,
+        colours=colours,
     )
     detections = first_search(search)
     clock.lap("search")
-    regions = cloth_regions(frame.color, napkin.white_rgb)
+    regions = cloth_regions(frame.color, napkin.white_rgb, tree.regions, tree.napkin)
     clock.lap("cloth regions")
     detections = washed_out_search(search, detections, regions=regions)
     clock.lap("second search")
     lifted = lift_stickers(detections, frame.intrinsics)
-    markers, dropped = drop_inconsistent(lifted, layout)
+    markers, dropped = drop_inconsistent(lifted, layout, tree.evidence)
     ruler = _ruler(lifted, markers, dropped, layout)
     located = np.where(markers.found[:, None], detections.centroids, np.nan)
     turns = image_turns(located, layout)
@@ -391,10 +396,11 @@ def observe(
         up=up,
         pale_colours=detections.pale_colours,
         turns=turns,
+        params=tree.evidence,
     )
     detections, markers, evidence = confirm_partly_hidden(
         frame.color, napkin.lut, detections, markers, evidence, frame.intrinsics,
-        (up, offset), layout, params, colours=colours,
+        (up, offset), layout, tree.detector, tree.partial, colours=colours,
     )
     clock.lap("evidence")
     visible = markers.found
@@ -404,14 +410,19 @@ def observe(
     flap_deg, flap_height = flap_angles(
         frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
         evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
+        params=tree.flaps,
     )
     clock.lap("flaps")
     footprint = measure_footprint(
         frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
-        layout.width_mm * layout.height_mm, regions=regions,
+        layout.width_mm * layout.height_mm, tree.footprint, tree.napkin, regions=regions,
+        shade=tree.shade,
     )
     clock.lap("footprint")
-    tips = _tips(frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions)
+    tips = _tips(
+        frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions,
+        tree.tips,
+    )
     clock.lap("tips")
     return detections, markers, ClothObservation(
         segments=segments, visible=visible, up=up, evidence=evidence, heights_mm=heights,
@@ -433,6 +444,7 @@ def _tips(
     up: NDArray[np.float64],
     footprint: Footprint | None,
     regions: ClothRegions | None,
+    params: TipParams,
 ) -> NDArray[np.float64] | None:
     """:func:`~dgli_vision.perception.tips.corner_tips` of the frame: what is not table is
     the napkin's measured cloth and any other white region (a flap apart from it)."""
@@ -441,7 +453,7 @@ def _tips(
     cloth = footprint.cells | (regions.labels > 0)
     return corner_tips(
         markers.points, heights, evidence.unknown, evidence.held_up, turns, layout,
-        frame.intrinsics, up, cloth, regions.cell_px, napkin.occluder, napkin.stride,
+        frame.intrinsics, up, cloth, regions.cell_px, napkin.occluder, napkin.stride, params,
     )
 
 
@@ -464,7 +476,7 @@ def classify_frame(
     references: ReferenceSet,
     *,
     layout: NapkinLayout | None = None,
-    params: DetectorParams | None = None,
+    params: PipelineParams | DetectorParams | None = None,
     min_confidence: float = MIN_CONFIDENCE,
     colours: dict[str, tuple[int, int, int]] | None = None,
 ) -> FrameResult:
@@ -476,7 +488,11 @@ def classify_frame(
     references : ReferenceSet
     layout : NapkinLayout, keyword-only, optional
         Default: the packaged layout at the napkin size the references were built for.
-    params : DetectorParams, keyword-only, optional
+    params : PipelineParams or DetectorParams, keyword-only, optional
+        Every perception stage's parameters
+        (:class:`~dgli_vision.perception.params.PipelineParams`, e.g. from
+        :func:`~dgli_vision.perception.params.read_params`); a ``DetectorParams``: the
+        defaults with those of the sticker detector. Default: the defaults.
     min_confidence : float, keyword-only
         Below this confidence the answer is "cannot tell" (default
         :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE`).

@@ -52,6 +52,7 @@ from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, RejectionKind, StickerDetections
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
+from .params import disc_bands
 from .regions import ClothRegions, RegionParams, cloth_regions
 from .washed import (
     PastelLooks,
@@ -411,6 +412,7 @@ def _search_image(
         disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]),
         len(frame.names), params, near, (labels, outer), frame.palette,
+        disc_bands(frame.layout),
     )
 
 
