@@ -108,7 +108,9 @@ def test_a_frame_is_detected_from_one_search_frame_and_one_napkin(sheen, monkeyp
         raise AssertionError("the detection found the napkin again")
 
     monkeypatch.setattr(detect, "search_frame", counted)
-    monkeypatch.setattr(pipeline, "search_frame", counted)
+    from dgli_vision.perception import observe as path
+
+    monkeypatch.setattr(path, "search_frame", counted)
     monkeypatch.setattr(detect, "find_napkin", no_napkin)
     detections, _, _ = pipeline.observe(frame)
     assert detections.found.sum() == 16  # (the washed-out search ran, and found them)

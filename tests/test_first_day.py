@@ -242,6 +242,34 @@ def test_a_cannot_tell_with_its_yellow_stickers_in_view_is_classified_once(monke
     assert len(calls) <= 1
 
 
+def test_a_gripper_over_the_yellow_corner_is_classified_once(monkeypatch, pytestconfig):
+    """A gripper over corner B hides its four yellow stickers, as a BGR array would; the
+    frame read swapped shows no yellow disc either (its colour labels say so, no second
+    classification), so it is classified once; a BGR array shows them and is looked at
+    swapped (test_a_bgr_array_is_named_as_the_likely_cause)."""
+    from render_cache import rendered
+
+    import dgli_vision.classifier.pipeline as pipeline
+
+    frame = rendered(pytestconfig, "01", 0, 2024, ("gripper",))
+    calls = []
+    real = pipeline.classify_frame
+    monkeypatch.setattr(
+        pipeline, "classify_frame", lambda *a, **k: calls.append(1) or real(*a, **k)
+    )
+    p = dgli_vision.classify_pair(frame.color, frame.depth_mm, frame.intrinsics)
+    assert not {2, 3, 4, 5} & set(p.stickers.found)  # (corner B's stickers unseen)
+    assert p.why != "colour channels" and len(calls) == 1
+    calls.clear()
+    bgr = cv2.imread(str(Path(__file__).resolve().parents[1] / "sample_images/05_000_color.png"))
+    depth = cv2.imread(
+        str(Path(__file__).resolve().parents[1] / "sample_images/05_000_depth.png"),
+        cv2.IMREAD_UNCHANGED,
+    )
+    assert dgli_vision.classify_pair(bgr, depth).why == "colour channels"
+    assert len(calls) == 2  # (its yellow stickers show as cyan ones: looked at swapped)
+
+
 def test_a_pair_of_another_size_without_intrinsics_is_told_where_they_go(tmp_path):
     samples = Path(__file__).resolve().parents[1] / "sample_images"
     for kind in ("color", "depth"):

@@ -11,9 +11,11 @@ import pytest
 PERCEPTION = Path(__file__).resolve().parents[1] / "dgli_vision" / "perception"
 
 #: Each module's stage (perception/__init__'s list). 0: helpers of any stage, which
-#: import no other perception module; 6: tools beside the frame's path (calibration).
+#: import no other perception module (the rigid fit, the parameters tree); 6: the
+#: frame's whole path (observe, which runs every stage) and tools beside it (calibration).
 STAGES = {
     "rigid": 0,
+    "params": 0,
     "napkin": 1,
     "regions": 1,
     "detections": 2,
@@ -33,6 +35,7 @@ STAGES = {
     "tips": 5,
     "calibrate": 6,
     "lens": 6,
+    "observe": 6,
 }
 
 

@@ -20,7 +20,7 @@ folded over, with no flap lying over it.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
@@ -43,7 +43,9 @@ __all__ = [
     "NapkinMaps",
     "RigidMap",
     "SeenFold",
+    "SeenFolds",
     "affordances_of",
+    "deferred_affordances",
     "napkin_maps",
 ]
 
@@ -420,15 +422,46 @@ class SeenFold:
         return out
 
 
+class _Deferred:
+    """A frame's :class:`Affordances`, worked out by ``work`` when first asked for and
+    kept: what :func:`deferred_affordances`' corners and folds share."""
+
+    __slots__ = ("_value", "_work")
+
+    def __init__(self, work: Callable[[], Affordances]) -> None:
+        self._work: Callable[[], Affordances] | None = work
+        self._value: Affordances | None = None
+
+    def __call__(self) -> Affordances:
+        if self._work is not None:
+            self._value, self._work = self._work(), None
+        return self._value  # type: ignore[return-value]
+
+
 class CornerMap(Mapping[str, "CornerAffordance"]):
     """Corners by name, read-only, in their order (A-D), as the JSON keys them:
     ``corners["A"]``, ``list(corners)`` the names, ``corners.values()`` the corners.
-    Hashable and picklable, as the frozen results that hold it."""
+    Hashable and picklable, as the frozen results that hold it. The corners of
+    :func:`deferred_affordances` are worked out when first read."""
 
-    __slots__ = ("_corners",)
+    __slots__ = ("_given", "_source")
 
     def __init__(self, corners: Iterable[CornerAffordance] = ()) -> None:
-        object.__setattr__(self, "_corners", tuple(corners))
+        object.__setattr__(self, "_given", tuple(corners))
+        object.__setattr__(self, "_source", None)
+
+    @classmethod
+    def _deferred(cls, source: _Deferred) -> CornerMap:
+        out = cls()
+        object.__setattr__(out, "_source", source)
+        return out
+
+    @property
+    def _corners(self) -> tuple[CornerAffordance, ...]:
+        if self._source is not None:
+            object.__setattr__(self, "_given", tuple(self._source().corners.values()))
+            object.__setattr__(self, "_source", None)
+        return self._given
 
     def __getitem__(self, name: str) -> CornerAffordance:
         for c in self._corners:
@@ -455,6 +488,49 @@ class CornerMap(Mapping[str, "CornerAffordance"]):
         return f"CornerMap({dict(self)!r})"
 
 
+class SeenFolds(Sequence[SeenFold]):
+    """The folds of :func:`deferred_affordances`, read-only, worked out when first
+    read: a sequence of :class:`SeenFold` equal to the tuple of the same folds."""
+
+    __slots__ = ("_given", "_source")
+
+    def __init__(self, folds: Iterable[SeenFold] = ()) -> None:
+        self._given: tuple[SeenFold, ...] = tuple(folds)
+        self._source: _Deferred | None = None
+
+    @classmethod
+    def _deferred(cls, source: _Deferred) -> SeenFolds:
+        out = cls()
+        out._source = source
+        return out
+
+    @property
+    def _folds(self) -> tuple[SeenFold, ...]:
+        if self._source is not None:
+            self._given, self._source = tuple(self._source().folds), None
+        return self._given
+
+    def __getitem__(self, i: Any) -> Any:
+        return self._folds[i]
+
+    def __len__(self) -> int:
+        return len(self._folds)
+
+    def __eq__(self, other: object) -> bool:
+        if isinstance(other, (SeenFolds, tuple, list)):
+            return self._folds == tuple(other)
+        return NotImplemented
+
+    def __hash__(self) -> int:
+        return hash(self._folds)
+
+    def __reduce__(self) -> tuple[type[SeenFolds], tuple[tuple[SeenFold, ...]]]:
+        return SeenFolds, (self._folds,)
+
+    def __repr__(self) -> str:
+        return f"SeenFolds({self._folds!r})"
+
+
 @dataclass(frozen=True)
 class Affordances:
     """The corners A-D and the folds seen in one frame.
@@ -464,7 +540,7 @@ class Affordances:
     """
 
     corners: CornerMap
-    folds: tuple[SeenFold, ...]
+    folds: tuple[SeenFold, ...] | SeenFolds
 
     def to_json(self) -> dict[str, Any]:
         """``{"corners": {"A": {...}, ...}, "folds": [...]}``."""
@@ -728,6 +804,28 @@ def affordances_of(
             for j in range(len(maps.folds))
         )
     return Affordances(CornerMap(corners), folds)
+
+
+def deferred_affordances(work: Callable[[], Affordances]) -> Affordances:
+    """Affordances worked out by ``work`` only when their corners or folds are first
+    read (``work`` runs once; pickling works them out): a frame classified for its
+    verdict alone (``evaluate`` without tracking, the benchmarks) never pays for its
+    grasp geometry, and one whose JSON gives ``corners`` and ``folds`` gets the same
+    ones as :func:`affordances_of` itself.
+
+    Parameters
+    ----------
+    work : callable
+        ``work()`` returns the :class:`Affordances` (e.g. :func:`affordances_of` with its
+        arguments bound).
+
+    Returns
+    -------
+    Affordances
+        Whose ``corners`` is a :class:`CornerMap` and ``folds`` a :class:`SeenFolds`.
+    """
+    source = _Deferred(work)
+    return Affordances(CornerMap._deferred(source), SeenFolds._deferred(source))
 
 
 def _verdict_fits(

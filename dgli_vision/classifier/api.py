@@ -7,12 +7,14 @@ import math
 from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.camera import DEFAULT_INTRINSICS, Intrinsics
 from ..core.errors import CalibrationError, DetectionError, DgliError, InvalidInputError
+from ..core.why import WhyKind
 from ..sources.frames import (
     RGBDFrame,
     check_intrinsics,
@@ -22,6 +24,9 @@ from ..sources.frames import (
     read_intrinsics,
 )
 from .classify import MIN_CONFIDENCE, Prediction, StickerIds
+
+if TYPE_CHECKING:
+    from ..perception.params import PipelineParams
 from .references import ReferenceSet, load_references
 
 __all__ = ["classify_pair", "frame_from", "reference_set_of"]
@@ -71,6 +76,7 @@ def classify_pair(
     colours: dict[str, tuple[int, int, int]] | None = None,
     extrinsics: object = None,
     mirroring: str | None = None,
+    params: object = None,
 ) -> Prediction:
     """Classify one registered colour + depth pair.
 
@@ -98,6 +104,11 @@ def classify_pair(
         ``"no"``. ``"yes"`` reads the frame un-mirrored; ``"unknown"`` keeps 02, 03, 09
         and 10 below confidence 0.5 (a napkin back face up under a mirroring camera shows
         their twin: docs/robustness.md).
+    params : PipelineParams, DetectorParams or path, keyword-only, optional
+        Every perception stage's parameters
+        (:class:`~dgli_vision.perception.params.PipelineParams`), or a JSON file of
+        overrides (:func:`~dgli_vision.perception.params.read_params`, as ``--params``);
+        default: the defaults.
 
     Returns
     -------
@@ -129,7 +140,9 @@ def classify_pair(
     ext = extrinsics_of(extrinsics)
     if mirroring is not None:
         camera_mirroring(mirroring)  # a bad value: one line, before any reading
-    p = _classified(color, depth, intrinsics, references, colours, mirroring)
+    p = _classified(
+        color, depth, intrinsics, references, colours, mirroring, _params_of(params)
+    )
     return p if ext is None else _in_frame(p, ext)
 
 
@@ -146,6 +159,16 @@ def _in_frame(p: Prediction, ext: object) -> Prediction:
     return replace(p, corners=corners, folds=folds)
 
 
+def _params_of(params: object) -> PipelineParams:
+    """The parameters tree ``params`` names: itself, the defaults with a
+    ``DetectorParams``, a JSON file's overrides, or the defaults (None)."""
+    from ..perception.params import params_of, read_params
+
+    if isinstance(params, (str, Path)):
+        return read_params(params)
+    return params_of(params)  # type: ignore[arg-type]
+
+
 def _classified(
     color: object,
     depth: object,
@@ -153,20 +176,22 @@ def _classified(
     references: object,
     colours: object,
     mirroring: str | None = None,
+    params: PipelineParams | None = None,
 ) -> Prediction:
     """:func:`classify_pair`'s verdict in the camera frame."""
-    from .pipeline import WHY_KINDS, classify_frame
+    from .pipeline import classify_frame
 
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)
     colours = _check_colours(colours)
     try:
         result = classify_frame(
-            frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE, mirroring=mirroring
+            frame, refs, colours=colours, min_confidence=MIN_CONFIDENCE, mirroring=mirroring,
+            params=params,
         )
     except DetectionError as exc:  # no table in the depth: read, but nothing to rank
-        return _cannot_tell(str(exc), WHY_KINDS[1])
-    swapped = _bgr_reading(color, frame, refs, colours, result)
+        return _cannot_tell(str(exc), WhyKind.TOO_FEW.value)
+    swapped = _bgr_reading(color, frame, refs, colours, result, params)
     if swapped is not None:
         reason = (
             f"cannot tell: colour channels swapped (BGR?): with red and blue swapped it "
@@ -176,15 +201,15 @@ def _classified(
         )
         if result.best_guess is None:
             return _cannot_tell(
-                f"{reason}; as given: {result.reason}", WHY_KINDS[4], result
+                f"{reason}; as given: {result.reason}", WhyKind.CHANNELS.value, result
             )
         # the reading as given means nothing: no confidence in it
         guess = replace(result.best_guess, confidence=0.0)
         result = replace(
-            result, prediction=None, best_guess=guess, reason=reason, why=WHY_KINDS[4]
+            result, prediction=None, best_guess=guess, reason=reason, why=WhyKind.CHANNELS.value
         )
     if result.best_guess is None:  # too few stickers to rank the references
-        return _cannot_tell(result.reason or "", result.why or WHY_KINDS[1], result)
+        return _cannot_tell(result.reason or "", result.why or WhyKind.TOO_FEW.value, result)
     told = result.prediction is None
     p = replace(
         result.best_guess,
@@ -225,16 +250,18 @@ _YELLOW = (2, 3, 4, 5)
 
 
 def _bgr_reading(
-    color: object, frame: RGBDFrame, refs: ReferenceSet, colours: object, result: object
+    color: object, frame: RGBDFrame, refs: ReferenceSet, colours: object, result: object,
+    params: PipelineParams,
 ) -> Prediction | None:
     """The verdict of a colour array read with its red and blue channels swapped, when
     the stickers' palette fits the swapped channels better (a BGR array, as OpenCV reads
     images); else None.
 
-    Looked at only when the array shows no yellow sticker (a BGR array never does), so a
-    frame with its yellow stickers in view is classified once: the swapped reading must
-    give a class and find more stickers (as many, when the array gave no class) at a
-    confidence at least as high.
+    Looked at only when the array shows no yellow sticker (a BGR array never does) and,
+    read swapped, shows a yellow disc (:func:`_swapped_yellow`, from the colour labels
+    alone), so a frame with its yellow stickers in view, or under a gripper, is
+    classified once: the swapped reading must give a class and find more stickers (as
+    many, when the array gave no class) at a confidence at least as high.
     """
     from .pipeline import classify_frame
 
@@ -242,13 +269,14 @@ def _bgr_reading(
         return None
     found = result.detections.found  # type: ignore[attr-defined]
     given = result.prediction  # type: ignore[attr-defined]
-    if found[list(_YELLOW)].any():
+    if found[list(_YELLOW)].any() or not _swapped_yellow(frame, refs, colours, result, params):
         return None
     swapped = replace(frame, color=np.ascontiguousarray(frame.color[..., ::-1]))
     try:
         again = classify_frame(
             swapped, refs, colours=colours, min_confidence=MIN_CONFIDENCE,
             mirroring=result.mirroring,  # type: ignore[attr-defined]
+            params=params,
         )
     except DgliError:
         return None
@@ -258,6 +286,28 @@ def _bgr_reading(
     if given is not None and again.prediction.confidence < given.confidence:
         return None
     return again.prediction
+
+
+def _swapped_yellow(
+    frame: RGBDFrame, refs: ReferenceSet, colours: object, result: object,
+    params: PipelineParams,
+) -> bool:
+    """Whether the frame with red and blue swapped shows a yellow disc (a BGR array's
+    cyan ones), from its colour labels alone
+    (:func:`~dgli_vision.perception.detect.swapped_discs_seen`): only then is it worth
+    classifying swapped (True when the napkin was not kept to tell)."""
+    from ..core.layout import layout_of_size
+    from ..perception.detect import search_frame, swapped_discs_seen
+
+    napkin = result.observation.napkin  # type: ignore[attr-defined]
+    if napkin is None:
+        return True
+    layout = layout_of_size(refs.napkin_mm)
+    search = search_frame(
+        frame.color, frame.depth_mm, frame.intrinsics, layout, napkin, params.detector,
+        colours=colours,  # type: ignore[arg-type]
+    )
+    return swapped_discs_seen(search, layout.sticker_disc[_YELLOW[0]])
 
 
 def _sticker_ids(result: object) -> StickerIds:

@@ -28,7 +28,7 @@ from .evidence import Evidence
 from .references import ReferenceSet
 
 if TYPE_CHECKING:
-    from .affordances import SeenFold
+    from .affordances import SeenFold, SeenFolds
 
 __all__ = [
     "FULL_COORDINATES",
@@ -192,8 +192,10 @@ class Prediction:
         point, pixel, state, graspable
         (:class:`~dgli_vision.classifier.affordances.CornerAffordance`); empty when not
         computed.
-    folds : tuple of SeenFold
-        The folds of the verdict as lines on the table.
+    folds : tuple of SeenFold, or SeenFolds
+        The folds of the verdict as lines on the table (a classified frame's are a
+        :class:`~dgli_vision.classifier.affordances.SeenFolds`, worked out with its
+        corners when first read).
     candidates : tuple of (str, str or None, float)
         The nearest state of each of the three nearest classes, as (class, variant,
         distance), nearest first (``classify_pair`` fills it; ``"candidates"`` in
@@ -211,7 +213,7 @@ class Prediction:
     why: str | None = None
     stickers: StickerIds | None = None
     corners: CornerMap = field(default_factory=CornerMap)
-    folds: tuple[SeenFold, ...] = ()
+    folds: tuple[SeenFold, ...] | SeenFolds = ()
     candidates: tuple[tuple[str, str | None, float], ...] = ()
 
 

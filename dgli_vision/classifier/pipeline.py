@@ -1,51 +1,39 @@
 """The classification pipeline: an RGB-D frame -> stickers -> 3D -> dGLI -> a state.
 
-Each stage is one function of one module; this module chains them and keeps every
-intermediate result, which is what a person debugging a real image needs.
+The perception's stages run in :func:`dgli_vision.perception.observe.observe` (each
+once, in its order); this module judges what they saw (the coordinates, the nearest
+reference, the fault checks, the state's folds) and keeps every intermediate result,
+which is what a person debugging a real image needs.
 """
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.classes import CLASS_NAMES, LANDING_PAIRS, LIFTED_MM, PAST_BAND_DEG
+from ..core.classes import CLASS_NAMES, LANDING_PAIRS
 from ..core.dgli import cloth_coordinates
 from ..core.errors import DetectionError
 from ..core.handedness import camera_mirroring, unmirrored
 from ..core.json_ready import json_ready
-from ..core.layout import NapkinLayout, default_layout, layout_of_size, sticker_spreads_mm
+from ..core.layout import NapkinLayout, layout_of_size
 from ..core.order_stats import median
 from ..core.why import WhyKind
-from ..perception.agreement import (
-    BareRaised,
-    bare_raised_problem,
-    bare_table_raised,
-    edge_on_heights,
-    edge_on_problem,
-)
+from ..perception.agreement import bare_raised_problem, edge_on_problem
 from ..perception.detect import (
     DetectorParams,
     StickerDetections,
-    first_search,
-    search_frame,
-    washed_out_search,
 )
-from ..perception.evidence import StickerEvidence, assess_stickers, drop_inconsistent
-from ..perception.flaps import flap_angles
-from ..perception.footprint import ClothRegions, Footprint, cloth_regions, measure_footprint
-from ..perception.handedness import back_face_up, image_turns
-from ..perception.lift import Markers3D, estimate_table_plane, lift_stickers
-from ..perception.napkin import NapkinView, find_napkin
-from ..perception.partial import confirm_partly_hidden
-from ..perception.scale import NapkinRuler, measure_napkin
-from ..perception.tips import corner_tips, settled_stickers
+from ..perception.lift import Markers3D
+from ..perception.observe import Observation, StageClock
+from ..perception.observe import observe as observe_frame
+from ..perception.params import PipelineParams
+from ..perception.tips import settled_stickers
 from ..sources.frames import RGBDFrame
-from .affordances import Affordances, affordances_of
+from .affordances import Affordances, affordances_of, deferred_affordances
 from .capture_limits import border_factor, sticker_px, sticker_size_problem
 from .classify import (
     MIN_CONFIDENCE,
@@ -74,133 +62,14 @@ from .known_states import (
 from .references import ReferenceSet
 from .state_fit import StateFit, fit_state
 
-__all__ = ["ClothObservation", "FrameResult", "classify_frame", "observe"]
+__all__ = ["ClothObservation", "FrameResult", "StageClock", "classify_frame", "observe"]
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
-class ClothObservation:
-    """The cloth as seen: segments in the camera frame and the table normal.
-
-    Attributes
-    ----------
-    segments : ndarray, shape (8, 2, 3)
-        Oriented segments (sticker 2i -> 2i + 1), metres; NaN rows where an end is missing.
-    visible : ndarray of bool, shape (16,)
-        Stickers located in 3D.
-    up : ndarray, shape (3,)
-        Table normal, towards the camera (the direction of the dGLI derivative).
-    evidence : StickerEvidence or None
-        Which missing stickers are hidden by cloth and which are unknown, and why.
-    heights_mm : ndarray, shape (16,), optional
-        Height of each located sticker above the table plane, mm (NaN where missing).
-    flap_deg : ndarray, shape (16,), optional
-        For a sticker possibly on a flap held up, how far that flap has turned from flat
-        (degrees, from the lean of the raised cloth); NaN where not measured.
-    flap_height_mm : ndarray, shape (16,), optional
-        For such a sticker, how high it stands on its flap (from the flap's fold line and
-        angle), mm; NaN where not measured.
-    ruler : NapkinRuler, optional
-        The napkin's measured scale and rigidity (distances of same-corner stickers,
-        before any sticker is dropped); None with too few stickers located.
-    footprint : Footprint, optional
-    objects : ndarray of bool, optional
-        Objects above the table (not napkin), on a grid of ``objects_stride`` pixels.
-    objects_stride : int
-    points_m : ndarray, shape (16, 3), optional
-        The located stickers in the camera frame, metres (NaN where missing).
-    turns : ndarray, shape (4,), optional
-        Which face each corner A-D shows the camera: +1 front, -1 back, 0 not told
-        (:func:`~dgli_vision.perception.handedness.image_turns`).
-    tips : ndarray, shape (4,), optional
-        For each corner A-D, the share of its tip's flat place seen as bare table (NaN
-        not told: :func:`~dgli_vision.perception.tips.corner_tips`).
-    edge_on_mm : ndarray, shape (n,), optional
-        Heights above the table (mm) of the blobs seen edge-on in colour
-        (:func:`~dgli_vision.perception.agreement.edge_on_heights`).
-    bare_raised : BareRaised, optional
-        Cloth held up in depth over what colour shows as bare table
-        (:func:`~dgli_vision.perception.agreement.bare_table_raised`): colour and depth
-        of different instants.
-    """
-
-    segments: NDArray[np.float64]
-    visible: NDArray[np.bool_]
-    up: NDArray[np.float64]
-    evidence: StickerEvidence | None = None
-    heights_mm: NDArray[np.float64] | None = None
-    flap_deg: NDArray[np.float64] | None = None
-    flap_height_mm: NDArray[np.float64] | None = None
-    ruler: NapkinRuler | None = None
-    footprint: Footprint | None = None
-    turns: NDArray[np.float64] | None = None
-    points_m: NDArray[np.float64] | None = None
-    objects: NDArray[np.bool_] | None = None
-    objects_stride: int = 8
-    tips: NDArray[np.float64] | None = None
-    edge_on_mm: NDArray[np.float64] | None = None
-    bare_raised: BareRaised | None = None
-
-    @property
-    def spread_mm(self) -> NDArray[np.float64] | None:
-        """3D distance between the stickers of each pair seen, mm, shape (120,), taken
-        to the napkin's printed scale when its ruler measured one (NaN where either
-        sticker is not seen)."""
-        if self.points_m is None:
-            return None
-        scale = self.ruler.scale if self.ruler is not None else 1.0
-        seen = np.where(self.visible[:, None], self.points_m, np.nan)
-        return sticker_spreads_mm(seen * 1e3 / scale)
-
-    @property
-    def back(self) -> NDArray[np.float64] | None:
-        """1 for a corner showing its back face, 0 its front, NaN not told, shape (4,)."""
-        return None if self.turns is None else back_face_up(self.turns)
-
-    @property
-    def lifted(self) -> NDArray[np.float64] | None:
-        """1 for a sticker standing more than ``LIFTED_MM`` above the table, 0 for one on
-        it, NaN where not known, shape (16,). A missing sticker that may have gone up
-        with a flap held up steeply counts as standing, unless its place may also lie
-        under an object and its flap's lean was not measured (then the raised cloth may
-        be the object's doing)."""
-        if self.heights_mm is None:
-            return None
-        out = np.where(self.visible, (self.heights_mm > LIFTED_MM).astype(float), np.nan)
-        if self.evidence is not None:
-            held = self.evidence.held_up
-            if self.flap_deg is not None:
-                told = ~self.evidence.near_object | np.isfinite(self.flap_deg)
-            else:
-                told = ~self.evidence.near_object
-            out[held & told] = 1.0
-        return out
-
-    @property
-    def matched_heights_mm(self) -> NDArray[np.float64] | None:
-        """Heights to compare with the references: those of the stickers seen, and for
-        stickers held up out of sight, the height their flap gives them (mm, NaN where
-        neither is known), shape (16,)."""
-        if self.heights_mm is None:
-            return None
-        if self.flap_height_mm is None:
-            return np.where(self.visible, self.heights_mm, np.nan)
-        return np.where(self.visible, self.heights_mm, self.flap_height_mm)
-
-    @property
-    def past_vertical(self) -> NDArray[np.float64] | None:
-        """For each sticker on a flap held up whose lean was measured: 1 when the flap
-        has turned past 90 degrees, 0 when not (in proportion within
-        ``PAST_BAND_DEG`` of vertical); NaN for the others, shape (16,)."""
-        if self.flap_deg is None:
-            return None
-        return np.clip(0.5 + (self.flap_deg - 90.0) / (2 * PAST_BAND_DEG), 0.0, 1.0)
-
-    @property
-    def unknown(self) -> NDArray[np.bool_]:
-        """Stickers neither seen nor evidence of a fold, shape (16,)."""
-        if self.evidence is None:
-            return np.zeros(len(self.visible), dtype=bool)
-        return self.evidence.unknown
+class ClothObservation(Observation):
+    """The cloth as seen (:class:`~dgli_vision.perception.observe.Observation`: every
+    perception stage's result), with what the classifier weighs beside the coordinates
+    (:meth:`classifier_evidence`)."""
 
     def classifier_evidence(self) -> Evidence:
         """What the classifier weighs beside the coordinates
@@ -210,29 +79,6 @@ class ClothObservation:
             heights_mm=self.matched_heights_mm, past=self.past_vertical,
             back=self.back, spread_mm=self.spread_mm, tips=self.tips,
         )
-
-    @property
-    def segment_visible(self) -> NDArray[np.bool_]:
-        """Segments with both ends located, shape (8,)."""
-        return self.visible.reshape(-1, 2).all(axis=1)
-
-
-class StageClock:
-    """The time each stage of the pipeline took, ms, in the order they ran.
-
-    ``lap(name)`` charges the time since the last lap (or since the clock was made) to
-    ``name``. ``time.perf_counter`` costs well under a microsecond.
-    """
-
-    def __init__(self) -> None:
-        self.ms: dict[str, float] = {}
-        self._last = time.perf_counter()
-
-    def lap(self, name: str) -> None:
-        """Charge the time since the last lap to stage ``name``."""
-        now = time.perf_counter()
-        self.ms[name] = self.ms.get(name, 0.0) + (now - self._last) * 1e3
-        self._last = now
 
 
 @dataclass(frozen=True, eq=False, kw_only=True)
@@ -374,114 +220,16 @@ def _candidates(
 def observe(
     frame: RGBDFrame,
     layout: NapkinLayout | None = None,
-    params: DetectorParams | None = None,
+    params: PipelineParams | DetectorParams | None = None,
     *,
     colours: dict[str, tuple[int, int, int]] | None = None,
     clock: StageClock | None = None,
 ) -> tuple[StickerDetections, Markers3D, ClothObservation]:
-    """Find the table and the napkin, detect the stickers, lift them to 3D, and judge
-    the missing ones (hidden by cloth or unknown). ``clock`` keeps each stage's time."""
-    layout = layout or default_layout()
-    clock = clock or StageClock()
-    try:
-        up, offset = estimate_table_plane(frame.depth_mm, frame.intrinsics)
-    except ValueError as exc:
-        raise DetectionError(f"'{frame.depth_path}': {exc}") from None
-    clock.lap("table plane")
-    napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset)
-    clock.lap("napkin")
-    search = search_frame(
-        frame.color, frame.depth_mm, frame.intrinsics, layout, napkin, params, colours=colours
+    """:func:`~dgli_vision.perception.observe.observe` (every perception stage once, in
+    its order), its observation a :class:`ClothObservation`."""
+    return observe_frame(
+        frame, layout, params, colours=colours, clock=clock, into=ClothObservation
     )
-    detections = first_search(search)
-    clock.lap("search")
-    regions = cloth_regions(frame.color, napkin.white_rgb)
-    clock.lap("cloth regions")
-    detections = washed_out_search(search, detections, regions=regions)
-    clock.lap("second search")
-    lifted = lift_stickers(detections, frame.intrinsics)
-    markers, dropped = drop_inconsistent(lifted, layout)
-    ruler = _ruler(lifted, markers, dropped, layout)
-    located = np.where(markers.found[:, None], detections.centroids, np.nan)
-    turns = image_turns(located, layout)
-    clock.lap("lift")
-    evidence = assess_stickers(
-        markers,
-        frame.intrinsics,
-        layout,
-        napkin.masks(),
-        dropped=dropped,
-        foreshortening=detections.foreshortening,
-        up=up,
-        pale_colours=detections.pale_colours,
-        turns=turns,
-    )
-    detections, markers, evidence = confirm_partly_hidden(
-        frame.color, napkin.lut, detections, markers, evidence, frame.intrinsics,
-        (up, offset), layout, params, colours=colours,
-    )
-    clock.lap("evidence")
-    visible = markers.found
-    segments = markers.points.reshape(-1, 2, 3).copy()
-    segments[~visible.reshape(-1, 2).all(axis=1)] = np.nan
-    heights = (markers.points @ up - offset) * 1e3
-    flap_deg, flap_height = flap_angles(
-        frame.depth_mm, frame.intrinsics, up, offset, napkin, markers.points, heights,
-        evidence, napkin_side_mm=min(layout.width_mm, layout.height_mm), lying_mm=LIFTED_MM,
-    )
-    clock.lap("flaps")
-    footprint = measure_footprint(
-        frame.color, frame.intrinsics, up, offset, napkin, detections.centroids,
-        layout.width_mm * layout.height_mm, regions=regions,
-    )
-    clock.lap("footprint")
-    tips = _tips(frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions)
-    clock.lap("tips")
-    return detections, markers, ClothObservation(
-        segments=segments, visible=visible, up=up, evidence=evidence, heights_mm=heights,
-        flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
-        turns=turns, points_m=markers.points, objects=napkin.occluder,
-        objects_stride=napkin.stride, tips=tips,
-        edge_on_mm=edge_on_heights(detections, napkin.masks(), frame.intrinsics.fx),
-        bare_raised=bare_table_raised(frame.color, napkin.masks()),
-    )
-
-
-def _tips(
-    frame: RGBDFrame,
-    layout: NapkinLayout,
-    napkin: NapkinView,
-    markers: Markers3D,
-    heights: NDArray[np.float64],
-    evidence: StickerEvidence,
-    turns: NDArray[np.float64],
-    up: NDArray[np.float64],
-    footprint: Footprint | None,
-    regions: ClothRegions | None,
-) -> NDArray[np.float64] | None:
-    """:func:`~dgli_vision.perception.tips.corner_tips` of the frame: what is not table is
-    the napkin's measured cloth and any other white region (a flap apart from it)."""
-    if footprint is None or footprint.cells is None or regions is None:
-        return None
-    cloth = footprint.cells | (regions.labels > 0)
-    return corner_tips(
-        markers.points, heights, evidence.unknown, evidence.held_up, turns, layout,
-        frame.intrinsics, up, cloth, regions.cell_px, napkin.occluder, napkin.stride,
-    )
-
-
-def _ruler(
-    lifted: Markers3D, kept: Markers3D, dropped: NDArray[np.bool_], layout: NapkinLayout
-) -> NapkinRuler | None:
-    """The napkin's scale from every sticker located, its corners' rigidity without the
-    detections found where the napkin cannot be (a coloured object on the table taken
-    for a sticker stretches no lens; a wrong depth scale moves every sticker, so the
-    scale keeps them all)."""
-    ruler = measure_napkin(lifted, layout)
-    if ruler is None or not dropped.any():
-        return ruler
-    without = measure_napkin(kept, layout)
-    return replace(ruler, worst_against_scale=without.worst_against_scale if without else 0.0)
 
 
 def classify_frame(
@@ -489,7 +237,7 @@ def classify_frame(
     references: ReferenceSet,
     *,
     layout: NapkinLayout | None = None,
-    params: DetectorParams | None = None,
+    params: PipelineParams | DetectorParams | None = None,
     min_confidence: float = MIN_CONFIDENCE,
     colours: dict[str, tuple[int, int, int]] | None = None,
     mirroring: str | None = None,
@@ -502,7 +250,11 @@ def classify_frame(
     references : ReferenceSet
     layout : NapkinLayout, keyword-only, optional
         Default: the packaged layout at the napkin size the references were built for.
-    params : DetectorParams, keyword-only, optional
+    params : PipelineParams or DetectorParams, keyword-only, optional
+        Every perception stage's parameters
+        (:class:`~dgli_vision.perception.params.PipelineParams`, e.g. from
+        :func:`~dgli_vision.perception.params.read_params`); a ``DetectorParams``: the
+        defaults with those of the sticker detector. Default: the defaults.
     min_confidence : float, keyword-only
         Below this confidence the answer is "cannot tell" (default
         :data:`~dgli_vision.classifier.classify.MIN_CONFIDENCE`).
@@ -538,10 +290,13 @@ def classify_frame(
 
 
 def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFrame) -> FrameResult:
-    """The result with its corners and folds, in the verdict and in the prediction."""
+    """The result with its corners and folds, in the verdict and in the prediction:
+    worked out when first read (:func:`~.affordances.deferred_affordances`)."""
     p = result.prediction
-    aff = affordances_of(
-        result.observation, p and p.class_id, p and p.variant, layout, frame.intrinsics
+    obs, intrinsics = result.observation, frame.intrinsics
+    class_id, variant = (p.class_id, p.variant) if p is not None else (None, None)
+    aff = deferred_affordances(
+        lambda: affordances_of(obs, class_id, variant, layout, intrinsics)
     )
     if p is None:
         guess = result.best_guess

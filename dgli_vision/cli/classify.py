@@ -15,6 +15,7 @@ from .options import (
     json_option,
     mirroring_option,
     overwrite_option,
+    params_option,
     references_option,
 )
 from .output import command_line, echo, echo_json, verdict_json
@@ -26,6 +27,7 @@ from .output import command_line, echo, echo_json, verdict_json
 @intrinsics_option
 @references_option
 @colours_option
+@params_option
 @extrinsics_option
 @mirroring_option
 @json_option("Print one JSON object.")
@@ -43,6 +45,7 @@ def classify_cmd(
     intrinsics: str | None,
     references_path: str | None,
     colours_path: str | None,
+    params_path: str | None,
     extrinsics_path: str | None,
     mirroring: str | None,
     as_json: bool,
@@ -64,6 +67,7 @@ def classify_cmd(
     from ..classifier.references import load_references
     from ..core.extrinsics import read_extrinsics
     from ..core.io import guard_outputs, write_outputs
+    from ..perception.params import read_params
     from ..sources.colours_file import read_colours
     from ..sources.frames import read_frame
 
@@ -73,7 +77,8 @@ def classify_cmd(
     frame = read_frame(color, depth, intrinsics)
     refs = load_references(references_path)
     colours = read_colours(colours_path) if colours_path else None
-    result = classify_frame(frame, refs, colours=colours, mirroring=mirroring)
+    params = read_params(params_path) if params_path else None
+    result = classify_frame(frame, refs, colours=colours, mirroring=mirroring, params=params)
     if overlay:
         write_outputs(
             {Path(overlay): frame_overlay(result.frame_as_read(frame), result)},

@@ -56,6 +56,15 @@ colours_option = click.option(
 )
 
 
+params_option = click.option(
+    "--params",
+    "params_path",
+    type=click.Path(),
+    help='Perception parameters to change: a JSON file {"stage": {"field": value}} '
+    '(docs/params.md; e.g. {"detector": {"min_saturation": 100}}) [default: the defaults].',
+)
+
+
 references_option = click.option(
     "--references",
     "references_path",

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from functools import cached_property, lru_cache
 
 import numpy as np
@@ -35,6 +35,7 @@ from ..core.camera import Intrinsics
 from ..core.colour import srgb_lut
 from ..core.order_stats import median, quantile
 from .detections import DetectorParams, Rejection, RejectionKind
+from .params import DiscBands, disc_bands
 
 __all__ = [
     "Candidate", "SearchImage", "judge_blob", "judge_blobs", "least_area", "window_pad",
@@ -46,6 +47,13 @@ _SQUARE3.flags.writeable = False
 
 #: A failed check: its kind and the values it measured (a :class:`Rejection` less where).
 _Problem = tuple[RejectionKind, dict[str, float]]
+
+def _default_bands() -> DiscBands:
+    """The packaged layout's :class:`~.params.DiscBands`."""
+    from ..core.layout import default_layout
+
+    return disc_bands(default_layout())
+
 
 #: The ring around a blob whose whiteness says it lies on the napkin, in disc radii.
 _RING_INNER, _RING_OUTER = 1.3, 1.8
@@ -98,6 +106,9 @@ class SearchImage:
         The sticker colours, linear RGB in label order: a small sticker's dot blurred
         into its disc is read by the colour it adds (:func:`_dots_by_difference`).
         None: dots are read by their labels only.
+    bands : DiscBands
+        Where a disc's and a dot's colours are read, in radii (the layout's:
+        :func:`.params.disc_bands`).
     """
 
     color: NDArray[np.uint8]
@@ -117,6 +128,7 @@ class SearchImage:
     within: tuple[int, int, int, int] | None = None
     traced: tuple[NDArray[np.uint8], list[NDArray[np.int32]]] | None = None
     palette: NDArray[np.float64] | None = None
+    bands: DiscBands = field(default_factory=_default_bands)
 
     def any_blown(self, window: tuple[int, int, int, int]) -> bool:
         """Whether a pixel of ``window`` (x0, y0, x1, y1) is washed out: blown out as
@@ -568,6 +580,8 @@ class _DiscPixels:
         The search image's sticker colours (``SearchImage.palette``).
     params : DetectorParams, optional
         The search image's thresholds (needed with ``palette``).
+    bands : DiscBands
+        Where the disc's and the dot's colours are read (``SearchImage.bands``).
     """
 
     blob: NDArray[np.intp]
@@ -580,6 +594,7 @@ class _DiscPixels:
     n_labels: int
     palette: NDArray[np.float64] | None = None
     params: DetectorParams | None = None
+    bands: DiscBands = field(default_factory=_default_bands)
 
     @classmethod
     def of(cls, shaped: list[_Shaped], image: SearchImage) -> _DiscPixels:
@@ -606,7 +621,7 @@ class _DiscPixels:
         blob = np.repeat(np.arange(len(shaped)), counts)
         return cls(
             blob, r, inside, washed, labels, norm, len(shaped), image.n_colours + 1,
-            image.palette, image.params,
+            image.palette, image.params, image.bands,
         )
 
     def count(self, where: NDArray[np.bool_]) -> NDArray[np.intp]:
@@ -658,7 +673,7 @@ class _DiscPixels:
         the medians in linear light too."""
         r, norm = self.r, self.norm
         ring = np.flatnonzero((r > _RING_INNER) & (r < _RING_OUTER) & ~self.inside)
-        disc = np.flatnonzero(self.inside & (self.labels > 0) & (r < 0.95))
+        disc = np.flatnonzero(self.inside & (self.labels > 0) & (r < self.bands.band[1]))
         smallest = _channel_min(np.take(norm, ring, axis=0))
         largest = _channel_max(np.take(norm, disc, axis=0))
         return (
@@ -673,7 +688,7 @@ class _DiscPixels:
         part (below 0.28 radii) of the blob's coloured pixels; pixels of the inner part
         of the window; whether a washed-out pixel lies there."""
         coloured = self.inside & (self.labels > 0)
-        inner_area = self.r < 0.28
+        inner_area = self.r < self.bands.dot
         return (
             self._band_counts.tolist(),
             self.label_counts(coloured & inner_area).tolist(),
@@ -686,7 +701,8 @@ class _DiscPixels:
         """Label counts of each blob's coloured pixels in its outer band (0.6-0.95
         radii), shape (n_blobs, n_labels)."""
         r = self.r
-        return self.label_counts(self.inside & (self.labels > 0) & (r > 0.6) & (r < 0.95))
+        lo, hi = self.bands.band
+        return self.label_counts(self.inside & (self.labels > 0) & (r > lo) & (r < hi))
 
     @cached_property
     def dots(self) -> list[_Colours | None]:
@@ -719,7 +735,8 @@ class _DiscPixels:
         r, n, norm = self.r, self.n_blobs, self.norm
         lut = srgb_lut()
         # (an index and np.take gather rows several times faster than a boolean mask)
-        band = np.flatnonzero((r > 0.6) & (r < 0.95))
+        lo, hi = self.bands.band
+        band = np.flatnonzero((r > lo) & (r < hi))
         ring, group = np.take(norm, band, axis=0), np.take(self.blob, band)
         n_band = np.bincount(group, minlength=n)
         largest, smallest = _channel_max(ring), _channel_min(ring)
@@ -729,7 +746,7 @@ class _DiscPixels:
         ordered = chromas[np.sort(key) & 0xFFFF]  # each blob's chromas, in order
         high = np.flatnonzero(chroma >= _grouped_quantile(ordered, n_band, 0.75)[group])
         disc_seen = _grouped_level_medians(np.take(ring, high, axis=0), np.take(group, high), n)
-        centre = np.flatnonzero(r < 0.2)
+        centre = np.flatnonzero(r < self.bands.centre)
         mid, mid_group = lut[np.take(norm, centre, axis=0)], np.take(self.blob, centre)
         n_mid = np.bincount(mid_group, minlength=n)
         sums = np.stack(

@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.layout import NapkinLayout
 from .detect import DetectorParams, detect_all_stickers
+from .params import disc_bands
 
 __all__ = ["calibrate_colours", "calibrate_handedness"]
 
@@ -60,6 +61,8 @@ def calibrate_colours(
         color, depth_mm, intrinsics, layout, params, source=source, purpose="calibration"
     )
     norm = cv2.LUT(color, napkin.lut)
+    bands = disc_bands(layout)  # (where the detector reads the disc and the dot)
+    band = bands.band
     samples: dict[str, list[NDArray]] = {name: [] for name in layout.colours_srgb}
     yy, xx = np.mgrid[0 : color.shape[0], 0 : color.shape[1]]
     for sid in range(layout.n_stickers):
@@ -69,8 +72,8 @@ def calibrate_colours(
         y0, y1 = int(max(cv - radius - 2, 0)), int(min(cv + radius + 3, color.shape[0]))
         r = np.hypot(xx[y0:y1, x0:x1] - cu, yy[y0:y1, x0:x1] - cv) / radius
         win = norm[y0:y1, x0:x1]
-        samples[layout.sticker_disc[sid]].append(win[(r > 0.65) & (r < 0.85)])
-        samples[layout.sticker_dot[sid]].append(win[r < 0.25])
+        samples[layout.sticker_disc[sid]].append(win[(r > band[0]) & (r < band[1])])
+        samples[layout.sticker_dot[sid]].append(win[r < bands.dot])
     out = {}
     for name, parts in samples.items():
         px = np.concatenate(parts).astype(np.float64)

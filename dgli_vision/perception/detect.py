@@ -52,6 +52,7 @@ from .blobs import Candidate, SearchImage, judge_blobs, least_area, window_pad
 from .detections import DetectorParams, Rejection, RejectionKind, StickerDetections
 from .labels import colour_labels, hue_lut, hue_of
 from .napkin import NapkinView, balance_lut, find_napkin
+from .params import disc_bands
 from .regions import ClothRegions, RegionParams, cloth_regions
 from .washed import (
     PastelLooks,
@@ -73,6 +74,7 @@ __all__ = [
     "first_search",
     "hue_of",
     "search_frame",
+    "swapped_discs_seen",
     "washed_out_search",
 ]
 
@@ -215,6 +217,41 @@ def first_search(frame: SearchFrame) -> StickerDetections:
     """The stickers of ``frame`` as :func:`detect_stickers` finds them with the frame's
     parameters, on the napkin the frame carries."""
     return _search(frame, frame.params, frame.napkin.lut)
+
+
+def swapped_discs_seen(frame: SearchFrame, disc: str) -> bool:
+    """Whether the frame, read with its red and blue channels swapped, shows a blob of
+    the disc colour ``disc`` big enough to be judged, worked out without swapping it.
+
+    Swapping red and blue mirrors every hue (red and blue trade places, green stays,
+    yellow and cyan trade places) and keeps saturation and value, and the napkin's
+    white swaps with the image, so the swapped frame's colour labels are the frame's
+    own labelled by the palette with its red and blue swapped: one labelling of the
+    search image near the napkin (no blob judged), against a whole classification of
+    the frame swapped. A BGR array's yellow stickers are cyan, so they show here.
+    """
+    import cv2
+
+    source = {**frame.layout.colours_srgb, **(frame.colours or {})}
+    swapped = {name: (b, g, r) for name, (r, g, b) in source.items()}
+    lut, names = hue_lut(frame.layout, frame.params, swapped)
+    palette = _palette(frame.layout, names, swapped)
+    mirrored = replace(frame, lut=lut, colours=swapped, palette=palette)
+    image = _search_image(mirrored, frame.params, frame.napkin.lut)
+    mask = cv2.compare(image.labels, names.index(disc) + 1, cv2.CMP_EQ)
+    _, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    r_px = image.disc_radius_mm * image.intrinsics.fx / max(image.median_depth_mm, 1.0)
+    least = max(SWAPPED_DISC_SHARE * np.pi * r_px**2, least_area(image.min_area_px))
+    return bool((stats[1:, cv2.CC_STAT_AREA] >= least).any())
+
+
+#: The least share of a disc's area (at the frame's median depth) that a blob of the
+#: disc colour must cover for :func:`swapped_discs_seen`: a sticker's disc colour, less
+#: its dot, covers 0.84 of it face-on, and a disc under half that is rejected as too
+#: small (``DetectorParams.min_area_ratio`` 0.55, with its dot); 0.25 leaves room for a
+#: disc half hidden or farther than the median, and leaves out the specks a gripper's
+#: blue-grey or a shadow's tint make (0.1 of a disc or less).
+SWAPPED_DISC_SHARE = 0.25
 
 
 def _search(
@@ -375,6 +412,7 @@ def _search_image(
         disc_r_mm, min_px, bool(halve), max(params.highlight_halo_px // (2 if halve else 1), 1),
         bool(napkin.white_rgb.max() < srgb_lut()[params.napkin_blown_level]),
         len(frame.names), params, near, (labels, outer), frame.palette,
+        disc_bands(frame.layout),
     )
 
 

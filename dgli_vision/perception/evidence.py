@@ -24,6 +24,7 @@ from ..core.layout import NapkinLayout
 from ..core.order_stats import nanmedian
 from .lift import Markers3D
 from .napkin import NapkinMasks, NapkinView
+from .params import EvidenceParams
 from .rigid import fit_rigid, flat_points_m
 
 __all__ = [
@@ -43,75 +44,6 @@ SEEN, HIDDEN, UNKNOWN = 1, 0, -1
 HELD_UP = "possibly on cloth held up (seen edge-on)"
 #: Why a sticker is unknown when pastel sticker colour lies where it should be.
 WASHED_OUT = "possibly washed out by a sheen"
-
-
-@dataclass(frozen=True)
-class EvidenceParams:
-    """How missing stickers are judged. Every field has a unit and a reason.
-
-    Attributes
-    ----------
-    stretch_tolerance_mm : float
-        How much farther apart two located stickers may be in 3D than on the flat napkin
-        before one of them is a false detection. Default 15 mm: sticker centres are
-        found to about 1 mm in x, y and a few mm in depth; wrinkles shorten distances.
-    fit_tolerance_mm : float
-        Residual of a sticker under a rigid fit for it to lie on the same flat part of
-        the cloth. Default 10 mm: wrinkles are up to about 10 mm out of plane.
-    napkin_margin_mm : float
-        How near the napkin, in the image, an object above the table must come to be
-        over it. Default 15 mm: the napkin's own outline is found to a sample or two, and
-        an object set down beside the napkin keeps farther off.
-    near_radii : float
-        How close, in sticker radii, a missing sticker's predicted place must come to a
-        highlight, an object or the image border to be unknown. Default 1.5: the
-        prediction is good to a few millimetres, and half a sticker covered is enough to
-        lose it.
-    min_corner_support : int
-        With an object over the napkin, a missing sticker is unknown unless at least this
-        many stickers of its corner were seen. Default 3: a corner folded over moves its
-        four stickers together, and three of them fix where the fourth lies; with fewer,
-        its flap may lie under the object, if the object comes within
-        ``flap_reach_mm`` of the sticker's flat place.
-    object_band_samples : int
-        Cloth held up that lies within this many mask samples of an object over the
-        napkin throughout is not taken for a flap: at an object's edge the depth camera
-        blends the object's depth with the cloth's (flying pixels), which reads as cloth
-        standing up. Default 2 (16 px at the napkin masks' stride of 8).
-    flap_beyond_samples : int
-        Least number of mask samples of such cloth that lie beyond that band for it to be
-        a flap. Default 10 (about 640 mm^2 at 520 mm): a gripper's lit faces and the
-        blended depth along its edges make a few samples past the band; a flap it holds
-        reaches 13 and more.
-    flap_reach_mm : float
-        How far from its flat place a corner folded over lays its stickers, at most, for
-        :attr:`min_corner_support`. Default 250 mm.
-    held_up_reach : float
-        How near cloth held up (a flap being folded) must come to the place a missing
-        sticker would have lying flat, as a fraction of the napkin's shorter side, for
-        the sticker to be possibly on it, seen edge-on. Default 0.5: a flap turns about
-        its fold line, and no sticker lies farther from a fold line than half the napkin.
-    cover_mm : float
-        How much higher than the napkin around it the surface over a missing sticker's
-        flat place must stand for the sticker to be under a layer held above it (not on
-        the raised flap itself). Default 12 mm: above wrinkles and a folded layer.
-    steep_foreshortening : float
-        A sticker seen more foreshortened than this (minor / major axis) lies on cloth
-        held up steeply. Default 0.6 (53 degrees from flat): a flap turned past 120
-        degrees lies over the napkin at a gentle angle and shows its stickers better.
-    """
-
-    stretch_tolerance_mm: float = 15.0
-    fit_tolerance_mm: float = 10.0
-    napkin_margin_mm: float = 15.0
-    near_radii: float = 1.5
-    min_corner_support: int = 3
-    flap_reach_mm: float = 150.0
-    object_band_samples: int = 2
-    flap_beyond_samples: int = 10
-    held_up_reach: float = 0.5
-    cover_mm: float = 12.0
-    steep_foreshortening: float = 0.6
 
 
 @dataclass(frozen=True, eq=False)

@@ -21,41 +21,9 @@ from ..core.camera import Intrinsics
 from ..core.order_stats import median
 from .evidence import StickerEvidence
 from .napkin import NapkinView
+from .params import FlapParams
 
 __all__ = ["FlapParams", "flap_angles"]
-
-
-@dataclass(frozen=True)
-class FlapParams:
-    """How the lean of a flap is measured.
-
-    Attributes
-    ----------
-    min_samples : int
-        Depth samples of raised cloth needed for a slope. Default 8: a flap a few
-        degrees from edge-on is a strip two or three samples wide and as long as the
-        flap.
-    min_height_span_mm : float
-        The samples must span this much height. Default 20 mm: below that, the slope is
-        set by depth noise (2-4 mm).
-    reach : float
-        Raised cloth counts for a missing sticker when it comes within this fraction of
-        the napkin's shorter side of the sticker's flat place. Default 0.6: no point of
-        a flap is farther from its fold line than half the napkin, plus the flap's own
-        lean.
-    outlier_mads : float
-        Samples farther than this many median absolute deviations from the first fit
-        (flying pixels at the flap's edge) are left out of the second. Default 3.
-    max_pixels : int
-        At most about this many raised pixels are used (evenly thinned): plenty for a
-        slope, and a flap lying at 150 degrees covers a hundred thousand.
-    """
-
-    min_samples: int = 8
-    min_height_span_mm: float = 20.0
-    reach: float = 0.6
-    outlier_mads: float = 3.0
-    max_pixels: int = 5000
 
 
 def _line(x: NDArray, h: NDArray, p: FlapParams) -> tuple[float, float]:

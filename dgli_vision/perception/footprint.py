@@ -23,10 +23,10 @@ from numpy.typing import NDArray
 
 from ..core.camera import Intrinsics
 from .napkin import NapkinParams, NapkinView
+from .params import FootprintParams, ShadeParams
 from .regions import (
     MAX_BORDER_CELLS,
     ClothRegions,
-    RegionParams,
     any_of,
     border_cells,
     cloth_cells,
@@ -44,24 +44,6 @@ __all__ = [
     "cloth_regions",
     "measure_footprint",
 ]
-
-
-@dataclass(frozen=True)
-class FootprintParams(RegionParams):
-    """How the footprint is measured: how the frame's white regions are found (the
-    fields of :class:`.regions.RegionParams`: ``cell_px``, ``close_cells``,
-    ``table_margin``), and how large a footprint is taken as measured. Every field has
-    a unit and a reason.
-
-    Attributes
-    ----------
-    max_fraction : float
-        Largest footprint, relative to the napkin's area, taken as measured. Default
-        1.06: a flat napkin measures within about 2% of its area; more means the table
-        merged with the cloth.
-    """
-
-    max_fraction: float = 1.06
 
 
 @dataclass(frozen=True)
@@ -183,6 +165,7 @@ def _in_shade(
     regions: ClothRegions,
     raised: NDArray[np.bool_] | None,
     p: FootprintParams,
+    shade: ShadeParams | None = None,
 ) -> NDArray[np.bool_] | None:
     """The napkin's ``cloth`` cells with its cloth in an arm's shadow (:mod:`.shade`)
     added, when table in shadow lies next to them (``raised``: the cells of objects
@@ -191,11 +174,13 @@ def _in_shade(
 
     if regions.lum is None or regions.lit is None or regions.chroma is None:
         return None
-    if not shadow_suspected(cloth, regions.lum, regions.chroma, regions.table_lum, raised):
+    if not shadow_suspected(
+        cloth, regions.lum, regions.chroma, regions.table_lum, raised, shade
+    ):
         return None
     lit = regions.lit & cloth
     seeds = cv2.erode(lit.view(np.uint8), np.ones((3, 3), np.uint8)).view(bool)
-    grown = into_shade(color, cloth, seeds, p.cell_px, p.close_cells)
+    grown = into_shade(color, cloth, seeds, p.cell_px, p.close_cells, shade)
     return None if grown is cloth else grown
 
 
@@ -211,6 +196,7 @@ def measure_footprint(
     napkin_params: NapkinParams | None = None,
     *,
     regions: ClothRegions | None = None,
+    shade: ShadeParams | None = None,
 ) -> Footprint | None:
     """The napkin's footprint on the table, or None when it cannot be measured.
 
@@ -231,6 +217,10 @@ def measure_footprint(
     napkin_area_mm2 : float
         The flat napkin's area.
     params, napkin_params : optional
+    regions : ClothRegions, keyword-only, optional
+        The frame's white regions, when found (of the same cell size).
+    shade : ShadeParams, keyword-only, optional
+        How the cloth is followed into an arm's shadow.
 
     Returns
     -------
@@ -257,7 +247,7 @@ def measure_footprint(
     if napkin.occluder.any():
         occ = cv2.resize(napkin.occluder.astype(np.uint8), (w, h), interpolation=cv2.INTER_NEAREST)
     raised = None if occ is None else cv2.dilate(occ, np.ones((3, 3), np.uint8)).view(bool)
-    shaded = _in_shade(color, cloth, regions, raised, p)
+    shaded = _in_shade(color, cloth, regions, raised, p, shade)
     if shaded is not None:
         area = _table_area_mm2(intrinsics, shaded, c, up, offset_m)
         if border_cells(shaded) <= MAX_BORDER_CELLS and area <= p.max_fraction * napkin_area_mm2:

@@ -24,89 +24,9 @@ from numpy.typing import NDArray
 from ..core.camera import Intrinsics
 from ..core.colour import linear_to_srgb, srgb_lut
 from ..core.order_stats import median, quantile
+from .params import NapkinParams
 
 __all__ = ["NapkinMasks", "NapkinParams", "NapkinView", "balance_lut", "find_napkin"]
-
-
-@dataclass(frozen=True)
-class NapkinParams:
-    """How the napkin is found. Every field has a unit and a reason.
-
-    Attributes
-    ----------
-    stride : int
-        Subsampling of the image for the statistics, pixels. Default 8: a 1280 x 720
-        frame gives 14,400 samples (a VGA frame 4,800), plenty for medians, and a mask
-        cell stays smaller than a sticker.
-    bright_fraction : float
-        Fraction of the (not blown-out) samples, brightest first, taken as the first
-        guess of the napkin's white. Default 0.03: the napkin covers at least about 5% of
-        any view SPEC allows (a half-folded napkin 850 mm away with a VGA camera: 9%).
-    neutral_chroma : float
-        Largest chroma (max - min channel over the napkin's level, after balancing) of a
-        napkin pixel. Default 0.14: the napkin is unpatterned white or light grey; sensor
-        noise of 10 levels gives chroma below 0.1.
-    min_napkin_brightness : float
-        Smallest linear brightness of a napkin pixel relative to the napkin's white.
-        Default 0.45: above a matte table's reflectance against a white napkin under the
-        same light; shadowed napkin is found again from its neighbours in the sticker
-        stage, so this mask only refines the white estimate.
-    target_level : int
-        8-bit level the napkin's white is mapped to. Default 225: headroom for brighter
-        folds and highlights.
-    clipped_level : int
-        8-bit level at which a channel counts as blown out. Default 250.
-    highlight_level : float
-        Linear brightness, relative to the napkin's own brightness around it (its white,
-        or more where a lamp's fall-off or a sheen brightens it: ``level_window``), above
-        which a near-white pixel is a highlight (nothing can be seen there). Default
-        1.35: matte cloth facing the light is at most about 1.3 times its surround.
-    level_window : int
-        Width (samples) of the window the napkin's own brightness is averaged over.
-        Default 9 (72 px at stride 8: two to five sticker diameters).
-    highlight_chroma : float
-        Largest chroma, relative to brightness, of a highlight pixel. Default 0.25: a
-        mirror highlight is the lamp's colour (white once balanced), tinted at most
-        slightly by the sticker under it.
-    occluder_height_mm : float
-        Height above the table plane above which a pixel that is not napkin-coloured is
-        an object over the napkin. Default 15 mm: folded cloth lies within a few
-        millimetres of the table, and a flap held up is napkin-coloured. Below
-        ``raised_cloth_mm``, so that a gripper's fingers closing on the cloth (10-25 mm
-        up) are an object, not cloth held up: the napkin-coloured rim of their depth
-        edge would otherwise read as a flap standing at their height.
-    occluder_darkness : float
-        Linear brightness, relative to the napkin's white, below which a raised pixel is
-        not napkin (a napkin in an arm's shadow keeps at least 0.3 of its light).
-        Default 0.2.
-    occluder_chroma : float
-        Chroma, relative to brightness, above which a raised pixel is not napkin (a
-        coloured object). Default 0.28: twice ``neutral_chroma``, so a tinted napkin flap
-        held up is never taken for an object.
-    raised_cloth_mm : float
-        Height above the table plane above which a napkin-coloured sample is cloth held
-        up (a flap being folded). Default 25 mm: wrinkles stay below about 10 mm and a
-        folded layer adds a few.
-    min_raised_samples : int
-        Smallest connected patch of raised cloth samples taken as cloth held up.
-        Default 6 (at stride 8, about 20 x 20 mm at 550 mm): flying pixels at depth
-        edges come alone or in pairs.
-    """
-
-    stride: int = 8
-    bright_fraction: float = 0.03
-    neutral_chroma: float = 0.14
-    min_napkin_brightness: float = 0.45
-    target_level: int = 225
-    clipped_level: int = 250
-    highlight_level: float = 1.35
-    level_window: int = 9
-    highlight_chroma: float = 0.25
-    occluder_height_mm: float = 15.0
-    occluder_darkness: float = 0.2
-    occluder_chroma: float = 0.28
-    raised_cloth_mm: float = 25.0
-    min_raised_samples: int = 6
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,7 +10,7 @@ its predicted place on the cloth.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import cv2
 import numpy as np
@@ -24,30 +24,9 @@ from .detections import DetectorParams, StickerDetections
 from .evidence import SEEN, StickerEvidence
 from .labels import colour_labels, hue_lut
 from .lift import Markers3D
+from .params import PartialParams
 
 __all__ = ["PartialParams", "confirm_partly_hidden"]
-
-
-@dataclass(frozen=True)
-class PartialParams:
-    """When a sticker at an object's edge is taken as seen.
-
-    Attributes
-    ----------
-    min_colour : float
-        Smallest share of the predicted disc (within ``disc_share`` of its radius) that
-        shows the sticker's disc colour. Default 0.2: a crescent left by a gripper's edge
-        keeps 0.2-0.7; the white napkin, the table and a dark gripper none.
-    disc_share : float
-        Share of the disc radius looked at around the predicted centre. Default 0.9.
-    min_apart : float
-        Smallest distance, in disc radii, from a sticker found of the same disc colour:
-        the colour must be this sticker's, not a neighbour's. Default 2.5.
-    """
-
-    min_colour: float = 0.2
-    disc_share: float = 0.9
-    min_apart: float = 2.5
 
 
 def confirm_partly_hidden(

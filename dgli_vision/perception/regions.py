@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from ..core.colour import srgb_lut
 from ..core.order_stats import sorted_median, sorted_quantile
 from .napkin import NapkinParams, NapkinView
+from .params import RegionParams
 
 __all__ = [
     "MAX_BORDER_CELLS",
@@ -33,30 +34,6 @@ __all__ = [
 #: Cells of the image border a napkin's region may touch and still be all in view: a
 #: bright seam the closing joined to it touches with one or two.
 MAX_BORDER_CELLS = 2
-
-
-@dataclass(frozen=True)
-class RegionParams:
-    """How the frame's white regions are found. Every field has a unit and a reason.
-
-    Attributes
-    ----------
-    cell_px : int
-        Side of the image cells averaged into one sample, pixels. Default 8: a cell is
-        about 7 mm on the cloth at 520 mm, and averaging 64 pixels takes sensor noise of
-        10 levels down to about 1.
-    close_cells : int
-        Side of the closing that fills the stickers' holes in the cloth mask, cells.
-        Default 7: a 30 mm sticker spans 4-5 cells at the nearest camera.
-    table_margin : float
-        Least brightness above the median cell (the table: the napkin covers at most
-        about a third of any view SPEC allows) of a cloth cell, relative to the napkin's
-        white. Default 0.15: averaged cells of a table vary by a few hundredths.
-    """
-
-    cell_px: int = 8
-    close_cells: int = 7
-    table_margin: float = 0.15
 
 
 @dataclass(frozen=True, eq=False)

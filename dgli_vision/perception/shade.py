@@ -19,58 +19,15 @@ darker than the rest of the table lies next to the cloth.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
 from numpy.typing import NDArray
 
 from ..core.colour import srgb_lut
+from .params import ShadeParams
 
 __all__ = ["ShadeParams", "into_shade", "shadow_suspected"]
-
-
-@dataclass(frozen=True)
-class ShadeParams:
-    """How the cloth is followed into a shadow. Every field has a unit and a reason.
-
-    Attributes
-    ----------
-    dark_table : float
-        Largest luminance of a table cell next to the cloth, relative to the median
-        cell (the table), that suggests a shadow. Default 0.75: an arm's shadow keeps
-        40-65% of the light; a table's own shading varies by a few per cent.
-    dark_cells : int
-        Fewest such cells that suggest a shadow. Default 8: an arm's shadow is 6 cm
-        wide or more where it crosses the napkin's outline (over 15 cells of the ring
-        when it crosses next to the cloth found); the check only saves time, the fill
-        adds nothing where there is no shadow.
-    sticker_chroma : float
-        Chroma relative to luminance above which a cell is a sticker, not table.
-        Default 1.2: a sticker's is 1.5-2.5, a wood table's under 1.
-    ring_cells : int
-        How far from the cloth (cells) such table is looked for. Default 3.
-    margin_cells : int
-        How far beyond the cloth's box (cells) the fill first looks; when the cloth in
-        shade reaches further, the whole frame. Default 12 (about 8 cm on the table).
-    step : float
-        Largest ratio of the brightest to the darkest value of any colour channel in
-        the 3 x 3 half-resolution pixels around a pixel the fill crosses. Default 1.4:
-        a soft shadow's edge changes the light by a few per cent per pixel (at most
-        about 20% over three); the napkin's outline is a step of a factor 1.7 or more
-        between cloth and table in at least one channel (blurred over about two).
-    fill_fraction : float
-        Least fraction of a cell's pixels the fill must reach for the cell to be cloth.
-        Default 0.5.
-    """
-
-    dark_table: float = 0.75
-    dark_cells: int = 8
-    sticker_chroma: float = 1.2
-    ring_cells: int = 3
-    margin_cells: int = 12
-    step: float = 1.4
-    fill_fraction: float = 0.5
 
 
 #: Levels of the log-luminance image per unit of natural log: 8-bit sRGB spans about

@@ -20,7 +20,6 @@ cloth seen there says nothing.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
@@ -30,48 +29,12 @@ from ..core.camera import Intrinsics
 from ..core.classes import LIFTED_MM
 from ..core.fold_lines import fold_for_word, nominal_folds, reflect_uv
 from ..core.layout import NapkinLayout
+from .params import TipParams
 from .rigid import RigidFit, fit_rigid, flat_points_m
 
 __all__ = [
     "TipParams", "corner_tips", "expected_tip_clear", "settled_stickers", "stage_tip_clear"
 ]
-
-
-@dataclass(frozen=True)
-class TipParams:
-    """How the corners' places are looked at. Every field has a unit and a reason.
-
-    Attributes
-    ----------
-    leg_mm, near_mm : float
-        The band's samples lie where ``u + v`` (the distances along the corner's two
-        edges, on the 400 mm napkin, scaled with the napkin's folds) is between
-        ``near_mm`` and ``leg_mm``. Default 80-138: inside the smallest fold's reach
-        (150 mm), and beyond the stickers (within 120 mm) an object hiding them hides.
-    inset_mm : float
-        Samples keep this far inside the napkin's edges. Default 15: a fit a few mm off
-        and the cloth's edge pixels (mixed with the table) stay out.
-    step_mm : float
-        Spacing of the samples. Default 6: about one footprint cell at 520 mm.
-    fit_tolerance_mm : float
-        Stickers farther than this from the rigid fit are not of the napkin that stays.
-        Default 12: wrinkles move a sticker by a few mm.
-    min_face_cos : float
-        Least cosine between the fitted napkin's front normal and the table's up. A fit
-        face down is a flap folded over, not the napkin that stays. Default 0.9 (26
-        degrees).
-    min_table_share : float
-        Least share of all the samples seen as table for the corner to be told.
-        Default 0.25: a corner mostly under an object says nothing.
-    """
-
-    leg_mm: float = 138.0
-    near_mm: float = 80.0
-    inset_mm: float = 15.0
-    step_mm: float = 6.0
-    fit_tolerance_mm: float = 12.0
-    min_face_cos: float = 0.9
-    min_table_share: float = 0.25
 
 
 @lru_cache(maxsize=64)
