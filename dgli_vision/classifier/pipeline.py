@@ -500,7 +500,8 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     """The result with its corners and folds, in the verdict and in the prediction."""
     p = result.prediction
     aff = affordances_of(
-        result.observation, p and p.class_id, p and p.variant, layout, frame.intrinsics
+        result.observation, p and p.class_id, p and p.variant, layout, frame.intrinsics,
+        frame=frame,
     )
     if p is None:
         guess = result.best_guess
