@@ -14,7 +14,8 @@ and carried out in the simulator, either
 
 - as planned (what perception placed it as: its own error included),
 - **short**: a corner's tip lands 40 mm short of its target (the crease moved 20 mm
-  towards it), a strip's crease lies 40 mm nearer its side (its inset 40 mm short;
+  towards it), a half or diagonal fold's crease lies 30 mm nearer the flap, a strip's
+  crease lies 40 mm nearer its side (its inset 40 mm short;
   moved 20 mm, the inset would be off by the tolerance itself, and its truth a matter
   of tenths of a mm), or
 - **skewed**: the crease turned 15 degrees about its middle, or
@@ -158,7 +159,8 @@ def trial(
         return {**row, "outcome": "no plan", "note": f"first step {step.action} {step.fold}"}
     done = _executed_steps(step, steps, words, pose, yaw, offset, layout)
     kind = fold_kind(step.fold)[0]
-    shift = 30.0 if mode == "long" else 40.0 if kind == "side" else 20.0
+    half_or_diagonal = kind == "diagonal" or step.fold.endswith(" half")
+    shift = 30.0 if half_or_diagonal else 40.0 if kind == "side" else 20.0
     made_step = _botched(done[-1], mode, shift)
     made = Crease.through(made_step.p0, made_step.p1)
     planned = Crease.through(*step.crease_mm)

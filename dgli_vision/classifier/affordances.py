@@ -732,7 +732,8 @@ def affordances_of(
         if frame is not None:
             from .fold_outline import outline_view
 
-            outline = outline_view(frame, obs)
+            # (made only when a fold needs it, once)
+            outline = lru_cache(maxsize=1)(lambda: outline_view(frame, obs))
         sizes = fit_folds(obs, maps.folds, plan.sticker_part, layout, outline=outline)
         folds = tuple(
             replace(_seen_fold(maps, j, corners), geometry=sizes[j])

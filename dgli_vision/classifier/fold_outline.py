@@ -65,11 +65,11 @@ class OutlineParams:
     band_cells : int
         Half width of the band around the border of the napkin's cells searched at the
         pixel, cells. Default 2: a cell's border is within one cell of the cloth's.
-    level_px : int
+    level_cells : int
         Side of the window the cloth's and the table's brightness are averaged over,
-        pixels. Default 81: wider than twice the band, so both sides are in the window of
-        every pixel of the band, and
-        narrow enough to follow an arm's shadow or a lamp's fall-off.
+        cells. Default 9 (72 pixels): wider than twice the band, so both sides are in
+        the window of every cell of the band, and narrow enough to follow an arm's
+        shadow or a lamp's fall-off.
     min_contrast : float
         Least difference of the cloth's and the table's brightness (8-bit levels) for
         a border pixel to count. Default 12: sensor noise is 2-10 levels.
@@ -106,7 +106,7 @@ class OutlineParams:
     """
 
     band_cells: int = 2
-    level_px: int = 81
+    level_cells: int = 9
     min_contrast: float = 12.0
     stretch_mm: float = 10.0
     top_mm: float = 2.0
@@ -126,7 +126,7 @@ class OutlineView:
     Attributes
     ----------
     color : ndarray of uint8, shape (H, W, 3)
-        The colour image (its brightness, the mean of the three channels, is read).
+        The colour image, RGB (its brightness, OpenCV's luma, is read).
     cells : ndarray of bool, shape (H // cell_px, W // cell_px)
         The napkin's cells (the footprint's).
     cell_px : int
@@ -196,17 +196,21 @@ def _white_cells(
     return any_of(labels, held) if held.size else None
 
 
-def _levels(gray: NDArray, inner: NDArray, outer: NDArray, k: int) -> tuple[NDArray, NDArray]:
-    """The mean brightness of the cloth (``inner``) and of the table (``outer``) in a
-    ``k`` x ``k`` window about each pixel (NaN where the window holds none)."""
+def _levels(
+    gray_cells: NDArray, inner: NDArray, outer: NDArray, k: int
+) -> tuple[NDArray, NDArray]:
+    """The mean brightness of the cloth cells (``inner``) and of the table's
+    (``outer``) in a ``k`` x ``k`` window of cells about each cell; where a window holds
+    none, the median of all of them."""
     import cv2
 
     def mean(sel: NDArray) -> NDArray:
         w = sel.astype(np.float32)
-        num = cv2.boxFilter(gray * w, -1, (k, k), normalize=False)
+        num = cv2.boxFilter(gray_cells * w, -1, (k, k), normalize=False)
         den = cv2.boxFilter(w, -1, (k, k), normalize=False)
+        fill = float(np.median(gray_cells[sel])) if sel.any() else float("nan")
         with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(den > 0.5, num / den, np.nan)
+            return np.where(den > 0.5, num / den, fill).astype(np.float32)
 
     return mean(inner), mean(outer)
 
@@ -217,31 +221,43 @@ def napkin_outline_px(view: OutlineView, params: OutlineParams | None = None) ->
     import cv2
 
     p = params or OutlineParams()
-    c = view.cell_px
-    rows, cols = np.nonzero(view.cells)
-    pad = (p.band_cells + 1) * c + p.level_px
+    c, cells = view.cell_px, view.cells.astype(np.uint8)
     h, w = view.color.shape[:2]
-    y0, y1 = max(rows.min() * c - pad, 0), min((rows.max() + 1) * c + pad, h)
-    x0, x1 = max(cols.min() * c - pad, 0), min((cols.max() + 1) * c + pad, w)
-    gray = view.color[y0:y1, x0:x1].astype(np.float32).mean(axis=2)
-    big = np.zeros((h // c * c, w // c * c), np.uint8)
-    big[:] = np.kron(view.cells, np.ones((c, c), np.uint8))
-    full = np.zeros((h, w), np.uint8)
-    full[: big.shape[0], : big.shape[1]] = big
-    coarse = full[y0:y1, x0:x1]
-    kernel = np.ones((2 * p.band_cells * c + 1,) * 2, np.uint8)
-    inner = cv2.erode(coarse, kernel).astype(bool)
-    near = cv2.dilate(coarse, kernel).astype(bool)
-    cloth, table = _levels(gray, inner, ~near, p.level_px)
-    mid = 0.5 * (cloth + table)
-    contrast = cloth - table
+    hc, wc = cells.shape
+    # the band, the cloth inside it and the table outside it, on the cells; the
+    # brightness midpoint and the contrast there too (windows of cells: a pixel's
+    # brightness is compared with the midpoint interpolated between cell centres)
+    kernel = np.ones((2 * p.band_cells + 1,) * 2, np.uint8)
+    inner_c, near_c = cv2.erode(cells, kernel), cv2.dilate(cells, kernel)
+    rows, cols = np.nonzero(near_c)
+    if not len(rows):
+        return np.zeros((0, 2))
+    m = p.level_cells // 2  # the crop: the band and the windows about it, in cells
+    r0, r1 = max(rows.min() - m, 0), min(rows.max() + 1 + m, hc)
+    c0, c1 = max(cols.min() - m, 0), min(cols.max() + 1 + m, wc)
+    y0, x0 = r0 * c, c0 * c
+    size = ((c1 - c0) * c, (r1 - r0) * c)  # (width, height) of the crop, pixels
+    crop = np.ascontiguousarray(view.color[y0 : y0 + size[1], x0 : x0 + size[0]])
+    gray8 = cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY)
+    gray = gray8.astype(np.float32)
+    gray_c = cv2.resize(gray8, (c1 - c0, r1 - r0), interpolation=cv2.INTER_AREA)
+    inner_c, near_c = inner_c[r0:r1, c0:c1], near_c[r0:r1, c0:c1]
+    cloth, table = _levels(gray_c.astype(np.float32), inner_c > 0, near_c == 0,
+                           p.level_cells)
+
+    def up(a: NDArray, how: int) -> NDArray:
+        return cv2.resize(np.ascontiguousarray(a), size, interpolation=how)
+
+    mid = up(0.5 * (cloth + table), cv2.INTER_LINEAR)
+    contrast = up(cloth - table, cv2.INTER_LINEAR)
+    inner = up(inner_c, cv2.INTER_NEAREST) > 0
+    near = up(near_c, cv2.INTER_NEAREST) > 0
     fg = inner | (near & (gray > mid) & (contrast >= p.min_contrast))
     n_lab, labels = cv2.connectedComponents(fg.view(np.uint8), connectivity=8)
-    if n_lab < 2:
-        return np.zeros((0, 2))
-    keep = np.zeros(n_lab, dtype=bool)
-    keep[np.unique(labels[inner])] = True
+    keep = np.bincount(labels[inner], minlength=n_lab) > 0
     keep[0] = False
+    if not keep.any():
+        return np.zeros((0, 2))
     mask = keep[labels].astype(np.uint8)
     contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
     pts = [ct.reshape(-1, 2).astype(np.float64) for ct in contours if len(ct) >= 20]
