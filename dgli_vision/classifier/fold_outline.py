@@ -11,22 +11,20 @@ The napkin's outline does. Folded cloth lies on one side of its crease: everythi
 of a flap folded over lies, mapped back by ``T``, on the flap's side of the crease (the
 napkin beneath is the flap's mirror image), and everything seen of a napkin with a flap
 folded under lies, mapped back by ``S``, on the side that stays. So the crease is the
-outline's farthest reach: mapped back to the flat napkin, the outline's points reach the
-crease and never pass it. Along the crease's middle (away from the corners where the
-outline turns) the farthest point of the outline in each short stretch is a point of the
-folded edge; a straight line fitted to those (a few stretches that stick out, an object
-touching the cloth, left out) is the crease.
+outline's farthest reach, where the cloth ends and the table begins: a step in colour
+(the napkin is white, the table much darker once compared with it).
 
-The outline is found at the pixel: the napkin's cells of the footprint
-(:class:`~dgli_vision.perception.footprint.Footprint`) give the region; in a band around
-its border each pixel is cloth where it is brighter than the midpoint of the cloth's and
-the table's brightness around it (the colour edge); the region's border is placed to a
-tenth of a pixel where the brightness crosses that midpoint along the border's normal,
-and taken onto the table plane through the camera (the intrinsics, lens distortion
-included) at the height of the folded cloth.
-
-The crease's uncertainty pools the line fit's (the scatter of the stretches about it)
-with the map's (the stickers' scatter about the rigid map).
+It is looked for across the nominal crease: every few millimetres along its middle (away
+from the corners, where the outline turns), a profile of the image's brightness is read
+on the flat napkin's line across it (each point placed on the table by the map, and seen
+through the camera, lens distortion included), from well inside the cloth to well out on
+the table. The profile's own levels (its bright cloth and its dark table) give its
+midpoint; the last crossing of it going out, with table beyond, placed to a fraction of
+a pixel, is the edge. A straight line fitted to the edges, the profiles that stick out
+left out (an object touching the cloth, cloth peeking from beneath, a shadow), is the
+crease. Its uncertainty pools the line fit's (the edges' scatter about it) with the
+map's (the stickers' scatter about the rigid map) and the edge's own (where the crease
+lies under the edge seen).
 """
 
 from __future__ import annotations
@@ -47,11 +45,10 @@ __all__ = [
     "OutlineParams",
     "OutlineView",
     "PartMap",
+    "crease_from_edges",
+    "edge_profiles",
     "fit_part_map",
-    "napkin_outline_px",
-    "outline_crease",
     "outline_geometry",
-    "outline_points_mm",
     "outline_view",
 ]
 
@@ -62,36 +59,35 @@ class OutlineParams:
 
     Attributes
     ----------
-    band_cells : int
-        Half width of the band around the border of the napkin's cells searched at the
-        pixel, cells. Default 2: a cell's border is within one cell of the cloth's.
-    level_cells : int
-        Side of the window the cloth's and the table's brightness are averaged over,
-        cells. Default 9 (72 pixels): wider than twice the band, so both sides are in
-        the window of every cell of the band, and narrow enough to follow an arm's
-        shadow or a lamp's fall-off.
-    min_contrast : float
-        Least difference of the cloth's and the table's brightness (8-bit levels) for
-        a border pixel to count. Default 12: sensor noise is 2-10 levels.
-    stretch_mm : float
-        Length of the stretches along the crease each giving one farthest point, mm.
-        Default 10: 6-15 pixels of outline, and a wrinkle's wavelength is 100-250 mm.
-    top_mm : float
-        Points within this distance of a stretch's farthest point stand for it (their
-        median), mm. Default 2: the pixel's size at the farthest camera.
+    reach_mm : float
+        How far on either side of the nominal crease each profile reaches, mm. Default
+        80: a fold made 30-60 mm off its plan is still found, and the profile holds
+        both cloth and table.
+    step_mm : float
+        Spacing of a profile's samples, mm. Default 0.5: under a pixel at every camera
+        SPEC allows.
+    every_mm : float
+        Spacing of the profiles along the crease, mm. Default 5: 4-8 pixels apart, so
+        each reads pixels of its own.
     end_margin_mm : float
         Length kept free at each end of the crease, mm. Default 25: the outline turns
         the corner there, and the cloth bends round it.
+    table_mm : float
+        Length of table (below the midpoint) that must follow an edge, mm. Default 8:
+        longer than a thread of shadow or a pixel of noise, shorter than the gap to an
+        object on the table.
+    min_contrast : float
+        Least difference of a profile's cloth and table levels (its 85th and 15th
+        percentiles, 8-bit) for it to count. Default 15: sensor noise is 2-10 levels.
     min_cover : float
-        Least share of the crease's stretches that must fit the line. Default 0.5: an
-        arm or an object may hide part of the edge, not most of it.
+        Least share of the profiles whose edge must fit the line. Default 0.5: an arm
+        or an object may hide part of the edge, not most of it.
     trim_mm : float
-        Least distance from the line beyond which a stretch is left out (a stretch that
-        sticks out: cloth peeking from beneath, an object touching it), mm. Default 3;
-        more where the stretches scatter more (3 of their robust sd).
+        Least distance from the line beyond which an edge is left out, mm. Default 3;
+        more where the edges scatter more (3 of their robust sd).
     floor_sd_mm : float
-        Floor of a stretch's scatter about the line, mm. Default 0.7: half a pixel at
-        the nearest camera.
+        Floor of an edge's scatter about the line, mm. Default 0.7: half a pixel at the
+        nearest camera.
     height_mm : float
         Height of the folded edge above the table, in cloth thicknesses. Default 1.5:
         the edge is the turn of the cloth between a layer on the table and one on it.
@@ -105,12 +101,12 @@ class OutlineParams:
         nearest its crease, 0-3.5 mm short of it (docs/folds.md).
     """
 
-    band_cells: int = 2
-    level_cells: int = 9
-    min_contrast: float = 12.0
-    stretch_mm: float = 10.0
-    top_mm: float = 2.0
+    reach_mm: float = 80.0
+    step_mm: float = 0.5
+    every_mm: float = 5.0
     end_margin_mm: float = 25.0
+    table_mm: float = 8.0
+    min_contrast: float = 15.0
     min_cover: float = 0.5
     trim_mm: float = 3.0
     floor_sd_mm: float = 0.7
@@ -127,34 +123,41 @@ class OutlineView:
     ----------
     color : ndarray of uint8, shape (H, W, 3)
         The colour image, RGB (its brightness, OpenCV's luma, is read).
-    cells : ndarray of bool, shape (H // cell_px, W // cell_px)
-        The napkin's cells (the footprint's).
-    cell_px : int
     intrinsics : Intrinsics
     up : ndarray, shape (3,)
         The table's normal, towards the camera.
     offset_m : float
         The table plane ``up . x = offset_m`` (camera frame, metres).
+    basis : ndarray, shape (2, 3)
+        The table plane's axes (:func:`~dgli_vision.classifier.fold_geometry.plane_basis`
+        of ``up``): a table point's coordinates are its components along them, in mm.
     """
 
     color: NDArray[np.uint8]
-    cells: NDArray[np.bool_]
-    cell_px: int
     intrinsics: Intrinsics
     up: NDArray[np.float64]
     offset_m: float
+    basis: NDArray[np.float64]
+
+    def to_pixels(self, p_mm: NDArray, height_mm: float = 0.0) -> NDArray[np.float64]:
+        """Where table-plane points (k, 2, mm), ``height_mm`` above the table, are seen:
+        pixels (k, 2); NaN behind the camera."""
+        pts = (np.asarray(p_mm, dtype=float) * 1e-3) @ self.basis
+        pts += self.up * (self.offset_m + height_mm * 1e-3)
+        out = np.full((len(pts), 2), np.nan)
+        front = pts[:, 2] > 1e-6
+        if front.any():
+            out[front] = self.intrinsics.project(pts[front])
+        return out
 
 
 def outline_view(frame: Any, obs: Any) -> OutlineView | None:
     """The :class:`OutlineView` of a frame (an
     :class:`~dgli_vision.sources.frames.RGBDFrame`) and its observation (a
     :class:`~dgli_vision.classifier.pipeline.ClothObservation`); None where no sticker
-    gives the table's height or no white region holds a sticker.
+    gives the table's height."""
+    from .fold_geometry import plane_basis
 
-    The napkin's cells are the footprint's; where the footprint was not measured (the
-    napkin runs out of the image), the frame's white regions that hold stickers
-    (:func:`~dgli_vision.perception.regions.cloth_regions`): the outline's part in view
-    still fixes the crease."""
     if obs.points_m is None or obs.heights_mm is None:
         return None
     # the table plane: the heights were measured from it (up . x - offset, in mm)
@@ -163,173 +166,118 @@ def outline_view(frame: Any, obs: Any) -> OutlineView | None:
         return None
     up = np.asarray(obs.up, dtype=float)
     offset = float(np.median(obs.points_m[seen] @ up - obs.heights_mm[seen] * 1e-3))
-    foot = getattr(obs, "footprint", None)
-    cells = None if foot is None else foot.cells
-    if cells is None or not cells.any():
-        cells = _white_cells(frame, obs.points_m[seen], up, offset)
-        if cells is None:
-            return None
-    h, w = frame.color.shape[:2]
-    cell = h // cells.shape[0]
-    if cell < 1 or w // cell != cells.shape[1]:
-        return None
-    return OutlineView(frame.color, cells, cell, frame.intrinsics, up, offset)
+    return OutlineView(frame.color, frame.intrinsics, up, offset, plane_basis(up))
 
 
-def _white_cells(
-    frame: Any, points_m: NDArray, up: NDArray, offset_m: float
-) -> NDArray[np.bool_] | None:
-    """The frame's white regions that hold the stickers ``points_m`` (k, 3), on the
-    cells of :class:`~dgli_vision.perception.regions.RegionParams` (None: none)."""
-    from ..perception.napkin import find_napkin
-    from ..perception.regions import any_of, cloth_regions
-
-    napkin = find_napkin(frame.color, frame.depth_mm, frame.intrinsics, up, offset_m)
-    regions = cloth_regions(frame.color, napkin.white_rgb)
-    if regions is None:
-        return None
-    labels, c = regions.labels, regions.cell_px
-    px = frame.intrinsics.project(points_m)
-    col = np.clip(px[:, 0] // c, 0, labels.shape[1] - 1).astype(np.intp)
-    row = np.clip(px[:, 1] // c, 0, labels.shape[0] - 1).astype(np.intp)
-    held = np.array(sorted(set(labels[row, col].tolist()) - {0}), dtype=labels.dtype)
-    return any_of(labels, held) if held.size else None
+def _frame_of(fold: NominalFold) -> tuple[NDArray, NDArray, NDArray]:
+    """The nominal crease's point, its direction and the normal pointing past the crease
+    from the part seen (from the flap for a fold over, from the napkin that stays for a
+    fold under)."""
+    a0, b0 = np.asarray(fold.p0, dtype=float), np.asarray(fold.p1, dtype=float)
+    t = (b0 - a0) / np.linalg.norm(b0 - a0)
+    n = np.array([-t[1], t[0]])
+    flap_side = (np.asarray(fold.flap, dtype=float) - a0) @ n > 0
+    return a0, t, (-n if flap_side != fold.under else n)
 
 
-def _levels(
-    gray_cells: NDArray, inner: NDArray, outer: NDArray, k: int
-) -> tuple[NDArray, NDArray]:
-    """The mean brightness of the cloth cells (``inner``) and of the table's
-    (``outer``) in a ``k`` x ``k`` window of cells about each cell; where a window holds
-    none, the median of all of them."""
+def _sample(view: OutlineView, px: NDArray) -> NDArray[np.float32]:
+    """The brightness (8-bit luma, bilinear) at pixels (..., 2); NaN outside the image
+    (the crop of the image the pixels span is read, not all of it)."""
     import cv2
 
-    def mean(sel: NDArray) -> NDArray:
-        w = sel.astype(np.float32)
-        num = cv2.boxFilter(gray_cells * w, -1, (k, k), normalize=False)
-        den = cv2.boxFilter(w, -1, (k, k), normalize=False)
-        fill = float(np.median(gray_cells[sel])) if sel.any() else float("nan")
-        with np.errstate(invalid="ignore", divide="ignore"):
-            return np.where(den > 0.5, num / den, fill).astype(np.float32)
-
-    return mean(inner), mean(outer)
-
-
-def napkin_outline_px(view: OutlineView, params: OutlineParams | None = None) -> NDArray:
-    """The napkin region's outer border, pixels (k, 2) as (x, y), placed to a fraction
-    of a pixel (see the module's description); empty (0, 2) when it cannot be found."""
-    import cv2
-
-    p = params or OutlineParams()
-    c, cells = view.cell_px, view.cells.astype(np.uint8)
     h, w = view.color.shape[:2]
-    hc, wc = cells.shape
-    # the band, the cloth inside it and the table outside it, on the cells; the
-    # brightness midpoint and the contrast there too (windows of cells: a pixel's
-    # brightness is compared with the midpoint interpolated between cell centres)
-    kernel = np.ones((2 * p.band_cells + 1,) * 2, np.uint8)
-    inner_c, near_c = cv2.erode(cells, kernel), cv2.dilate(cells, kernel)
-    rows, cols = np.nonzero(near_c)
-    if not len(rows):
-        return np.zeros((0, 2))
-    m = p.level_cells // 2  # the crop: the band and the windows about it, in cells
-    r0, r1 = max(rows.min() - m, 0), min(rows.max() + 1 + m, hc)
-    c0, c1 = max(cols.min() - m, 0), min(cols.max() + 1 + m, wc)
-    y0, x0 = r0 * c, c0 * c
-    size = ((c1 - c0) * c, (r1 - r0) * c)  # (width, height) of the crop, pixels
-    crop = np.ascontiguousarray(view.color[y0 : y0 + size[1], x0 : x0 + size[0]])
-    gray8 = cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY)
-    gray = gray8.astype(np.float32)
-    gray_c = cv2.resize(gray8, (c1 - c0, r1 - r0), interpolation=cv2.INTER_AREA)
-    inner_c, near_c = inner_c[r0:r1, c0:c1], near_c[r0:r1, c0:c1]
-    cloth, table = _levels(gray_c.astype(np.float32), inner_c > 0, near_c == 0,
-                           p.level_cells)
-
-    def up(a: NDArray, how: int) -> NDArray:
-        return cv2.resize(np.ascontiguousarray(a), size, interpolation=how)
-
-    mid = up(0.5 * (cloth + table), cv2.INTER_LINEAR)
-    contrast = up(cloth - table, cv2.INTER_LINEAR)
-    inner = up(inner_c, cv2.INTER_NEAREST) > 0
-    near = up(near_c, cv2.INTER_NEAREST) > 0
-    fg = inner | (near & (gray > mid) & (contrast >= p.min_contrast))
-    n_lab, labels = cv2.connectedComponents(fg.view(np.uint8), connectivity=8)
-    keep = np.bincount(labels[inner], minlength=n_lab) > 0
-    keep[0] = False
-    if not keep.any():
-        return np.zeros((0, 2))
-    mask = keep[labels].astype(np.uint8)
-    contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
-    pts = [ct.reshape(-1, 2).astype(np.float64) for ct in contours if len(ct) >= 20]
-    if not pts:
-        return np.zeros((0, 2))
-    out = [_subpixel(ct, gray, mid, contrast, p) for ct in pts]
-    xy = np.concatenate(out) + np.array([x0, y0], dtype=float)
-    # where the region runs out of the image its border is the image's, not the cloth's
-    inside = (xy[:, 0] > 2) & (xy[:, 1] > 2) & (xy[:, 0] < w - 3) & (xy[:, 1] < h - 3)
-    return xy[inside]
+    flat = px.reshape(-1, 2)
+    ok = np.isfinite(flat).all(axis=1)
+    out = np.full(len(flat), np.nan, dtype=np.float32)
+    if not ok.any():
+        return out.reshape(px.shape[:-1])
+    x0 = int(max(math.floor(np.min(flat[ok, 0])) - 1, 0))
+    x1 = int(min(math.ceil(np.max(flat[ok, 0])) + 2, w))
+    y0 = int(max(math.floor(np.min(flat[ok, 1])) - 1, 0))
+    y1 = int(min(math.ceil(np.max(flat[ok, 1])) + 2, h))
+    if x1 - x0 < 2 or y1 - y0 < 2:
+        return out.reshape(px.shape[:-1])
+    crop = np.ascontiguousarray(view.color[y0:y1, x0:x1])
+    gray = cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY).astype(np.float32)
+    inside = ok & (flat[:, 0] >= 0) & (flat[:, 1] >= 0) & (flat[:, 0] <= w - 1) & (
+        flat[:, 1] <= h - 1)
+    # (OpenCV's maps are images of fewer than 32767 columns: rows of 1024 points)
+    n = int(np.count_nonzero(inside))
+    rows = -(-n // 1024)
+    maps = np.zeros((2, rows * 1024), dtype=np.float32)
+    maps[0, :n] = flat[inside, 0] - x0
+    maps[1, :n] = flat[inside, 1] - y0
+    got = cv2.remap(gray, maps[0].reshape(rows, 1024), maps[1].reshape(rows, 1024),
+                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    out[inside] = got.reshape(-1)[:n]
+    return out.reshape(px.shape[:-1])
 
 
-def _subpixel(
-    ct: NDArray, gray: NDArray, mid: NDArray, contrast: NDArray, p: OutlineParams
-) -> NDArray:
-    """The border pixels ``ct`` (k, 2) of one contour, each moved along the contour's
-    normal to where the brightness crosses its midpoint (its pixel centre kept where
-    no crossing is found within two pixels); those with too little contrast dropped."""
-    import cv2
+def edge_profiles(
+    view: OutlineView,
+    part: PartMap,
+    fold: NominalFold,
+    layout: NapkinLayout,
+    params: OutlineParams | None = None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Where the cloth ends across the nominal crease of ``fold``, profile by profile
+    (see the module's description).
 
-    k = len(ct)
-    step = 3
-    tangent = np.roll(ct, -step, axis=0) - np.roll(ct, step, axis=0)  # (k, 2)
-    norm = np.hypot(tangent[:, 0], tangent[:, 1])
-    ok = norm > 0
-    normal = np.zeros_like(tangent)
-    normal[ok] = np.column_stack([tangent[ok, 1], -tangent[ok, 0]]) / norm[ok, None]
-    # the normal pointing out of the region: OpenCV walks an outer contour so that the
-    # region is on one side; test it on the brightness
-    offs = np.linspace(-2.0, 2.0, 17)  # (m,)
-    sx = (ct[:, 0, None] + offs[None] * normal[:, 0, None]).astype(np.float32)
-    sy = (ct[:, 1, None] + offs[None] * normal[:, 1, None]).astype(np.float32)
-    g = cv2.remap(gray, sx, sy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    i, j = np.clip(ct[:, 1].astype(int), 0, gray.shape[0] - 1), np.clip(
-        ct[:, 0].astype(int), 0, gray.shape[1] - 1)
-    m = mid[i, j]
-    f = g - m[:, None]  # (k, m): positive on cloth
-    if np.nanmean(f[:, 0] - f[:, -1]) < 0:  # the normal points inwards: turn it
-        f, normal = f[:, ::-1], -normal
-    # the first crossing from cloth to table going out from the inside
-    s = np.full(k, np.nan)
-    pos = f > 0
-    cross = pos[:, :-1] & ~pos[:, 1:]
-    has = cross.any(axis=1)
-    first = np.argmax(cross, axis=1)
-    a = f[np.arange(k), first]
-    b = f[np.arange(k), first + 1]
-    t = np.where(has, a / np.where(a - b == 0, 1.0, a - b), 0.0)
-    s[has] = (offs[first] + t * (offs[1] - offs[0]))[has]
-    good = has & ok & (contrast[i, j] >= p.min_contrast) & np.isfinite(m)
-    return ct[good] + s[good, None] * normal[good]
+    Returns
+    -------
+    along, past : ndarray, shape (k,)
+        Each profile's place along the nominal crease and its edge's distance past it
+        (mm on the flat napkin, positive away from the part seen); NaN past where no
+        edge was found (too little contrast, no table beyond, out of the image).
+    """
+    p = params or OutlineParams()
+    a0, t, n = _frame_of(fold)
+    ends = Crease.through(a0, a0 + t).ends_in(layout)
+    if ends is None:
+        return np.zeros(0), np.zeros(0)
+    s_ends = sorted(float((np.asarray(e) - a0) @ t) for e in ends)
+    lo, hi = s_ends[0] + p.end_margin_mm, s_ends[1] - p.end_margin_mm
+    if hi - lo < 4 * p.every_mm:
+        return np.zeros(0), np.zeros(0)
+    along = np.arange(lo, hi + 1e-9, p.every_mm)  # (k,)
+    past = np.arange(-p.reach_mm, p.reach_mm + 1e-9, p.step_mm)  # (m,)
+    m = a0 + along[:, None, None] * t + past[None, :, None] * n  # (k, m, 2) material
+    table = _to_table(part, m.reshape(-1, 2))
+    px = view.to_pixels(table, p.height_mm * layout.thickness_mm)
+    g = _sample(view, px.reshape(len(along), len(past), 2))  # (k, m)
+    return along, _edges(g, past, p)
 
 
-def outline_points_mm(
-    view: OutlineView, px: NDArray, basis: NDArray, height_mm: float = 0.0
-) -> NDArray[np.float64]:
-    """Pixels (k, 2) taken onto the plane ``height_mm`` above the table, in the table
-    plane's coordinates ``basis`` (2, 3) (mm: the camera-frame point's components
-    along the basis, as :func:`~dgli_vision.classifier.fold_geometry.fit_folds` places
-    the stickers)."""
-    if not len(px):
-        return np.zeros((0, 2))
-    ideal = view.intrinsics.undistort_pixels(px)
-    i = view.intrinsics
-    rays = np.column_stack([(ideal[:, 0] - i.cx) / i.fx, (ideal[:, 1] - i.cy) / i.fy,
-                            np.ones(len(ideal))])
-    along = rays @ view.up
-    with np.errstate(divide="ignore", invalid="ignore"):
-        z = (view.offset_m + height_mm * 1e-3) / along
-    pts = rays * z[:, None]
-    ok = np.isfinite(z) & (z > 0)
-    return (pts[ok] @ basis.T) * 1e3
+def _edges(g: NDArray, past: NDArray, p: OutlineParams) -> NDArray[np.float64]:
+    """Each profile's (rows of ``g``, sampled at ``past``) last crossing of its
+    midpoint from cloth to table with ``table_mm`` of table beyond; NaN where none."""
+    k, m = g.shape
+    out = np.full(k, np.nan)
+    valid = np.isfinite(g).all(axis=1)
+    if not valid.any():
+        return out
+    gv = g[valid]
+    cloth = np.percentile(gv, 85, axis=1)
+    table = np.percentile(gv, 15, axis=1)
+    mid = 0.5 * (cloth + table)
+    f = gv - mid[:, None]  # (kv, m): positive on cloth
+    run = max(int(round(p.table_mm / (past[1] - past[0]))), 1)
+    # how many of the next ``run`` samples lie below the midpoint: sums from the end
+    below = np.zeros((len(gv), m + 1), dtype=np.int32)
+    below[:, :m] = np.cumsum((f <= 0)[:, ::-1], axis=1)[:, ::-1]  # [i]: below from i on
+    ahead = np.zeros((len(gv), m), dtype=np.int32)
+    if m - run > 0:
+        ahead[:, : m - run] = below[:, 1 : m - run + 1] - below[:, run + 1 : m + 1]
+    edge = (f[:, :-1] > 0) & (ahead[:, :-1] >= run)
+    has = edge.any(axis=1) & (cloth - table >= p.min_contrast)
+    last = m - 2 - np.argmax(edge[:, ::-1], axis=1)  # the last such sample
+    rows = np.arange(len(gv))
+    a, b = f[rows, last], f[rows, last + 1]
+    frac = np.where(a - b > 0, a / np.where(a - b > 0, a - b, 1.0), 0.0)
+    at = past[last] + frac * (past[1] - past[0])
+    res = np.where(has, at, np.nan)
+    out[np.flatnonzero(valid)] = res
+    return out
 
 
 @dataclass(frozen=True)
@@ -411,33 +359,6 @@ def _line_through(s: NDArray, d: NDArray) -> tuple[float, float, NDArray]:
     return float(a), float(b), d - (a + b * s)
 
 
-def _stretch_points(
-    q: NDArray, origin: NDArray, t: NDArray, n: NDArray, span: tuple[float, float],
-    p: OutlineParams,
-) -> tuple[NDArray, NDArray]:
-    """The outline's farthest reach along ``n`` in each stretch of ``span`` along
-    ``t``: (along, across) of one point a stretch, stretches without points left out."""
-    rel = q - origin
-    s, d = rel @ t, rel @ n
-    lo, hi = span
-    keep = (s >= lo) & (s < hi)
-    s, d = s[keep], d[keep]
-    n_bins = max(int((hi - lo) // p.stretch_mm), 1)
-    b = np.minimum(((s - lo) / p.stretch_mm).astype(int), n_bins - 1)
-    order = np.lexsort((-d, b))
-    s, d, b = s[order], d[order], b[order]
-    starts = np.searchsorted(b, np.arange(n_bins))
-    ends = np.searchsorted(b, np.arange(n_bins), side="right")
-    out_s, out_d = [], []
-    for i0, i1 in zip(starts.tolist(), ends.tolist()):
-        if i1 <= i0:
-            continue
-        top = d[i0:i1] >= d[i0] - p.top_mm
-        out_s.append(float(np.median(s[i0:i1][top])))
-        out_d.append(float(np.median(d[i0:i1][top])))
-    return np.asarray(out_s), np.asarray(out_d)
-
-
 def _robust_line(
     s: NDArray, d: NDArray, p: OutlineParams
 ) -> tuple[float, float, NDArray[np.bool_], float] | None:
@@ -461,68 +382,51 @@ def _robust_line(
     return a, b, keep, sd
 
 
-def outline_crease(
-    points_mm: NDArray,
+def crease_from_edges(
+    along: NDArray,
+    past: NDArray,
     part: PartMap,
     fold: NominalFold,
     layout: NapkinLayout,
     params: OutlineParams | None = None,
 ) -> tuple[Crease, NDArray[np.float64], int, float] | str:
-    """The crease of ``fold`` from the outline ``points_mm`` (k, 2, the table plane's
-    mm) and the map ``part`` of what is seen of the napkin (the flap folded over, or the
-    napkin that stays over a flap folded under).
+    """The crease of ``fold`` from the edges found across its nominal crease
+    (:func:`edge_profiles`) and the map ``part`` of what is seen of the napkin.
 
     Returns
     -------
-    (Crease, cov, stretches, rms_mm) or str
+    (Crease, cov, edges, rms_mm) or str
         The crease on the flat napkin, the covariance (2, 2) of its normal's angle
         (radians) and offset (mm) as :meth:`Crease.from_normal` takes them, the number
-        of stretches of the outline fitted and their RMS distance from it (mm); or why
-        the outline does not fix it.
+        of edges fitted and their RMS distance from it (mm); or why the outline does
+        not fix it.
     """
     p = params or OutlineParams()
-    if len(points_mm) < 20:
-        return "the napkin's outline is not found"
-    a0, b0 = np.asarray(fold.p0, dtype=float), np.asarray(fold.p1, dtype=float)
-    t = (b0 - a0) / np.linalg.norm(b0 - a0)
-    n = np.array([-t[1], t[0]])
-    flap_side = (np.asarray(fold.flap, dtype=float) - a0) @ n > 0
-    # what is seen reaches the crease from the flap's side (a flap over, mapped back
-    # by its own map) or from the side that stays (a flap under): n points past it
-    if flap_side != fold.under:
-        n = -n
-    ends = Crease.through(a0, b0).ends_in(layout)
-    if ends is None:
-        return "the nominal crease misses the napkin"
-    s_ends = sorted(float((np.asarray(e) - a0) @ t) for e in ends)
-    span = (s_ends[0] + p.end_margin_mm, s_ends[1] - p.end_margin_mm)
-    if span[1] - span[0] < 4 * p.stretch_mm:
+    found = np.isfinite(past)
+    if len(along) == 0:
         return "the crease is too short to fit"
-    q = part.to_material(points_mm)
-    s, d = _stretch_points(q, a0, t, n, span, p)
-    fit = _robust_line(s, d, p)
-    expected = (span[1] - span[0]) / p.stretch_mm
-    if fit is None or np.count_nonzero(fit[2]) < p.min_cover * expected:
+    s, d = np.asarray(along, dtype=float)[found], np.asarray(past, dtype=float)[found]
+    fit = _robust_line(s, d, p) if len(s) >= 4 else None
+    if fit is None or np.count_nonzero(fit[2]) < p.min_cover * len(along):
         return "the napkin's outline does not follow the crease (hidden or not straight)"
     a, b, keep, sd = fit
-    kept = int(np.count_nonzero(keep))
+    a0, t, n = _frame_of(fold)
     edge = p.edge_mm * layout.thickness_mm
     crease, line_cov = _crease_of(a0, t, n, a - edge, b, s[keep], sd)
-    # the map's share: the same stretches (as table points) mapped back by a map moved
-    # a little, each parameter in turn
+    # the map's share: the same edges (as table points) mapped back by a map moved a
+    # little, each parameter in turn
     table = _to_table(part, a0 + np.outer(s[keep], t) + np.outer(d[keep], n))
     base = _normal_form(crease)
     jac = np.zeros((2, 3))
     for k, h in enumerate((1e-5, 1e-3, 1e-3)):
-        qq = part.perturbed(k, h).to_material(table)
-        rel = qq - a0
+        rel = part.perturbed(k, h).to_material(table) - a0
         aa, bb, _ = _line_through(rel @ t, rel @ n)
         other, _ = _crease_of(a0, t, n, aa - edge, bb, s[keep], sd)
         jac[:, k] = (_normal_form(other, base[0]) - base) / h
     cov = line_cov + jac @ part.cov @ jac.T
     cov[1, 1] += p.edge_sd_mm**2
     rms = float(np.sqrt(np.mean((d[keep] - (a + b * s[keep])) ** 2)))
-    return crease, cov, kept, rms
+    return crease, cov, int(np.count_nonzero(keep)), rms
 
 
 def _to_table(part: PartMap, m: NDArray) -> NDArray[np.float64]:
@@ -589,23 +493,20 @@ def outline_geometry(
         STICKER_SD_MM,
         _edge_sd,
         geometry_from_crease,
-        plane_basis,
     )
 
     p = params or OutlineParams()
     mine = lying & (sticker_part == (-1 if fold.under else index))
     if np.count_nonzero(mine) < 2:
         return "fewer than two stickers seen place the napkin's outline"
-    basis = plane_basis(obs.up)
-    p2 = (obs.points_m[mine] @ basis.T) * 1e3
+    p2 = (obs.points_m[mine] @ view.basis.T) * 1e3
     uv = np.asarray(layout.sticker_uv, dtype=float)[mine]
     part = fit_part_map(uv, p2, mirror=not fold.under, sticker_sd_mm=STICKER_SD_MM,
                         prior_dof=PRIOR_DOF)
     if part is None:
         return "the stickers seen do not place the napkin's outline"
-    px = napkin_outline_px(view, p)
-    pts = outline_points_mm(view, px, basis, p.height_mm * layout.thickness_mm)
-    got = outline_crease(pts, part, fold, layout, p)
+    along, past = edge_profiles(view, part, fold, layout, p)
+    got = crease_from_edges(along, past, part, fold, layout, p)
     if isinstance(got, str):
         return got
     crease, cov, _, rms = got
