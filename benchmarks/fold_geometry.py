@@ -12,7 +12,10 @@ true crease (:func:`dgli_vision.core.fold_measure.fold_measures`):
 - length errors: each leg (mm), the tip (distance, mm), the inset and the offset (mm);
 - angle errors: skew and turn (degrees);
 - coverage: the share of values whose error is within twice the reported sd;
-- null: the share of folds with no sizes (and why).
+- null: the share of folds with no sizes (and why);
+- per class: the share of its folds given sizes, and of those from the napkin's outline
+  (``geometry_from`` ``"outline"``: half and diagonal folds, flaps under) rather than the
+  stickers, with their length errors.
 
 The time of the geometry alone (:func:`dgli_vision.classifier.fold_geometry.fit_folds`
 on the frame's observation, the best of ``--repeat`` runs) is given per frame.
@@ -66,7 +69,7 @@ def measure(folder: Path, references, repeat: int) -> dict[str, Any]:
     """Every pair of one rendered folder: its fold errors and timings."""
     truth = json.loads((folder / "truth.json").read_text())["images"]
     layout = layout_of_size(references.napkin_mm)
-    rows, times, nulls, skipped = [], [], Counter(), Counter()
+    rows, times, nulls, skipped, folds = [], [], Counter(), Counter(), []
     for name, t in truth.items():
         creases = (t.get("state_params") or {}).get("creases_mm") or {}
         if not creases:
@@ -94,13 +97,39 @@ def measure(folder: Path, references, repeat: int) -> dict[str, Any]:
                 continue
             want = fold_measures(f.fold, Crease.through(*creases[f.fold]), layout)
             got = g.to_json()
+            folds.append({"pair": name, "class": t["class"], "fold": f.fold,
+                          "from": None if g.why is not None else g.source, "why": g.why})
             if g.why is not None:
                 nulls[g.why] += 1
                 continue
             for q, err, sd in _errors(f.fold, got, want):
                 rows.append({"pair": name, "class": t["class"], "fold": f.fold, "q": q,
-                             "err": err, "sd": sd})
-    return {"rows": rows, "times_ms": times, "nulls": dict(nulls), "skipped": dict(skipped)}
+                             "err": err, "sd": sd, "from": g.source})
+    return {"rows": rows, "times_ms": times, "nulls": dict(nulls), "skipped": dict(skipped),
+            "folds": folds}
+
+
+def class_table(folds: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[str]:
+    """Per class: folds of right verdicts, those given sizes, those from the outline,
+    and the length errors (median / p90 / max, mm) and coverage of each source."""
+    lines = ["| class | folds | given sizes | from the outline | outline: length median / "
+             "p90 / max (mm), within 2 sd | stickers: length median / p90 (mm) |",
+             "|---|---|---|---|---|---|"]
+    for cid in sorted({f["class"] for f in folds}):
+        mine = [f for f in folds if f["class"] == cid]
+        given = sum(f["from"] is not None for f in mine)
+        outline = sum(f["from"] == "outline" for f in mine)
+        o = summary([r for r in rows if r["class"] == cid and r["from"] == "outline"])
+        st = summary([r for r in rows if r["class"] == cid and r["from"] == "stickers"])
+        def f(v: Any) -> str:
+            return "-" if v is None else f"{v:g}"
+
+        lines.append(
+            f"| {cid} | {len(mine)} | {given} ({given / len(mine):.0%}) | {outline} | "
+            f"{f(o['median_mm'])} / {f(o['p90_mm'])} / {f(o['max_mm'])}, "
+            f"{f(o['coverage_2sd'])} | {f(st['median_mm'])} / {f(st['p90_mm'])} |"
+        )
+    return lines
 
 
 def summary(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -148,7 +177,7 @@ def main() -> None:
         s.update(nulls=m["nulls"], skipped=m["skipped"],
                  ms_median=round(float(np.median(t)), 3) if t else None,
                  ms_max=round(float(np.max(t)), 3) if t else None, frames=len(t))
-        report[folder.name] = {**s, "rows": m["rows"]}
+        report[folder.name] = {**s, "rows": m["rows"], "folds": m["folds"]}
         for r in m["rows"]:
             per_class[r["class"]].append(r)
         n_null = sum(m["nulls"].values())
@@ -166,6 +195,9 @@ def main() -> None:
         report["per_class"][cid] = s
         lines.append(f"| {cid} | {s['n_lengths']} | {s['median_mm']} / {s['p90_mm']} | "
                      f"{s['coverage_2sd']} |")
+    all_folds = [f for name in args.folders for f in report[name.name]["folds"]]
+    all_rows = [r for name in args.folders for r in report[name.name]["rows"]]
+    lines += ["", *class_table(all_folds, all_rows)]
     text = "\n".join(lines)
     print(text)
     pooled = [r for name, s in report.items() if name != "per_class" for r in s["rows"]]

@@ -2,20 +2,25 @@
 badly on purpose (the figures of docs/folds.md).
 
 Usage: python benchmarks/verify_accuracy.py [--trials N] [--seed S] [--small]
-       [--tolerance MM] [--json OUT.json]
+       [--tolerance MM] [--tasks corner,strip,second] [--modes ...] [--json OUT.json]
 
 Each trial, as `dgli plan --check` does: a start state (the flat napkin, or a corner
 folded) is drawn (wrinkles, placement) and rendered from a random camera under random
-light with sensor noise; it is classified and a fold planned (a corner, a strip, or a
-second corner); the planned fold line is taken to the cloth (through the true camera)
+light with sensor noise; it is classified and a fold planned (``--tasks``, in turn: a
+corner, a strip, or a second corner by default; ``half`` and ``diagonal`` fold the flat
+napkin in half over a mid-line or a diagonal, whose crease only the napkin's outline
+fixes); the planned fold line is taken to the cloth (through the true camera)
 and carried out in the simulator, either
 
 - as planned (what perception placed it as: its own error included),
 - **short**: a corner's tip lands 40 mm short of its target (the crease moved 20 mm
-  towards it), a strip's crease lies 40 mm nearer its side (its inset 40 mm short;
+  towards it), a half or diagonal fold's crease lies 30 mm nearer the flap, a strip's
+  crease lies 40 mm nearer its side (its inset 40 mm short;
   moved 20 mm, the inset would be off by the tolerance itself, and its truth a matter
   of tenths of a mm), or
-- **skewed**: the crease turned 15 degrees about its middle;
+- **skewed**: the crease turned 15 degrees about its middle, or
+- **long** (``--modes``): a half or diagonal fold's crease moved 30 mm away from the
+  flap (the flap overhangs the napkin beneath, whose stickers stay hidden);
 
 the cloth is rendered again from the same camera and `verify_fold` judges it against the
 plan's step (the expected state and the planned crease). The truth is the same rule
@@ -53,8 +58,12 @@ from dgli_vision.sim.dataset import random_camera
 from dgli_vision.sim.render import Lighting, SensorModel, render
 
 SMALL = Intrinsics(640, 360, 302.5, 302.5, 319.5, 179.5)
-#: How a trial's fold is made.
+#: How a trial's fold is made (the default modes; "long" on request).
 MODES = ("as planned", "short", "skewed")
+ALL_MODES = (*MODES, "long")
+#: The tasks a trial plans, in turn (the default ones; "half" and "diagonal" on request).
+TASKS = ("corner", "strip", "second")
+ALL_TASKS = (*TASKS, "half", "diagonal")
 
 
 def truth_success(word: str, made: Crease, planned: Crease, layout, tol: float) -> bool:
@@ -80,10 +89,11 @@ def _botched(step: FoldStep, mode: str, shift_mm: float = 20.0) -> FoldStep:
     if mode == "as planned":
         return step
     mid, half = 0.5 * (p0 + p1), 0.5 * (p1 - p0)
-    if mode == "short":
+    if mode in ("short", "long"):
         t = half / np.linalg.norm(half)
         n = np.array([-t[1], t[0]])
         n = n if (flap - mid) @ n > 0 else -n
+        n = n if mode == "short" else -n
         return FoldStep(tuple(p0 + shift_mm * n), tuple(p1 + shift_mm * n), step.flap,
                         step.under)
     c, s = math.cos(math.radians(15.0)), math.sin(math.radians(15.0))
@@ -91,25 +101,40 @@ def _botched(step: FoldStep, mode: str, shift_mm: float = 20.0) -> FoldStep:
     return FoldStep(tuple(mid - turned), tuple(mid + turned), step.flap, step.under)
 
 
-def _task(k: int, rng: np.random.Generator) -> tuple[tuple, tuple]:
-    """The k-th trial's start and goal: a corner, a strip, or a second corner."""
-    kind = k % 3
-    if kind == 0:
-        return ("01", None), ("02", CORNERS[int(rng.integers(4))])
-    if kind == 1:
-        i = int(rng.integers(4))
-        return ("01", None), ("09", CORNERS[i] + CORNERS[(i + 1) % 4])
+def _task(task: str, rng: np.random.Generator) -> tuple[tuple, tuple]:
+    """A trial's start and goal: a corner, a strip, a second corner, a half fold or a
+    diagonal fold (its side or corner drawn from ``rng``)."""
     i = int(rng.integers(4))
+    if task == "corner":
+        return ("01", None), ("02", CORNERS[i])
+    if task == "strip":
+        return ("01", None), ("09", CORNERS[i] + CORNERS[(i + 1) % 4])
+    if task == "half":
+        return ("01", None), ("11", CORNERS[i] + CORNERS[(i + 1) % 4])
+    if task == "diagonal":
+        return ("01", None), ("12", CORNERS[i])
     a, b = CORNERS[i], CORNERS[(i + 2) % 4]
     return ("02", a), ("06", "".join(sorted(a + b)))
 
 
-def trial(k: int, seed: int, refs, intrinsics: Intrinsics, tol: float) -> dict[str, Any]:
+def trial(
+    k: int,
+    seed: int,
+    refs,
+    intrinsics: Intrinsics,
+    tol: float,
+    tasks: tuple[str, ...] = TASKS,
+    modes: tuple[str, ...] = MODES,
+) -> dict[str, Any]:
     """One before/after pair (see the module's description)."""
     layout = default_layout()
     rng = np.random.default_rng([seed, k, 59])
-    start, goal = _task(k, rng)
-    mode = MODES[(k // 3) % len(MODES)]  # every task made every way, in turn
+    if tasks == TASKS:
+        # (the default tasks draw as they always did: k % 3, then the side or corner)
+        start, goal = _task(TASKS[k % 3], rng)
+    else:
+        start, goal = _task(tasks[k % len(tasks)], rng)
+    mode = modes[(k // len(tasks)) % len(modes)]  # every task made every way, in turn
     steps, params = draw_fold_steps(start[0], start[1], layout, rng)
     words = list(params["folds"])
     wrinkle, yaw, offset = _placement(rng)
@@ -133,7 +158,9 @@ def trial(k: int, seed: int, refs, intrinsics: Intrinsics, tol: float) -> dict[s
     if step.action != "fold" or step.crease_mm is None:
         return {**row, "outcome": "no plan", "note": f"first step {step.action} {step.fold}"}
     done = _executed_steps(step, steps, words, pose, yaw, offset, layout)
-    shift = 40.0 if fold_kind(step.fold)[0] == "side" else 20.0
+    kind = fold_kind(step.fold)[0]
+    half_or_diagonal = kind == "diagonal" or step.fold.endswith(" half")
+    shift = 30.0 if half_or_diagonal else 40.0 if kind == "side" else 20.0
     made_step = _botched(done[-1], mode, shift)
     made = Crease.through(made_step.p0, made_step.p1)
     planned = Crease.through(*step.crease_mm)
@@ -154,14 +181,23 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=7070)
     ap.add_argument("--small", action="store_true", help="640 x 360 renders")
     ap.add_argument("--tolerance", type=float, default=20.0)
+    ap.add_argument("--tasks", default=",".join(TASKS),
+                    help=f"comma-separated, in turn: {', '.join(ALL_TASKS)}")
+    ap.add_argument("--modes", default=",".join(MODES),
+                    help=f"comma-separated, in turn: {', '.join(ALL_MODES)}")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
+    tasks = tuple(t.strip() for t in args.tasks.split(","))
+    modes = tuple(m.strip() for m in args.modes.split(","))
+    bad = [x for x in tasks if x not in ALL_TASKS] + [x for x in modes if x not in ALL_MODES]
+    if bad:
+        ap.error(f"unknown task or mode: {', '.join(bad)}")
     refs = load_references(None)
     intr = SMALL if args.small else DEFAULT_INTRINSICS
     rows = []
     t0 = time.perf_counter()
     for k in range(args.trials):
-        r = trial(k, args.seed, refs, intr, args.tolerance)
+        r = trial(k, args.seed, refs, intr, args.tolerance, tasks, modes)
         rows.append(r)
         print(json.dumps(r, default=str), flush=True)
     judged = [r for r in rows if r.get("success") is not None]

@@ -754,6 +754,8 @@ def affordances_of(
     variant: str | None,
     layout: NapkinLayout,
     intrinsics: Intrinsics,
+    *,
+    frame: Any = None,
 ) -> Affordances:
     """The corners and folds of one frame.
 
@@ -767,6 +769,10 @@ def affordances_of(
     layout : NapkinLayout
     intrinsics : Intrinsics
         To give each point's pixel.
+    frame : RGBDFrame, keyword-only, optional
+        The frame itself: where the stickers do not fix a half or diagonal fold's
+        crease (or a flap under's), the napkin's outline in it does
+        (:mod:`~dgli_vision.classifier.fold_outline`).
 
     Returns
     -------
@@ -798,7 +804,13 @@ def affordances_of(
     ]
     folds: tuple[SeenFold, ...] = ()
     if maps is not None and plan is not None:
-        sizes = fit_folds(obs, maps.folds, plan.sticker_part, layout)
+        outline = None
+        if frame is not None:
+            from .fold_outline import outline_view
+
+            # (made only when a fold needs it, once)
+            outline = lru_cache(maxsize=1)(lambda: outline_view(frame, obs))
+        sizes = fit_folds(obs, maps.folds, plan.sticker_part, layout, outline=outline)
         folds = tuple(
             replace(_seen_fold(maps, j, corners), geometry=sizes[j])
             for j in range(len(maps.folds))

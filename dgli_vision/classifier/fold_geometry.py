@@ -23,7 +23,8 @@ napkin beneath; a flap held up) has ``None`` sizes and a ``why``.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, replace
 from functools import lru_cache
 from typing import Any
 
@@ -315,10 +316,14 @@ def fit_folds(
     folds: tuple[NominalFold, ...],
     sticker_part: tuple[int, ...],
     layout: NapkinLayout,
+    *,
+    outline: Callable[[], Any] | None = None,
 ) -> tuple[FoldGeometry, ...]:
     """The geometry of each of the verdict's folds, fitted to the stickers of ``obs``
     (a :class:`~dgli_vision.classifier.pipeline.ClothObservation`) lying on the table
-    (see the module's description).
+    (see the module's description); where they do not fix a half fold's, a diagonal
+    fold's or a flap folded under's crease, fitted to the napkin's outline in
+    ``outline`` (:mod:`dgli_vision.classifier.fold_outline`).
 
     Parameters
     ----------
@@ -328,6 +333,11 @@ def fit_folds(
     sticker_part : tuple of int
         The part each sticker lies on: -1 the napkin that stays, else the fold's index.
     layout : NapkinLayout
+    outline : callable, keyword-only, optional
+        Gives the frame as the outline fit reads it (an
+        :class:`~dgli_vision.classifier.fold_outline.OutlineView`, or None where it
+        cannot be read: :func:`~dgli_vision.classifier.fold_outline.outline_view`),
+        called only when a fold needs it; None: the stickers only.
 
     Returns
     -------
@@ -378,11 +388,33 @@ def fit_folds(
         fitted[active] = fitted[-1] = True
         use = lying & fitted[part]
         results = _fit(p2, part, use, active, folds, layout)
-    return tuple(
+    out = [
         results.get(j)
         or empty_geometry(f.word, why.get(j, "the stickers seen do not fix the crease"))
         for j, f in enumerate(folds)
-    )
+    ]
+    if outline is not None and len(folds) == 1:
+        # (one fold: the outline is its edge and the napkin's, no other flap's)
+        out = [_from_outline(obs, folds[0], 0, part, lying, layout, outline, out[0])]
+    return tuple(out)
+
+
+def _from_outline(obs, fold, j, part, lying, layout, outline, g: FoldGeometry) -> FoldGeometry:
+    """``g``, or where its stickers left it unfixed, the crease from the napkin's outline
+    (a half or diagonal fold, a flap under: a state's one fold, whose edge the outline
+    shows);
+    the stickers' why kept, and the outline's added, where neither fixes it."""
+    if g.why is None or (fold_kind(fold.word)[0] == "corner" and not fold.under):
+        return g
+    from .fold_outline import outline_geometry
+
+    view = outline()
+    if view is None:
+        return replace(g, why=f"{g.why}; the napkin's outline is not measured")
+    got = outline_geometry(obs, fold, j, part, lying, layout, view)
+    if isinstance(got, str):
+        return replace(g, why=f"{g.why}; {got}")
+    return got
 
 
 def _fit(

@@ -296,7 +296,7 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
     obs, intrinsics = result.observation, frame.intrinsics
     class_id, variant = (p.class_id, p.variant) if p is not None else (None, None)
     aff = deferred_affordances(
-        lambda: affordances_of(obs, class_id, variant, layout, intrinsics)
+        lambda: affordances_of(obs, class_id, variant, layout, intrinsics, frame=frame)
     )
     if p is None:
         guess = result.best_guess
