@@ -66,7 +66,7 @@ stamp=.venv/.dgli-setup-stamp
 extras=""
 if [ "$mode" = test ]; then
     stamp=.venv/.dgli-test-stamp
-    extras="[test,recordings,dask,realsense,docs]"
+    extras="[test,recordings,dask,realsense,docs,physics]"
 fi
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     .venv/bin/python -m pip install -q --disable-pip-version-check --upgrade pip
