@@ -75,6 +75,7 @@ if [ "$mode" = test ]; then
         realsense
         docs
         viewer
+        physics
     )
     extras="[$(IFS=,; echo "${test_extras[*]}")]"
 fi

@@ -1,7 +1,8 @@
 """Pictures of affordances and plans: graspable corners, grasp and place points, fold
-lines, drawn on an overlay image (BGR). Every marker and label is kept inside the image
-(a point at its edge is drawn just inside it), and a plan's step comes with a legend
-that also gives the grasp point in 3D and the lift height."""
+lines and each hand's path, drawn on an overlay image (BGR). Every marker and label is
+kept inside the image (a point at its edge is drawn just inside it), and a plan's step
+comes with a legend that also gives the grasp point in 3D, the lift height and the
+number of hands."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ __all__ = [
     "draw_corners",
     "draw_folds",
     "draw_no_plan",
+    "draw_path",
     "draw_step",
     "draw_step_legend",
     "fold_caption",
@@ -30,6 +32,9 @@ FOLD = (255, 255, 255)
 RIM = (0, 0, 0)
 #: The stickers' segments (drawn by :func:`~dgli_vision.analysis.report.overlay_image`).
 SEGMENT = (255, 0, 255)
+#: A hand's path (its arc over the fold line, seen from the camera): light orange, the
+#: waypoints where the gripper closes and opens marked.
+PATH = (80, 190, 255)
 
 
 def _scale(img: NDArray) -> float:
@@ -162,9 +167,17 @@ def _step_lines(step: Any, caption: str) -> list[str]:
         return "(" + ", ".join(f"{v:.3f}" for v in p) + ") m"
 
     lines = [caption] if caption else []
+    hands = getattr(step, "hands", ())
     if step.grasp_point is not None:
         lift = f", lift {step.lift_height:.3f} m" if step.lift_height is not None else ""
         lines.append(f"grasp {xyz(step.grasp_point)}{lift}")
+    if len(hands) > 1:
+        t = hands[0].path[-1].t
+        lines.append(f"{len(hands)} hands: " + ", ".join(h.grasps.split(" of ")[0]
+                                                         for h in hands) + f"; {t:.1f} s")
+    elif hands:
+        lines.append(f"path {hands[0].path[-1].t:.1f} s, carry "
+                     f"{hands[0].speeds['carry_m_s']:.2f} m/s")
     if step.place_point is not None:
         lines.append(f"place {xyz(step.place_point)}")
     return lines
@@ -175,6 +188,7 @@ _KEYS = (
     ("grasp", "disc"),
     ("place", "ring"),
     ("fold line", "dashes"),
+    ("path", "path"),
     ("graspable corner", "corner"),
     ("sticker segment", "segment"),
 )
@@ -216,6 +230,9 @@ def _legend(img: NDArray, lines: list[str], keys: tuple, avoid: list[tuple[int, 
         elif how == "dashes":
             _dashes(img, np.array([x + 2.0, mid]), np.array([x + sym - 2.0, mid]),
                     max(2, int(2 * s)), n=5)
+        elif how == "path":
+            cv2.line(img, (x + 2, mid), (x + sym - 2, mid), PATH, max(2, int(2 * s)),
+                     cv2.LINE_AA)
         elif how == "corner":
             cv2.circle(img, c, int(8 * s), GRASPABLE, max(2, int(2 * s)), cv2.LINE_AA)
         else:
@@ -240,6 +257,8 @@ def draw_step(
     s = _scale(img)
     a, b = (intrinsics.project(np.asarray(p, dtype=float)[None])[0] for p in step.fold_line)
     _dashes(img, a, b, max(2, int(3 * s)))
+    for k, hand in enumerate(getattr(step, "hands", ())):
+        draw_path(img, hand, intrinsics, second=k > 0)
     r_grasp, r_place = int(10 * s), int(12 * s)
     g = _inside(img, _px(intrinsics.project(np.asarray(step.grasp_point, float)[None])[0]),
                 r_grasp + 3)
@@ -265,6 +284,36 @@ def draw_step(
     return img
 
 
+def draw_path(img: NDArray[np.uint8], hand: Any, intrinsics: Any, *,
+              second: bool = False) -> NDArray[np.uint8]:
+    """Draw one hand's path (a :class:`~dgli_vision.planning.motion.Hand`): its
+    waypoints joined on a dark rim, a small dot where the gripper closes or opens; a
+    ``second`` hand's grasp and place marked as the first's (disc and ring), smaller."""
+    import cv2
+
+    s = _scale(img)
+    pts = np.asarray([w.point for w in hand.path], dtype=float)
+    if np.any(pts[:, 2] <= 0):
+        return img
+    px = [_inside(img, _px(p), 2) for p in intrinsics.project(pts)]
+    poly = np.asarray(px, dtype=np.int32).reshape(-1, 1, 2)
+    width = max(1, int(2 * s))
+    cv2.polylines(img, [poly], False, RIM, width + 3, cv2.LINE_AA)
+    cv2.polylines(img, [poly], False, PATH, width, cv2.LINE_AA)
+    for w0, w1, p in zip(hand.path, hand.path[1:], px[1:]):
+        if w0.gripper != w1.gripper:
+            cv2.circle(img, p, int(4 * s), RIM, -1, cv2.LINE_AA)
+            cv2.circle(img, p, int(3 * s), PATH, -1, cv2.LINE_AA)
+    if second:
+        g = _inside(img, _px(intrinsics.project(np.asarray(hand.grasp_point)[None])[0]), 12)
+        q = _inside(img, _px(intrinsics.project(np.asarray(hand.place_point)[None])[0]), 12)
+        cv2.circle(img, g, int(8 * s) + 2, RIM, -1, cv2.LINE_AA)
+        cv2.circle(img, g, int(8 * s), GRASP, -1, cv2.LINE_AA)
+        cv2.circle(img, q, int(9 * s), RIM, max(2, int(2 * s)) + 3, cv2.LINE_AA)
+        cv2.circle(img, q, int(9 * s), PLACE, max(2, int(2 * s)), cv2.LINE_AA)
+    return img
+
+
 def draw_step_legend(
     img: NDArray[np.uint8], step: Any, intrinsics: Any, caption: str = ""
 ) -> NDArray[np.uint8]:
@@ -272,6 +321,8 @@ def draw_step_legend(
     under it: ``caption``, the grasp point in 3D with the lift height, the place point,
     and what each mark is."""
     marks = [step.grasp_point, step.place_point, *step.fold_line]
+    for hand in getattr(step, "hands", ()):
+        marks += [w.point for w in hand.path]
     avoid = [_px(intrinsics.project(np.asarray(p, dtype=float)[None])[0]) for p in marks]
     _legend(img, _step_lines(step, caption), _KEYS, avoid)
     return img

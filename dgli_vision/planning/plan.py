@@ -30,6 +30,7 @@ from ..core.errors import InvalidValueError, PlanRefused
 from ..core.fold_graph import StateKey, fold_edges, folds_of
 from ..core.fold_lines import NominalFold, fold_for_word, reflect_uv
 from ..core.layout import NapkinLayout
+from .motion import DEFAULT_MOTION, Hand, MotionParams, hands_motion
 
 __all__ = [
     "LIFT_CLEARANCE_M",
@@ -42,8 +43,9 @@ __all__ = [
     "shortest_path",
 ]
 
-#: Added to the height a grasped point reaches when its flap stands vertical (its
-#: distance from the fold line), m: the gripper's lift clears the cloth by this much.
+#: The lift height before plans carried their hands' paths: the grasped point's distance
+#: from the fold line plus this, m. Kept for code that used it; a step's ``lift_height``
+#: is now its first hand's path's highest point (:mod:`.motion`).
 LIFT_CLEARANCE_M = 0.02
 
 
@@ -194,10 +196,16 @@ class PlanStep:
     fold_line : tuple of two points or None
         The fold line on the table, camera frame, metres.
     lift_height : float or None
-        How high to lift the grasped point above the table, metres.
+        How high the first hand lifts the grasped point above the table (its path's
+        highest point), metres.
     crease_mm : tuple of two (u, v) points or None
         A fold's planned crease on the flat napkin (material mm): what ``dgli verify``
         and ``dgli plan --verify`` check the fold made against.
+    hands : tuple of Hand
+        The motion per hand (:mod:`.motion`): one for a corner or a diagonal fold, two
+        (the side's corners) for a strip or a half fold; ``grasp_point``,
+        ``place_point``, ``grasp_pixel`` and ``lift_height`` are the first hand's.
+        Empty when planned without an image.
     """
 
     action: str
@@ -212,6 +220,7 @@ class PlanStep:
     fold_line: tuple[tuple[float, ...], tuple[float, ...]] | None = None
     lift_height: float | None = None
     crease_mm: tuple[tuple[float, float], tuple[float, float]] | None = None
+    hands: tuple[Hand, ...] = ()
 
     def target(self, layout: NapkinLayout) -> dict[str, Any] | None:
         """A fold's planned sizes (legs and tip, inset and skew, offset and turn:
@@ -242,6 +251,8 @@ class PlanStep:
                 "expect": {"class": self.expect[0], "variant": self.expect[1]},
                 "crease_mm": None if self.crease_mm is None
                 else [pt(p, 1) for p in self.crease_mm],
+                "n_hands": len(self.hands),
+                "hands": [h.to_json() for h in self.hands],
             }
         )
         return out
@@ -302,28 +313,6 @@ def plan_steps(
     return path, lines
 
 
-def _grasp_of(
-    f: NominalFold,
-    maps: NapkinMaps,
-    affordances: Affordances | None,
-    first: bool,
-    layout: NapkinLayout,
-) -> NDArray[np.float64] | None:
-    """Where the grasped corner (or the middle of the side) is now: on the first step
-    the corners seen, else where the rigid maps put them."""
-    pts = []
-    for name in f.moved_corners:
-        c = affordances.corners[name] if affordances is not None and first else None
-        if c is not None and c.point is not None:
-            pts.append(np.asarray(c.point))
-            continue
-        p, _ = maps.place(np.asarray(layout.corner_uv[CORNERS.index(name)], dtype=float))
-        if p is None:
-            return None
-        pts.append(p)
-    return np.mean(pts, axis=0)
-
-
 def plan_geometry(
     start: StateKey,
     goal: StateKey,
@@ -331,9 +320,12 @@ def plan_geometry(
     maps: NapkinMaps | None,
     affordances: Affordances | None,
     intrinsics: Any | None,
+    *,
+    motion: MotionParams = DEFAULT_MOTION,
 ) -> Plan:
     """The plan from ``start`` to ``goal``, each step placed in the camera frame when
-    ``maps`` (the rigid maps of the napkin seen) are given.
+    ``maps`` (the rigid maps of the napkin seen) are given, with its hands' motion
+    (``motion``: :class:`~dgli_vision.planning.motion.MotionParams`).
 
     Raises
     ------
@@ -347,7 +339,8 @@ def plan_geometry(
         step = PlanStep(action, word, f.corner, f.side, f.under, after,
                         crease_mm=(f.p0, f.p1) if action == "fold" else None)
         if maps is not None:
-            placed = _place_step(action, f, maps, affordances, i == 0, intrinsics, layout)
+            placed = _place_step(action, f, maps, affordances, i == 0, intrinsics, layout,
+                                 motion)
             if placed is None and i == 0:
                 what = f"corner {f.corner}" if f.corner else f"side {f.side}"
                 raise PlanRefused(
@@ -374,6 +367,18 @@ def _after(maps: NapkinMaps, action: str, f: NominalFold) -> NapkinMaps:
     )
 
 
+def _corner_now(
+    name: str, maps: NapkinMaps, affordances: Affordances | None, first: bool,
+    layout: NapkinLayout,
+) -> NDArray[np.float64] | None:
+    """Where corner ``name`` is now: seen on the first step, else placed by the maps."""
+    c = affordances.corners[name] if affordances is not None and first else None
+    if c is not None and c.point is not None:
+        return np.asarray(c.point, dtype=float)
+    p, _ = maps.place(np.asarray(layout.corner_uv[CORNERS.index(name)], dtype=float))
+    return p
+
+
 def _place_step(
     action: str,
     f: NominalFold,
@@ -382,28 +387,45 @@ def _place_step(
     first: bool,
     intrinsics: Any | None,
     layout: NapkinLayout,
+    motion: MotionParams = DEFAULT_MOTION,
 ) -> dict[str, Any] | None:
-    """Grasp, place, fold line and lift height of one step in the camera frame."""
-    grasp = _grasp_of(f, maps, affordances, first, layout)
-    flat_uv = np.asarray(f.flap, dtype=float)
-    target_uv = flat_uv if action == "unfold" else reflect_uv(flat_uv, f)[0]
-    place = maps.place_stay(target_uv)
-    ends = fold_line_3d(maps, f)
-    if grasp is None or place is None or ends is None:
-        return None
+    """Grasp, place, fold line, lift height and the hands' motion of one step in the
+    camera frame. A corner (or diagonal) fold has one hand, on the corner; a strip or a
+    half fold two, one on each corner of the side (a side held at its middle alone
+    sags at its corners)."""
+    names = list(f.moved_corners) if f.side else [f.corner]
     lift = 1.0 if action == "fold" and not f.under else 0.0
-    place = maps.on_table(place) + lift * maps.thickness_m * maps.up
+    grasps = []
+    for name in names:
+        grasp = _corner_now(name, maps, affordances, first, layout)
+        flat_uv = np.asarray(layout.corner_uv[CORNERS.index(name)], dtype=float)
+        target_uv = flat_uv if action == "unfold" else reflect_uv(flat_uv, f)[0]
+        place = maps.place_stay(target_uv)
+        if grasp is None or place is None:
+            return None
+        place = maps.on_table(place) + lift * maps.thickness_m * maps.up
+        grasps.append((name, grasp, place))
+    ends = fold_line_3d(maps, f)
+    if ends is None:
+        return None
+    grasp, place = grasps[0][1], grasps[0][2]
     line = bisector_through(maps.on_table(grasp), maps.on_table(place), ends, maps.up)
-    half = 0.5 * float(np.linalg.norm(maps.on_table(grasp) - maps.on_table(place)))
-    pixel = None
-    if intrinsics is not None and grasp[2] > 0:
-        px = intrinsics.project(grasp[None])[0]
-        pixel = (float(px[0]), float(px[1]))
-    return {
-        "grasp_point": tuple(float(v) for v in grasp),
-        "grasp_pixel": pixel,
-        "place_point": tuple(float(v) for v in place),
-        "fold_line": tuple(tuple(float(v) for v in e) for e in line),
-        "lift_height": half + LIFT_CLEARANCE_M,
-    }
 
+    def pixel(p: NDArray) -> tuple[float, float] | None:
+        if intrinsics is None or p[2] <= 0:
+            return None
+        px = intrinsics.project(p[None])[0]
+        return float(px[0]), float(px[1])
+
+    what = [f"corner {n}" + (f" of side {f.side}" if f.side else "") for n, _, _ in grasps]
+    hands = hands_motion([(w, g, pixel(g), p) for w, (_, g, p) in zip(what, grasps)],
+                         line, maps.up, motion)
+    first_hand = hands[0]
+    return {
+        "grasp_point": first_hand.grasp_point,
+        "grasp_pixel": first_hand.grasp_pixel,
+        "place_point": first_hand.place_point,
+        "fold_line": tuple(tuple(float(v) for v in e) for e in line),
+        "lift_height": first_hand.lift_height,
+        "hands": hands,
+    }
