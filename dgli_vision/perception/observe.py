@@ -286,10 +286,11 @@ def observe(
     )
     clock.lap("tips")
     return detections, markers, into(
+        pose=pose,
         segments=segments, visible=visible, up=up, evidence=evidence, heights_mm=heights,
         flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
         turns=turns, points_m=markers.points, objects=napkin.occluder,
-        objects_stride=napkin.stride, tips=tips, pose=pose,
+        objects_stride=napkin.stride, tips=tips,
         edge_on_mm=edge_on_heights(detections, napkin.masks()), napkin=napkin,
     )
 
