@@ -31,7 +31,7 @@ def test_corners_and_folds_cost_nothing_until_read_and_then_are_the_same(
     real = affordances.affordances_of
 
     def counted(*args: object, **kwargs: object) -> object:
-        calls.append(args)
+        calls.append((args, kwargs))
         return real(*args, **kwargs)
 
     monkeypatch.setattr(pipeline, "affordances_of", counted)
@@ -42,8 +42,9 @@ def test_corners_and_folds_cost_nothing_until_read_and_then_are_the_same(
     assert p is not None
     folds = list(p.folds)  # folds and corners of the prediction and of the result: one fit
     assert len(result.affordances.corners) == 4 and len(calls) == 1
-    eager = real(result.observation, p.class_id, p.variant, pipeline.layout_of_size(
-        refs.napkin_mm), frame.intrinsics)  # type: ignore[attr-defined]
+    (args, kwargs), = calls  # (worked out again, eagerly, with the same arguments)
+    assert args[0] is result.observation and args[1:3] == (p.class_id, p.variant)
+    eager = real(*args, **kwargs)
     assert result.affordances.to_json() == eager.to_json()
     assert folds == list(eager.folds) and p.folds == eager.folds
     assert dict(p.corners) == dict(eager.corners)

@@ -213,3 +213,28 @@ def test_settled_stickers_do_not_count_as_unknown_for_the_confidence():
     known = 15  # coordinates of the 6 segments with both stickers seen
     assert loose.confidence == confidence_of(loose.margin, 3, 16, known)
     assert firm.confidence == confidence_of(firm.margin, 2, 16, known) > loose.confidence
+
+
+def test_the_pose_that_told_the_tips_settles_the_stickers_without_a_second_fit(monkeypatch):
+    """corner_tips_and_pose gives the napkin's pose it told the tips with; settled_stickers
+    of the same frame given it does not fit it again, and says what its own fit says."""
+    from dgli_vision.perception import tips as tips_module
+
+    pts = _camera_points(LAYOUT.sticker_uv)
+    corner_a = np.argmin(
+        np.linalg.norm(LAYOUT.sticker_uv[:, None] - LAYOUT.corner_uv[None], axis=2), axis=1
+    ) == 0
+    pts[corner_a] = np.nan
+    heights = np.where(corner_a, np.nan, 2.0)
+    turns = np.array([0.0, 1, 1, 1])
+    told, pose = tips_module.corner_tips_and_pose(
+        pts, heights, corner_a, np.zeros(16, bool), turns, LAYOUT, DEFAULT_INTRINSICS, UP,
+        _cloth_cells(True), CELL, None, 8,
+    )
+    assert told[0] > 0.95 and pose is not None
+    alone = settled_stickers(pts, heights, turns, LAYOUT, UP)
+    fits = []
+    real = tips_module._stay_fit
+    monkeypatch.setattr(tips_module, "_stay_fit", lambda *a: fits.append(1) or real(*a))
+    assert np.array_equal(settled_stickers(pts, heights, turns, LAYOUT, UP, pose=pose), alone)
+    assert fits == [] and alone.any()

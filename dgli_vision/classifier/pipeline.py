@@ -694,7 +694,9 @@ def _guess(
     guess = classify_coordinates(coords, references, evidence, distances=front, unsure=unsure)
     placed = obs.points_m is not None and obs.heights_mm is not None
     if guess.confidence < min_confidence and placed:
-        settled = settled_stickers(obs.points_m, obs.heights_mm, obs.turns, layout, obs.up)
+        settled = settled_stickers(
+            obs.points_m, obs.heights_mm, obs.turns, layout, obs.up, pose=obs.pose
+        )
         if settled.any():
             guess = classify_coordinates(
                 coords, references, evidence, distances=front, unsure=unsure,

@@ -35,8 +35,9 @@ from .lift import Markers3D, estimate_table_plane, lift_stickers
 from .napkin import NapkinView, find_napkin
 from .params import PipelineParams, TipParams, params_of
 from .partial import confirm_partly_hidden
+from .rigid import RigidFit
 from .scale import NapkinRuler, measure_napkin
-from .tips import corner_tips
+from .tips import corner_tips_and_pose
 
 __all__ = ["Observation", "StageClock", "observe"]
 
@@ -89,6 +90,11 @@ class Observation:
     napkin : NapkinView, optional
         The napkin as stage 1 found it (its white, the box around its cloth, its masks),
         for a later look at the same frame (the channel-order check).
+    pose : RigidFit, optional
+        The rigid fit of the napkin that stays (its stickers lying flat, front face up)
+        that told the corners' tips, when one was made: a later stage of the same frame
+        (:func:`~dgli_vision.perception.tips.settled_stickers`) reads it, not fitting
+        it again.
     """
 
     segments: NDArray[np.float64]
@@ -108,6 +114,7 @@ class Observation:
     edge_on_mm: NDArray[np.float64] | None = None
     bare_raised: BareRaised | None = None
     napkin: NapkinView | None = None
+    pose: RigidFit | None = None
 
     @property
     def spread_mm(self) -> NDArray[np.float64] | None:
@@ -278,12 +285,13 @@ def observe(
         shade=tree.shade,
     )
     clock.lap("footprint")
-    tips = _tips(
+    tips, pose = _tips(
         frame, layout, napkin, markers, heights, evidence, turns, up, footprint, regions,
         tree.tips,
     )
     clock.lap("tips")
     return detections, markers, into(
+        pose=pose,
         segments=segments, visible=visible, up=up, evidence=evidence, heights_mm=heights,
         flap_deg=flap_deg, flap_height_mm=flap_height, ruler=ruler, footprint=footprint,
         turns=turns, points_m=markers.points, objects=napkin.occluder,
@@ -305,13 +313,14 @@ def _tips(
     footprint: Footprint | None,
     regions: ClothRegions | None,
     params: TipParams,
-) -> NDArray[np.float64] | None:
-    """:func:`~dgli_vision.perception.tips.corner_tips` of the frame: what is not table is
-    the napkin's measured cloth and any other white region (a flap apart from it)."""
+) -> tuple[NDArray[np.float64] | None, RigidFit | None]:
+    """:func:`~dgli_vision.perception.tips.corner_tips_and_pose` of the frame: what is
+    not table is the napkin's measured cloth and any other white region (a flap apart
+    from it)."""
     if footprint is None or footprint.cells is None or regions is None:
-        return None
+        return None, None
     cloth = footprint.cells | (regions.labels > 0)
-    return corner_tips(
+    return corner_tips_and_pose(
         markers.points, heights, evidence.unknown, evidence.held_up, turns, layout,
         frame.intrinsics, up, cloth, regions.cell_px, napkin.occluder, napkin.stride, params,
     )

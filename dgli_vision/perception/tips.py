@@ -33,7 +33,8 @@ from .params import TipParams
 from .rigid import RigidFit, fit_rigid, flat_points_m
 
 __all__ = [
-    "TipParams", "corner_tips", "expected_tip_clear", "settled_stickers", "stage_tip_clear"
+    "TipParams", "corner_tips", "corner_tips_and_pose", "expected_tip_clear",
+    "settled_stickers", "stage_tip_clear",
 ]
 
 
@@ -154,6 +155,8 @@ def settled_stickers(
     layout: NapkinLayout,
     up: NDArray[np.float64],
     params: TipParams | None = None,
+    *,
+    pose: RigidFit | None = None,
 ) -> NDArray[np.bool_]:
     """Stickers whose place a sticker beside them tells: one of the two stickers along the
     same edge of a corner lies at its flat place, an inlier of the rigid fit of the
@@ -165,6 +168,9 @@ def settled_stickers(
     crease through the corner leaves each edge's pair on one side. So the other sticker
     of the pair lies flat at its place too, seen or not.
 
+    ``pose``: the napkin's pose fitted to the same stickers before
+    (:func:`corner_tips_and_pose`), not fitted again; None: fitted here.
+
     Returns
     -------
     ndarray of bool, shape (16,)
@@ -174,7 +180,9 @@ def settled_stickers(
     corner_of = layout.sticker_corners
     # (a fit whose inliers span fewer than two corners settles none: each inlier needs
     # two other corners' inliers beside it)
-    fit = _stay_fit(points, _lying(points, heights_mm, turns, layout), layout, up, p)
+    fit = pose
+    if fit is None:
+        fit = _stay_fit(points, _lying(points, heights_mm, turns, layout), layout, up, p)
     out = np.zeros(len(points), dtype=bool)
     if fit is None:
         return out
@@ -210,7 +218,32 @@ def corner_tips(
     stride: int,
     params: TipParams | None = None,
 ) -> NDArray[np.float64]:
-    """The share of each corner's band seen as bare table, where it can be told.
+    """The share of each corner's band seen as bare table
+    (:func:`corner_tips_and_pose` without the pose)."""
+    return corner_tips_and_pose(
+        points, heights_mm, unknown, held_up, turns, layout, intrinsics, up, cloth,
+        cell_px, objects, stride, params,
+    )[0]
+
+
+def corner_tips_and_pose(
+    points: NDArray[np.float64],
+    heights_mm: NDArray[np.float64],
+    unknown: NDArray[np.bool_],
+    held_up: NDArray[np.bool_],
+    turns: NDArray[np.float64] | None,
+    layout: NapkinLayout,
+    intrinsics: Intrinsics,
+    up: NDArray[np.float64],
+    cloth: NDArray[np.bool_] | None,
+    cell_px: int,
+    objects: NDArray[np.bool_] | None,
+    stride: int,
+    params: TipParams | None = None,
+) -> tuple[NDArray[np.float64], RigidFit | None]:
+    """The share of each corner's band seen as bare table, where it can be told, and the
+    napkin's pose it was told with (None where none was fitted: no corner to tell, or
+    no fit), for :func:`settled_stickers` of the same frame.
 
     A corner is told when fewer than two of its stickers were located (else they tell
     more) and one of the others is unknown, none may be on cloth held up, the napkin
@@ -246,22 +279,24 @@ def corner_tips(
 
     Returns
     -------
-    ndarray, shape (4,)
+    tips : ndarray, shape (4,)
         Corners A-D: share of the band seen as table among its samples seen as table or
         cloth; NaN where not told.
+    pose : RigidFit or None
+        The rigid fit of the napkin that stays, when one was made.
     """
     import cv2
 
     p = params or TipParams()
     out = np.full(len(layout.corner_uv), np.nan)
     if cloth is None:
-        return out
+        return out, None
     found = np.isfinite(points).all(axis=1)
     lying = _lying(points, heights_mm, turns, layout)
     todo = _corners_to_tell(layout.sticker_corners, found, lying, unknown, held_up, len(out))
     fit = _stay_fit(points, lying, layout, up, p) if todo else None
     if fit is None:
-        return out
+        return out, None
     r, t = fit.rotation, fit.translation
     near_objects = None
     if objects is not None and objects.any():
@@ -270,7 +305,7 @@ def corner_tips(
         uv = _tip_samples(layout, k, p)
         px = intrinsics.project(np.column_stack([uv * 1e-3, np.zeros(len(uv))]) @ r.T + t)
         out[k] = _table_share(px, cloth, cell_px, near_objects, stride, p.min_table_share)
-    return out
+    return out, fit
 
 
 def _corners_to_tell(
