@@ -682,6 +682,7 @@ def _judge(
         detections.centroids,
         frame.intrinsics,
         sticker_px(napkin_mm, frame.intrinsics, layout.disc_diameter_mm),
+        stretch=None if obs.ruler is None else obs.ruler.worst_against_scale,
     )
     kind, problem = _image_problem(frame, detections, obs, napkin_mm, layout, border)
     stretched = problem if kind == WhyKind.DEFERRED else None
