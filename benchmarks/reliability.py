@@ -151,6 +151,7 @@ def records(
                         res.detections.centroids, frame.intrinsics, ruler.worst_against_scale)
                     out.append({
                         "k1": k1, "k1_bound": bound,
+                        "stretch": None if ruler is None else ruler.worst_against_scale,
                         "condition": condition, "mirroring": mode, "truth": class_id,
                         "k": k, "answer": p.class_id if p else None,
                         "guess": g.class_id if g else None,
@@ -229,7 +230,12 @@ def main() -> None:
     lens = [r for r in recs if r["k1"] > 0 and r["k1_bound"] is not None
             and r["mirroring"] == "no"]
     low = [r for r in lens if r["k1_bound"] < r["k1"]]
-    print(f"\nthe lens bound below the uncorrected lens's k1: {len(low)} of {len(lens)}"
+    plain = [r["stretch"] for r in recs if r["k1"] == 0 and r["stretch"] is not None
+             and "distortion" not in r["condition"] and r["mirroring"] == "no"]
+    if plain:
+        q = np.quantile(plain, [0.5, 0.9, 0.99, 1.0]).round(4).tolist()
+        print(f"\na corner's stretch with no lens (median, 90%, 99%, max): {q}")
+    print(f"the lens bound below the uncorrected lens's k1: {len(low)} of {len(lens)}"
           + "".join(f"\n  {r['truth']}_{r['k']}: k1 {r['k1']:.3f}, bound {r['k1_bound']:.3f}"
                     for r in low))
 

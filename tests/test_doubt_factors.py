@@ -54,7 +54,7 @@ def test_a_napkin_near_the_border_that_keeps_its_distances_keeps_its_confidence(
     px = _napkin_px((0.18, 0.10))
     typical = border_factor(px, INTR, 35.0)
     assert typical < 0.8  # a typical lens would move the outermost stickers a diameter
-    assert border_factor(px, INTR, 35.0, stretch=0.002) > typical + 0.15
+    assert border_factor(px, INTR, 35.0, stretch=0.002) > typical + 0.1
     assert border_factor(px, INTR, 35.0, stretch=None) == typical
 
 

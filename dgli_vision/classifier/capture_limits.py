@@ -28,6 +28,7 @@ from ..core.layout import CORNER_STICKERS
 
 __all__ = [
     "BORDER_DOUBT",
+    "LENS_BOUND_ALLOWANCE",
     "LENS_STRETCH_NOISE",
     "MIN_STICKER_PX",
     "TYPICAL_K1",
@@ -52,6 +53,11 @@ BORDER_DOUBT = (0.5, 1.5)
 #: under 0.3% on clean images and RIGIDITY_TOLERANCE's "under 2%" at worst); the
 #: largest lens the measured stretch allows is worked out with it added.
 LENS_STRETCH_NOISE = 0.02
+#: How much larger than the measured stretch's own bound a lens is taken to be at most:
+#: the model (one ``r`` per corner, a napkin facing the camera) is approximate; on 24
+#: renders through a known lens (``benchmarks/reliability.py``'s ``aside-lens``, seed
+#: 5151) the plain bound fell below the lens's ``k1`` once, by 13%.
+LENS_BOUND_ALLOWANCE = 1.25
 
 
 def sticker_px(depth_mm: float, intrinsics: Intrinsics, disc_diameter_mm: float) -> float:
@@ -102,9 +108,8 @@ def lens_k1_bound(
     corner farthest in ``r^2`` from the corners' median (by ``d``) is stretched against
     it by at least ``k1 d`` (the weaker direction alone: a corner's distances mix both,
     and a tilted napkin's depth adds to them). A measured stretch ``stretch`` (plus
-    :data:`LENS_STRETCH_NOISE`) so bounds ``k1`` by ``(stretch + noise) / d``: on
-    renders through a known lens (k1 0.06-0.12) the bound was never below the lens's
-    own ``k1`` (``benchmarks/reliability.py``, the ``aside-lens`` set).
+    :data:`LENS_STRETCH_NOISE`) so bounds ``k1`` by ``(stretch + noise) / d``, taken
+    :data:`LENS_BOUND_ALLOWANCE` times larger for what the model leaves out.
 
     Parameters
     ----------
@@ -134,7 +139,7 @@ def lens_k1_bound(
     d = float(np.max(np.abs(np.asarray(told) - np.median(told))))
     if d <= 1e-6:
         return float("inf")
-    return (stretch + LENS_STRETCH_NOISE) / d
+    return LENS_BOUND_ALLOWANCE * (stretch + LENS_STRETCH_NOISE) / d
 
 
 def border_factor(
