@@ -136,17 +136,3 @@ def test_classify_pair_takes_mirroring_and_refuses_a_bad_value():
     with pytest.raises(InvalidValueError, match="mirroring must be one of"):
         classify_pair(color, depth, mirroring="sideways")
 
-
-def test_every_exception_class_lives_in_core_errors_under_its_old_names_too():
-    from dgli_vision.cli import output
-    from dgli_vision.core import errors
-    from dgli_vision.planning import plan
-    from dgli_vision.sources import mcap_file
-
-    assert plan.PlanRefused is errors.PlanRefused and issubclass(errors.PlanRefused,
-                                                                 errors.DgliError)
-    assert output.StdoutClosed is errors.StdoutClosed
-    assert mcap_file.McapError is errors.McapError and issubclass(errors.McapError,
-                                                                  ValueError)
-    for cls in (errors.PlanRefused, errors.StdoutClosed, errors.McapError):
-        assert cls.__module__ == "dgli_vision.core.errors"

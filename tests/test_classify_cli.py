@@ -64,7 +64,7 @@ def test_json_has_the_designed_fields(tmp_path):
         "frame",
         "mirroring",
     }
-    assert data["mirroring"] == "no"  # no handedness declared: a camera that does not mirror
+    assert data["mirroring"] == "no"  # no intrinsics declare the camera mirrored
     assert 0.0 <= data["confidence"] <= 1.0
     assert set(data["stickers"]) == {"found", "missing", "unknown"}
     assert set(data["runner_up"]) == {"class", "name", "variant", "distance"}

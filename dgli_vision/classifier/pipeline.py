@@ -310,6 +310,9 @@ def _with_affordances(result: FrameResult, layout: NapkinLayout, frame: RGBDFram
 
 #: What the border factor (:func:`~.capture_limits.border_factor`) says in ``doubts``.
 BORDER_DOUBT_NAME = "stickers near the image border, lens distortion unknown"
+#: What the cap of a state with a mirror twin says in ``doubts`` (the camera's handedness
+#: unknown: :data:`~.consistency.MIRROR_TWIN_CONFIDENCE`).
+TWIN_DOUBT_NAME = "its twin, back face up under a mirroring camera, looks the same"
 
 
 #: The landing check's measure (:func:`_landing`): how much farther the landing partner
@@ -449,6 +452,7 @@ def _judge(
         detections.centroids,
         frame.intrinsics,
         sticker_px(napkin_mm, frame.intrinsics, layout.disc_diameter_mm),
+        stretch=None if obs.ruler is None else obs.ruler.worst_against_scale,
     )
     kind, problem = _image_problem(frame, detections, obs, napkin_mm, layout, border)
     stretched = problem if kind == WhyKind.DEFERRED else None
@@ -473,14 +477,17 @@ def _judge(
     unchecked = guess.confidence
     if checks.factor < 1.0:
         guess = replace(guess, confidence=round(guess.confidence * checks.factor, 4))
+    doubts = (*checks.lowering(), (BORDER_DOUBT_NAME, border))
     if (
         mirroring == "unknown" and guess.class_id in MIRROR_TWINS
         and guess.confidence > MIRROR_TWIN_CONFIDENCE
     ):
+        twin = (TWIN_DOUBT_NAME, round(MIRROR_TWIN_CONFIDENCE / guess.confidence, 4))
+        doubts = (*doubts, twin)
         guess = replace(guess, confidence=MIRROR_TWIN_CONFIDENCE)
     told = {
         "best_guess": guess, "candidates": checks.near, "distances": front, "fit": checks.fit,
-        "doubts": (*checks.lowering(), (BORDER_DOUBT_NAME, border)),
+        "doubts": doubts,
     }
     why, reason = _ruled_out(obs, references, layout, terms, checks, guess, stretched)
     if reason is None and checks.told is not None and unchecked >= min_confidence:
