@@ -16,7 +16,7 @@ from .options import (
     overwrite_option,
     references_option,
 )
-from .output import command_line, echo, echo_json, verdict_json
+from .output import echo, echo_json, verdict_json
 
 
 @click.command("classify")
@@ -53,13 +53,12 @@ def classify_cmd(
     JSON's 3D points (corners, folds, the table's normal "up") are in the robot's base
     frame.
     """
-    from pathlib import Path
 
     from ..analysis.overlay import frame_overlay, verdict_line
     from ..classifier.pipeline import classify_frame
     from ..classifier.references import load_references
     from ..core.extrinsics import read_extrinsics
-    from ..core.io import guard_outputs, write_outputs
+    from ..core.io import guard_outputs, write_picture
     from ..sources.colours_file import read_colours
     from ..sources.frames import read_frame
 
@@ -70,11 +69,8 @@ def classify_cmd(
     refs = load_references(references_path)
     colours = read_colours(colours_path) if colours_path else None
     result = classify_frame(frame, refs, colours=colours)
-    if overlay:
-        write_outputs(
-            {Path(overlay): frame_overlay(frame, result)}, overwrite=overwrite,
-            command=command_line(),
-        )
+    if overlay:  # signed, not recorded: nothing hidden is left beside the user's file
+        write_picture(overlay, frame_overlay(frame, result), overwrite=overwrite)
     if as_json:
         echo_json(verdict_json(result, color, depth, extrinsics))
     else:
