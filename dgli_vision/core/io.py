@@ -236,7 +236,9 @@ def mesh_ply_bytes(xyz: NDArray, triangles: NDArray) -> bytes:
 
 def read_mesh_ply(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
     """Read a PLY triangle mesh: vertices (n, 3) and triangles (k, 3)."""
-    import open3d as o3d
+    from .optional import open3d
+
+    o3d = open3d("reading a PLY mesh")
 
     p = Path(path)
     if not p.is_file():
