@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
 # Idempotent set-up. Safe to run again; fast when nothing changed.
 #
-#   scripts/setup.sh          what classifying needs: the system library Open3D links
-#                             against (libusb-1.0), a virtual environment in .venv/ and
-#                             the package (editable)
-#   scripts/setup.sh --test   that, and what the tests need: the test extras, the
+#   scripts/setup.sh          what classifying needs: a virtual environment in .venv/
+#                             and the package (editable), nothing more
+#   scripts/setup.sh --test   that, and what the tests need: the test extras, the sim
+#                             extra (Open3D: the renderer and meshes) with the system
+#                             library it links against (libusb-1.0), the
 #                             recordings extra (ROS bags), the dask extra (dgli label
 #                             --dask), the realsense extra (the RealSense SDK), the docs
 #                             extra (Sphinx: the site's build is a test), the viewer
@@ -34,11 +35,12 @@ apt_install() {
         >/dev/null
 }
 
-# Open3D's wheel links against libusb-1.0 (Azure Kinect support). The cache is read whole
-# before grep: `ldconfig -p | grep -q` under pipefail fails when grep stops at the first
-# match and ldconfig dies of SIGPIPE, and apt-get would run again for nothing.
+# Open3D's wheel (the sim extra, --test) links against libusb-1.0 (Azure Kinect support).
+# The cache is read whole before grep: `ldconfig -p | grep -q` under pipefail fails when
+# grep stops at the first match and ldconfig dies of SIGPIPE, and apt-get would run
+# again for nothing.
 libs=$(ldconfig -p 2>/dev/null || true)
-if ! grep -q 'libusb-1\.0\.so' <<<"$libs"; then
+if [ "$mode" = test ] && ! grep -q 'libusb-1\.0\.so' <<<"$libs"; then
     echo "setup: installing libusb-1.0-0 (needed by Open3D)" >&2
     apt_install libusb-1.0-0
 fi
@@ -70,6 +72,7 @@ if [ "$mode" = test ]; then
     # one extra a line (pyproject.toml says what each is for)
     test_extras=(
         test
+        sim
         recordings
         dask
         realsense

@@ -142,3 +142,31 @@ def test_the_risk_coverage_curve_has_a_point_per_answer_when_confidences_tie():
     assert np.allclose(per_answer.get_xdata()[[0, -1]], [1 / 24, 20 / 24])
     acc = per_answer.get_ydata()
     assert acc[2] == 1.0 and acc[3] == 0.75  # the wrong one comes fourth (its margin)
+
+
+def test_overlay_leaves_nothing_hidden_beside_the_users_file(tmp_path):
+    """``--overlay`` signs its picture instead of recording it in a hidden
+    ``.dgli-outputs.json``: run again it replaces its own picture, but not one the user
+    edited or wrote, and the folder holds only the picture."""
+    from dgli_vision.core.io import signed_ours
+
+    color, depth = str(SAMPLES / "05_000_color.png"), str(SAMPLES / "05_000_depth.png")
+    for name in ("seen.png", "seen.jpg"):
+        out = tmp_path / name
+        args = ["classify", color, depth, "--overlay", str(out)]
+        assert CliRunner().invoke(main, args).exit_code == 0
+        assert signed_ours(out) and cv2.imread(str(out)).shape == (720, 1280, 3)
+        assert CliRunner().invoke(main, args).exit_code == 0  # its own: replaced
+        data = bytearray(out.read_bytes())
+        data[-100] ^= 0xFF  # the user's edit
+        out.write_bytes(bytes(data))
+        assert not signed_ours(out)
+        r = CliRunner().invoke(main, args)
+        assert r.exit_code == 2 and "refusing to replace" in r.output
+        assert out.read_bytes() == bytes(data)
+    mine = tmp_path / "mine.png"
+    cv2.imwrite(str(mine), np.zeros((4, 4, 3), np.uint8))
+    assert not signed_ours(mine)
+    r = CliRunner().invoke(main, ["plan", color, depth, "--goal", "08", "--overlay", str(mine)])
+    assert r.exit_code == 2 and "refusing to replace" in r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.png", "seen.jpg", "seen.png"]

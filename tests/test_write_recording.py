@@ -57,3 +57,46 @@ def test_an_unknown_suffix_or_an_existing_file_is_a_one_line_error(folder, tmp_p
     res = CliRunner().invoke(main, ["write-recording", str(folder), str(tmp_path / "e.bag")])
     assert res.exit_code == 2 and "exists" in res.output
     assert (tmp_path / "e.bag").read_text() == "mine"
+
+
+def _chunk_compressions(path: Path) -> set[str]:
+    """The compression of each chunk of an MCAP file, from its summary."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as f:
+        return {c.compression for c in make_reader(f).get_summary().chunk_indexes}
+
+
+def test_mcap_is_written_with_zstd_chunks_and_reads_back_the_same(folder, tmp_path):
+    pytest.importorskip("mcap")  # the 'recordings' extra
+    small, big = tmp_path / "z.mcap", tmp_path / "raw.mcap"
+    assert CliRunner().invoke(main, ["write-recording", str(folder), str(small)]).exit_code == 0
+    res = CliRunner().invoke(main, ["write-recording", str(folder), str(big), "--uncompressed"])
+    assert res.exit_code == 0, res.output
+    assert _chunk_compressions(small) == {"zstd"} and _chunk_compressions(big) == {""}
+    assert small.stat().st_size < 0.8 * big.stat().st_size
+    for a, b in zip(open_recording(small).frames, open_recording(big).frames):
+        fa, fb = a.load(), b.load()
+        assert np.array_equal(fa.color, fb.color) and np.array_equal(fa.depth_mm, fb.depth_mm)
+
+
+def test_overwrite_replaces_a_recording_once_the_new_one_is_whole(folder, tmp_path):
+    out = tmp_path / "e.bag"
+    out.write_text("an older recording")
+    res = CliRunner().invoke(main, ["write-recording", str(folder), str(out), "--overwrite"])
+    assert res.exit_code == 0, res.output
+    assert len(list(open_recording(out).frames)) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.bag"]  # nothing left beside it
+    # a ROS 2 bag folder is replaced whole too
+    bag = tmp_path / "ep"
+    for _ in range(2):
+        res = CliRunner().invoke(main, ["write-recording", str(folder), str(bag), "--overwrite"])
+        assert res.exit_code == 0, res.output
+    assert len(list(open_recording(bag).frames)) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["e.bag", "ep"]
+    # a failure keeps what was there
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    res = CliRunner().invoke(main, ["write-recording", str(empty), str(out), "--overwrite"])
+    assert res.exit_code == 2
+    assert len(list(open_recording(out).frames)) == 2

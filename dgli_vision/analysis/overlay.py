@@ -339,12 +339,15 @@ def verdict_line(result: FrameResult) -> str:
     return text
 
 
-def frame_overlay(frame: RGBDFrame, result: FrameResult) -> NDArray[np.uint8]:
+def frame_overlay(
+    frame: RGBDFrame, result: FrameResult, *, legend: bool = True
+) -> NDArray[np.uint8]:
     """The overlay picture of a classified frame (BGR, ready to write): the stickers
     found, where the missing ones lie (hidden by cloth, on the flap folded over, or
     unknown and why), the objects over the napkin, the corners and folds
-    (:mod:`dgli_vision.planning.overlay`), the verdict and a legend. ``frame`` is the
-    frame as the pipeline read it
+    (:mod:`dgli_vision.planning.overlay`), the verdict and (``legend``) a legend of the
+    marks, bottom left (a plan's overlay draws its own there). ``frame`` is the frame as
+    the pipeline read it
     (:meth:`~dgli_vision.classifier.pipeline.FrameResult.frame_as_read`: un-mirrored for a
     camera declared mirrored), whose pixels the result's are."""
     from dataclasses import replace
@@ -361,7 +364,7 @@ def frame_overlay(frame: RGBDFrame, result: FrameResult) -> NDArray[np.uint8]:
     extra = _corner_marks(result.affordances) + (("fold",) if lines else ())
     image = overlay_image(
         frame.color, result.detections.centroids, verdict_line(result), detail=detail,
-        evidence=evidence, extra_marks=extra,
+        evidence=evidence, extra_marks=extra, show_legend=legend,
     )
     return draw_folds(draw_corners(image, result.affordances), result.affordances,
                       frame.intrinsics)

@@ -18,7 +18,7 @@ from .options import (
     params_option,
     references_option,
 )
-from .output import command_line, echo, echo_json, verdict_json
+from .output import echo, echo_json, verdict_json
 
 
 @click.command("classify")
@@ -60,13 +60,12 @@ def classify_cmd(
     frame. With --mirroring yes (or "mirrored": true in the intrinsics) the frame is read
     un-mirrored, and the overlay shows it so.
     """
-    from pathlib import Path
 
     from ..analysis.overlay import frame_overlay, verdict_line
     from ..classifier.pipeline import classify_frame
     from ..classifier.references import load_references
     from ..core.extrinsics import read_extrinsics
-    from ..core.io import guard_outputs, write_outputs
+    from ..core.io import guard_outputs, write_picture
     from ..perception.params import read_params
     from ..sources.colours_file import read_colours
     from ..sources.frames import read_frame
@@ -79,10 +78,9 @@ def classify_cmd(
     colours = read_colours(colours_path) if colours_path else None
     params = read_params(params_path) if params_path else None
     result = classify_frame(frame, refs, colours=colours, mirroring=mirroring, params=params)
-    if overlay:
-        write_outputs(
-            {Path(overlay): frame_overlay(result.frame_as_read(frame), result)},
-            overwrite=overwrite, command=command_line(),
+    if overlay:  # signed, not recorded: nothing hidden is left beside the user's file
+        write_picture(
+            overlay, frame_overlay(result.frame_as_read(frame), result), overwrite=overwrite
         )
     if as_json:
         echo_json(verdict_json(result, color, depth, extrinsics))

@@ -19,7 +19,7 @@ from .options import (
     overwrite_option,
     references_option,
 )
-from .output import command_line, echo, echo_json, progress_bar
+from .output import echo, echo_json, progress_bar
 
 
 def _state(ctx: click.Context, param: click.Parameter, value: str | None):
@@ -178,7 +178,6 @@ def plan_cmd(
     frame (with --extrinsics, in the robot's base frame). Exit 1 with the reason when
     there is no plan (the state cannot be told, or no sequence of folds leads there).
     """
-    from pathlib import Path
 
     from ..classifier.references import load_references
     from ..core.extrinsics import read_extrinsics
@@ -208,7 +207,7 @@ def plan_cmd(
             plan = plan_geometry(start, goal, layout, None, None, None)
         else:
             from ..classifier.pipeline import classify_frame
-            from ..core.io import guard_outputs, write_outputs
+            from ..core.io import guard_outputs, write_picture
             from ..sources.frames import read_frame
 
             if overlay:
@@ -221,12 +220,11 @@ def plan_cmd(
                 plan = plan_frame(result, frame, goal, layout)
             except PlanRefused as exc:  # the overlay still shows the frame, and why
                 if overlay:
-                    write_outputs({Path(overlay): _overlay(frame, result, None, str(exc))},
-                                  overwrite=overwrite, command=command_line())
+                    write_picture(overlay, _overlay(frame, result, None, str(exc)),
+                                  overwrite=overwrite)
                 raise
             if overlay:
-                write_outputs({Path(overlay): _overlay(frame, result, plan)},
-                              overwrite=overwrite, command=command_line())
+                write_picture(overlay, _overlay(frame, result, plan), overwrite=overwrite)
     except PlanRefused as exc:
         if as_json:
             echo_json({"plan": None, "reason": str(exc)})
@@ -282,17 +280,19 @@ def _overlay(frame, result, plan, refused: str | None = None):
     from ..planning.overlay import draw_no_plan, draw_step, draw_step_legend
 
     if plan is None:
-        return draw_no_plan(frame_overlay(frame, result),
+        return draw_no_plan(frame_overlay(frame, result, legend=False),
                             (refused or "").removeprefix("no plan: "))
     if not plan.steps:
-        return draw_no_plan(frame_overlay(frame, result), "already in the goal state")
+        return draw_no_plan(frame_overlay(frame, result, legend=False),
+                            "already in the goal state")
     s = plan.steps[0]
     what = s.corner or s.side
     e = f"{s.expect[0]}/{s.expect[1]}" if s.expect[1] else s.expect[0]
     of = f" (step 1 of {len(plan.steps)})" if len(plan.steps) > 1 else ""
     marked = draw_step(cv2.cvtColor(frame.color, cv2.COLOR_RGB2BGR), s, frame.intrinsics,
                        legend=False)
-    img = frame_overlay(replace(frame, color=cv2.cvtColor(marked, cv2.COLOR_BGR2RGB)), result)
+    img = frame_overlay(replace(frame, color=cv2.cvtColor(marked, cv2.COLOR_BGR2RGB)), result,
+                        legend=False)  # the step's legend goes there
     return draw_step_legend(img, s, frame.intrinsics, f"next: {s.action} {what} -> {e}{of}")
 
 

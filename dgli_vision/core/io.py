@@ -236,7 +236,9 @@ def mesh_ply_bytes(xyz: NDArray, triangles: NDArray) -> bytes:
 
 def read_mesh_ply(path: str | Path) -> tuple[NDArray[np.float64], NDArray[np.int32]]:
     """Read a PLY triangle mesh: vertices (n, 3) and triangles (k, 3)."""
-    import open3d as o3d
+    from .optional import open3d
+
+    o3d = open3d("reading a PLY mesh")
 
     p = Path(path)
     if not p.is_file():
@@ -315,7 +317,7 @@ def guard_outputs(paths: Iterable[str | Path], *, overwrite: bool = False) -> No
         folder = p.parent
         if folder not in manifests:
             manifests[folder] = _manifest(folder)
-        if _ours(manifests[folder].get(p.name), p):
+        if _ours(manifests[folder].get(p.name), p) or signed_ours(p):
             continue
         raise OverwriteError(
             f"refusing to replace '{p}': dgli did not write it (or it was changed since); "
@@ -652,6 +654,80 @@ def image_bytes(path: str | Path, image_bgr: NDArray[np.uint8]) -> bytes:
     if not ok:
         raise _unwritable(p, "OpenCV cannot encode the image")
     return encoded.tobytes()
+
+
+#: The keyword of the text a picture written to a path of the user's choosing carries
+#: (``dgli classify --overlay x.png``): the checksum of the rest of the file, so that
+#: dgli knows its own picture, untouched since, without a record beside it.
+SIGNATURE_KEY = b"dgli-output"
+
+
+def signed_image(data: bytes) -> bytes:
+    """A PNG or JPEG file's bytes with a text carrying the checksum of the file without
+    it (a PNG ``tEXt`` chunk after its header, a JPEG comment after its start): what
+    :func:`signed_ours` checks. Another format is returned as it is."""
+    import hashlib
+    import struct
+    import zlib
+
+    sha = hashlib.sha256(data).hexdigest().encode()
+    if data.startswith(b"\x89PNG\r\n\x1a\n") and data[12:16] == b"IHDR":
+        body = b"tEXt" + SIGNATURE_KEY + b"\0" + b"sha256=" + sha
+        chunk = struct.pack(">I", len(body) - 4) + body + struct.pack(">I", zlib.crc32(body))
+        return data[:33] + chunk + data[33:]
+    if data.startswith(b"\xff\xd8"):
+        text = SIGNATURE_KEY + b" sha256=" + sha
+        return data[:2] + b"\xff\xfe" + struct.pack(">H", len(text) + 2) + text + data[2:]
+    return data
+
+
+def signed_ours(path: Path) -> bool:
+    """Whether ``path`` is a picture :func:`signed_image` wrote, unchanged since (its
+    bytes without the signature have the checksum the signature gives)."""
+    import hashlib
+    import struct
+
+    try:
+        with path.open("rb") as f:
+            head = f.read(33 + 12 + len(SIGNATURE_KEY) + 8 + 64)
+            if head.startswith(b"\x89PNG\r\n\x1a\n"):
+                (n,) = struct.unpack(">I", head[33:37])
+                body = head[37 : 41 + n]
+                prefix = b"tEXt" + SIGNATURE_KEY + b"\0sha256="
+                if not body.startswith(prefix):
+                    return False
+                want, cut = body[len(prefix) :], (33, 33 + 12 + n)
+            elif head.startswith(b"\xff\xd8\xff\xfe"):
+                (n,) = struct.unpack(">H", head[4:6])
+                body = head[6 : 4 + n]
+                prefix = SIGNATURE_KEY + b" sha256="
+                if not body.startswith(prefix):
+                    return False
+                want, cut = body[len(prefix) :], (2, 4 + n)
+            else:
+                return False
+            f.seek(0)
+            data = f.read()
+    except (OSError, struct.error):
+        return False
+    rest = data[: cut[0]] + data[cut[1] :]
+    return hashlib.sha256(rest).hexdigest().encode() == want
+
+
+def write_picture(path: str | Path, image_bgr: NDArray[np.uint8], *, overwrite: bool) -> None:
+    """Write one picture to a path the user named (``--overlay OUT.png``), PNG or JPEG by
+    its extension, signed (:func:`signed_image`) instead of recorded beside it: no
+    ``.dgli-outputs.json`` is left in the user's folder. An existing file is replaced
+    when ``overwrite`` is set or when it is dgli's own signed picture, untouched since.
+
+    Raises
+    ------
+    OverwriteError, OutputError
+        As :func:`guard_outputs` and :func:`write_png`.
+    """
+    p = Path(path)
+    guard_outputs([p], overwrite=overwrite)
+    _write_bytes(p, signed_image(image_bytes(p, image_bgr)))
 
 
 def csv_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> str:

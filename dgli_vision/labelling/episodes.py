@@ -342,7 +342,9 @@ def _read_mesh_file(path: Path) -> tuple[NDArray[np.float64], NDArray[np.int64]]
     """Vertices and triangles of one OBJ or PLY file (PLY through Open3D)."""
     if path.suffix.lower() == ".obj":
         return _read_obj(path)
-    import open3d as o3d
+    from ..core.optional import open3d
+
+    o3d = open3d("reading cloth meshes")
 
     mesh = o3d.io.read_triangle_mesh(str(path), enable_post_processing=False, print_progress=False)
     return np.asarray(mesh.vertices, np.float64), np.asarray(mesh.triangles, np.int64)

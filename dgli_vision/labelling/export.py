@@ -132,7 +132,9 @@ def write_meshes(
     folder: str | Path, positions: NDArray[np.float64], faces: NDArray, *, suffix: str = ".obj"
 ) -> None:
     """One mesh per frame, ``frame_00000.obj`` (or ``.ply``), written by Open3D."""
-    import open3d as o3d
+    from ..core.optional import open3d
+
+    o3d = open3d("writing cloth meshes")
 
     out = Path(folder)
     out.mkdir(parents=True, exist_ok=True)

@@ -127,7 +127,9 @@ def _covered(
 ) -> NDArray[np.bool_]:
     """Which disc points (t, S) have another layer over them, for a block of frames
     (``coarse`` (t, M, 3) the coarse mesh, ``samples`` (t, S, 3) the points)."""
-    import open3d as o3d
+    from ..core.optional import open3d
+
+    o3d = open3d("dgli label")
 
     t, s = len(coarse), samples.shape[1]
     centre = coarse[:, :, :2].mean(axis=1)  # (t, 2)

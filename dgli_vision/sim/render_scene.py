@@ -130,7 +130,9 @@ class RaycastScene:
     """Open3D raycasting scene of one cloth state and the table."""
 
     def __init__(self, state: ClothState, objects: list[SceneObject] = ()) -> None:
-        import open3d as o3d
+        from ..core.optional import open3d
+
+        o3d = open3d("rendering")
 
         self._o3d = o3d
         self.scene = o3d.t.geometry.RaycastingScene()

@@ -129,8 +129,9 @@ class _Messages:
         return self.image(t, depth_mm.astype(np.uint16), "16UC1")
 
 
-def _open_writer(path: Path, fmt: BagFormat) -> tuple[Any, _Messages]:
-    """A ``rosbags`` writer of a new bag in ``fmt`` and its message builder."""
+def _open_writer(path: Path, fmt: BagFormat, compress: bool = False) -> tuple[Any, _Messages]:
+    """A ``rosbags`` writer of a new bag in ``fmt`` and its message builder (``compress``:
+    an MCAP bag's chunks compressed with zstd)."""
     from rosbags.typesys import Stores, get_typestore
 
     ros1 = fmt == "ros1"
@@ -139,10 +140,13 @@ def _open_writer(path: Path, fmt: BagFormat) -> tuple[Any, _Messages]:
         from rosbags.rosbag1 import Writer
 
         return Writer(path), _Messages(store, ros1)
-    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
 
     plugin = StoragePlugin.MCAP if fmt == "ros2-mcap" else StoragePlugin.SQLITE3
-    return Writer(path, version=9, storage_plugin=plugin), _Messages(store, ros1)
+    writer = Writer(path, version=9, storage_plugin=plugin)
+    if compress and fmt == "ros2-mcap":  # each chunk zstd-compressed (the MCAP's own)
+        writer.set_compression(CompressionMode.STORAGE, CompressionFormat.ZSTD)
+    return writer, _Messages(store, ros1)
 
 
 def write_bag(
@@ -155,6 +159,7 @@ def write_bag(
     depth_encoding: Literal["16UC1", "32FC1"] = "16UC1",
     distortion: tuple[float, ...] = (0.0, 0.0, 0.0, 0.0, 0.0),
     depth_offset_s: float = 0.0,
+    compress: bool = False,
 ) -> Path:
     """Write ``frames`` (time in seconds, RGB uint8, depth uint16 mm) to a new bag.
 
@@ -175,6 +180,9 @@ def write_bag(
         ``plumb_bob`` coefficients of the ``CameraInfo``.
     depth_offset_s : float, keyword-only
         Depth stamped this much later than colour (a driver's jitter).
+    compress : bool, keyword-only
+        ``ros2-mcap``: compress each chunk with zstd (as ``ros2 bag record
+        --compression-mode storage`` does; the bag is read through ``rosbags`` then).
 
     Returns
     -------
@@ -189,7 +197,7 @@ def write_bag(
     path = Path(path)
     if path.exists():
         raise OverwriteError(f"'{path}' exists; a bag is written only to a new path")
-    writer, messages = _open_writer(path, fmt)
+    writer, messages = _open_writer(path, fmt, compress)
     jpeg = color_encoding == "jpeg"
     color_topic = COLOR_TOPIC + ("/compressed" if jpeg else "")
 

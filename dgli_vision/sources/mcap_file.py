@@ -10,9 +10,16 @@ gives them: by log time, a tie by the chunk's place in the file, then the chunk'
 order; a chunk's messages outside its indexed time range, and chunks whose message
 index lists none of the channels read, are left out as ``rosbags`` leaves them out.
 
+The file's summary (its schemas, channels and chunk indexes) is read by the ``mcap``
+package (the MCAP project's own reader, in the ``recordings`` extra). The records of a
+chunk are walked here: the ``mcap`` reader hands out each message's bytes, copied out
+of the file, and not where they lie, which is what lets a frame's pixels go to a worker
+process without being read in this one.
+
 Anything else (compressed chunks, no summary section, a bag folder compressed as a
-whole or per message, several channels on one topic) is not read here: :func:`plan`
-returns None and the caller reads the recording through ``rosbags``.
+whole or per message, several channels on one topic, no ``mcap`` package) is not read
+here: :func:`plan` returns None and the caller reads the recording through
+``rosbags`` (which decompresses zstd and lz4 chunks).
 """
 
 from __future__ import annotations
@@ -29,10 +36,8 @@ from ..core.errors import McapError
 __all__ = ["McapError", "McapMessage", "McapPlan", "plan"]
 
 MAGIC = b"\x89MCAP0\r\n"
-_FOOTER = 0x02
-_SCHEMA, _CHANNEL, _MESSAGE, _CHUNK, _CHUNK_INDEX = 0x03, 0x04, 0x05, 0x06, 0x08
-_SUMMARY_OFFSET = 0x0E
-_U16, _U32, _U64 = struct.Struct("<H"), struct.Struct("<I"), struct.Struct("<Q")
+_MESSAGE, _CHUNK = 0x05, 0x06
+_U32, _U64 = struct.Struct("<I"), struct.Struct("<Q")
 _RECORD = struct.Struct("<BQ")  # opcode, length
 _MESSAGE_HEAD = struct.Struct("<BQHIQQ")  # opcode, length, channel, sequence, log, publish
 _CHUNK_HEAD = struct.Struct("<BQQQQI")  # opcode, length, start, end, size, crc
@@ -97,14 +102,6 @@ class McapPlan:
                 yield from _file_messages(f, wanted)
 
 
-def _string(buf: bytes, pos: int) -> tuple[str, int]:
-    (n,) = _U32.unpack_from(buf, pos)
-    end = pos + 4 + n
-    if end > len(buf):
-        raise McapError("string runs past its record")
-    return bytes(buf[pos + 4 : end]).decode(), end
-
-
 def _pread(fd: int, size: int, offset: int) -> bytes:
     data = os.pread(fd, size, offset)
     if len(data) != size:
@@ -112,65 +109,41 @@ def _pread(fd: int, size: int, offset: int) -> bytes:
     return data
 
 
-def _summary(fd: int, size: int) -> bytes | None:
-    """The summary section (None: the file has none)."""
-    if size < 8 + 37 or _pread(fd, 8, 0) != MAGIC:
-        return None
-    tail = _pread(fd, 37, size - 37)
-    if tail[-8:] != MAGIC or tail[0] != _FOOTER or _U64.unpack_from(tail, 1)[0] != 20:
-        return None
-    (start,) = _U64.unpack_from(tail, 9)
-    if not 8 < start <= size - 37:
-        return None
-    return _pread(fd, size - 37 - start, start)
-
-
-def _chunk_index(rec: bytes) -> tuple[_Chunk, str]:
-    """A Chunk Index record: the chunk and its compression."""
-    start, end, offset, length = struct.unpack_from("<QQQQ", rec, 0)
-    (n,) = _U32.unpack_from(rec, 32)
-    pairs = [struct.unpack_from("<HQ", rec, 36 + k) for k in range(0, n, 10)]
-    pos = 36 + n
-    (index_length,) = _U64.unpack_from(rec, pos)
-    compression, _ = _string(rec, pos + 8)
-    # a channel's message count as rosbags reckons it from where the indexes lie
-    ordered = sorted((o, cid) for cid, o in pairs)
-    ends = [o for o, _ in ordered[1:]] + [offset + length + index_length]
-    channels = frozenset(cid for (o, cid), e in zip(ordered, ends) if (e - o - 15) // 16)
-    return _Chunk(start, end, offset, channels), compression
+def _channel_counts(ci: object) -> frozenset[int]:
+    """The channels a chunk's message index lists messages of: a channel's message count
+    as ``rosbags`` reckons it from where the indexes lie (16 bytes a message after a
+    15-byte header)."""
+    offsets = ci.message_index_offsets  # type: ignore[attr-defined]
+    ordered = sorted((o, cid) for cid, o in offsets.items())
+    end = ci.chunk_start_offset + ci.chunk_length + ci.message_index_length  # type: ignore[attr-defined]
+    ends = [o for o, _ in ordered[1:]] + [end]
+    return frozenset(cid for (o, cid), e in zip(ordered, ends) if (e - o - 15) // 16)
 
 
 def _read_file(path: Path) -> _File | None:
-    """A file's channels and chunks from its summary; None when it cannot be read here."""
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        summary = _summary(fd, os.fstat(fd).st_size)
-    finally:
-        os.close(fd)
+    """A file's channels and chunks from its summary (read by the ``mcap`` package);
+    None when it cannot be read here (no summary, compressed chunks, a topic on two
+    channels, not MCAP)."""
+    from mcap.reader import make_reader
+
+    with open(path, "rb") as f:
+        if f.read(8) != MAGIC:
+            return None
+        f.seek(0)
+        summary = make_reader(f).get_summary()
     if summary is None:
         return None
-    schemas: dict[int, str] = {}
-    channels: dict[int, tuple[str, str]] = {}
-    chunks: list[_Chunk] = []
-    pos = 0
-    while pos + 9 <= len(summary):
-        op, length = _RECORD.unpack_from(summary, pos)
-        if op in (_FOOTER, _SUMMARY_OFFSET):
-            break
-        rec = summary[pos + 9 : pos + 9 + length]
-        if len(rec) != length:
+    channels = {
+        cid: (c.topic, summary.schemas[c.schema_id].name
+              if c.schema_id in summary.schemas else "__schemaless__")
+        for cid, c in summary.channels.items()
+    }
+    chunks = []
+    for ci in summary.chunk_indexes:
+        if ci.compression:
             return None
-        pos += 9 + length
-        if op == _SCHEMA:
-            schemas[_U16.unpack_from(rec)[0]] = _string(rec, 2)[0]
-        elif op == _CHANNEL:
-            cid, sid = struct.unpack_from("<HH", rec)
-            channels[cid] = (_string(rec, 4)[0], schemas.get(sid, "__schemaless__"))
-        elif op == _CHUNK_INDEX:
-            chunk, compression = _chunk_index(rec)
-            if compression:
-                return None
-            chunks.append(chunk)
+        chunks.append(_Chunk(ci.message_start_time, ci.message_end_time,
+                             ci.chunk_start_offset, _channel_counts(ci)))
     topics = [t for t, _ in channels.values()]
     if not chunks or len(set(topics)) != len(topics):
         return None
@@ -200,8 +173,8 @@ def plan(path: str | Path) -> McapPlan | None:
     try:
         files = _bag_files(Path(path))
         parsed = [_read_file(f) for f in files] if files else None
-    except (OSError, ValueError, KeyError, TypeError, AttributeError, struct.error, ImportError):
-        return None  # rosbags reads it, or names what is wrong with it
+    except Exception:  # any reader's error: rosbags reads the file, or names what is wrong
+        return None
     if not parsed or any(f is None for f in parsed):
         return None
     return McapPlan(tuple(f for f in parsed if f is not None))

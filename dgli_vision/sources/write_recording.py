@@ -5,11 +5,12 @@ SQLite file, or a bag folder) or a RealSense SDK recording, with the writers of
 
 from __future__ import annotations
 
+import os
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -67,6 +68,8 @@ def write_recording(
     fmt: str | None = None,
     fps: float = 30.0,
     on_frame: Callable[[], None] | None = None,
+    overwrite: bool = False,
+    compress: bool = True,
 ) -> tuple[Path, int]:
     """Write the frames of a folder of PNG pairs (in the order of its ``frames.csv``, or
     by name) as a recording.
@@ -84,6 +87,12 @@ def write_recording(
         Frames a second, for the frames without a time in ``frames.csv``.
     on_frame : callable, optional, keyword-only
         Called after each frame is read (a progress bar).
+    overwrite : bool, keyword-only
+        Replace ``out`` when it exists (it is replaced only once the new recording is
+        whole: a failure keeps the old one).
+    compress : bool, keyword-only
+        A ROS 2 MCAP recording's chunks compressed with zstd (the default: a tenth of the
+        size, or less, for rendered frames); False writes them as they are.
 
     Returns
     -------
@@ -93,7 +102,7 @@ def write_recording(
     Raises
     ------
     OverwriteError
-        ``out`` exists.
+        ``out`` exists (without ``overwrite``).
     InvalidInputError, UnreadableInputError, CalibrationError
         A frame cannot be read, or the frames differ in intrinsics.
     """
@@ -102,8 +111,10 @@ def write_recording(
 
     out = Path(out)
     kind = format_of(out, fmt)
-    if out.exists():
-        raise OverwriteError(f"'{out}' exists; a recording is written only to a new path")
+    if out.exists() and not overwrite:
+        raise OverwriteError(f"'{out}' exists; choose a new path, or add --overwrite")
+    if out.is_dir() and kind != "ros2-mcap" and kind != "ros2-sqlite3":
+        raise OverwriteError(f"'{out}' is a folder; a {kind} recording is one file")
     pairs = list(read_recording(folder).frames)
     first = read_frame(pairs[0].color, pairs[0].depth, pairs[0].intrinsics_file)
     intrinsics = first.intrinsics
@@ -120,12 +131,23 @@ def write_recording(
                 on_frame()
             yield (k / fps if p.time is None else float(p.time)), frame.color, frame.depth_mm
 
+    with tempfile.TemporaryDirectory(prefix=".dgli-recording-", dir=out.parent or ".") as tmp:
+        new = Path(tmp) / out.name  # written whole here, then put in place
+        _write_as(kind, new, frames(), intrinsics, compress)
+        _replace(new, out)
+    return out, len(pairs)
+
+
+def _write_as(
+    kind: str, out: Path, frames: Iterator[Any], intrinsics: Any, compress: bool
+) -> None:
+    """The frames as a new recording of ``kind`` at ``out``."""
     if kind == "realsense":
         from .realsense_writer import write_realsense_recording
 
         # millimetre depth units (a D400's default): the depth reads back exactly
-        write_realsense_recording(out, frames(), intrinsics, depth_step=1, depth_scale_m=0.001)
-        return out, len(pairs)
+        write_realsense_recording(out, frames, intrinsics, depth_step=1, depth_scale_m=0.001)
+        return
     import importlib.util
 
     if importlib.util.find_spec("rosbags") is None:
@@ -136,12 +158,22 @@ def write_recording(
     from .bag_writer import write_bag
 
     if kind == "ros1" or out.suffix == "":
-        write_bag(out, frames(), intrinsics, fmt=kind)  # type: ignore[arg-type]
-        return out, len(pairs)
+        write_bag(out, frames, intrinsics, fmt=kind, compress=compress)  # type: ignore[arg-type]
+        return
     # one storage file: the bag folder is written beside it, its storage file kept
-    with tempfile.TemporaryDirectory(prefix=".dgli-bag-", dir=out.parent or ".") as tmp:
-        bag = Path(tmp) / out.stem
-        write_bag(bag, frames(), intrinsics, fmt=kind)  # type: ignore[arg-type]
-        (storage,) = bag.glob(f"*{out.suffix}")
-        shutil.move(str(storage), out)
-    return out, len(pairs)
+    bag = out.parent / f"{out.stem}.bag-folder"
+    write_bag(bag, frames, intrinsics, fmt=kind, compress=compress)  # type: ignore[arg-type]
+    (storage,) = bag.glob(f"*{out.suffix}")
+    shutil.move(str(storage), out)
+
+
+def _replace(new: Path, out: Path) -> None:
+    """Put the recording ``new`` (a file or a bag folder) at ``out``, replacing what is
+    there only now that the new one is whole."""
+    if out.is_dir():
+        old = out.with_name(f".{out.name}.old")
+        out.rename(old)
+        new.rename(out)
+        shutil.rmtree(old)
+    else:
+        os.replace(new, out)
