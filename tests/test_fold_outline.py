@@ -33,8 +33,8 @@ SEED = 5207
 
 def _draw(polys_px: list[np.ndarray], shape: tuple[int, int], k: int = 8) -> np.ndarray:
     """White polygons on a grey table, their edges anti-aliased as a camera sees them
-    (drawn k times finer, then averaged), under light falling off across the image;
-    RGB uint8."""
+    (drawn k times finer, then averaged), under light falling off across the image and
+    a soft shadow; RGB uint8."""
     import cv2
 
     h, w = shape
@@ -45,6 +45,11 @@ def _draw(polys_px: list[np.ndarray], shape: tuple[int, int], k: int = 8) -> np.
         cv2.fillPoly(big, [fine], 225, lineType=cv2.LINE_8, shift=4)
     small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(float)
     small *= np.linspace(1.0, 0.7, w)[None, :]  # a lamp's fall-off
+    # an arm's soft shadow: a band across the image at 45 degrees, half the light,
+    # its edges soft over 20 pixels
+    y, x = np.mgrid[0:h, 0:w]
+    across = (x - y - 150.0) / math.sqrt(2.0)
+    small *= 1.0 - 0.5 * np.clip(np.minimum(across + 40, 40 - across) / 20.0 + 0.5, 0, 1)
     return np.repeat(np.round(small).astype(np.uint8)[..., None], 3, axis=2)
 
 
@@ -83,7 +88,8 @@ def test_crease_is_where_the_cloth_ends(case):
     # a folded napkin seen straight down from 500 mm: the part seen (the flap, mirrored,
     # for a fold over; the napkin that stays over a flap under) is the napkin clipped at
     # the true crease, placed on the table by a known map; a white box touches the
-    # folded edge over 30 mm, and the light falls off across the image
+    # folded edge over 30 mm, the light falls off across the image, and a soft shadow
+    # crosses it
     cid, variant, sizes = CASES[case]
     (fold,) = nominal_folds(cid, variant, LAYOUT)
     true = planned_crease(fold.word, LAYOUT, **sizes)
