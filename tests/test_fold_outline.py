@@ -213,3 +213,36 @@ def test_verify_judges_half_and_diagonal_folds(seen):
                 assert check.success is False, (cid, k, off, check.line())
                 key = "inset_mm" if cid == "11" else "offset_mm"
                 assert check.errors[key] == pytest.approx(-off, abs=5.0)
+
+
+def test_verify_command_on_a_half_fold(request, tmp_path):
+    # the command a user runs: `dgli verify --inset` passes the half fold made and
+    # fails one planned 30 mm deeper; its JSON gives the inset measured, from the
+    # outline
+    import json
+
+    from click.testing import CliRunner
+
+    from dgli_vision.cli.main import main
+    from dgli_vision.sources.frames import write_color, write_depth
+
+    frame = rendered(request.config, "11", 0, SEED, ())
+    variant, creases = _truth("11", 0, SEED)
+    word = f"{variant} half"
+    inset = fold_measures(word, Crease.through(*creases[word]), LAYOUT)["inset_mm"]
+    color, depth = tmp_path / "a_color.png", tmp_path / "a_depth.png"
+    write_color(color, frame.color)
+    write_depth(depth, frame.depth_mm)
+    (tmp_path / "intrinsics.json").write_text(json.dumps(frame.intrinsics.to_open3d_dict()))
+    run = CliRunner().invoke
+    args = ["verify", str(color), str(depth), "--expect", f"11/{variant}"]
+    good = run(main, [*args, "--inset", f"{inset:.0f}"])
+    assert good.exit_code == 0 and good.output.startswith(f"success: 11/{variant}"), good.output
+    bad = run(main, [*args, "--inset", f"{inset + 30:.0f}", "--json"])
+    assert bad.exit_code == 1, bad.output
+    out = json.loads(bad.output)
+    assert out["outcome"] == "failed" and out["errors"]["inset_mm"] == pytest.approx(-30, abs=5)
+    measured = out["measured"]  # the fold as `dgli classify --json` gives it
+    assert measured["geometry_from"] == "outline" and measured["why"] is None
+    assert measured["inset_mm"] == pytest.approx(inset, abs=5.0)
+    assert measured["inset_sd_mm"] > 0
