@@ -203,7 +203,10 @@ def test_verify_judges_half_and_diagonal_folds(seen):
             if cid == "11":
                 check = verify_fold(result, (cid, variant), LAYOUT,
                                     inset_mm=true["inset_mm"] + off)
-            else:
+            elif off >= 0.0:  # the planned offset (`dgli verify --offset`)
+                check = verify_fold(result, (cid, variant), LAYOUT,
+                                    offset_mm=true["offset_mm"] + off)
+            else:  # the planned crease (a plan's step)
                 plan = planned_crease(word, LAYOUT, offset_mm=true["offset_mm"] + off,
                                       turn_deg=true["turn_deg"])
                 check = verify_fold(result, (cid, variant), LAYOUT, fold=word, crease=plan)
@@ -242,6 +245,9 @@ def test_verify_command_on_a_half_fold(request, tmp_path):
     assert bad.exit_code == 1, bad.output
     out = json.loads(bad.output)
     assert out["outcome"] == "failed" and out["errors"]["inset_mm"] == pytest.approx(-30, abs=5)
+    # an offset is a diagonal fold's: asked of a half fold, refused before looking
+    wrong = run(main, [*args, "--offset", "0"])
+    assert wrong.exit_code == 2 and "has no diagonal fold" in wrong.output, wrong.output
     measured = out["measured"]  # the fold as `dgli classify --json` gives it
     assert measured["geometry_from"] == "outline" and measured["why"] is None
     assert measured["inset_mm"] == pytest.approx(inset, abs=5.0)
