@@ -459,11 +459,11 @@ def crease_from_edges(
     p = params or OutlineParams()
     found = np.isfinite(past)
     if len(along) == 0:
-        return "the crease is too short to fit"
+        return "nor does the outline: the crease is too short to fit"
     s, d = np.asarray(along, dtype=float)[found], np.asarray(past, dtype=float)[found]
     fit = _robust_line(s, d, p) if len(s) >= 4 else None
     if fit is None or np.count_nonzero(fit[2]) < p.min_cover * len(along):
-        return "the napkin's outline does not follow the crease (hidden or not straight)"
+        return "nor does the napkin's outline (hidden, or not straight along the crease)"
     a, b, keep, sd = fit
     a0, t, n = _frame_of(fold)
     edge = p.edge_mm * layout.thickness_mm
@@ -553,13 +553,14 @@ def outline_geometry(
     p = params or OutlineParams()
     mine = lying & (sticker_part == (-1 if fold.under else index))
     if np.count_nonzero(mine) < 2:
-        return "fewer than two stickers seen place the napkin's outline"
+        return ("nor does the outline: fewer than two of the stickers that place it lie on "
+                "the table")
     p2 = (obs.points_m[mine] @ view.basis.T) * 1e3
     uv = np.asarray(layout.sticker_uv, dtype=float)[mine]
     part = fit_part_map(uv, p2, mirror=not fold.under, sticker_sd_mm=STICKER_SD_MM,
                         prior_dof=PRIOR_DOF)
     if part is None:
-        return "the stickers seen do not place the napkin's outline"
+        return "nor does the outline: the stickers that place it do not fit one rigid map"
     own = sticker_part == (-1 if fold.under else index)
     along, past = edge_profiles(view, part, fold, layout, p,
                                 stickers_uv=np.asarray(layout.sticker_uv, dtype=float)[own])
@@ -568,6 +569,6 @@ def outline_geometry(
         return got
     crease, cov, _, rms = got
     if not np.all(np.isfinite(cov)) or _edge_sd(crease, cov, layout) > MAX_SD_MM:
-        return "the napkin's outline does not fix the crease"
+        return "nor does the napkin's outline fix it (too uncertain)"
     return geometry_from_crease(fold.word, crease, layout, cov, stickers=part.stickers,
                                 rms_mm=rms, source="outline")
