@@ -252,3 +252,15 @@ def test_verify_command_on_a_half_fold(request, tmp_path):
     assert measured["geometry_from"] == "outline" and measured["why"] is None
     assert measured["inset_mm"] == pytest.approx(inset, abs=5.0)
     assert measured["inset_sd_mm"] > 0
+
+
+def test_a_misread_sticker_is_left_out_of_the_map():
+    from dgli_vision.classifier.fold_outline import _part_map
+
+    m = np.asarray(LAYOUT.sticker_uv, dtype=float)[:8]
+    true = PartMap(0.2, np.array([-50.0, 80.0]), True, np.zeros((3, 3)), 0.0, 8)
+    p = _table(true, m)
+    p[3] += np.array([25.0, -10.0])  # read 27 mm off
+    fit = _part_map(m, p, True, STICKER_SD_MM, PRIOR_DOF, 12.0)
+    assert fit.stickers == 7 and fit.rms_mm < 0.01
+    assert np.allclose(fit.to_material(_table(true, m)), m, atol=0.01)

@@ -228,7 +228,7 @@ def _whiteness(rgb: NDArray, cloth: NDArray[np.bool_]) -> NDArray[np.float64]:
     inner = rgb[cloth]
     inner = inner[np.isfinite(inner).all(axis=1)]
     if len(inner) < 10:
-        return np.nanmin(rgb, axis=-1)
+        return np.min(rgb, axis=-1)  # (NaN where left out, without a warning)
     total = inner.sum(axis=1)
     bright = inner[total >= np.median(total)]
     white = np.maximum(np.median(bright, axis=0), 1.0)
@@ -544,6 +544,7 @@ def outline_geometry(
     """
     from .fold_geometry import (
         MAX_SD_MM,
+        OUTLIER_MM,
         PRIOR_DOF,
         STICKER_SD_MM,
         _edge_sd,
@@ -557,8 +558,7 @@ def outline_geometry(
                 "the table")
     p2 = (obs.points_m[mine] @ view.basis.T) * 1e3
     uv = np.asarray(layout.sticker_uv, dtype=float)[mine]
-    part = fit_part_map(uv, p2, mirror=not fold.under, sticker_sd_mm=STICKER_SD_MM,
-                        prior_dof=PRIOR_DOF)
+    part = _part_map(uv, p2, not fold.under, STICKER_SD_MM, PRIOR_DOF, OUTLIER_MM)
     if part is None:
         return "nor does the outline: the stickers that place it do not fit one rigid map"
     own = sticker_part == (-1 if fold.under else index)
@@ -572,3 +572,23 @@ def outline_geometry(
         return "nor does the napkin's outline fix it (too uncertain)"
     return geometry_from_crease(fold.word, crease, layout, cov, stickers=part.stickers,
                                 rms_mm=rms, source="outline")
+
+
+def _part_map(
+    uv: NDArray, p2: NDArray, mirror: bool, sd_mm: float, dof: float, outlier_mm: float
+) -> PartMap | None:
+    """:func:`fit_part_map`, leaving out up to two stickers farther than ``outlier_mm``
+    from where the map puts them (a misread sticker), as long as three are kept."""
+    keep = np.ones(len(uv), dtype=bool)
+    for _ in range(3):
+        part = fit_part_map(uv[keep], p2[keep], mirror=mirror, sticker_sd_mm=sd_mm,
+                            prior_dof=dof)
+        if part is None or np.count_nonzero(keep) <= 3:
+            return part
+        res = np.hypot(*(_to_table(part, uv) - p2).T)
+        res[~keep] = -1.0
+        worst = int(np.argmax(res))
+        if res[worst] <= outlier_mm:
+            return part
+        keep[worst] = False
+    return part
