@@ -77,11 +77,12 @@ def measure(folder: Path, references, repeat: int) -> dict[str, Any]:
         frame = read_frame(folder / t["color"], folder / t["depth"])
         result = classify_frame(frame, references, layout=layout)
         p = result.prediction
-        if p is None:
-            skipped["cannot tell the state"] += 1
-            continue
-        if (p.class_id, p.variant) != (t["class"], t["variant"]):
-            skipped["verdict not the true state"] += 1
+        if p is None or (p.class_id, p.variant) != (t["class"], t["variant"]):
+            why = "cannot tell the state" if p is None else "verdict not the true state"
+            skipped[why] += 1
+            # (its folds are not compared: counted apart, per class)
+            folds += [{"pair": name, "class": t["class"], "fold": w, "from": None,
+                       "why": why, "untold": True} for w in creases]
             continue
         obs = result.observation
         plan = _plan(p.class_id, p.variant, layout)
@@ -98,7 +99,8 @@ def measure(folder: Path, references, repeat: int) -> dict[str, Any]:
             want = fold_measures(f.fold, Crease.through(*creases[f.fold]), layout)
             got = g.to_json()
             folds.append({"pair": name, "class": t["class"], "fold": f.fold,
-                          "from": None if g.why is not None else g.source, "why": g.why})
+                          "from": None if g.why is not None else g.source, "why": g.why,
+                          "untold": False})
             if g.why is not None:
                 nulls[g.why] += 1
                 continue
@@ -110,13 +112,18 @@ def measure(folder: Path, references, repeat: int) -> dict[str, Any]:
 
 
 def class_table(folds: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list[str]:
-    """Per class: folds of right verdicts, those given sizes, those from the outline,
-    and the length errors (median / p90 / max, mm) and coverage of each source."""
-    lines = ["| class | folds | given sizes | from the outline | outline: length median / "
-             "p90 / max (mm), within 2 sd | stickers: length median / p90 (mm) |",
-             "|---|---|---|---|---|---|"]
+    """Per class: the folds rendered, those of pairs whose state was not told (or told
+    as another), of the others those given sizes and those from the outline, and the
+    length errors (median / p90 / max, mm) and coverage of each source."""
+    lines = ["| class | folds rendered | state not told (or another) | given sizes "
+             "(of the folds of right verdicts) | from the outline | outline: length median "
+             "/ p90 / max (mm), within 2 sd | stickers: length median / p90 (mm) |",
+             "|---|---|---|---|---|---|---|"]
     for cid in sorted({f["class"] for f in folds}):
-        mine = [f for f in folds if f["class"] == cid]
+        rendered = [f for f in folds if f["class"] == cid]
+        mine = [f for f in rendered if not f["untold"]]
+        if not mine:
+            continue
         given = sum(f["from"] is not None for f in mine)
         outline = sum(f["from"] == "outline" for f in mine)
         o = summary([r for r in rows if r["class"] == cid and r["from"] == "outline"])
@@ -125,7 +132,8 @@ def class_table(folds: list[dict[str, Any]], rows: list[dict[str, Any]]) -> list
             return "-" if v is None else f"{v:g}"
 
         lines.append(
-            f"| {cid} | {len(mine)} | {given} ({given / len(mine):.0%}) | {outline} | "
+            f"| {cid} | {len(rendered)} | {len(rendered) - len(mine)} | "
+            f"{given} of {len(mine)} ({given / len(mine):.0%}) | {outline} | "
             f"{f(o['median_mm'])} / {f(o['p90_mm'])} / {f(o['max_mm'])}, "
             f"{f(o['coverage_2sd'])} | {f(st['median_mm'])} / {f(st['p90_mm'])} |"
         )

@@ -33,8 +33,8 @@ SEED = 5207
 
 def _draw(polys_px: list[np.ndarray], shape: tuple[int, int], k: int = 8) -> np.ndarray:
     """White polygons on a grey table, their edges anti-aliased as a camera sees them
-    (drawn k times finer, then averaged), under light falling off across the image;
-    RGB uint8."""
+    (drawn k times finer, then averaged), under light falling off across the image and
+    a soft shadow; RGB uint8."""
     import cv2
 
     h, w = shape
@@ -45,6 +45,11 @@ def _draw(polys_px: list[np.ndarray], shape: tuple[int, int], k: int = 8) -> np.
         cv2.fillPoly(big, [fine], 225, lineType=cv2.LINE_8, shift=4)
     small = cv2.resize(big, (w, h), interpolation=cv2.INTER_AREA).astype(float)
     small *= np.linspace(1.0, 0.7, w)[None, :]  # a lamp's fall-off
+    # an arm's soft shadow: a band across the image at 45 degrees, half the light,
+    # its edges soft over 20 pixels
+    y, x = np.mgrid[0:h, 0:w]
+    across = (x - y - 150.0) / math.sqrt(2.0)
+    small *= 1.0 - 0.5 * np.clip(np.minimum(across + 40, 40 - across) / 20.0 + 0.5, 0, 1)
     return np.repeat(np.round(small).astype(np.uint8)[..., None], 3, axis=2)
 
 
@@ -83,7 +88,8 @@ def test_crease_is_where_the_cloth_ends(case):
     # a folded napkin seen straight down from 500 mm: the part seen (the flap, mirrored,
     # for a fold over; the napkin that stays over a flap under) is the napkin clipped at
     # the true crease, placed on the table by a known map; a white box touches the
-    # folded edge over 30 mm, and the light falls off across the image
+    # folded edge over 30 mm, the light falls off across the image, and a soft shadow
+    # crosses it
     cid, variant, sizes = CASES[case]
     (fold,) = nominal_folds(cid, variant, LAYOUT)
     true = planned_crease(fold.word, LAYOUT, **sizes)
@@ -197,7 +203,10 @@ def test_verify_judges_half_and_diagonal_folds(seen):
             if cid == "11":
                 check = verify_fold(result, (cid, variant), LAYOUT,
                                     inset_mm=true["inset_mm"] + off)
-            else:
+            elif off >= 0.0:  # the planned offset (`dgli verify --offset`)
+                check = verify_fold(result, (cid, variant), LAYOUT,
+                                    offset_mm=true["offset_mm"] + off)
+            else:  # the planned crease (a plan's step)
                 plan = planned_crease(word, LAYOUT, offset_mm=true["offset_mm"] + off,
                                       turn_deg=true["turn_deg"])
                 check = verify_fold(result, (cid, variant), LAYOUT, fold=word, crease=plan)
@@ -207,3 +216,51 @@ def test_verify_judges_half_and_diagonal_folds(seen):
                 assert check.success is False, (cid, k, off, check.line())
                 key = "inset_mm" if cid == "11" else "offset_mm"
                 assert check.errors[key] == pytest.approx(-off, abs=5.0)
+
+
+def test_verify_command_on_a_half_fold(request, tmp_path):
+    # the command a user runs: `dgli verify --inset` passes the half fold made and
+    # fails one planned 30 mm deeper; its JSON gives the inset measured, from the
+    # outline
+    import json
+
+    from click.testing import CliRunner
+
+    from dgli_vision.cli.main import main
+    from dgli_vision.sources.frames import write_color, write_depth
+
+    frame = rendered(request.config, "11", 0, SEED, ())
+    variant, creases = _truth("11", 0, SEED)
+    word = f"{variant} half"
+    inset = fold_measures(word, Crease.through(*creases[word]), LAYOUT)["inset_mm"]
+    color, depth = tmp_path / "a_color.png", tmp_path / "a_depth.png"
+    write_color(color, frame.color)
+    write_depth(depth, frame.depth_mm)
+    (tmp_path / "intrinsics.json").write_text(json.dumps(frame.intrinsics.to_open3d_dict()))
+    run = CliRunner().invoke
+    args = ["verify", str(color), str(depth), "--expect", f"11/{variant}"]
+    good = run(main, [*args, "--inset", f"{inset:.0f}"])
+    assert good.exit_code == 0 and good.output.startswith(f"success: 11/{variant}"), good.output
+    bad = run(main, [*args, "--inset", f"{inset + 30:.0f}", "--json"])
+    assert bad.exit_code == 1, bad.output
+    out = json.loads(bad.output)
+    assert out["outcome"] == "failed" and out["errors"]["inset_mm"] == pytest.approx(-30, abs=5)
+    # an offset is a diagonal fold's: asked of a half fold, refused before looking
+    wrong = run(main, [*args, "--offset", "0"])
+    assert wrong.exit_code == 2 and "has no diagonal fold" in wrong.output, wrong.output
+    measured = out["measured"]  # the fold as `dgli classify --json` gives it
+    assert measured["geometry_from"] == "outline" and measured["why"] is None
+    assert measured["inset_mm"] == pytest.approx(inset, abs=5.0)
+    assert measured["inset_sd_mm"] > 0
+
+
+def test_a_misread_sticker_is_left_out_of_the_map():
+    from dgli_vision.classifier.fold_outline import _part_map
+
+    m = np.asarray(LAYOUT.sticker_uv, dtype=float)[:8]
+    true = PartMap(0.2, np.array([-50.0, 80.0]), True, np.zeros((3, 3)), 0.0, 8)
+    p = _table(true, m)
+    p[3] += np.array([25.0, -10.0])  # read 27 mm off
+    fit = _part_map(m, p, True, STICKER_SD_MM, PRIOR_DOF, 12.0)
+    assert fit.stickers == 7 and fit.rms_mm < 0.01
+    assert np.allclose(fit.to_material(_table(true, m)), m, atol=0.01)

@@ -410,7 +410,7 @@ def _from_outline(obs, fold, j, part, lying, layout, outline, g: FoldGeometry) -
 
     view = outline()
     if view is None:
-        return replace(g, why=f"{g.why}; the napkin's outline is not measured")
+        return replace(g, why=f"{g.why}; nor does the outline: it is not measured")
     got = outline_geometry(obs, fold, j, part, lying, layout, view)
     if isinstance(got, str):
         return replace(g, why=f"{g.why}; {got}")

@@ -15,13 +15,17 @@ outline's farthest reach, where the cloth ends and the table begins: a step in c
 (the napkin is white, the table much darker once compared with it).
 
 It is looked for across the nominal crease: every few millimetres along its middle (away
-from the corners, where the outline turns), a profile of the image's brightness is read
-on the flat napkin's line across it (each point placed on the table by the map, and seen
-through the camera, lens distortion included), from well inside the cloth to well out on
-the table. The profile's own levels (its bright cloth and its dark table) give its
-midpoint; the last crossing of it going out, with table beyond, placed to a fraction of
-a pixel, is the edge. A straight line fitted to the edges, the profiles that stick out
-left out (an object touching the cloth, cloth peeking from beneath, a shadow), is the
+from the corners, where the outline turns), a profile of the image's whiteness (the
+least of its three channels, each over the cloth's own: the napkin is white, a table
+darker or coloured, whatever the light's colour) is read on the flat napkin's line
+across it (each point placed on the table by the map, and seen through the camera, lens
+distortion included), from well inside the cloth to well out on the table, its stickers
+left out. Its edge is the steepest step down (in log whiteness: a shadow or a lamp's
+fall-off scales cloth and table alike, a soft shadow's own edge falls slowly, a wooden
+table's grain by far less than the cloth's edge), placed to a fraction of a pixel where
+the whiteness crosses the midpoint of the step's two sides. A straight line fitted to
+the edges, the profiles that stick out left out (an object touching the cloth, cloth
+peeking from beneath), is the
 crease. Its uncertainty pools the line fit's (the edges' scatter about it) with the
 map's (the stickers' scatter about the rigid map) and the edge's own (where the crease
 lies under the edge seen).
@@ -30,6 +34,7 @@ lies under the edge seen).
 from __future__ import annotations
 
 import math
+import warnings
 from dataclasses import dataclass
 from typing import Any
 
@@ -72,13 +77,14 @@ class OutlineParams:
     end_margin_mm : float
         Length kept free at each end of the crease, mm. Default 25: the outline turns
         the corner there, and the cloth bends round it.
-    table_mm : float
-        Length of table (below the midpoint) that must follow an edge, mm. Default 8:
-        longer than a thread of shadow or a pixel of noise, shorter than the gap to an
-        object on the table.
-    min_contrast : float
-        Least difference of a profile's cloth and table levels (its 85th and 15th
-        percentiles, 8-bit) for it to count. Default 15: sensor noise is 2-10 levels.
+    edge_width_mm : float
+        Width over which a step's fall is measured, mm. Default 3: two pixels at the
+        farthest camera, so the cloth's edge (blurred over a pixel or two) falls within
+        it, and a soft shadow's (tens of mm) does not.
+    min_ratio : float
+        Least ratio of the brightness before and after a step. Default 1.15: the napkin
+        is white, the table much less bright (SPEC); sensor noise moves a pixel by a
+        few per cent.
     min_cover : float
         Least share of the profiles whose edge must fit the line. Default 0.5: an arm
         or an object may hide part of the edge, not most of it.
@@ -105,8 +111,8 @@ class OutlineParams:
     step_mm: float = 0.5
     every_mm: float = 5.0
     end_margin_mm: float = 25.0
-    table_mm: float = 8.0
-    min_contrast: float = 15.0
+    edge_width_mm: float = 3.0
+    min_ratio: float = 1.15
     min_cover: float = 0.5
     trim_mm: float = 3.0
     floor_sd_mm: float = 0.7
@@ -122,7 +128,8 @@ class OutlineView:
     Attributes
     ----------
     color : ndarray of uint8, shape (H, W, 3)
-        The colour image, RGB (its brightness, OpenCV's luma, is read).
+        The colour image, RGB (its whiteness, the least of the three channels each
+        over the cloth's own, is read).
     intrinsics : Intrinsics
     up : ndarray, shape (3,)
         The table's normal, towards the camera.
@@ -181,36 +188,51 @@ def _frame_of(fold: NominalFold) -> tuple[NDArray, NDArray, NDArray]:
 
 
 def _sample(view: OutlineView, px: NDArray) -> NDArray[np.float32]:
-    """The brightness (8-bit luma, bilinear) at pixels (..., 2); NaN outside the image
-    (the crop of the image the pixels span is read, not all of it)."""
+    """The colour (RGB, bilinear) at pixels (..., 2), shape (..., 3); NaN outside the
+    image (the crop of the image the pixels span is read, not all of it)."""
     import cv2
 
     h, w = view.color.shape[:2]
     flat = px.reshape(-1, 2)
     ok = np.isfinite(flat).all(axis=1)
-    out = np.full(len(flat), np.nan, dtype=np.float32)
+    out = np.full((len(flat), 3), np.nan, dtype=np.float32)
     if not ok.any():
-        return out.reshape(px.shape[:-1])
+        return out.reshape(*px.shape[:-1], 3)
     x0 = int(max(math.floor(np.min(flat[ok, 0])) - 1, 0))
     x1 = int(min(math.ceil(np.max(flat[ok, 0])) + 2, w))
     y0 = int(max(math.floor(np.min(flat[ok, 1])) - 1, 0))
     y1 = int(min(math.ceil(np.max(flat[ok, 1])) + 2, h))
-    if x1 - x0 < 2 or y1 - y0 < 2:
-        return out.reshape(px.shape[:-1])
-    crop = np.ascontiguousarray(view.color[y0:y1, x0:x1])
-    gray = cv2.cvtColor(crop, cv2.COLOR_RGB2GRAY).astype(np.float32)
     inside = ok & (flat[:, 0] >= 0) & (flat[:, 1] >= 0) & (flat[:, 0] <= w - 1) & (
         flat[:, 1] <= h - 1)
+    if x1 - x0 < 2 or y1 - y0 < 2 or not inside.any():
+        return out.reshape(*px.shape[:-1], 3)
+    crop = np.ascontiguousarray(view.color[y0:y1, x0:x1])
     # (OpenCV's maps are images of fewer than 32767 columns: rows of 1024 points)
     n = int(np.count_nonzero(inside))
     rows = -(-n // 1024)
     maps = np.zeros((2, rows * 1024), dtype=np.float32)
     maps[0, :n] = flat[inside, 0] - x0
     maps[1, :n] = flat[inside, 1] - y0
-    got = cv2.remap(gray, maps[0].reshape(rows, 1024), maps[1].reshape(rows, 1024),
-                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-    out[inside] = got.reshape(-1)[:n]
-    return out.reshape(px.shape[:-1])
+    got = cv2.remap(crop.astype(np.float32), maps[0].reshape(rows, 1024),
+                    maps[1].reshape(rows, 1024), cv2.INTER_LINEAR,
+                    borderMode=cv2.BORDER_REPLICATE)
+    out[inside] = got.reshape(-1, 3)[:n]
+    return out.reshape(*px.shape[:-1], 3)
+
+
+def _whiteness(rgb: NDArray, cloth: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """The least of the three channels, each over the cloth's own (the median of the
+    brighter half of the samples ``cloth``, shape (k, m)): the napkin is white, a
+    table darker or coloured (a wooden one low in blue), whatever the light's colour;
+    shape (k, m)."""
+    inner = rgb[cloth]
+    inner = inner[np.isfinite(inner).all(axis=1)]
+    if len(inner) < 10:
+        return np.min(rgb, axis=-1)  # (NaN where left out, without a warning)
+    total = inner.sum(axis=1)
+    bright = inner[total >= np.median(total)]
+    white = np.maximum(np.median(bright, axis=0), 1.0)
+    return np.min(rgb / white, axis=-1) * 255.0
 
 
 def edge_profiles(
@@ -219,9 +241,13 @@ def edge_profiles(
     fold: NominalFold,
     layout: NapkinLayout,
     params: OutlineParams | None = None,
+    *,
+    stickers_uv: NDArray | None = None,
 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Where the cloth ends across the nominal crease of ``fold``, profile by profile
-    (see the module's description).
+    (see the module's description). The samples on the part's stickers
+    (``stickers_uv``, material mm (k, 2), a disc's radius and 3 mm round each) are left
+    out: a sticker's edge is a step too.
 
     Returns
     -------
@@ -244,39 +270,68 @@ def edge_profiles(
     m = a0 + along[:, None, None] * t + past[None, :, None] * n  # (k, m, 2) material
     table = _to_table(part, m.reshape(-1, 2))
     px = view.to_pixels(table, p.height_mm * layout.thickness_mm)
-    g = _sample(view, px.reshape(len(along), len(past), 2))  # (k, m)
-    return along, _edges(g, past, p)
+    rgb = _sample(view, px.reshape(len(along), len(past), 2))  # (k, m, 3)
+    if stickers_uv is not None and len(stickers_uv):
+        flat = m.reshape(-1, 2)
+        near = np.zeros(len(flat), dtype=bool)
+        r2 = (0.5 * layout.disc_diameter_mm + 3.0) ** 2
+        for uv in np.asarray(stickers_uv, dtype=float):
+            near |= np.sum((flat - uv) ** 2, axis=1) < r2
+        rgb[near.reshape(len(along), len(past))] = np.nan
+    # the cloth's colour from well inside it (beyond any crease made 30 mm off)
+    cloth = np.broadcast_to(past[None, :] < -0.5 * p.reach_mm, rgb.shape[:2])
+    return along, _edges(_whiteness(rgb, cloth), past, p)
 
 
 def _edges(g: NDArray, past: NDArray, p: OutlineParams) -> NDArray[np.float64]:
-    """Each profile's (rows of ``g``, sampled at ``past``) last crossing of its
-    midpoint from cloth to table with ``table_mm`` of table beyond; NaN where none."""
+    """Each profile's (rows of ``g``, sampled at ``past``, NaN where left out) steepest
+    step down from cloth to table; NaN where none.
+
+    The steps are read in log whiteness, so that a shadow or a lamp's fall-off, which
+    scale cloth and table alike, leave a step's size as it is: the cloth's edge falls by
+    the cloth's ratio to the table within a pixel or two, a soft shadow's edge over tens
+    of millimetres, a wooden table's grain by a fraction of that ratio. A step counts
+    where the whiteness falls over ``edge_width_mm`` by at least ``min_ratio``; it is
+    placed to a fraction of a sample where the whiteness crosses the midpoint of its two
+    sides' levels (2-4 half widths in and out)."""
     k, m = g.shape
     out = np.full(k, np.nan)
-    valid = np.isfinite(g).all(axis=1)
-    if not valid.any():
+    step = float(past[1] - past[0])
+    w = max(int(round(0.5 * p.edge_width_mm / step)), 1)
+    if m < 8 * w + 2:
         return out
-    gv = g[valid]
-    cloth = np.percentile(gv, 85, axis=1)
-    table = np.percentile(gv, 15, axis=1)
-    mid = 0.5 * (cloth + table)
-    f = gv - mid[:, None]  # (kv, m): positive on cloth
-    run = max(int(round(p.table_mm / (past[1] - past[0]))), 1)
-    # how many of the next ``run`` samples lie below the midpoint: sums from the end
-    below = np.zeros((len(gv), m + 1), dtype=np.int32)
-    below[:, :m] = np.cumsum((f <= 0)[:, ::-1], axis=1)[:, ::-1]  # [i]: below from i on
-    ahead = np.zeros((len(gv), m), dtype=np.int32)
-    if m - run > 0:
-        ahead[:, : m - run] = below[:, 1 : m - run + 1] - below[:, run + 1 : m + 1]
-    edge = (f[:, :-1] > 0) & (ahead[:, :-1] >= run)
-    has = edge.any(axis=1) & (cloth - table >= p.min_contrast)
-    last = m - 2 - np.argmax(edge[:, ::-1], axis=1)  # the last such sample
-    rows = np.arange(len(gv))
-    a, b = f[rows, last], f[rows, last + 1]
-    frac = np.where(a - b > 0, a / np.where(a - b > 0, a - b, 1.0), 0.0)
-    at = past[last] + frac * (past[1] - past[0])
-    res = np.where(has, at, np.nan)
-    out[np.flatnonzero(valid)] = res
+    lg = np.log(g + 4.0)  # (k, m), NaN where left out
+    fall = np.full((k, m), np.inf)
+    with np.errstate(invalid="ignore"):
+        fall[:, w : m - w] = lg[:, 2 * w :] - lg[:, : m - 2 * w]  # over 2 w samples
+    fall[~np.isfinite(fall)] = np.inf
+    fall[:, : 4 * w] = np.inf
+    fall[:, m - 4 * w :] = np.inf
+    i = np.argmin(fall, axis=1)  # the steepest fall of each profile
+    rows = np.flatnonzero(fall[np.arange(k), i] <= -math.log(p.min_ratio))
+    if not len(rows):
+        return out
+    i = i[rows]
+    # the two sides' levels: the mean log whiteness 2-4 half widths in and out
+    offs = np.arange(2 * w, 4 * w + 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # (a side all left out: NaN)
+        inner = np.nanmean(lg[rows[:, None], i[:, None] - offs[None]], axis=1)
+        outer = np.nanmean(lg[rows[:, None], i[:, None] + offs[None]], axis=1)
+    mid = 0.5 * (inner + outer)
+    # the crossing of the midpoint within a half width of the step: the last sample
+    # above it
+    win = np.arange(-w, w)  # (2w,)
+    a = lg[rows[:, None], i[:, None] + win[None]] - mid[:, None]  # (r, 2w)
+    b = lg[rows[:, None], i[:, None] + win[None] + 1] - mid[:, None]
+    cross = (a >= 0) & (b < 0)
+    ok = cross.any(axis=1) & np.isfinite(mid)
+    j = 2 * w - 1 - np.argmax(cross[:, ::-1], axis=1)
+    r = np.arange(len(rows))
+    aa, bb = a[r, j], b[r, j]
+    frac = np.where(aa - bb > 0, aa / np.where(aa - bb > 0, aa - bb, 1.0), 0.0)
+    at = past[i + win[j]] + frac * step
+    out[rows[ok]] = at[ok]
     return out
 
 
@@ -404,11 +459,11 @@ def crease_from_edges(
     p = params or OutlineParams()
     found = np.isfinite(past)
     if len(along) == 0:
-        return "the crease is too short to fit"
+        return "nor does the outline: the crease is too short to fit"
     s, d = np.asarray(along, dtype=float)[found], np.asarray(past, dtype=float)[found]
     fit = _robust_line(s, d, p) if len(s) >= 4 else None
     if fit is None or np.count_nonzero(fit[2]) < p.min_cover * len(along):
-        return "the napkin's outline does not follow the crease (hidden or not straight)"
+        return "nor does the napkin's outline (hidden, or not straight along the crease)"
     a, b, keep, sd = fit
     a0, t, n = _frame_of(fold)
     edge = p.edge_mm * layout.thickness_mm
@@ -489,6 +544,7 @@ def outline_geometry(
     """
     from .fold_geometry import (
         MAX_SD_MM,
+        OUTLIER_MM,
         PRIOR_DOF,
         STICKER_SD_MM,
         _edge_sd,
@@ -498,19 +554,41 @@ def outline_geometry(
     p = params or OutlineParams()
     mine = lying & (sticker_part == (-1 if fold.under else index))
     if np.count_nonzero(mine) < 2:
-        return "fewer than two stickers seen place the napkin's outline"
+        return ("nor does the outline: fewer than two of the stickers that place it lie on "
+                "the table")
     p2 = (obs.points_m[mine] @ view.basis.T) * 1e3
     uv = np.asarray(layout.sticker_uv, dtype=float)[mine]
-    part = fit_part_map(uv, p2, mirror=not fold.under, sticker_sd_mm=STICKER_SD_MM,
-                        prior_dof=PRIOR_DOF)
+    part = _part_map(uv, p2, not fold.under, STICKER_SD_MM, PRIOR_DOF, OUTLIER_MM)
     if part is None:
-        return "the stickers seen do not place the napkin's outline"
-    along, past = edge_profiles(view, part, fold, layout, p)
+        return "nor does the outline: the stickers that place it do not fit one rigid map"
+    own = sticker_part == (-1 if fold.under else index)
+    along, past = edge_profiles(view, part, fold, layout, p,
+                                stickers_uv=np.asarray(layout.sticker_uv, dtype=float)[own])
     got = crease_from_edges(along, past, part, fold, layout, p)
     if isinstance(got, str):
         return got
     crease, cov, _, rms = got
     if not np.all(np.isfinite(cov)) or _edge_sd(crease, cov, layout) > MAX_SD_MM:
-        return "the napkin's outline does not fix the crease"
+        return "nor does the napkin's outline fix it (too uncertain)"
     return geometry_from_crease(fold.word, crease, layout, cov, stickers=part.stickers,
                                 rms_mm=rms, source="outline")
+
+
+def _part_map(
+    uv: NDArray, p2: NDArray, mirror: bool, sd_mm: float, dof: float, outlier_mm: float
+) -> PartMap | None:
+    """:func:`fit_part_map`, leaving out up to two stickers farther than ``outlier_mm``
+    from where the map puts them (a misread sticker), as long as three are kept."""
+    keep = np.ones(len(uv), dtype=bool)
+    for _ in range(3):
+        part = fit_part_map(uv[keep], p2[keep], mirror=mirror, sticker_sd_mm=sd_mm,
+                            prior_dof=dof)
+        if part is None or np.count_nonzero(keep) <= 3:
+            return part
+        res = np.hypot(*(_to_table(part, uv) - p2).T)
+        res[~keep] = -1.0
+        worst = int(np.argmax(res))
+        if res[worst] <= outlier_mm:
+            return part
+        keep[worst] = False
+    return part

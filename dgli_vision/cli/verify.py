@@ -76,6 +76,9 @@ def report(check, as_json: bool, extrinsics=None) -> None:
 @click.option("--inset", type=click.FloatRange(0, 1000, min_open=True),
               help="The strip's or half fold's planned inset, mm.")
 @click.option("--tip", callback=_tip, help="Where the corner should land: U,V in mm.")
+@click.option("--offset", type=click.FloatRange(-1000, 1000),
+              help="The diagonal fold's planned offset from its diagonal, mm (positive "
+                   "towards the moving corner; 0: on the diagonal).")
 @click.option("--tolerance", type=click.FloatRange(0, 1000, min_open=True), default=20.0,
               show_default=True, help="How far (mm) a planned size may be missed.")
 @intrinsics_option
@@ -91,6 +94,7 @@ def verify_cmd(
     legs,
     inset: float | None,
     tip,
+    offset: float | None,
     tolerance: float,
     intrinsics: str | None,
     references_path: str | None,
@@ -99,7 +103,7 @@ def verify_cmd(
     as_json: bool,
 ) -> None:
     """Did the fold work? Classify COLOR DEPTH (taken after the fold) and check it is
-    the --expect state with the planned sizes (one of --legs, --inset, --tip) within
+    the --expect state with the planned sizes (one of --legs, --inset, --tip, --offset) within
     --tolerance. Exit 0: success; 1: failed or cannot tell, with the reason (wrong
     state, crease 34 mm off, corner B 52 mm short of its target); 2: bad input.
     """
@@ -110,15 +114,18 @@ def verify_cmd(
     from ..planning.verify import check_request, verify_fold
     from ..sources.frames import read_frame
 
-    given = [n for n, v in (("--legs", legs), ("--inset", inset), ("--tip", tip)) if v is not None]
+    given = [n for n, v in (("--legs", legs), ("--inset", inset), ("--tip", tip),
+                            ("--offset", offset)) if v is not None]
     if len(given) > 1:
-        raise click.UsageError(f"give one of --legs, --inset, --tip, not {' and '.join(given)}")
-    check_request(expect, legs=legs, inset_mm=inset, tip_mm=tip)  # a mistake: exit 2
+        raise click.UsageError(
+            f"give one of --legs, --inset, --tip, --offset, not {' and '.join(given)}")
+    check_request(expect, legs=legs, inset_mm=inset, tip_mm=tip,
+                  offset_mm=offset)  # a mistake: exit 2
     extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
     refs = load_references(references_path)
     layout = layout_of_size(refs.napkin_mm)
     frame = read_frame(color, depth, intrinsics)
     result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
     check = verify_fold(result, expect, layout, legs=legs, inset_mm=inset, tip_mm=tip,
-                        tolerance_mm=tolerance)
+                        offset_mm=offset, tolerance_mm=tolerance)
     report(check, as_json, extrinsics)

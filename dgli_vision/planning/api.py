@@ -160,6 +160,7 @@ def verify(
     inset: float | None = None,
     tip: tuple[float, float] | None = None,
     step: PlanStep | None = None,
+    offset: float | None = None,
     tolerance: float = DEFAULT_TOLERANCE_MM,
     intrinsics: Any = None,
     references: Any = None,
@@ -186,6 +187,9 @@ def verify(
     step : PlanStep, optional
         A step of :func:`plan`: its expected state, its fold and its planned crease
         (in place of ``expect`` and the sizes).
+    offset : float, optional
+        A diagonal fold's planned offset from its diagonal, mm (positive towards the
+        moving corner; 0: on the diagonal).
     tolerance : float
         How far (mm) a planned size may be missed (20).
     intrinsics, references, mirroring : optional
@@ -204,7 +208,7 @@ def verify(
     DgliError
         Input that is not an RGB-D frame (as ``classify_pair``), or a request no frame
         could satisfy (:class:`~dgli_vision.core.errors.InvalidValueError`, naming the
-        mistake: an unknown state, two of ``legs``/``inset``/``tip``, sizes of a fold
+        mistake: an unknown state, two of ``legs``/``inset``/``tip``/``offset``, sizes of a fold
         the expected state does not have, legs without the expected variant).
     """
     import math
@@ -219,7 +223,7 @@ def verify(
                                 f"{tolerance!r}")
     sizes: dict[str, Any] = {}
     if step is not None:
-        if expect is not None or legs is not None or inset is not None or tip is not None:
+        if expect is not None or any(v is not None for v in (legs, inset, tip, offset)):
             raise InvalidValueError("give a plan's step, or expect= and its sizes, not both")
         key = step.expect
         if step.crease_mm is not None:
@@ -238,7 +242,12 @@ def verify(
             tip = uv
         if inset is not None and not (isinstance(inset, (int, float)) and 0 < inset < 1000):
             raise InvalidValueError(f"inset must be a number of mm in (0, 1000); got {inset!r}")
-        sizes = {"legs": _legs(legs), "inset_mm": inset, "tip_mm": tip}
+        if offset is not None and not (
+            isinstance(offset, (int, float)) and math.isfinite(offset) and abs(offset) < 1000
+        ):
+            raise InvalidValueError(f"offset must be a number of mm in (-1000, 1000); got "
+                                    f"{offset!r}")
+        sizes = {"legs": _legs(legs), "inset_mm": inset, "tip_mm": tip, "offset_mm": offset}
         check_request(key, **sizes)
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)

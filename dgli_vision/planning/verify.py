@@ -2,7 +2,8 @@
 
 A robot that has made a fold looks again: :func:`verify_fold` takes that frame's
 verdict, the state it expected and, optionally, the fold's planned sizes (a corner's
-legs or where its tip should land, a strip's or half fold's inset), and says whether
+legs or where its tip should land, a strip's or half fold's inset, a diagonal fold's
+offset from its diagonal), and says whether
 the fold succeeded: the expected state, and every planned size within the tolerance
 (20 mm by default, the tolerance of the simulation benchmarks' per-point success is
 45 mm). It fails with the reason (wrong state; crease 34 mm off; corner B 52 mm short of
@@ -55,7 +56,8 @@ class FoldCheck:
         ``crease_mm`` (the largest distance of either crease's ends on the napkin from
         the other), ``legs_mm`` (edge -> measured minus planned), ``tip_mm`` (distance
         of the tip from its target), ``tip_short_mm`` (how far short of the target
-        along the corner's way, negative beyond it), ``inset_mm``, ``skew_deg``.
+        along the corner's way, negative beyond it), ``inset_mm``, ``skew_deg``,
+        ``offset_mm``, ``turn_deg``.
     measured : dict or None
         The fold's geometry as measured (the keys of a verdict's fold).
     planned : dict or None
@@ -135,6 +137,8 @@ def _summary(errors: dict[str, Any]) -> list[str]:
             out.append(f"leg {edge} {round(e):+d} mm")
     if errors.get("inset_mm") is not None:
         out.append(f"inset {round(errors['inset_mm']):+d} mm")
+    if errors.get("offset_mm") is not None:
+        out.append(f"offset {round(errors['offset_mm']):+d} mm")
     return out
 
 
@@ -182,6 +186,7 @@ def check_request(
     legs: dict[str, float] | None = None,
     inset_mm: float | None = None,
     tip_mm: tuple[float, float] | None = None,
+    offset_mm: float | None = None,
 ) -> None:
     """Refuse a request that no frame could satisfy, before any is looked at: planned
     sizes of a fold the expected state does not have (a corner's legs for a strip,
@@ -195,9 +200,11 @@ def check_request(
     """
     from ..core.classes import VARIANTS
 
-    given = [n for n, v in (("legs", legs), ("inset", inset_mm), ("tip", tip_mm)) if v]
+    given = [n for n, v in (("legs", legs or None), ("inset", inset_mm), ("tip", tip_mm),
+                            ("offset", offset_mm)) if v is not None]
     if len(given) > 1:
-        raise InvalidValueError(f"give one of legs, inset, tip, not {' and '.join(given)}")
+        raise InvalidValueError(
+            f"give one of legs, inset, tip, offset, not {' and '.join(given)}")
     if not given:
         return
     cid, variant = expect
@@ -208,6 +215,8 @@ def check_request(
         kind = "corner"
     elif inset_mm is not None:
         what, wanted, kind = f"an inset of {inset_mm:g} mm", None, "side"
+    elif offset_mm is not None:
+        what, wanted, kind = f"an offset of {offset_mm:g} mm", None, "diagonal"
     else:
         what, wanted, kind = "a tip target", None, "corner"
 
@@ -228,7 +237,8 @@ def check_request(
             has = f"folds corner{'s' if len(corners) > 1 else ''} {listed}"
             has += f", not corner {wanted}"
         else:
-            has = f"has no {'corner' if kind == 'corner' else 'strip or half'} fold"
+            named = {"corner": "corner", "side": "strip or half", "diagonal": "diagonal"}
+            has = f"has no {named[kind]} fold"
         raise InvalidValueError(f"--expect {shown} {has}: {what} cannot be checked against it")
     if variant is None and legs and len(VARIANTS[cid]) > 1:
         states = " or ".join(f"{cid}/{v}" for v in fitting)
@@ -249,6 +259,7 @@ def verify_fold(
     tip_mm: tuple[float, float] | None = None,
     crease: Crease | None = None,
     tolerance_mm: float = DEFAULT_TOLERANCE_MM,
+    offset_mm: float | None = None,
 ) -> FoldCheck:
     """Did the fold reach ``expect`` with the planned sizes?
 
@@ -268,6 +279,9 @@ def verify_fold(
     crease : Crease, optional
         The planned crease itself (a plan's step), instead of the sizes.
     tolerance_mm : float
+    offset_mm : float, optional
+        A diagonal fold's planned offset from its diagonal (mm, positive towards the
+        moving corner; :func:`~dgli_vision.core.fold_measure.fold_measures`).
 
     Returns
     -------
@@ -288,13 +302,14 @@ def verify_fold(
     if p.class_id != expect[0] or (expect[1] is not None and p.variant != expect[1]):
         return FoldCheck(False, state, fold=fold, reasons=(
             f"wrong state: {_name(state)} ({p.name}), expected {_name(expect)}",), **base)
-    sized = legs or inset_mm is not None or tip_mm is not None or crease is not None
+    sized = (legs or inset_mm is not None or tip_mm is not None or crease is not None
+             or offset_mm is not None)
     if not sized:
         return FoldCheck(True, state, fold=fold, **base)
     words = folds_of(*expect) if expect[1] is not None else tuple(f.fold for f in p.folds)
     seen = {f.fold: f for f in p.folds}
     if fold is None:
-        fold = _pick_fold(words, seen, legs, inset_mm, tip_mm)
+        fold = _pick_fold(words, seen, legs, inset_mm, tip_mm, offset_mm)
     if fold is None or fold not in seen:
         what = "the legs' corner" if legs else "a fold of that kind"
         return FoldCheck(False, state, fold=fold, reasons=(
@@ -304,7 +319,8 @@ def verify_fold(
         why = g.why if g is not None else "not measured"
         return FoldCheck(None, state, fold=fold, reasons=(
             f"cannot tell the fold's geometry ({fold}): {why}",), **base)
-    target = crease or planned_crease(fold, layout, legs=legs, inset_mm=inset_mm, tip_mm=tip_mm)
+    target = crease or planned_crease(fold, layout, legs=legs, inset_mm=inset_mm, tip_mm=tip_mm,
+                                      offset_mm=offset_mm or 0.0)
     if target is None:
         return FoldCheck(False, state, fold=fold, reasons=(
             f"the sizes given do not make a fold {fold!r}",), **base)
@@ -312,13 +328,15 @@ def verify_fold(
                     tip_given=tip_mm is not None)
 
 
-def _pick_fold(words, seen, legs, inset_mm, tip_mm) -> str | None:
+def _pick_fold(words, seen, legs, inset_mm, tip_mm, offset_mm=None) -> str | None:
     """The fold the planned sizes name."""
     if legs:
         corner = _corner_of_legs(legs)
         return next((w for w in words if fold_kind(w) == ("corner", corner)), None)
     if inset_mm is not None:
         return next((w for w in words if fold_kind(w)[0] == "side"), None)
+    if offset_mm is not None:
+        return next((w for w in words if fold_kind(w)[0] == "diagonal"), None)
     corners = [w for w in words if fold_kind(w)[0] == "corner"]
     if len(corners) <= 1:
         return corners[0] if corners else None
@@ -405,6 +423,9 @@ def _fail_text(what, err, errors, corner, planned, kind, tip_given) -> str:
         return f"leg {e} {abs(signed):.0f} mm {'longer' if signed > 0 else 'shorter'} than planned"
     if what == "inset":
         return f"inset {errors['inset_mm']:+.0f} mm from the planned {planned['inset_mm']:.0f} mm"
+    if what == "offset":
+        return (f"offset {errors['offset_mm']:+.0f} mm from the planned "
+                f"{planned['offset_mm']:.0f} mm")
     return f"{what} {err:.0f} mm off"
 
 
