@@ -806,10 +806,9 @@ def affordances_of(
     if maps is not None and plan is not None:
         outline = None
         if frame is not None:
-            from .fold_outline import outline_view
+            from .fold_outline import outline_fit
 
-            # (made only when a fold needs it, once)
-            outline = lru_cache(maxsize=1)(lambda: outline_view(frame, obs))
+            outline = outline_fit(frame, obs)
         sizes = fit_folds(obs, maps.folds, plan.sticker_part, layout, outline=outline)
         folds = tuple(
             replace(_seen_fold(maps, j, corners), geometry=sizes[j])

@@ -317,7 +317,7 @@ def fit_folds(
     sticker_part: tuple[int, ...],
     layout: NapkinLayout,
     *,
-    outline: Callable[[], Any] | None = None,
+    outline: Callable[..., Any] | None = None,
 ) -> tuple[FoldGeometry, ...]:
     """The geometry of each of the verdict's folds, fitted to the stickers of ``obs``
     (a :class:`~dgli_vision.classifier.pipeline.ClothObservation`) lying on the table
@@ -334,10 +334,10 @@ def fit_folds(
         The part each sticker lies on: -1 the napkin that stays, else the fold's index.
     layout : NapkinLayout
     outline : callable, keyword-only, optional
-        Gives the frame as the outline fit reads it (an
-        :class:`~dgli_vision.classifier.fold_outline.OutlineView`, or None where it
-        cannot be read: :func:`~dgli_vision.classifier.fold_outline.outline_view`),
-        called only when a fold needs it; None: the stickers only.
+        The outline fit of the frame (:func:`~dgli_vision.classifier.fold_outline.outline_fit`):
+        called as ``outline(obs, fold, j, part, lying, layout)`` only when a fold needs
+        it, it gives the fold's geometry, why not (a string), or None where the frame
+        cannot be read; None: the stickers only.
 
     Returns
     -------
@@ -406,12 +406,9 @@ def _from_outline(obs, fold, j, part, lying, layout, outline, g: FoldGeometry) -
     the stickers' why kept, and the outline's added, where neither fixes it."""
     if g.why is None or (fold_kind(fold.word)[0] == "corner" and not fold.under):
         return g
-    from .fold_outline import outline_geometry
-
-    view = outline()
-    if view is None:
+    got = outline(obs, fold, j, part, lying, layout)
+    if got is None:
         return replace(g, why=f"{g.why}; nor does the outline: it is not measured")
-    got = outline_geometry(obs, fold, j, part, lying, layout, view)
     if isinstance(got, str):
         return replace(g, why=f"{g.why}; {got}")
     return got

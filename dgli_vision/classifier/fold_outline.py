@@ -35,7 +35,9 @@ from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -53,6 +55,7 @@ __all__ = [
     "crease_from_edges",
     "edge_profiles",
     "fit_part_map",
+    "outline_fit",
     "outline_geometry",
     "outline_view",
 ]
@@ -523,6 +526,25 @@ def _crease_of(
         other = Crease.through(q0, q0 + t + bb * n)
         jac[:, k] = (_normal_form(other, base[0]) - base) / h
     return crease, jac @ cov_ab @ jac.T
+
+
+def outline_fit(frame: Any, obs: Any) -> Callable[..., Any]:
+    """The outline fit of one frame, as :func:`~.fold_geometry.fit_folds` calls it:
+    ``fit(obs, fold, index, sticker_part, lying, layout)`` gives
+    :func:`outline_geometry`'s answer, or None where the frame cannot be read
+    (:func:`outline_view`). The view is made only when a fold asks, and once."""
+    view = lru_cache(maxsize=1)(lambda: outline_view(frame, obs))
+
+    def fit(
+        obs: Any, fold: NominalFold, index: int, sticker_part: NDArray,
+        lying: NDArray[np.bool_], layout: NapkinLayout,
+    ) -> Any:
+        seen = view()
+        if seen is None:
+            return None
+        return outline_geometry(obs, fold, index, sticker_part, lying, layout, seen)
+
+    return fit
 
 
 def outline_geometry(
