@@ -9,6 +9,7 @@ from ..classifier.pipeline import FrameResult, classify_frame
 from ..core.fold_graph import StateKey
 from ..core.frame import RGBDFrame
 from ..core.layout import NapkinLayout, layout_of_size
+from .motion import DEFAULT_MOTION, MotionParams
 from .plan import Plan, PlanRefused, PlanStep, parse_state, plan_geometry
 from .verify import DEFAULT_TOLERANCE_MM, FoldCheck
 
@@ -25,9 +26,11 @@ def _key(state: str | StateKey, *, need_variant: bool) -> StateKey:
 
 
 def plan_frame(
-    result: FrameResult, frame: RGBDFrame, goal: StateKey, layout: NapkinLayout
+    result: FrameResult, frame: RGBDFrame, goal: StateKey, layout: NapkinLayout, *,
+    motion: MotionParams = DEFAULT_MOTION,
 ) -> Plan:
-    """The plan from a classified frame to ``goal``, placed in the frame's camera.
+    """The plan from a classified frame to ``goal``, placed in the frame's camera, its
+    hands moving as ``motion`` says.
 
     Raises
     ------
@@ -40,7 +43,8 @@ def plan_frame(
         raise PlanRefused(f"no plan: the state cannot be told: {result.reason}")
     start = (p.class_id, p.variant)
     maps = napkin_maps(result.observation, p.class_id, p.variant, layout)
-    return plan_geometry(start, goal, layout, maps, result.affordances, frame.intrinsics)
+    return plan_geometry(start, goal, layout, maps, result.affordances, frame.intrinsics,
+                         motion=motion)
 
 
 def plan(

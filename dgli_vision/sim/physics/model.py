@@ -28,7 +28,7 @@ from ...core.errors import InvalidValueError
 from ...core.layout import NapkinLayout
 from . import require_mujoco
 
-__all__ = ["ClothMaterial", "ClothModel", "build_model"]
+__all__ = ["ClothMaterial", "ClothModel", "build_model", "grid_triangles"]
 
 
 @dataclass(frozen=True)
@@ -123,21 +123,38 @@ class ClothModel:
         return np.array(self.data.flexvert_xpos[self.flex_index])
 
 
+def grid_triangles(grid: int) -> NDArray[np.intp]:
+    """The shell's triangles (2 (grid-1)^2, 3) over the row-major grid, counter-clockwise
+    seen from +z, each cell cut along one diagonal, the two diagonals in a checkerboard
+    (a "union jack"): a crease at 45 degrees then finds a line of triangle edges within
+    one cell whichever way it runs. (With every cell cut the same way, a fold across the
+    cuts has to bend the triangles themselves: measured, it dragged the napkin 27 mm
+    where the fold along them dragged it 0.5 mm.)"""
+    j, i = np.meshgrid(np.arange(grid - 1), np.arange(grid - 1))  # i: row (v), j: column
+    a = (i * grid + j).ravel()
+    b, c, d = a + 1, a + grid + 1, a + grid
+    even = ((i + j) % 2 == 0).ravel()
+    t1 = np.where(even[:, None], np.stack([a, b, c], 1), np.stack([a, b, d], 1))
+    t2 = np.where(even[:, None], np.stack([a, c, d], 1), np.stack([b, c, d], 1))
+    return np.concatenate([t1, t2])
+
+
 def _xml(layout: NapkinLayout, m: ClothMaterial, hands: int) -> str:
     """The model's MJCF text (hands' ``connect`` equalities to vertex bodies filled in
-    later by name)."""
+    later by name). The flex's points are the grid's, in its row-major order."""
     w, h = layout.width_mm * 1e-3, layout.height_mm * 1e-3
-    su, sv = w / (m.grid - 1), h / (m.grid - 1)
+    u, v = np.meshgrid(np.linspace(0, w, m.grid), np.linspace(0, h, m.grid))
+    points = " ".join(f"{x:.6f} {y:.6f} {m.radius_m}" for x, y in zip(u.ravel(), v.ravel()))
+    elements = " ".join(str(int(k)) for k in grid_triangles(m.grid).ravel())
     bodies = "".join(f'<body name="hand{k}" mocap="true" pos="{-1 - k} 0 0.5"/>'
                      for k in range(hands))
     return f"""<mujoco model="napkin">
-  <option timestep="{m.timestep_s}" integrator="discrete" solver="CG" tolerance="1e-4"
-          iterations="20"/>
+  <option timestep="{m.timestep_s}" integrator="discrete" solver="CG" tolerance="1e-6"
+          iterations="100"/>
   <worldbody>
     <geom name="table" type="plane" size="2 2 0.1" friction="{m.friction}"/>
     {bodies}
-    <flexcomp name="cloth" type="grid" count="{m.grid} {m.grid} 1"
-              spacing="{su} {sv} {min(su, sv)}" pos="{w / 2} {h / 2} {m.radius_m}"
+    <flexcomp name="cloth" type="direct" point="{points}" element="{elements}"
               radius="{m.radius_m}" dim="2" mass="{m.mass_kg}">
       <contact condim="3" selfcollide="auto" friction="{m.friction}" solref="0.004 1"/>
       <elasticity young="{m.young_pa}" poisson="{m.poisson}"
