@@ -2,7 +2,7 @@
 
 Usage: python benchmarks/physics_plans.py [--seed S] [--grid N] [--arc-ratio K]
        [--carry-speed M_S] [--drag MM] [--place-offset MM] [--only KIND|GOAL...]
-       [--small] [--json OUT.json]
+       [--small] [--json OUT.json] [--figure OUT.png]
 
 Every trial of :data:`dgli_vision.planning.physics_check.PHYSICS_TRIALS` (the one-step
 plans from 01 and 02: every corner, strip, half and diagonal fold from flat, the folds
@@ -49,6 +49,9 @@ def main(argv: list[str] | None = None) -> int:
                     help="kinds (one step, unfold, short) or goal classes (11, 12...)")
     ap.add_argument("--small", action="store_true", help="640 x 360 renders")
     ap.add_argument("--json", type=Path, default=None)
+    ap.add_argument("--figure", type=Path, default=None,
+                    help="only draw the half fold 01 -> 11/CD and the diagonal fold "
+                         "01 -> 12/C before and after (docs/physics_folds.png)")
     args = ap.parse_args(argv)
     motion = MotionParams(arc_ratio=args.arc_ratio, carry_speed_m_s=args.carry_speed,
                           drag_m=args.drag * 1e-3, place_offset_m=args.place_offset * 1e-3)
@@ -58,6 +61,10 @@ def main(argv: list[str] | None = None) -> int:
 
         setup = replace(setup, intrinsics=Intrinsics(640, 360, 302.5, 302.5, 319.5, 179.5))
     refs = load_references(None)
+    if args.figure:
+        from dataclasses import replace
+
+        return figure(args.figure, replace(setup, keep_images=True), refs, args.seed)
     rows = []
     t0 = time.perf_counter()
     for k, (start, goal, kind) in enumerate(PHYSICS_TRIALS):
@@ -79,6 +86,33 @@ def main(argv: list[str] | None = None) -> int:
     print(markdown(table))
     if args.json:
         args.json.write_text(json.dumps(table, indent=1) + "\n")
+    return 0
+
+
+def figure(out: Path, setup, refs, seed: int) -> int:
+    """Before and after images of a half and a diagonal fold on physics cloth, each
+    after image captioned with the verdict read from it."""
+    import cv2
+    import numpy as np
+
+    from dgli_vision.planning.physics_check import PHYSICS_TRIALS, run_physics_trial
+
+    tiles = []
+    for k, (start, goal, kind) in enumerate(PHYSICS_TRIALS):
+        if goal not in (("11", "CD"), ("12", "C")) or kind != "one step":
+            continue
+        row = run_physics_trial(start, goal, kind, (seed, k), refs, setup=setup)
+        before, after = (cv2.cvtColor(im, cv2.COLOR_RGB2BGR)[::2, ::2].copy()
+                         for im in row.images)
+        got = "/".join(v for v in (row.after or ("cannot tell",)) if v)
+        for img, text in ((before, f"before: {start[0]}, plan {goal[0]}/{goal[1]}"),
+                          (after, f"after (MuJoCo cloth): read as {got}")):
+            cv2.putText(img, text, (12, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8, (0, 0, 0), 4,
+                        cv2.LINE_AA)
+            cv2.putText(img, text, (12, 30), cv2.FONT_HERSHEY_SIMPLEX, 0.8,
+                        (255, 255, 255), 2, cv2.LINE_AA)
+        tiles.append(np.concatenate([before, after], axis=1))
+    cv2.imwrite(str(out), np.concatenate(tiles, axis=0))
     return 0
 
 

@@ -95,6 +95,8 @@ class PhysicsSetup:
         How far short of the plan a ``short`` trial's first fold is laid, mm.
     tolerance_mm : float
         ``verify``'s tolerance on the planned crease.
+    keep_images : bool
+        Keep the colour images before and after the step in each row (for figures).
     """
 
     material: Any = None
@@ -103,6 +105,7 @@ class PhysicsSetup:
     intrinsics: Intrinsics = DEFAULT_INTRINSICS
     short_mm: float = 20.0
     tolerance_mm: float = 20.0
+    keep_images: bool = False
 
 
 @dataclass(frozen=True)
@@ -126,6 +129,8 @@ class PhysicsRow:
         fold's), ``landing_mm`` (each grasped corner's distance from where the path
         should lay it), ``hands``, ``sim_s`` (simulated time), ``settled``.
     note : str
+    images : tuple of ndarray
+        The colour images before and after the step (``keep_images``), else empty.
     """
 
     start: StateKey
@@ -138,6 +143,7 @@ class PhysicsRow:
     verified: bool | None = None
     made: dict[str, Any] = field(default_factory=dict)
     note: str = ""
+    images: tuple = ()
 
 
 def _frame(r: Any) -> RGBDFrame:
@@ -328,7 +334,7 @@ def run_physics_trial(
     if not plan.steps:
         return PhysicsRow(start, goal, kind, seen, None, seen, "wrong", note="no step")
     step = plan.steps[0]
-    before = xyz
+    before, before_image = xyz, frame.color
     cm, ex = execute_step(xyz, step, pose, layout, yaw, offset, setup)
     _, lines = plan_steps(seen, goal, layout)
     made = cloth_measures(before, ex.xyz, cm.uv, step, layout, lines[0])
@@ -345,8 +351,9 @@ def run_physics_trial(
     else:
         outcome = "right" if got == step.expect and seen == start else "wrong"
     note = "" if check.success else "; ".join(check.reasons)
+    images = (before_image, frame.color) if setup.keep_images else ()
     return PhysicsRow(start, goal, kind, seen, step.expect, got, outcome, check.success,
-                      made, note if outcome == "right" else (after.reason or note))
+                      made, note if outcome == "right" else (after.reason or note), images)
 
 
 def _spread(values: list[float]) -> dict[str, float | None]:
