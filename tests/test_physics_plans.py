@@ -161,3 +161,17 @@ def test_a_corner_fold_on_physics_cloth_lands_where_the_path_puts_it():
     far = [10, 110, 120]  # B, D and C stay where they were
     flat = np.array([[0.4, 0.0], [0.0, 0.4], [0.4, 0.4]])
     assert np.abs(xyz[far, :2] - flat).max() < 0.006
+
+
+def test_the_python_plan_moves_the_hands_into_the_robots_frame():
+    import dgli_vision
+
+    m = np.array([[0, -1, 0, 0.5], [1, 0, 0, -0.2], [0, 0, 1, 0.1], [0, 0, 0, 1]], float)
+    args = (str(SAMPLES / "01_000_color.png"), str(SAMPLES / "01_000_depth.png"))
+    cam = dgli_vision.plan(*args, goal="11/CD").steps[0]
+    rob = dgli_vision.plan(*args, goal="11/CD", extrinsics=m).steps[0]
+    for hc, hr in zip(cam.hands, rob.hands, strict=True):
+        assert np.allclose(hr.grasp_point, m[:3, :3] @ hc.grasp_point + m[:3, 3])
+        for wc, wr in zip(hc.path, hr.path, strict=True):
+            assert np.allclose(wr.point, m[:3, :3] @ np.array(wc.point) + m[:3, 3])
+    assert rob.grasp_point == rob.hands[0].grasp_point

@@ -73,8 +73,9 @@ def plan(
         As for :func:`~dgli_vision.classifier.api.classify_pair`.
     extrinsics : Extrinsics, path or (4, 4) array, optional
         The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the steps'
-        grasp and place points and fold lines are then in the robot's base frame (as
-        with ``--extrinsics``); default the camera frame.
+        grasp and place points, fold lines and hands (grasps, places, every waypoint)
+        are then in the robot's base frame (as with ``--extrinsics``); default the
+        camera frame.
 
     Returns
     -------
@@ -111,10 +112,16 @@ def _in_frame(made: Plan, ext: Any) -> Plan:
 
     from ..core.extrinsics import moved_point
 
+    def hand(h: Any) -> Any:
+        path = tuple(replace(w, point=moved_point(ext, w.point)) for w in h.path)
+        return replace(h, grasp_point=moved_point(ext, h.grasp_point),
+                       place_point=moved_point(ext, h.place_point), path=path)
+
     def step(s: PlanStep) -> PlanStep:
         line = None if s.fold_line is None else tuple(moved_point(ext, q) for q in s.fold_line)
         return replace(s, grasp_point=moved_point(ext, s.grasp_point),
-                       place_point=moved_point(ext, s.place_point), fold_line=line)
+                       place_point=moved_point(ext, s.place_point), fold_line=line,
+                       hands=tuple(hand(h) for h in s.hands))
 
     return replace(made, steps=tuple(step(s) for s in made.steps))
 
