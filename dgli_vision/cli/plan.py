@@ -98,6 +98,38 @@ def _check(per_pair: int, seed: int, as_json: bool, refs, limit: int | None) -> 
     _geometry_lines(table["geometry"])
 
 
+def _check_physics(seed: int, as_json: bool, refs, every: int | None) -> None:
+    """``--check --physics``: the trials of the physics closed loop and their table."""
+    from ..planning.physics_check import PHYSICS_TRIALS, physics_table, run_physics_trial
+
+    trials = [t for k, t in enumerate(PHYSICS_TRIALS) if every is None or k % every == 0]
+    rows = []
+    with progress_bar(len(trials), counted(len(trials), "physics trial"),
+                      quiet=as_json) as bar:
+        for k, (start, goal, kind) in enumerate(trials):
+            rows.append(run_physics_trial(start, goal, kind, (seed, k, 52), refs))
+            bar.update(1)
+    table = physics_table(rows)
+    if as_json:
+        echo_json(table)
+        return
+    echo(f"{counted(table['trials'], 'physics trial')}, {table['right']} right; "
+         f"one-step plans {table['one_step_success']:.3f}")
+    echo("| start | goal | kind | after | outcome | verify | hands | base drag | "
+         "landing | crease |")
+    echo("|---" * 10 + "|")
+    for r in table["rows"]:
+        echo(f"| {r['start']} | {r['goal']} | {r['kind']} | {r['after']} | {r['outcome']} "
+             f"| {r['verified']} | {r.get('hands', '-')} | {r.get('base_drag_mm', '-')} "
+             f"| {r.get('landing_mm', '-')} | {r.get('crease_mm', '-')} |")
+    echo(f"one-step folds (mm, median / p90 / max): crease {_mm3(table['crease_mm'])}, "
+         f"tip {_mm3(table['tip_mm'])}, base drag {_mm3(table['base_drag_mm'])}")
+
+
+def _mm3(s: dict) -> str:
+    return "-" if s["median"] is None else f"{s['median']:g} / {s['p90']:g} / {s['max']:g}"
+
+
 def _geometry_lines(g: dict) -> None:
     """The fold steps' crease and tip errors against the plan, and success rates."""
     n = g["fold_steps"]
@@ -135,11 +167,15 @@ def _geometry_lines(g: dict) -> None:
     "--from", "start", callback=_state, help="Plan from this state, without an image."
 )
 @click.option("--check", is_flag=True, help="Run the closed-loop check in the simulator.")
+@click.option("--physics", is_flag=True,
+              help="--check on MuJoCo flex cloth: each plan's path executed by simulated "
+                   "grippers (the 'physics' extra).")
 @click.option("--per-pair", type=click.IntRange(1, 20), default=1, show_default=True,
               help="--check: trials per (start, goal) pair.")
 @click.option("--seed", type=int, default=0, show_default=True, help="--check: the seed.")
 @click.option("--every", type=click.IntRange(1, None), default=None,
-              help="--check: only every N-th (start, goal) pair (a quicker check).")
+              help="--check: only every N-th (start, goal) pair (with --physics, trial) "
+                   "(a quicker check).")
 @click.option("--verify", "verify_pair", nargs=2, type=click.Path(),
               help="AFTER_COLOR AFTER_DEPTH: the frame after the plan's first step; check "
                    "it made the expected state and the planned crease (dgli verify).")
@@ -160,6 +196,7 @@ def plan_cmd(
     goal,
     start,
     check: bool,
+    physics: bool,
     per_pair: int,
     seed: int,
     every: int | None,
@@ -186,7 +223,16 @@ def plan_cmd(
     from ..planning.plan import PlanRefused, plan_geometry
 
     extrinsics = read_extrinsics(extrinsics_path) if extrinsics_path else None
+    if physics and not check:
+        raise click.UsageError("--physics goes with --check")
+    if check and physics:
+        from ..sim.physics import require_mujoco
+
+        require_mujoco()  # before any work: the message names the extra
     refs = load_references(references_path)
+    if check and physics:
+        _check_physics(seed, as_json, refs, every)
+        return
     if check:
         _check(per_pair, seed, as_json, refs, every)
         return

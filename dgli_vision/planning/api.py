@@ -9,6 +9,7 @@ from ..classifier.pipeline import FrameResult, classify_frame
 from ..core.fold_graph import StateKey
 from ..core.frame import RGBDFrame
 from ..core.layout import NapkinLayout, layout_of_size
+from .motion import DEFAULT_MOTION, MotionParams
 from .plan import Plan, PlanRefused, PlanStep, parse_state, plan_geometry
 from .verify import DEFAULT_TOLERANCE_MM, FoldCheck
 
@@ -25,9 +26,11 @@ def _key(state: str | StateKey, *, need_variant: bool) -> StateKey:
 
 
 def plan_frame(
-    result: FrameResult, frame: RGBDFrame, goal: StateKey, layout: NapkinLayout
+    result: FrameResult, frame: RGBDFrame, goal: StateKey, layout: NapkinLayout, *,
+    motion: MotionParams = DEFAULT_MOTION,
 ) -> Plan:
-    """The plan from a classified frame to ``goal``, placed in the frame's camera.
+    """The plan from a classified frame to ``goal``, placed in the frame's camera, its
+    hands moving as ``motion`` says.
 
     Raises
     ------
@@ -40,7 +43,8 @@ def plan_frame(
         raise PlanRefused(f"no plan: the state cannot be told: {result.reason}")
     start = (p.class_id, p.variant)
     maps = napkin_maps(result.observation, p.class_id, p.variant, layout)
-    return plan_geometry(start, goal, layout, maps, result.affordances, frame.intrinsics)
+    return plan_geometry(start, goal, layout, maps, result.affordances, frame.intrinsics,
+                         motion=motion)
 
 
 def plan(
@@ -70,8 +74,9 @@ def plan(
         As for :func:`~dgli_vision.classifier.api.classify_pair`.
     extrinsics : Extrinsics, path or (4, 4) array, optional
         The camera-to-base transform (:mod:`dgli_vision.core.extrinsics`): the steps'
-        grasp and place points and fold lines are then in the robot's base frame (as
-        with ``--extrinsics``); default the camera frame.
+        grasp and place points, fold lines and hands (grasps, places, every waypoint)
+        are then in the robot's base frame (as with ``--extrinsics``); default the
+        camera frame.
     mirroring : {"no", "yes", "unknown"}, optional
         The camera's handedness, as for
         :func:`~dgli_vision.classifier.api.classify_pair`.
@@ -111,10 +116,16 @@ def _in_frame(made: Plan, ext: Any) -> Plan:
 
     from ..core.extrinsics import moved_point
 
+    def hand(h: Any) -> Any:
+        path = tuple(replace(w, point=moved_point(ext, w.point)) for w in h.path)
+        return replace(h, grasp_point=moved_point(ext, h.grasp_point),
+                       place_point=moved_point(ext, h.place_point), path=path)
+
     def step(s: PlanStep) -> PlanStep:
         line = None if s.fold_line is None else tuple(moved_point(ext, q) for q in s.fold_line)
         return replace(s, grasp_point=moved_point(ext, s.grasp_point),
-                       place_point=moved_point(ext, s.place_point), fold_line=line)
+                       place_point=moved_point(ext, s.place_point), fold_line=line,
+                       hands=tuple(hand(h) for h in s.hands))
 
     return replace(made, steps=tuple(step(s) for s in made.steps))
 

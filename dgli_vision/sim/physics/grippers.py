@@ -19,7 +19,7 @@ from ...core.errors import InvalidValueError
 from . import require_mujoco
 from .model import ClothModel
 
-__all__ = ["HandPath", "Execution", "execute"]
+__all__ = ["Execution", "HandPath", "execute"]
 
 
 @dataclass(frozen=True, eq=False)
