@@ -1,0 +1,155 @@
+"""Per-pair table of ``dgli evaluate`` on path-traced sets, with each miss put down to the
+detector or the classifier (the tables of benchmarks/PHOTOGRAPHS.md).
+
+Usage: python benchmarks/photographs.py FOLDER:REPORT [FOLDER:REPORT ...] [--markdown OUT]
+
+FOLDER is a set rendered by ``dgli render --engine cycles`` (its ``truth.json`` holds
+every sticker's true camera-frame point and how much of it the camera sees); REPORT is
+the folder ``dgli evaluate FOLDER --report REPORT`` wrote (its ``results.jsonl``). For
+every pair: the truth, the answer, its confidence and reason, the stickers' true size in
+pixels (``30 mm x fx / z``, the median and the smallest of those seen), how many of the
+stickers seen (at least half of the disc) were found where they truly are (within half a
+diameter), and what the scene drew (table, bar lamp, the napkin's distance and where it
+lies in the frame).
+
+A pair not answered right is put down to:
+
+- ``beyond``: its stickers are under the 10 px floor (the tool says "cannot tell" with
+  the size, rightly);
+- ``detector``: a sticker the camera sees was missed or misplaced: ``washed out`` when
+  it is the sticker the bar lamp's streak was aimed at or within 8 cm of it, ``partial``
+  when less than 90 % of its disc is seen (cut by a fold), ``small`` under 13 px,
+  ``missed`` otherwise;
+- ``classifier``: every sticker seen was found where it lies; the reason names the check
+  or the doubt that withheld the answer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from dgli_vision.classifier.capture_limits import MIN_STICKER_PX
+
+
+def _pairs(folder: Path, report: Path) -> list[dict[str, Any]]:
+    truth = json.loads((folder / "truth.json").read_text())
+    intr = json.loads((folder / "intrinsics.json").read_text())
+    fx, fy, cx, cy = (float(intr[k]) for k in ("fx", "fy", "cx", "cy"))
+    disc = float(truth["provenance"].get("napkin", {}).get("sticker_disc_diameter_mm", 30.0))
+    rows = []
+    for line in (report / "results.jsonl").read_text().splitlines():
+        res = json.loads(line)
+        if "pair" not in res:
+            continue
+        name = Path(res["pair"]["color"]).name[: -len("_color.png")]
+        t = truth["images"][name]
+        pts = np.asarray(t["sticker_points_cam_m"], float)
+        frac = np.asarray(t["visible_fraction"], float)
+        seen = frac >= 0.5
+        size = disc * fx / (pts[:, 2] * 1000.0)
+        px = np.stack([fx * pts[:, 0] / pts[:, 2] + cx, fy * pts[:, 1] / pts[:, 2] + cy], 1)
+        cents = np.asarray(
+            [c if c is not None else (np.nan, np.nan) for c in res.get("centroids") or []],
+            float,
+        ).reshape(-1, 2)
+        found = np.zeros(len(pts), bool)
+        if len(cents) == len(pts):
+            err = np.linalg.norm(cents - px, axis=1)
+            found = np.isfinite(err) & (err < size / 2)
+        look = t.get("render", {}).get("look", {})
+        rows.append({
+            "set": folder.name, "name": name, "truth": t["class"], "variant": t["variant"],
+            "answer": res.get("predicted"), "confidence": res.get("confidence"),
+            "reason": res.get("reason") or res.get("why") or "", "error": res.get("error"),
+            "size_px": float(np.median(size[seen])) if seen.any() else float("nan"),
+            "min_px": float(size[seen].min()) if seen.any() else float("nan"),
+            "seen": int(seen.sum()), "found": int((found & seen).sum()),
+            "missed": [int(k) for k in np.flatnonzero(seen & ~found)],
+            "frac": frac, "pts": pts, "size": size,
+            "distance_m": t["camera"].get("distance_m"),
+            "offset_px": t["camera"].get("offset_px"),
+            "table": look.get("table", "matte"), "bar": look.get("bar_lamp", False),
+            "bar_sticker": look.get("bar_sticker"),
+        })
+    return rows
+
+
+def failure(row: dict[str, Any]) -> str:
+    """What a pair not answered right is put down to (see the module's text)."""
+    if row["answer"] == row["truth"]:
+        return ""
+    if row["size_px"] < MIN_STICKER_PX:
+        return "beyond: stickers under 10 px"
+    if row["missed"]:
+        kinds = []
+        for k in row["missed"]:
+            b = row["bar_sticker"]
+            near_bar = b is not None and np.linalg.norm(row["pts"][k] - row["pts"][b]) < 0.08
+            if near_bar and row["bar"]:
+                kinds.append(f"{k} washed out")
+            elif row["frac"][k] < 0.9:
+                kinds.append(f"{k} partial ({row['frac'][k]:.0%} seen)")
+            elif row["size"][k] < 13:
+                kinds.append(f"{k} small ({row['size'][k]:.0f} px)")
+            else:
+                kinds.append(f"{k} missed")
+        return "detector: " + ", ".join(kinds)
+    return "classifier"
+
+
+def markdown(rows: list[dict[str, Any]]) -> str:
+    """The per-pair table and the breakdown."""
+    out = ["| set | pair | truth | answer | conf | sticker px (min) | found/seen | "
+           "table, lamp | distance, offset | reason | put down to |",
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        answer = r["answer"] or ("error" if r["error"] else "cannot tell")
+        conf = "" if r["confidence"] is None else f"{r['confidence']:.2f}"
+        off = r["offset_px"] or [0, 0]
+        reason = (r["error"] or r["reason"]).replace("|", "/")
+        truth = r["truth"] + (f" {r['variant']}" if r["variant"] else "")
+        out.append(
+            f"| {r['set']} | {r['name']} | {truth} | {answer} | {conf} | "
+            f"{r['size_px']:.1f} ({r['min_px']:.1f}) | "
+            f"{r['found']}/{r['seen']} | {r['table']}{', bar' if r['bar'] else ''} | "
+            f"{r['distance_m']:.2f} m, {np.hypot(*off):.0f} px | {reason} | {failure(r)} |"
+        )
+    n = len(rows)
+    right = sum(r["answer"] == r["truth"] for r in rows)
+    wrong = sum(r["answer"] is not None and r["answer"] != r["truth"] for r in rows)
+    within = [r for r in rows if r["size_px"] >= MIN_STICKER_PX]
+    w_right = sum(r["answer"] == r["truth"] for r in within)
+    kinds: dict[str, int] = {}
+    for r in rows:
+        f = failure(r).split(":")[0]
+        if f:
+            kinds[f] = kinds.get(f, 0) + 1
+    out += ["", f"**{right} of {n} right, {n - right - wrong} \"cannot tell\", {wrong} wrong**; "
+            f"where the stickers are at least 10 px across {w_right} of {len(within)}.",
+            "", "Not right, put down to: " + (", ".join(f"{k} {v}" for k, v in
+                                                    sorted(kinds.items())) or "none") + "."]
+    return "\n".join(out) + "\n"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sets", nargs="+", help="FOLDER:REPORT")
+    ap.add_argument("--markdown", type=Path)
+    args = ap.parse_args()
+    rows = []
+    for spec in args.sets:
+        folder, report = spec.split(":")
+        rows += _pairs(Path(folder), Path(report))
+    text = markdown(rows)
+    if args.markdown:
+        args.markdown.write_text(text)
+    print(text)
+
+
+if __name__ == "__main__":
+    main()
