@@ -16,10 +16,12 @@ A pair not answered right is put down to:
 
 - ``beyond``: its stickers are under the 10 px floor (the tool says "cannot tell" with
   the size, rightly);
-- ``detector``: a sticker the camera sees was missed or misplaced: ``washed out`` when
-  it is the sticker the bar lamp's streak was aimed at or within 8 cm of it, ``partial``
-  when less than 90 % of its disc is seen (cut by a fold), ``small`` under 13 px,
-  ``missed`` otherwise;
+- ``detector``: a sticker the camera sees was missed or misplaced: ``misplaced`` when
+  its identity was given to a blob farther than half a diameter from it, ``washed out``
+  when it is the sticker the bar lamp's streak was aimed at or within 8 cm of it,
+  ``pale`` when more than a fifth of the napkin's pixels clip (over-exposed),
+  ``partial`` when less than 90 % of its disc is seen (cut by a fold), ``small`` under
+  13 px, ``missed`` otherwise;
 - ``classifier``: every sticker seen was found where it lies; the reason names the check
   or the doubt that withheld the answer.
 """
@@ -34,13 +36,15 @@ from typing import Any
 import numpy as np
 
 from dgli_vision.classifier.capture_limits import MIN_STICKER_PX
+from dgli_vision.core.layout import default_layout
 
 
 def _pairs(folder: Path, report: Path) -> list[dict[str, Any]]:
     truth = json.loads((folder / "truth.json").read_text())
     intr = json.loads((folder / "intrinsics.json").read_text())
-    fx, fy, cx, cy = (float(intr[k]) for k in ("fx", "fy", "cx", "cy"))
-    disc = float(truth["provenance"].get("napkin", {}).get("sticker_disc_diameter_mm", 30.0))
+    m = intr["intrinsic_matrix"]  # Open3D's: column-major
+    fx, fy, cx, cy = (float(m[k]) for k in (0, 4, 6, 7))
+    disc = default_layout().disc_diameter_mm
     rows = []
     for line in (report / "results.jsonl").read_text().splitlines():
         res = json.loads(line)
@@ -58,10 +62,12 @@ def _pairs(folder: Path, report: Path) -> list[dict[str, Any]]:
             float,
         ).reshape(-1, 2)
         found = np.zeros(len(pts), bool)
+        err = np.full(len(pts), np.nan)
         if len(cents) == len(pts):
             err = np.linalg.norm(cents - px, axis=1)
             found = np.isfinite(err) & (err < size / 2)
         look = t.get("render", {}).get("look", {})
+        clipped = _clipped(folder / t["color"], px[np.isfinite(px).all(axis=1)])
         rows.append({
             "set": folder.name, "name": name, "truth": t["class"], "variant": t["variant"],
             "answer": res.get("predicted"), "confidence": res.get("confidence"),
@@ -70,13 +76,27 @@ def _pairs(folder: Path, report: Path) -> list[dict[str, Any]]:
             "min_px": float(size[seen].min()) if seen.any() else float("nan"),
             "seen": int(seen.sum()), "found": int((found & seen).sum()),
             "missed": [int(k) for k in np.flatnonzero(seen & ~found)],
-            "frac": frac, "pts": pts, "size": size,
+            "frac": frac, "pts": pts, "size": size, "err": err,
             "distance_m": t["camera"].get("distance_m"),
             "offset_px": t["camera"].get("offset_px"),
             "table": look.get("table", "matte"), "bar": look.get("bar_lamp", False),
-            "bar_sticker": look.get("bar_sticker"),
+            "bar_sticker": look.get("bar_sticker"), "clipped": clipped,
         })
     return rows
+
+
+def _clipped(color_path: Path, sticker_px: np.ndarray) -> float:
+    """Share of the napkin's pixels (the hull of its stickers' true centres) at 250 or
+    more in a channel: how much of it auto exposure let clip."""
+    import cv2
+
+    img = cv2.imread(str(color_path), cv2.IMREAD_COLOR)
+    if img is None or len(sticker_px) < 3:
+        return float("nan")
+    mask = np.zeros(img.shape[:2], np.uint8)
+    cv2.fillConvexPoly(mask, cv2.convexHull(np.round(sticker_px).astype(np.int32)), 1)
+    inside = mask.astype(bool)
+    return float((img[inside].max(axis=1) >= 250).mean()) if inside.any() else float("nan")
 
 
 def failure(row: dict[str, Any]) -> str:
@@ -90,8 +110,12 @@ def failure(row: dict[str, Any]) -> str:
         for k in row["missed"]:
             b = row["bar_sticker"]
             near_bar = b is not None and np.linalg.norm(row["pts"][k] - row["pts"][b]) < 0.08
-            if near_bar and row["bar"]:
+            if np.isfinite(row["err"][k]):
+                kinds.append(f"{k} misplaced ({row['err'][k]:.0f} px off)")
+            elif near_bar and row["bar"]:
                 kinds.append(f"{k} washed out")
+            elif row["clipped"] > 0.2:
+                kinds.append(f"{k} pale (the napkin {row['clipped']:.0%} clipped)")
             elif row["frac"][k] < 0.9:
                 kinds.append(f"{k} partial ({row['frac'][k]:.0%} seen)")
             elif row["size"][k] < 13:
@@ -105,8 +129,8 @@ def failure(row: dict[str, Any]) -> str:
 def markdown(rows: list[dict[str, Any]]) -> str:
     """The per-pair table and the breakdown."""
     out = ["| set | pair | truth | answer | conf | sticker px (min) | found/seen | "
-           "table, lamp | distance, offset | reason | put down to |",
-           "|---|---|---|---|---|---|---|---|---|---|---|"]
+           "table, lamp | distance, offset | napkin clipped | reason | put down to |",
+           "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         answer = r["answer"] or ("error" if r["error"] else "cannot tell")
         conf = "" if r["confidence"] is None else f"{r['confidence']:.2f}"
@@ -117,7 +141,8 @@ def markdown(rows: list[dict[str, Any]]) -> str:
             f"| {r['set']} | {r['name']} | {truth} | {answer} | {conf} | "
             f"{r['size_px']:.1f} ({r['min_px']:.1f}) | "
             f"{r['found']}/{r['seen']} | {r['table']}{', bar' if r['bar'] else ''} | "
-            f"{r['distance_m']:.2f} m, {np.hypot(*off):.0f} px | {reason} | {failure(r)} |"
+            f"{r['distance_m']:.2f} m, {np.hypot(*off):.0f} px | {r['clipped']:.0%} | "
+            f"{reason} | {failure(r)} |"
         )
     n = len(rows)
     right = sum(r["answer"] == r["truth"] for r in rows)
