@@ -106,23 +106,24 @@ def failure(row: dict[str, Any]) -> str:
     if row["size_px"] < MIN_STICKER_PX:
         return "beyond: stickers under 10 px"
     if row["missed"]:
-        kinds = []
+        kinds: dict[str, list[str]] = {}
         for k in row["missed"]:
             b = row["bar_sticker"]
             near_bar = b is not None and np.linalg.norm(row["pts"][k] - row["pts"][b]) < 0.08
             if np.isfinite(row["err"][k]):
-                kinds.append(f"{k} misplaced ({row['err'][k]:.0f} px off)")
+                kind, what = "misplaced", f"{k} ({row['err'][k]:.0f} px off)"
             elif near_bar and row["bar"]:
-                kinds.append(f"{k} washed out")
+                kind, what = "washed out", str(k)
             elif row["clipped"] > 0.2:
-                kinds.append(f"{k} pale (the napkin {row['clipped']:.0%} clipped)")
+                kind, what = "pale", str(k)
             elif row["frac"][k] < 0.9:
-                kinds.append(f"{k} partial ({row['frac'][k]:.0%} seen)")
+                kind, what = "partial", f"{k} ({row['frac'][k]:.0%} seen)"
             elif row["size"][k] < 13:
-                kinds.append(f"{k} small ({row['size'][k]:.0f} px)")
+                kind, what = "small", f"{k} ({row['size'][k]:.0f} px)"
             else:
-                kinds.append(f"{k} missed")
-        return "detector: " + ", ".join(kinds)
+                kind, what = "missed", str(k)
+            kinds.setdefault(kind, []).append(what)
+        return "detector: " + "; ".join(f"{kind} {', '.join(v)}" for kind, v in kinds.items())
     return "classifier"
 
 
