@@ -116,8 +116,18 @@ pose = look_at_table(0.45, tilt_rad=np.radians(8), tilt_direction_rad=0.7, yaw_r
                      target=centre)
 look = draw_look(state, pose, Lighting(), rng)
 res = render_cycles(state, pose, intr, look, rng, samples=8, seed=1, threads=2, clean=True)
+# --scene varied's Blender parts (a wooden table, lamps turned about their axis) build
+import bpy
+from dgli_vision.sim.cycles_scene import _add_lights, _wood_material
+from dgli_vision.sim.photo_variety import draw_varied_look, draw_wood
+wood_mat = _wood_material(bpy, draw_wood(np.random.default_rng(2)))
+base = wood_mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"]
+varied = draw_varied_look(state, pose, Lighting(), np.random.default_rng(3))
+_add_lights(bpy, varied)
+rolls = [o.rotation_euler.to_quaternion() for o in bpy.data.objects if o.type == "LIGHT"]
 np.savez(sys.argv[1], color=res.color, depth=res.depth_mm, points=res.sticker_points_cam,
-         visible=res.visible, K=intr.matrix())
+         visible=res.visible, K=intr.matrix(), wood_linked=base.is_linked,
+         lights=len(rolls), looks=len(varied.lights))
 """
 
 
@@ -183,3 +193,10 @@ def test_envelopes_cover_every_class_and_keep_their_ranges():
         assert _fits(state, pose, DEFAULT_INTRINSICS, 20.0)
         axis = pose.rotation[:, 2]
         assert np.degrees(np.arccos(-axis[2])) == pytest.approx(info["tilt_deg"], abs=1e-3)
+
+
+def test_varied_scene_builds_in_blender(small_render):
+    """--scene varied's wooden table is a texture feeding the table's colour, and every
+    drawn lamp is in the scene."""
+    assert bool(small_render["wood_linked"])
+    assert int(small_render["lights"]) == int(small_render["looks"]) >= 1

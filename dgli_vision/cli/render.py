@@ -94,12 +94,21 @@ from .runs import folder_lock, stop_signals
 )
 @click.option(
     "--envelope",
-    type=click.Choice(["spec", "far", "head", "all"]),
+    type=click.Choice(["spec", "far", "head", "wide", "all"]),
     default="all",
     show_default=True,
     help="With --engine cycles, where the camera stands: spec (450-800 mm, tilt <= 15 deg), "
-    "far (0.7-1.0 m, <= 25 deg), head (a robot's head camera, 1.0-1.2 m, <= 35 deg) or "
-    "all of them in turn.",
+    "far (0.7-1.0 m, <= 25 deg), head (a robot's head camera, 1.0-1.2 m, <= 35 deg), "
+    "all of these three in turn, or wide (1.0-2.0 m, <= 35 deg).",
+)
+@click.option(
+    "--scene",
+    type=click.Choice(["standard", "varied"]),
+    default="standard",
+    show_default=True,
+    help="With --engine cycles, the scene: standard, or varied (the napkin anywhere in "
+    "the view, wooden or matte tables, a bar lamp whose streak crosses a sticker, lamps "
+    "of 2,700-6,500 K each, the camera pipeline's and depth model's parameters drawn).",
 )
 @click.option(
     "--samples",
@@ -127,6 +136,7 @@ def render_cmd(
     resume: bool,
     engine: str,
     envelope: str,
+    scene: str,
     samples: int,
     size_mm: tuple[float, float] | None,
     jobs: int,
@@ -161,6 +171,8 @@ def render_cmd(
         raise click.UsageError("--outside renders single pairs, not a --sequence")
     if engine == "cycles" and outside:
         raise click.UsageError("--outside renders with the raster engine only")
+    if engine != "cycles" and scene != "standard":
+        raise click.UsageError("--scene varied renders with --engine cycles only")
     # (folder, its conditions): one set, or one per condition
     sets = ([(str(Path(out) / c), (c,)) for c in conditions] if per_condition
             else [(out, conditions)])
@@ -188,7 +200,8 @@ def render_cmd(
             **({"conditions": list(conds)} if conds else {}),
             **napkin_provenance(layout),
             **(
-                {"engine": engine, "envelope": envelope, "samples": samples}
+                {"engine": engine, "envelope": envelope, "samples": samples,
+                 **({"scene": scene} if scene != "standard" else {})}
                 if engine == "cycles"
                 else {}
             ),
@@ -204,6 +217,7 @@ def render_cmd(
             options = {
                 "nominal": nominal, "clean": clean, "layout": layout, "engine": engine,
                 "envelope": envelope, "samples": samples, "threads": threads,
+                "scene": scene,
             }
         with folder_lock(folder):
             _render_set(

@@ -100,6 +100,8 @@ class AreaLight:
         Colour temperature.
     power_w : float
         Blender's power, watts.
+    roll_deg : float
+        Turn of the light about its own axis (a bar lamp's direction).
     """
 
     position: tuple[float, float, float]
@@ -107,6 +109,7 @@ class AreaLight:
     size_m: tuple[float, float]
     kelvin: float
     power_w: float
+    roll_deg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -133,6 +136,14 @@ class PhotoLook:
         The camera's body and mount are in the scene (they shade it, unseen by the camera).
     bar_lamp : bool
         The key light is a bar whose reflection crosses the napkin.
+    table : str
+        ``"matte"`` (of ``table_rgb``) or ``"wood"`` (of ``wood``).
+    wood : WoodTable or None
+        The wooden table's grain (:mod:`dgli_vision.sim.photo_variety`).
+    bar_sticker : int or None
+        The sticker (index of ``ClothState.sticker_points``) the bar's streak is aimed at.
+    scene : str
+        ``"standard"`` or ``"varied"`` (what drew it: ``--scene``).
     """
 
     lights: tuple[AreaLight, ...]
@@ -146,10 +157,14 @@ class PhotoLook:
     laminate_roughness: float = 0.05
     camera_body: bool = True
     bar_lamp: bool = False
+    table: str = "matte"
+    wood: Any = None
+    bar_sticker: int | None = None
+    scene: str = "standard"
 
     def to_json(self) -> dict[str, Any]:
         """JSON-ready form (for ``truth.json``)."""
-        return {
+        out = {
             "lights": [
                 {
                     "position_m": [round(v, 4) for v in li.position],
@@ -165,9 +180,20 @@ class PhotoLook:
             "sheen": round(self.sheen, 3),
             "laminate_roughness": round(self.laminate_roughness, 3),
         }
+        if self.scene != "standard":  # the standard scene's entries stay as they were
+            out["scene"] = self.scene
+            out["table"] = self.table
+            out["bump"] = round(self.bump, 3)
+            if self.wood is not None:
+                out["wood"] = self.wood.to_json()
+            if self.bar_sticker is not None:
+                out["bar_sticker"] = self.bar_sticker
+            for entry, li in zip(out["lights"], self.lights):
+                entry["roll_deg"] = round(li.roll_deg, 1)
+        return out
 
 
-def _towards(centre: NDArray, polar_deg: float, azimuth_deg: float, dist: float) -> NDArray:
+def towards(centre: NDArray, polar_deg: float, azimuth_deg: float, dist: float) -> NDArray:
     p, a = np.radians(polar_deg), np.radians(azimuth_deg)
     return centre + dist * np.array([np.sin(p) * np.cos(a), np.sin(p) * np.sin(a), np.cos(p)])
 
@@ -198,7 +224,7 @@ def draw_look(
         )
     else:
         dist = float(rng.uniform(0.9, 1.8))
-        pos = _towards(centre, rng.uniform(0, 50), rng.uniform(0, 360), dist)
+        pos = towards(centre, rng.uniform(0, 50), rng.uniform(0, 360), dist)
         side = float(rng.uniform(0.2, 0.8))
         key = AreaLight(tuple(pos), tuple(centre), (side, side), kelvin, 0.0)
     # power so that the napkin's centre gets about the same light at any distance
@@ -207,7 +233,7 @@ def draw_look(
     if rng.random() < 2 / 3:
         fk = kelvin if rng.random() < 0.5 else float(rng.uniform(2700, 6500))
         fd = float(rng.uniform(1.0, 2.0))
-        fpos = _towards(centre, rng.uniform(20, 70), rng.uniform(0, 360), fd)
+        fpos = towards(centre, rng.uniform(20, 70), rng.uniform(0, 360), fd)
         lights.append(
             AreaLight(
                 tuple(fpos), tuple(centre), (1.0, 1.0), fk,
@@ -342,6 +368,52 @@ def _cloth_material(bpy: Any, look: PhotoLook, layout: NapkinLayout) -> Any:
     return mat
 
 
+def _wood_material(bpy: Any, wood: Any) -> Any:
+    """A varnished wooden table top: growth rings across the grain (Blender's wave
+    texture in bands, wandering by its distortion), the figure stretched along the
+    grain, pores as fine noise, and a bump that follows the rings."""
+    mat = bpy.data.materials.new("wood")
+    mat.use_nodes = True
+    nt = mat.node_tree
+    nodes = _Nodes(nt)
+    bsdf = nt.nodes["Principled BSDF"]
+    coord = nodes.new("ShaderNodeTexCoord")  # object coordinates: world metres here
+    turn = nodes.new("ShaderNodeMapping", vector_type="POINT")
+    turn.inputs["Rotation"].default_value = (0.0, 0.0, -np.radians(wood.direction_deg))
+    turn.inputs["Location"].default_value = (wood.seed, 2.0 * wood.seed, 0.5 * wood.seed)
+    nodes.link(coord.outputs["Object"], turn.inputs["Vector"])
+    # bands along x: one period is 2 pi / 20 in the texture's units
+    per_m = (2 * np.pi / 20) / (wood.ring_mm * 1e-3)
+    grain = nodes.new("ShaderNodeMapping", vector_type="POINT")
+    grain.inputs["Scale"].default_value = (per_m, per_m / wood.stretch, per_m)
+    nodes.link(turn.outputs["Vector"], grain.inputs["Vector"])
+    wave = nodes.new("ShaderNodeTexWave", wave_type="BANDS", bands_direction="X")
+    wave.inputs["Scale"].default_value = 1.0
+    wave.inputs["Distortion"].default_value = wood.distortion
+    wave.inputs["Detail"].default_value = 3.0
+    wave.inputs["Detail Scale"].default_value = 0.05
+    nodes.link(grain.outputs["Vector"], wave.inputs["Vector"])
+    pores = nodes.new("ShaderNodeTexNoise", noise_dimensions="3D")
+    pores.inputs["Scale"].default_value = 900.0
+    nodes.link(grain.outputs["Vector"], pores.inputs["Vector"])
+    late = nodes.math("POWER", wave.outputs["Fac"], 2.0)
+    fac = nodes.math("ADD", nodes.math("MULTIPLY", late, 0.85),
+                     nodes.math("MULTIPLY", pores.outputs["Fac"], 0.15))
+    mix = nodes.new("ShaderNodeMix", data_type="RGBA", blend_type="MIX")
+    mix.inputs["A"].default_value = (*wood.light_rgb, 1.0)
+    mix.inputs["B"].default_value = (*wood.dark_rgb, 1.0)
+    nodes.link(fac, mix.inputs["Factor"])
+    nodes.link(mix.outputs["Result"], bsdf.inputs["Base Color"])
+    bsdf.inputs["Roughness"].default_value = wood.roughness
+    bsdf.inputs["Specular IOR Level"].default_value = 0.5
+    bump = nodes.new("ShaderNodeBump")
+    bump.inputs["Strength"].default_value = 0.15
+    bump.inputs["Distance"].default_value = 0.0002
+    nodes.link(fac, bump.inputs["Height"])
+    nodes.link(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    return mat
+
+
 def _float_image(bpy: Any, name: str, rgb: NDArray) -> Any:
     """A linear float image of ``rgb`` (h, w, 3), row 0 at v = 0 (Blender's bottom)."""
     h, w = rgb.shape[:2]
@@ -398,6 +470,15 @@ def _aim(obj: Any, position: NDArray, target: NDArray) -> None:
     obj.rotation_euler = direction.to_track_quat("-Z", "Y").to_euler()
 
 
+def _roll(obj: Any, roll_deg: float) -> None:
+    """Turn an aimed light about its own axis by ``roll_deg``."""
+    if roll_deg:
+        from mathutils import Quaternion
+
+        quat = obj.rotation_euler.to_quaternion() @ Quaternion((0, 0, 1), np.radians(roll_deg))
+        obj.rotation_euler = quat.to_euler()
+
+
 def _add_lights(bpy: Any, look: PhotoLook) -> None:
     scene = bpy.context.scene
     for k, li in enumerate(look.lights):
@@ -409,6 +490,7 @@ def _add_lights(bpy: Any, look: PhotoLook) -> None:
         obj = bpy.data.objects.new(f"light{k}", data)
         scene.collection.objects.link(obj)
         _aim(obj, np.asarray(li.position), np.asarray(li.target))
+        _roll(obj, li.roll_deg)
     world = bpy.data.worlds.new("room")
     world.use_nodes = True
     bg = world.node_tree.nodes["Background"]
@@ -527,7 +609,8 @@ def path_trace(
     big = 3.0
     table = np.array([[-big, -big, -2e-4], [big, -big, -2e-4], [big, big, -2e-4],
                       [-big, big, -2e-4]]) + np.append(state.mesh.xyz[:, :2].mean(axis=0), 0)
-    table_mat = _principled(bpy, "table", look.table_rgb, 0.7, 0.3)
+    table_mat = (_wood_material(bpy, look.wood) if look.wood is not None
+                 else _principled(bpy, "table", look.table_rgb, 0.7, 0.3))
     _mesh_object(bpy, "table", table, np.array([[0, 1, 2], [0, 2, 3]]), table_mat)
     _add_lights(bpy, look)
     _camera(bpy, pose, intrinsics)
@@ -578,6 +661,8 @@ def render_cycles(
     seed: int = 0,
     threads: int = 2,
     clean: bool = False,
+    camera: CameraModel | None = None,
+    tof: ToFModel | None = None,
 ) -> RenderResult:
     """A path-traced RGB-D pair of a cloth state, as a camera delivers it.
 
@@ -598,6 +683,9 @@ def render_cycles(
         CPU threads Cycles uses.
     clean : bool, keyword-only
         An ideal camera: exposure from the scene's white, exact depth to the mm.
+    camera, tof : CameraModel, ToFModel, keyword-only
+        The colour camera's pipeline and the depth camera (default: their defaults;
+        ignored with ``clean``).
 
     Returns
     -------
@@ -618,9 +706,11 @@ def render_cycles(
         threads=threads,
     )
     cpu = time.process_time() - cpu  # all of Cycles' threads
-    color, drawn = colour_camera(linear, CameraModel(ideal=clean), rng)
+    camera = CameraModel(ideal=True) if clean else (camera or CameraModel())
+    tof = ToFModel(ideal=True) if clean else (tof or ToFModel())
+    color, drawn = colour_camera(linear, camera, rng)
     z_mm, cos, glossy, scene = _depth_view(state, pose, intrinsics, layout)
-    depth = tof_depth(z_mm, cos, glossy, ToFModel(ideal=clean), rng)
+    depth = tof_depth(z_mm, cos, glossy, tof, rng)
     from .conditions import Conditions
 
     cond = Conditions()

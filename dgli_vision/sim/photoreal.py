@@ -17,9 +17,18 @@ from ..core.errors import InvalidValueError
 from ..core.layout import NapkinLayout, default_layout
 from .cloth.states import VARIANTS, ClothState, sample_state
 from .dataset import NOMINAL_HEIGHT_M, RenderedSample, _fits, sample_name
+from .photo_variety import check_scene, draw_pipeline, draw_varied_look, offset_camera
 from .render_scene import Lighting
 
-__all__ = ["ENVELOPES", "envelope_of", "photo_camera", "render_photo_sample"]
+__all__ = [
+    "ENVELOPES",
+    "WIDE_ENVELOPE",
+    "envelope_of",
+    "envelope_range",
+    "photo_camera",
+    "render_photo_sample",
+    "varied_draws",
+]
 
 #: Camera envelopes: distance from the camera to the napkin's centre along its axis (m)
 #: and the largest tilt of the axis from the vertical (degrees). ``spec``: SPEC's
@@ -29,8 +38,22 @@ ENVELOPES: dict[str, tuple[tuple[float, float], float]] = {
     "far": ((0.70, 1.00), 25.0),
     "head": ((1.00, 1.20), 35.0),
 }
-#: ``--envelope all`` takes them in turn over the pairs.
-ENVELOPE_CHOICES = (*ENVELOPES, "all")
+#: ``wide``: a camera 1.0-2.0 m from the napkin, tilted up to 35 degrees, stickers 18 down
+#: to 9 px across at the nominal focal length (beyond SPEC; not in ``all``).
+WIDE_ENVELOPE: tuple[tuple[float, float], float] = ((1.0, 2.0), 35.0)
+#: ``--envelope all`` takes the three of :data:`ENVELOPES` in turn over the pairs.
+ENVELOPE_CHOICES = (*ENVELOPES, "wide", "all")
+
+
+def envelope_range(envelope: str) -> tuple[tuple[float, float], float]:
+    """Distances (m) and largest tilt (degrees) of a single envelope."""
+    if envelope == "wide":
+        return WIDE_ENVELOPE
+    if envelope not in ENVELOPES:
+        raise InvalidValueError(
+            f"unknown envelope {envelope!r}; expected one of {ENVELOPE_CHOICES}"
+        )
+    return ENVELOPES[envelope]
 
 
 def envelope_of(envelope: str, class_id: str, k: int) -> str:
@@ -38,10 +61,7 @@ def envelope_of(envelope: str, class_id: str, k: int) -> str:
     turn, shifted by the class, so every class and every envelope gets its share."""
     if envelope == "all":
         return list(ENVELOPES)[(int(class_id) + k) % len(ENVELOPES)]
-    if envelope not in ENVELOPES:
-        raise InvalidValueError(
-            f"unknown envelope {envelope!r}; expected one of {ENVELOPE_CHOICES}"
-        )
+    envelope_range(envelope)  # known
     return envelope
 
 
@@ -65,7 +85,7 @@ def photo_camera(
         ``envelope``, ``distance_m``, ``height_m``, ``tilt_deg``, ``tilt_direction_deg``,
         ``yaw_deg``.
     """
-    (lo, hi), max_tilt = ENVELOPES[envelope]
+    (lo, hi), max_tilt = envelope_range(envelope)
     centre = state.mesh.xyz[:, :2].mean(axis=0)
     for attempt in range(300):
         if nominal:
@@ -114,6 +134,7 @@ def render_photo_sample(
     clean: bool = False,
     intrinsics: Intrinsics = DEFAULT_INTRINSICS,
     layout: NapkinLayout | None = None,
+    scene: str = "standard",
 ) -> RenderedSample:
     """Pair ``k`` of class ``class_id`` path-traced by Cycles.
 
@@ -122,6 +143,11 @@ def render_photo_sample(
     the pair's envelope (:func:`envelope_of`), then the light and the materials; the
     camera pipeline and the depth model draw from a stream of their own, and Cycles'
     seed is the pair's, so a pair renders the same every time.
+
+    ``scene="varied"`` (:mod:`dgli_vision.sim.photo_variety`) aims the camera anywhere
+    the napkin stays in view, draws a wooden or matte table, a bar lamp whose streak
+    crosses a sticker the camera sees, lamps of their own colours, and the camera
+    pipeline's and depth model's parameters; the standard scene is as it was.
     """
     from .cycles_scene import draw_look, render_cycles
 
@@ -131,9 +157,15 @@ def render_photo_sample(
     variant = options[(k + seed) % len(options)]
     state = sample_state(class_id, variant, rng, layout=layout)
     env = envelope_of(envelope, class_id, k)
-    pose, camera = photo_camera(state, rng, env, intrinsics=intrinsics, nominal=nominal)
-    lighting = Lighting.random(rng)
-    look = draw_look(state, pose, lighting, rng)
+    if check_scene(scene) == "varied":
+        pose, camera, lighting, look, models = _varied_draws(
+            state, rng, env, intrinsics, layout, nominal
+        )
+    else:
+        pose, camera = photo_camera(state, rng, env, intrinsics=intrinsics, nominal=nominal)
+        lighting = Lighting.random(rng)
+        look = draw_look(state, pose, lighting, rng)
+        models = {}
     result = render_cycles(
         state,
         pose,
@@ -145,5 +177,47 @@ def render_photo_sample(
         seed=cycles_seed(seed, class_id, k),
         threads=threads,
         clean=clean,
+        **models,
     )
     return RenderedSample(sample_name(class_id, k), state, result, camera, lighting)
+
+
+def _varied_draws(
+    state: ClothState,
+    rng: np.random.Generator,
+    envelope: str,
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    nominal: bool,
+) -> tuple[CameraPose, dict[str, Any], Lighting, Any, dict[str, Any]]:
+    """The camera, lighting, look and camera models of a ``--scene varied`` pair."""
+    from .render import _visible_fraction
+    from .render_scene import RaycastScene
+
+    if nominal:
+        pose, camera = photo_camera(state, rng, envelope, intrinsics=intrinsics, nominal=True)
+    else:
+        distances, tilt = envelope_range(envelope)
+        pose, camera = offset_camera(state, rng, distances, tilt, intrinsics, _fits)
+    lighting = Lighting.random(rng)
+    visible = _visible_fraction(state, pose, RaycastScene(state), intrinsics, layout)
+    look = draw_varied_look(state, pose, lighting, rng, visible)
+    colour, tof = draw_pipeline(rng)
+    return pose, camera, lighting, look, {"camera": colour, "tof": tof}
+
+
+def varied_draws(
+    class_id: str, k: int, seed: int, *, envelope: str = "wide",
+    intrinsics: Intrinsics = DEFAULT_INTRINSICS, layout: NapkinLayout | None = None,
+) -> dict[str, Any]:
+    """What pair ``k`` of a class draws under ``--scene varied``, without rendering it
+    (no Blender): ``pose``, ``camera`` (the envelope's draw), ``look`` and the camera
+    ``models``, exactly as :func:`render_photo_sample` draws them."""
+    layout = layout or default_layout()
+    rng = np.random.default_rng([seed, int(class_id), k, 7])
+    options = VARIANTS[class_id]
+    state = sample_state(class_id, options[(k + seed) % len(options)], rng, layout=layout)
+    env = envelope_of(envelope, class_id, k)
+    pose, camera, _, look, models = _varied_draws(state, rng, env, intrinsics, layout, False)
+    return {"state": state, "pose": pose, "camera": camera, "look": look,
+            "colour_model": models["camera"], "tof_model": models["tof"]}
