@@ -105,6 +105,8 @@ def test_slivers_count_as_edge_on_only_as_one_flaps_group_of_three():
     from dgli_vision.perception.detections import Rejection, RejectionKind, StickerDetections
 
     class Masks:
+        occluder = np.zeros((4, 4), bool)
+
         def height_at(self, centres):
             return np.asarray(centres)[:, 1].copy()  # (the height is the v coordinate)
 
@@ -123,6 +125,8 @@ def test_slivers_count_as_edge_on_only_as_one_flaps_group_of_three():
     assert heights(sliver(0, 1), sliver(40, 2), sliver(80, 3, ratio=0.1)) == []
     assert heights(sliver(0, 1), sliver(400, 2), sliver(800, 3)) == []
     assert heights(sliver(0, 1), sliver(40, 2), sliver(80, 3), sliver(900, 4)) == [1.0, 2.0, 3.0]
+    assert heights(sliver(0, 1), sliver(40, 2), sliver(80, 45)) == []  # one stands up
+    assert heights(*[sliver(10 * i, 1) for i in range(9)]) == []  # every sticker small
 
 
 def test_cloth_held_up_over_bare_table_is_told_from_a_flap_seen_as_cloth():

@@ -50,6 +50,14 @@ SLIVER_RATIO = (0.3, 0.55)
 #: cut by a crease or under another flap's edge, 4-6 mm above the table).
 MIN_SLIVERS = 3
 
+#: Most slivers in a frame for them to be a flap's: two flaps' stickers. More is every
+#: sticker seen too small, a wrong focal length or scale (the scale check says so).
+MAX_SLIVERS = 8
+
+#: Distance (pixels) from an object above the napkin within which a sliver may be a
+#: sticker cut by the object (a gripper's fingers), not one seen edge-on.
+SLIVER_OBJECT_PX = 24.0
+
 #: How far apart (mm, at their depth) the stickers of one corner's flap can lie: the
 #: four stickers of a corner span at most about 150 mm (SPEC's layout).
 SLIVER_REACH_MM = 150.0
@@ -65,14 +73,24 @@ def edge_on_heights(
     (:attr:`.RejectionKind.OBLIQUE`) and, given the focal length ``fx`` (pixels), the
     largest group of :data:`MIN_SLIVERS` or more slivers (blobs rejected as too small,
     with an area ratio in :data:`SLIVER_RATIO`) within :data:`SLIVER_REACH_MM` of each
-    other: a flap's stickers seen nearly edge-on.
+    other, no more than :data:`MAX_SLIVERS` in the frame, when every one of them lies
+    below :data:`EDGE_ON_MIN_MM` in depth and none beside an object: a flap's stickers
+    seen nearly edge-on whose depth has them flat.
     """
     centres = [r.centroid for r in detections.rejected if r.kind is RejectionKind.OBLIQUE]
-    if fx is not None:
-        centres += _sliver_group(detections.rejected, fx)
-    if not centres:
-        return np.zeros(0)
-    return masks.height_at(np.asarray(centres, dtype=np.float64))
+    heights = (
+        masks.height_at(np.asarray(centres, dtype=np.float64)) if centres else np.zeros(0)
+    )
+    group = _sliver_group(detections.rejected, fx) if fx is not None else []
+    if group:
+        uv = np.asarray(group, dtype=np.float64)
+        h = masks.height_at(uv)
+        # one flap's stickers seen nearly edge-on, every one of them lying flat in depth,
+        # none beside an object (a gripper's fingers cut stickers small too)
+        beside = masks.near(masks.occluder, uv, SLIVER_OBJECT_PX) if masks.occluder.any() else []
+        if np.all(np.nan_to_num(h, nan=np.inf) < EDGE_ON_MIN_MM) and not np.any(beside):
+            heights = np.concatenate([heights, h])
+    return heights
 
 
 def _sliver_group(rejected: tuple, fx: float) -> list[tuple[float, float]]:
@@ -84,7 +102,7 @@ def _sliver_group(rejected: tuple, fx: float) -> list[tuple[float, float]]:
         if r.kind is RejectionKind.TOO_SMALL and lo <= float(r.values["ratio"]) < hi
         and float(r.values.get("z_mm", 0.0)) > 0.0
     ]
-    if len(slivers) < MIN_SLIVERS:
+    if not MIN_SLIVERS <= len(slivers) <= MAX_SLIVERS:
         return []
     uv = np.asarray([r.centroid for r in slivers], dtype=np.float64)
     reach_px = SLIVER_REACH_MM * fx / np.asarray([r.values["z_mm"] for r in slivers], float)
