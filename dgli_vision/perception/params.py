@@ -442,11 +442,17 @@ class PartialParams:
     min_apart : float
         Smallest distance, in disc radii, from a sticker found of the same disc colour:
         the colour must be this sticker's, not a neighbour's. Default 2.5.
+    min_dot : float
+        Smallest share of the centre (the dot's size) that shows the sticker's dot
+        colour, for a sticker confirmed at its place by its (disc, dot) pair
+        (:func:`.partial.confirm_at_place`). Default 0.3: a blurred dot 3-4 px across
+        at 1-2 m keeps 0.4-0.9 of its colour; another sticker's dot none.
     """
 
     min_colour: float = 0.2
     disc_share: float = 0.9
     min_apart: float = 2.5
+    min_dot: float = 0.3
 
 
 @dataclass(frozen=True)
