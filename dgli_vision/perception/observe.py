@@ -269,7 +269,7 @@ def observe(
         (up, offset), layout, tree.detector, tree.partial, colours=colours,
     )
     detections, markers, evidence = confirm_at_place(
-        frame.color, frame.depth_mm, napkin.lut, (detections, markers, evidence),
+        frame.color, frame.depth_mm, napkin, (detections, markers, evidence),
         frame.intrinsics, layout, tree.detector, tree.partial, colours=colours,
     )
     clock.lap("evidence")
