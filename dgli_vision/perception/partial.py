@@ -225,7 +225,8 @@ def confirm_at_place(
     -------
     (StickerDetections, Markers3D, StickerEvidence)
         The same, with each confirmed sticker found (scored as half the median of the
-        stickers found, as the second search scores its own) and seen.
+        stickers found, as the second search scores its own; its area the disc's
+        face-on at the depth read, its foreshortening 1) and seen.
     """
     detections, markers, evidence = found
     if markers.found.sum() < 3 or markers.found.all():
@@ -274,8 +275,14 @@ def confirm_at_place(
     det, mk, ev = _taken(detections, markers, evidence, confirmed, px, points)
     scores, areas = det.scores.copy(), det.areas.copy()
     scores[confirmed] = 0.5 * float(np.median(detections.scores[detections.found]))
-    areas[confirmed] = np.pi * radius**2
-    return replace(det, scores=scores, areas=areas), mk, ev
+    # the disc's face-on area at the depth read there (what is left of it says nothing
+    # of its size), so that the sticker size the classifier reads stays a size
+    areas[confirmed] = np.pi * (0.5 * layout.disc_diameter_mm * intrinsics.fx / (z_m * 1e3)) ** 2
+    fore = None
+    if det.foreshortening is not None:
+        fore = det.foreshortening.copy()
+        fore[confirmed] = 1.0
+    return replace(det, scores=scores, areas=areas, foreshortening=fore), mk, ev
 
 
 def _places(
