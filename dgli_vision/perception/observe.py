@@ -34,7 +34,7 @@ from .handedness import back_face_up, image_turns
 from .lift import Markers3D, estimate_table_plane, lift_stickers
 from .napkin import NapkinView, find_napkin
 from .params import PipelineParams, TipParams, params_of
-from .partial import confirm_partly_hidden
+from .partial import confirm_at_place, confirm_partly_hidden
 from .rigid import RigidFit
 from .scale import NapkinRuler, measure_napkin
 from .tips import corner_tips_and_pose
@@ -267,6 +267,10 @@ def observe(
     detections, markers, evidence = confirm_partly_hidden(
         frame.color, napkin.lut, detections, markers, evidence, frame.intrinsics,
         (up, offset), layout, tree.detector, tree.partial, colours=colours,
+    )
+    detections, markers, evidence = confirm_at_place(
+        frame.color, frame.depth_mm, napkin, (detections, markers, evidence),
+        frame.intrinsics, layout, tree.detector, tree.partial, colours=colours,
     )
     clock.lap("evidence")
     visible = markers.found

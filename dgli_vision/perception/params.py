@@ -442,11 +442,39 @@ class PartialParams:
     min_apart : float
         Smallest distance, in disc radii, from a sticker found of the same disc colour:
         the colour must be this sticker's, not a neighbour's. Default 2.5.
+    min_dot : float
+        Smallest share of the centre (the dot's size) that shows the sticker's dot
+        colour, for a sticker confirmed at its place by its (disc, dot) pair
+        (:func:`.partial.confirm_at_place`). Default 0.3: a blurred dot 3-4 px across
+        at 1-2 m keeps 0.4-0.9 of its colour; another sticker's dot none.
+    min_whole : float
+        For a sticker whose dot has its disc's colour (no dot to centre it on): the
+        smallest share of the ring that must show that colour, so that the centroid is
+        the disc's centre and not a crescent's. Default 0.6.
+    min_white : float
+        Around a sticker confirmed at its place, the median of the smallest channel
+        (balanced to the napkin's white) 1.3-1.8 radii out, as a share of that around
+        the stickers found. Default 0.85: the napkin around a washed or cut sticker
+        keeps 0.9-1.0; a grey table 0.65.
+    min_sticker_px : float
+        No sticker is confirmed at its place where stickers are smaller than this
+        (pixels across at the depth of those seen): the classifier's capture limit
+        (``classifier.capture_limits.MIN_STICKER_PX``, 10), below which identities are
+        guesses.
+    fit_tolerance_mm : float
+        Inlier tolerance of the rigid fit of every sticker seen that says where to look
+        for a missing one when the evidence stage predicts nothing. Default 10 mm, the
+        evidence stage's.
     """
 
     min_colour: float = 0.2
     disc_share: float = 0.9
     min_apart: float = 2.5
+    min_dot: float = 0.3
+    min_whole: float = 0.6
+    min_white: float = 0.85
+    min_sticker_px: float = 10.0
+    fit_tolerance_mm: float = 10.0
 
 
 @dataclass(frozen=True)
