@@ -163,16 +163,7 @@ def render_cmd(
     from ..sim.dataset import render_plan
     from ..sources.labelled import labelled_folder_files
 
-    if per_condition and not conditions:
-        raise click.UsageError("--per-condition needs --conditions C,...")
-    if not sequence and per_class == 0 and outside == 0:
-        raise click.UsageError("--per-class 0 renders nothing: give --outside N as well")
-    if sequence and outside:
-        raise click.UsageError("--outside renders single pairs, not a --sequence")
-    if engine == "cycles" and outside:
-        raise click.UsageError("--outside renders with the raster engine only")
-    if engine != "cycles" and scene != "standard":
-        raise click.UsageError("--scene varied renders with --engine cycles only")
+    _check_options(per_condition, conditions, sequence, per_class, outside, engine, scene)
     # (folder, its conditions): one set, or one per condition
     sets = ([(str(Path(out) / c), (c,)) for c in conditions] if per_condition
             else [(out, conditions)])
@@ -224,6 +215,28 @@ def render_cmd(
                 folder, names, cases, provenance, options, resume=resume, overwrite=overwrite,
                 jobs=jobs,
             )
+
+
+def _check_options(
+    per_condition: bool,
+    conditions: tuple[str, ...],
+    sequence: str | None,
+    per_class: int,
+    outside: int,
+    engine: str,
+    scene: str,
+) -> None:
+    """The options that do not go together, refused as a usage error (exit 2)."""
+    if per_condition and not conditions:
+        raise click.UsageError("--per-condition needs --conditions C,...")
+    if not sequence and per_class == 0 and outside == 0:
+        raise click.UsageError("--per-class 0 renders nothing: give --outside N as well")
+    if sequence and outside:
+        raise click.UsageError("--outside renders single pairs, not a --sequence")
+    if engine == "cycles" and outside:
+        raise click.UsageError("--outside renders with the raster engine only")
+    if engine != "cycles" and scene != "standard":
+        raise click.UsageError("--scene varied renders with --engine cycles only")
 
 
 def _render_set(

@@ -253,16 +253,9 @@ def observe(
     turns = image_turns(located, layout)
     clock.lap("lift")
     evidence = assess_stickers(
-        markers,
-        frame.intrinsics,
-        layout,
-        napkin.masks(),
-        dropped=dropped,
-        foreshortening=detections.foreshortening,
-        up=up,
-        pale_colours=detections.pale_colours,
-        turns=turns,
-        params=tree.evidence,
+        markers, frame.intrinsics, layout, napkin.masks(), dropped=dropped,
+        foreshortening=detections.foreshortening, up=up,
+        pale_colours=detections.pale_colours, turns=turns, params=tree.evidence,
     )
     detections, markers, evidence = confirm_partly_hidden(
         frame.color, napkin.lut, detections, markers, evidence, frame.intrinsics,

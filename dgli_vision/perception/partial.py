@@ -267,6 +267,20 @@ def confirm_at_place(
             taken[s] = where
     if not taken:
         return found
+    return _as_seen(found, taken, depth_mm, intrinsics, layout, radius)
+
+
+def _as_seen(
+    found: tuple[StickerDetections, Markers3D, StickerEvidence],
+    taken: dict[int, NDArray[np.float64]],
+    depth_mm: NDArray[np.uint16],
+    intrinsics: Intrinsics,
+    layout: NapkinLayout,
+    radius: float,
+) -> tuple[StickerDetections, Markers3D, StickerEvidence]:
+    """``found`` with the stickers ``taken`` (id -> pixel) seen there, at the depth read
+    around each (:func:`confirm_at_place`'s result)."""
+    detections, markers, evidence = found
     confirmed = list(taken)
     px = np.array([taken[s] for s in confirmed])
     z_m = np.array([_depth_at(depth_mm, uv, radius) for uv in px]) * 1e-3

@@ -222,8 +222,6 @@ def verify(
         mistake: an unknown state, two of ``legs``/``inset``/``tip``/``offset``, sizes of a fold
         the expected state does not have, legs without the expected variant).
     """
-    import math
-
     from ..classifier.api import frame_from, reference_set_of
     from ..core.errors import InvalidValueError
     from ..core.fold_measure import Crease
@@ -243,25 +241,35 @@ def verify(
         raise InvalidValueError("give expect= (the state the fold should make) or step=")
     else:
         key = _expected(expect)
-        if tip is not None:
-            try:
-                uv = tuple(float(v) for v in tip)
-            except (TypeError, ValueError):
-                uv = ()
-            if len(uv) != 2 or not all(math.isfinite(v) for v in uv):
-                raise InvalidValueError(f"tip must be (u, v) in mm; got {tip!r}")
-            tip = uv
-        if inset is not None and not (isinstance(inset, (int, float)) and 0 < inset < 1000):
-            raise InvalidValueError(f"inset must be a number of mm in (0, 1000); got {inset!r}")
-        if offset is not None and not (
-            isinstance(offset, (int, float)) and math.isfinite(offset) and abs(offset) < 1000
-        ):
-            raise InvalidValueError(f"offset must be a number of mm in (-1000, 1000); got "
-                                    f"{offset!r}")
-        sizes = {"legs": _legs(legs), "inset_mm": inset, "tip_mm": tip, "offset_mm": offset}
+        sizes = _requested_sizes(legs, inset, tip, offset)
         check_request(key, **sizes)
     frame = frame_from(color, depth, intrinsics)
     refs = reference_set_of(references)
     layout = layout_of_size(refs.napkin_mm)
     result = classify_frame(frame, refs, layout=layout, mirroring=mirroring)
     return verify_fold(result, key, layout, tolerance_mm=float(tolerance), **sizes)
+
+
+def _requested_sizes(legs: Any, inset: Any, tip: Any, offset: Any) -> dict[str, Any]:
+    """:func:`verify`'s sizes of the fold asked for, checked: each a number of mm in its
+    range (one line naming the one that is not)."""
+    import math
+
+    from ..core.errors import InvalidValueError
+
+    if tip is not None:
+        try:
+            uv = tuple(float(v) for v in tip)
+        except (TypeError, ValueError):
+            uv = ()
+        if len(uv) != 2 or not all(math.isfinite(v) for v in uv):
+            raise InvalidValueError(f"tip must be (u, v) in mm; got {tip!r}")
+        tip = uv
+    if inset is not None and not (isinstance(inset, (int, float)) and 0 < inset < 1000):
+        raise InvalidValueError(f"inset must be a number of mm in (0, 1000); got {inset!r}")
+    if offset is not None and not (
+        isinstance(offset, (int, float)) and math.isfinite(offset) and abs(offset) < 1000
+    ):
+        raise InvalidValueError(f"offset must be a number of mm in (-1000, 1000); got "
+                                f"{offset!r}")
+    return {"legs": _legs(legs), "inset_mm": inset, "tip_mm": tip, "offset_mm": offset}
