@@ -93,7 +93,8 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
     echo "$want" > .venv/.dgli-setup-stamp
 fi
 
-# photoreal (--test): Blender as a Python module, for `dgli render --engine cycles`. Its
+# photoreal (--test): Blender as a Python module (and Open3D, the sim extra, which the
+# renderer reads meshes with), for `dgli render --engine cycles`. Its
 # bpy needs numpy < 2 (and so OpenCV 4.11), which the main environment is not moved to: the extra
 # gets a virtual environment of its own, .venv-photoreal/ (Python 3.11 only, as bpy;
 # about 20 s from a package cache, 1.5 GB). DGLI_NO_PHOTOREAL=1 skips it.
@@ -107,7 +108,7 @@ if [ "$mode" = test ] && [ "${DGLI_NO_PHOTOREAL:-0}" != "1" ] \
         if .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check --upgrade pip \
             && PYTHONWARNINGS="ignore:Editable installation" \
                 .venv-photoreal/bin/python -m pip install -q --disable-pip-version-check \
-                -e '.[photoreal]'; then
+                -e '.[photoreal,sim]'; then
             echo "$want" > "$stamp"
         else
             echo "setup: the photoreal extra (bpy) did not install; its tests will skip" >&2
