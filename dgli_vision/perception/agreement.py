@@ -197,17 +197,23 @@ def bare_table_raised(color: NDArray[np.uint8], masks: NapkinMasks) -> BareRaise
     -------
     BareRaised or None
         None without heights or a napkin mask, or with too little bare table to learn
-        its colour from (fewer than 50 samples).
+        its colour from (fewer than 50 samples). With fewer than
+        :data:`BARE_MIN_SAMPLES` raised samples of no napkin colour at all, ``bare`` is
+        0 and the table's colour is not read.
     """
     if masks.height_mm is None or masks.cloth is None:
         return None
+    height = np.nan_to_num(masks.height_mm, nan=-np.inf)
+    cloth = masks.cloth
+    raised = height > RAISED_MM
+    candidates = raised & ~cloth & ~masks.occluder
+    if int(candidates.sum()) < BARE_MIN_SAMPLES:  # (too few to count: the table not read)
+        return BareRaised(raised=int(raised.sum()), bare=0, cloth=int(cloth.sum()))
     s = masks.stride
-    hh, ww = masks.cloth.shape
+    hh, ww = cloth.shape
     rows = np.minimum(np.arange(hh) * s, color.shape[0] - 1)
     cols = np.minimum(np.arange(ww) * s, color.shape[1] - 1)
     rgb = color[rows[:, None], cols[None, :]].astype(np.float32)
-    height = np.nan_to_num(masks.height_mm, nan=-np.inf)
-    cloth = masks.cloth
     kernel = np.ones((5, 5), np.uint8)
     near_cloth = cv2.dilate(cloth.astype(np.uint8), kernel).astype(bool)
     table = (np.abs(height) < 4.0) & ~near_cloth & ~masks.occluder & ~masks.highlight
@@ -216,8 +222,7 @@ def bare_table_raised(color: NDArray[np.uint8], masks: NapkinMasks) -> BareRaise
     centre = np.median(rgb[table], axis=0)
     spread = 1.4826 * np.median(np.abs(rgb[table] - centre), axis=0)
     like = (np.abs(rgb - centre) <= TABLE_SPREAD * spread + TABLE_LEVELS).all(axis=2)
-    raised = height > RAISED_MM
-    bare = (raised & like & ~cloth & ~masks.occluder).astype(np.uint8)
+    bare = (candidates & like).astype(np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(bare, connectivity=8)
     largest = int(stats[1:, cv2.CC_STAT_AREA].max()) if n > 1 else 0
     return BareRaised(raised=int(raised.sum()), bare=largest, cloth=int(cloth.sum()))

@@ -243,10 +243,7 @@ def confirm_at_place(
     pastel = replace(dp, min_saturation=dp.washed_saturation, min_chroma=dp.washed_chroma)
     radius = 0.5e-3 * layout.disc_diameter_mm * intrinsics.fx / z_m
     lut, names = hue_lut(layout, dp, colours)
-    white = median(np.array([
-        _white_around(color, napkin.lut, uv, radius)
-        for uv in detections.centroids[detections.found]
-    ]))
+    white: list[float] = []  # the napkin's white around the stickers found, when first asked
     taken: dict[int, NDArray[np.float64]] = {}
     for s in ids.tolist():
         pair = (names.index(layout.sticker_disc[s]) + 1, names.index(layout.sticker_dot[s]) + 1)
@@ -259,11 +256,14 @@ def confirm_at_place(
             layout.dot_diameter_mm / layout.disc_diameter_mm,
         )
         taken_px = np.array(list(taken.values())).reshape(-1, 2)
-        if (
-            where is not None
-            and _free(where, detections, taken_px, 2 * radius)
-            and _white_around(color, napkin.lut, where, radius) >= p.min_white * white
-        ):
+        if where is None or not _free(where, detections, taken_px, 2 * radius):
+            continue
+        if not white:
+            white.append(median(np.array([
+                _white_around(color, napkin.lut, uv, radius)
+                for uv in detections.centroids[detections.found]
+            ])))
+        if _white_around(color, napkin.lut, where, radius) >= p.min_white * white[0]:
             taken[s] = where
     if not taken:
         return found
